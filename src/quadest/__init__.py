@@ -1,0 +1,17 @@
+"""quadest: quadcopter attitude and state estimation that keeps working when things go wrong.
+
+Every array in quadest follows one convention, stated in :mod:`quadest.conventions`
+(and docs/conventions.md): Hamilton quaternions ``[w, x, y, z]`` rotating body vectors
+into the navigation frame, navigation frame north-east-down, body frame
+forward-right-down, ZYX Euler angles, SI units.
+"""
+from importlib.metadata import PackageNotFoundError, version as _version
+
+try:
+    __version__ = _version("quadest")
+except PackageNotFoundError:  # running from a source tree that is not installed
+    __version__ = "0.0.0+unknown"
+
+from quadest.data.recording import Recording, load_recording, save_recording  # noqa: E402
+
+__all__ = ["Recording", "load_recording", "save_recording", "__version__"]

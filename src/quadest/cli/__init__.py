@@ -1,0 +1,1 @@
+"""The ``quadest`` command line."""

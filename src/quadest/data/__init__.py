@@ -1,0 +1,6 @@
+"""Sensor data: the :class:`Recording` type, its files, and readers."""
+from quadest.data.recording import TRUTH_FIELDS, Recording, load_recording, save_recording
+from quadest.data.summary import format_summary, summarize
+
+__all__ = ["TRUTH_FIELDS", "Recording", "load_recording", "save_recording", "summarize",
+           "format_summary"]

@@ -1,0 +1,347 @@
+"""One type for a time series of IMU / magnetometer data with optional ground truth.
+
+Conventions: :mod:`quadest.conventions` (NED / FRD, ``q_nb`` scalar first, SI units).
+
+Files: CSV or Parquet, chosen by the file extension, with a lossless round trip. The CSV header
+is fixed (docs/recordings.md)::
+
+    t, gyr_x, gyr_y, gyr_z, acc_x, acc_y, acc_z, mag_x, mag_y, mag_z
+    [, true_q_w, true_q_x, true_q_y, true_q_z] [, true_gyr_x, ...] [, true_pos_n, ...]
+    [, true_vel_n, ...] [, true_acc_x, ...]
+
+and the metadata stands in ``# key: <json>`` comment lines at the top.
+"""
+from __future__ import annotations
+
+import io
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+FORMAT_TAG = "quadest recording v1"
+
+# name -> (columns suffixes, width, description)
+TRUTH_FIELDS = {
+    "true_q": (("w", "x", "y", "z"), "attitude q_nb, [w, x, y, z]"),
+    "true_gyr": (("x", "y", "z"), "body angular rate, rad/s, body frame"),
+    "true_pos": (("n", "e", "d"), "position, m, navigation frame"),
+    "true_vel": (("n", "e", "d"), "velocity, m/s, navigation frame"),
+    "true_acc": (("x", "y", "z"), "specific force at the IMU, m/s², body frame"),
+}
+SENSOR_FIELDS = ("gyr", "acc", "mag")
+
+GYR_LIMIT = 70.0  # rad/s: ±4000 °/s, beyond any MEMS gyroscope's range
+ACC_LIMIT = 1600.0  # m/s²: about 160 g, beyond the range of a flight IMU
+
+
+def columns_of(name: str) -> list[str]:
+    """CSV / Parquet column names of a field (``'gyr'`` -> ``['gyr_x', 'gyr_y', 'gyr_z']``)."""
+    if name in SENSOR_FIELDS:
+        return [f"{name}_{a}" for a in "xyz"]
+    return [f"{name}_{a}" for a in TRUTH_FIELDS[name][0]]
+
+
+def _first_row(mask) -> int:
+    return int(np.flatnonzero(mask)[0])
+
+
+@dataclass(frozen=True, eq=False)
+class Recording:
+    """IMU and magnetometer samples with optional ground truth, on quadest's conventions.
+
+    Parameters
+    ----------
+    t : (N,) timestamps, s; finite and strictly increasing.
+    gyr : (N, 3) gyroscope, rad/s, body frame (FRD); finite.
+    acc : (N, 3) accelerometer specific force, m/s², body frame; finite.
+    mag : (N, 3) magnetometer in any unit (stated in ``meta['units']['mag']``), body frame;
+        a row of NaN means "no new magnetometer sample". ``None`` means no magnetometer.
+    true_q, true_gyr, true_pos, true_vel, true_acc : optional ground truth (see
+        ``TRUTH_FIELDS``); a row of NaN means "no truth at this sample".
+    meta : JSON-serialisable metadata: ``preset``, ``imu_rate_hz``, ``mag_rate_hz``,
+        ``source``, ``units`` and anything else.
+    check_units : if true (default), refuse magnitudes that show a unit mistake (gyroscope in
+        deg/s, acceleration in g or in mg).
+
+    Raises ValueError naming the field and the first bad row.
+    """
+
+    t: np.ndarray
+    gyr: np.ndarray
+    acc: np.ndarray
+    mag: np.ndarray | None = None
+    true_q: np.ndarray | None = None
+    true_gyr: np.ndarray | None = None
+    true_pos: np.ndarray | None = None
+    true_vel: np.ndarray | None = None
+    true_acc: np.ndarray | None = None
+    meta: dict = field(default_factory=dict)
+    check_units: bool = field(default=True, repr=False)
+
+    def __post_init__(self):
+        t = self._array("t", self.t, ndim=1)
+        n = len(t)
+        if n == 0:
+            raise ValueError("t: a recording needs at least one sample")
+        bad = ~np.isfinite(t)
+        if bad.any():
+            raise ValueError(f"t: non-finite value at row {_first_row(bad)}")
+        step = np.diff(t) <= 0
+        if step.any():
+            i = _first_row(step) + 1
+            raise ValueError(f"t: not strictly increasing at row {i} "
+                             f"(t[{i}] = {t[i]!r} <= t[{i - 1}] = {t[i - 1]!r})")
+        object.__setattr__(self, "t", t)
+        for name in ("gyr", "acc"):
+            a = self._array(name, getattr(self, name), width=3, n=n)
+            bad = ~np.isfinite(a).all(axis=1)
+            if bad.any():
+                raise ValueError(f"{name}: non-finite value at row {_first_row(bad)}")
+            object.__setattr__(self, name, a)
+        mag = self.mag if self.mag is not None else np.full((n, 3), np.nan)
+        mag = self._array("mag", mag, width=3, n=n)
+        self._check_nan_rows("mag", mag)
+        object.__setattr__(self, "mag", mag)
+        for name, (axes, _) in TRUTH_FIELDS.items():
+            value = getattr(self, name)
+            if value is None:
+                continue
+            a = self._array(name, value, width=len(axes), n=n)
+            self._check_nan_rows(name, a)
+            if name == "true_q":
+                norm = np.linalg.norm(a, axis=1)
+                bad = np.isfinite(norm) & (np.abs(norm - 1.0) > 1e-6)
+                if bad.any():
+                    i = _first_row(bad)
+                    raise ValueError(f"true_q: row {i} is not a unit quaternion (norm {norm[i]:.6g})")
+            object.__setattr__(self, name, a)
+        if not isinstance(self.meta, dict):
+            raise ValueError("meta: must be a dict")
+        try:
+            meta = json.loads(json.dumps(self.meta))
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"meta: must be JSON-serialisable ({exc})") from None
+        meta.setdefault("units", {})
+        meta["units"] = {"gyr": "rad/s", "acc": "m/s^2", "mag": "unknown", **meta["units"]}
+        object.__setattr__(self, "meta", meta)
+        if self.check_units:
+            self._check_units()
+
+    # -- validation helpers -------------------------------------------------------------
+    @staticmethod
+    def _array(name, value, ndim=2, width=None, n=None):
+        try:
+            a = np.array(value, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"{name}: not a numeric array") from None
+        shape = "(N,)" if ndim == 1 else f"(N, {width})"
+        if a.ndim != ndim or (width is not None and a.shape[1] != width):
+            raise ValueError(f"{name}: expected shape {shape}, got {a.shape}")
+        if n is not None and len(a) != n:
+            raise ValueError(f"{name}: has {len(a)} rows but t has {n}")
+        a.setflags(write=False)
+        return a
+
+    @staticmethod
+    def _check_nan_rows(name, a):
+        nan = np.isnan(a)
+        partial = nan.any(axis=1) & ~nan.all(axis=1)
+        if partial.any():
+            raise ValueError(f"{name}: row {_first_row(partial)} is partly NaN; a row without a "
+                             "sample must be NaN in every column")
+        inf = np.isinf(a).any(axis=1)
+        if inf.any():
+            raise ValueError(f"{name}: infinite value at row {_first_row(inf)}")
+
+    def _check_units(self):
+        big = np.abs(self.gyr).max(axis=1) > GYR_LIMIT
+        if big.any():
+            i = _first_row(big)
+            raise ValueError(
+                f"gyr: {np.abs(self.gyr[i]).max():.1f} at row {i} exceeds {GYR_LIMIT:.0f} rad/s, "
+                "more than any MEMS gyroscope measures: is the gyroscope in deg/s? "
+                "quadest takes rad/s (multiply deg/s by pi/180)")
+        norm = np.linalg.norm(self.acc, axis=1)
+        big = norm > ACC_LIMIT
+        if big.any():
+            i = _first_row(big)
+            raise ValueError(f"acc: norm {norm[i]:.1f} at row {i} exceeds {ACC_LIMIT:.0f} m/s²: "
+                             "is the accelerometer in mg or raw counts? quadest takes m/s²")
+        med, p95 = np.median(norm), np.percentile(norm, 95)
+        if len(norm) >= 10 and 0.5 < med < 1.5 and p95 < 3.0:
+            raise ValueError(f"acc: norms look like g, not m/s² (median {med:.3f}, row 0 reads "
+                             f"{norm[0]:.3f}); quadest takes m/s² (multiply g by 9.80665)")
+
+    # -- properties ---------------------------------------------------------------------
+    def __len__(self):
+        return len(self.t)
+
+    @property
+    def duration(self) -> float:
+        """Time from the first to the last sample, s."""
+        return float(self.t[-1] - self.t[0])
+
+    @property
+    def has_mag(self) -> bool:
+        """True when at least one magnetometer sample is present."""
+        return bool(np.isfinite(self.mag[:, 0]).any())
+
+    @property
+    def truth(self) -> list[str]:
+        """Names of the truth fields present."""
+        return [k for k in TRUTH_FIELDS if getattr(self, k) is not None]
+
+    def imu_rate_hz(self) -> float:
+        """Nominal IMU rate from the median sample interval, Hz."""
+        if len(self.t) < 2:
+            return float(self.meta.get("imu_rate_hz", float("nan")))
+        return float(1.0 / np.median(np.diff(self.t)))
+
+    def mag_rate_hz(self) -> float:
+        """Mean magnetometer rate, Hz (0 without magnetometer)."""
+        k = np.isfinite(self.mag[:, 0]).sum()
+        if k < 2 or self.duration <= 0:
+            return 0.0
+        return float((k - 1) / (self.t[np.isfinite(self.mag[:, 0])][-1]
+                                - self.t[np.isfinite(self.mag[:, 0])][0]))
+
+    def select(self, index) -> "Recording":
+        """A new recording with the rows ``index`` (slice, boolean mask or integer array)."""
+        kw = {k: getattr(self, k)[index] for k in ("t", "gyr", "acc", "mag", *self.truth)}
+        return Recording(**kw, meta=self.meta, check_units=False)
+
+    def between(self, t0: float, t1: float) -> "Recording":
+        """Rows with ``t0 <= t <= t1``."""
+        return self.select((self.t >= t0) & (self.t <= t1))
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """Every column by its file name, in file order."""
+        cols = {"t": self.t}
+        for name in ("gyr", "acc", "mag", *self.truth):
+            a = getattr(self, name)
+            for j, c in enumerate(columns_of(name)):
+                cols[c] = a[:, j]
+        return cols
+
+
+# -- files ---------------------------------------------------------------------------------
+def _kind(path: Path) -> str:
+    ext = path.suffix.lower()
+    if ext == ".csv":
+        return "csv"
+    if ext in (".parquet", ".pq"):
+        return "parquet"
+    raise ValueError(f"{path}: unknown recording extension {ext!r}; use .csv or .parquet")
+
+
+def save_recording(rec: Recording, path) -> Path:
+    """Write a recording as CSV or Parquet (by extension); the round trip is lossless."""
+    import pyarrow as pa
+
+    path = Path(path)
+    kind = _kind(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    table = pa.table(rec.columns())
+    if kind == "parquet":
+        import pyarrow.parquet as pq
+
+        table = table.replace_schema_metadata({b"quadest": json.dumps(
+            {"format": FORMAT_TAG, "meta": rec.meta}).encode()})
+        pq.write_table(table, path)
+        return path
+    import pyarrow.csv as pcsv
+
+    buf = io.BytesIO()
+    pcsv.write_csv(table, buf, pcsv.WriteOptions(include_header=False, quoting_style="none"))
+    with open(path, "wb") as f:
+        f.write(f"# {FORMAT_TAG}\n".encode())
+        for k, v in rec.meta.items():
+            f.write(f"# {k}: {json.dumps(v)}\n".encode())
+        f.write((",".join(table.column_names) + "\n").encode())
+        f.write(buf.getvalue())
+    return path
+
+
+def _from_columns(names, get, meta, source) -> Recording:
+    names = list(names)
+    base = ["t"] + [c for f in SENSOR_FIELDS for c in columns_of(f)]
+    missing = [c for c in base if c not in names]
+    if missing:
+        raise ValueError(f"{source}: missing column(s) {', '.join(missing)}")
+    known = set(base)
+    kw = {"t": get("t")}
+    for f in SENSOR_FIELDS:
+        kw[f] = np.column_stack([get(c) for c in columns_of(f)])
+    for f in TRUTH_FIELDS:
+        cols = columns_of(f)
+        present = [c for c in cols if c in names]
+        if present and len(present) != len(cols):
+            raise ValueError(f"{source}: truth field {f} needs all of {', '.join(cols)}")
+        if present:
+            kw[f] = np.column_stack([get(c) for c in cols])
+            known.update(cols)
+    extra = [c for c in names if c not in known]
+    if extra:
+        raise ValueError(f"{source}: unexpected column(s) {', '.join(extra)} "
+                         "(the recording header is documented in docs/recordings.md)")
+    try:
+        return Recording(**kw, meta=meta, check_units=False)
+    except ValueError as exc:
+        raise ValueError(f"{source}: {exc}") from None
+
+
+def load_recording(path) -> Recording:
+    """Read a recording written by :func:`save_recording` (CSV or Parquet, by extension)."""
+    import pyarrow as pa
+
+    path = Path(path)
+    kind = _kind(path)
+    if not path.is_file():
+        raise ValueError(f"{path}: no such file")
+    if kind == "parquet":
+        import pyarrow.parquet as pq
+
+        try:
+            table = pq.read_table(path)
+        except (pa.ArrowException, OSError) as exc:
+            raise ValueError(f"{path}: not a readable Parquet file ({exc})") from None
+        raw = (table.schema.metadata or {}).get(b"quadest")
+        meta = json.loads(raw)["meta"] if raw else {}
+        return _from_columns(table.column_names, lambda c: table.column(c).to_numpy(), meta, path)
+    import pyarrow.csv as pcsv
+
+    data = path.read_bytes()
+    meta, pos = {}, 0
+    while data.startswith(b"#", pos):
+        end = data.find(b"\n", pos)
+        end = len(data) if end < 0 else end
+        line = data[pos + 1:end].decode("utf-8", "replace").strip()
+        pos = end + 1
+        if line == FORMAT_TAG or ":" not in line:
+            continue
+        key, _, value = line.partition(":")
+        try:
+            meta[key.strip()] = json.loads(value)
+        except json.JSONDecodeError:
+            meta[key.strip()] = value.strip()
+    if pos >= len(data):
+        raise ValueError(f"{path}: no CSV header after the metadata lines")
+    try:
+        table = pcsv.read_csv(io.BytesIO(data[pos:]), convert_options=pcsv.ConvertOptions(
+            column_types={}, strings_can_be_null=True))
+    except pa.ArrowException as exc:
+        raise ValueError(f"{path}: malformed CSV ({str(exc).splitlines()[0]})") from None
+    names = [c.strip() for c in table.column_names]
+    table = table.rename_columns(names)
+
+    def get(c):
+        col = table.column(c)
+        if not pa.types.is_floating(col.type) and not pa.types.is_integer(col.type):
+            if pa.types.is_null(col.type):
+                return np.full(len(col), np.nan)
+            raise ValueError(f"{path}: column {c} is not numeric")
+        return col.to_numpy(zero_copy_only=False).astype(np.float64)
+
+    return _from_columns(names, get, meta, path)

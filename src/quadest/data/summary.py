@@ -1,0 +1,70 @@
+"""What ``quadest info`` prints: duration, rates, ranges, gaps and the truth present."""
+import numpy as np
+
+from quadest.data.recording import TRUTH_FIELDS, Recording
+
+GAP_FACTOR = 1.5  # an interval longer than this many median intervals counts as a gap
+
+
+def summarize(rec: Recording) -> dict:
+    """Facts about a recording as a plain dict (JSON-serialisable)."""
+    dt = np.diff(rec.t)
+    med = float(np.median(dt)) if len(dt) else float("nan")
+    gaps = np.flatnonzero(dt > GAP_FACTOR * med) if len(dt) else np.array([], int)
+    out = {
+        "samples": len(rec),
+        "t_start_s": float(rec.t[0]),
+        "duration_s": rec.duration,
+        "imu_rate_hz": rec.imu_rate_hz(),
+        "dt_min_s": float(dt.min()) if len(dt) else float("nan"),
+        "dt_max_s": float(dt.max()) if len(dt) else float("nan"),
+        "mag_samples": int(np.isfinite(rec.mag[:, 0]).sum()),
+        "mag_rate_hz": rec.mag_rate_hz(),
+        "gaps": {
+            "count": int(len(gaps)),
+            "longest_s": float(dt[gaps].max()) if len(gaps) else 0.0,
+            "first_at_s": float(rec.t[gaps[0]]) if len(gaps) else None,
+        },
+        "ranges": {},
+        "truth": {k: TRUTH_FIELDS[k][1] for k in rec.truth},
+        "units": rec.meta.get("units", {}),
+    }
+    for name in ("gyr", "acc", "mag"):
+        a = getattr(rec, name)
+        ok = np.isfinite(a[:, 0])
+        if ok.any():
+            out["ranges"][name] = {"min": a[ok].min(axis=0).tolist(), "max": a[ok].max(axis=0).tolist(),
+                                   "norm_mean": float(np.linalg.norm(a[ok], axis=1).mean())}
+    for key in ("source", "scenario", "preset", "seed"):
+        if key in rec.meta:
+            out[key] = rec.meta[key]
+    return out
+
+
+def format_summary(s: dict, name: str = "") -> str:
+    """Human-readable text of :func:`summarize`'s dict."""
+    u = s.get("units", {})
+    lines = [f"recording   {name}".rstrip()]
+    for key in ("source", "scenario", "preset", "seed"):
+        if key in s:
+            lines.append(f"{key:<11} {s[key]}")
+    lines += [
+        f"samples     {s['samples']}",
+        f"duration    {s['duration_s']:.3f} s (from t = {s['t_start_s']:.3f} s)",
+        f"IMU rate    {s['imu_rate_hz']:.2f} Hz (interval {s['dt_min_s'] * 1e3:.3f} to "
+        f"{s['dt_max_s'] * 1e3:.3f} ms)",
+        f"mag         {s['mag_samples']} samples, {s['mag_rate_hz']:.2f} Hz" if s["mag_samples"]
+        else "mag         none",
+    ]
+    g = s["gaps"]
+    lines.append(f"gaps        {g['count']} (intervals > {GAP_FACTOR:g}x median), longest "
+                 f"{g['longest_s'] * 1e3:.1f} ms, first at t = {g['first_at_s']:.3f} s"
+                 if g["count"] else "gaps        none")
+    for name, r in s["ranges"].items():
+        unit = u.get(name, "")
+        lo = ", ".join(f"{v:+.3g}" for v in r["min"])
+        hi = ", ".join(f"{v:+.3g}" for v in r["max"])
+        lines.append(f"{name:<11} min [{lo}]  max [{hi}]  mean norm {r['norm_mean']:.4g} {unit}")
+    truth = s["truth"]
+    lines.append("truth       " + ("; ".join(f"{k} ({v})" for k, v in truth.items()) if truth else "none"))
+    return "\n".join(lines)

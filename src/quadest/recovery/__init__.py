@@ -1,0 +1,4 @@
+"""State-estimate recovery (Beffa, Ledergerber & D'Andrea): the aerodynamic force model."""
+from quadest.recovery.aero import AeroModel, features, psi
+
+__all__ = ["AeroModel", "features", "psi"]

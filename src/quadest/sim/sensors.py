@@ -1,0 +1,96 @@
+"""Sensor models: gyroscope, accelerometer and magnetometer, each with its own errors.
+
+Inertial sensors (per axis, clipped to ``±range``)::
+
+    gyr = M_g ω + b_g + b_rw(t) + n
+    acc = M_a f_imu + b_a + b_rw(t) + vibration + n,   f_imu = Rᵀ(a − g) + ω̇ × r + ω × (ω × r)
+
+with ``M = (I + diag(scale)) (I + misalignment)``, a constant bias, a bias random walk, white
+noise, and for the accelerometer the IMU's lever arm ``r`` from the centre of mass and a rotor
+vibration tone whose frequency follows the rotor speed and whose amplitude grows with rotor load.
+Magnetometer (µT)::
+
+    mag = S Rᵀ B_n + b_hard + k_motor · throttle + n
+
+with the earth field ``B_n = F [cos I cos D, cos I sin D, sin I]`` (NED), a soft-iron matrix
+``S``, a hard-iron offset and a motor-current disturbance that grows with throttle.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from quadest.rotation import quat_rotate, quat_conj
+from quadest.sim.params import Accelerometer, Environment, Gyroscope, Magnetometer
+
+
+def earth_field(env: Environment) -> np.ndarray:
+    """Earth magnetic field in NED, µT."""
+    inc, dec = np.radians(env.inclination_deg), np.radians(env.declination_deg)
+    return env.field_ut * np.array([np.cos(inc) * np.cos(dec), np.cos(inc) * np.sin(dec), np.sin(inc)])
+
+
+def draw_errors(model, rng) -> dict:
+    """Per-run realisation of constant bias, scale factors and misalignment."""
+    bias = np.array(model.bias, float) if model.bias is not None else rng.normal(0.0, model.bias_std, 3)
+    scale = np.array(model.scale, float) if model.scale is not None else rng.normal(0.0, model.scale_std, 3)
+    if model.misalignment is not None:
+        mis = np.array(model.misalignment, float)
+    else:
+        mis = rng.normal(0.0, model.misalignment_std, (3, 3))
+        np.fill_diagonal(mis, 0.0)
+    M = (np.eye(3) + np.diag(scale)) @ (np.eye(3) + mis)
+    return {"bias": bias, "scale": scale, "misalignment": mis, "matrix": M}
+
+
+def random_walk(t, std, rng):
+    """Bias random walk of intensity ``std`` (unit/√s) sampled at ``t``, starting at 0."""
+    if std == 0.0:
+        return np.zeros((len(t), 3))
+    dt = np.diff(t, prepend=t[0])
+    return np.cumsum(rng.normal(size=(len(t), 3)) * (std * np.sqrt(dt))[:, None], axis=0)
+
+
+def inertial(true, t, model: Gyroscope | Accelerometer, errors, rng, extra=None):
+    """Apply scale/misalignment, bias, random walk, extra terms, noise and saturation."""
+    out = true @ errors["matrix"].T + errors["bias"] + random_walk(t, model.bias_rw_std, rng)
+    if extra is not None:
+        out = out + extra
+    if model.noise_std > 0:
+        out = out + rng.normal(0.0, model.noise_std, out.shape)
+    return np.clip(out, -model.range, model.range)
+
+
+def specific_force_at_imu(q, acc_n, w, wdot, lever, gravity):
+    """``f_imu = Rᵀ(a − g) + ω̇ × r + ω × (ω × r)``, body frame, m/s²."""
+    f = quat_rotate(quat_conj(q), acc_n - np.array([0.0, 0.0, gravity]))
+    r = np.broadcast_to(np.asarray(lever, float), w.shape)
+    return f + np.cross(wdot, r) + np.cross(w, np.cross(w, r))
+
+
+def vibration(t, rotor_load, rotor_hz_hover, amp, rng):
+    """Rotor tone: frequency ``f_hover √load``, amplitude ``amp · load`` per axis."""
+    amp = np.asarray(amp, float)
+    if not amp.any():
+        return np.zeros((len(t), 3))
+    freq = rotor_hz_hover * np.sqrt(np.maximum(rotor_load, 0.0))
+    phase = 2 * np.pi * np.concatenate([[0.0], np.cumsum(0.5 * (freq[1:] + freq[:-1]) * np.diff(t))])
+    offs = rng.uniform(0, 2 * np.pi, 3)
+    return np.sin(phase[:, None] + offs) * amp * rotor_load[:, None]
+
+
+def magnetometer(q, throttle, env: Environment, model: Magnetometer, rng):
+    B_b = quat_rotate(quat_conj(q), earth_field(env))
+    m = B_b @ np.array(model.soft_iron, float).T + np.array(model.hard_iron, float)
+    m = m + np.outer(throttle, np.array(model.motor_coef, float))
+    if model.noise_std > 0:
+        m = m + rng.normal(0.0, model.noise_std, m.shape)
+    return np.clip(m, -model.range, model.range)
+
+
+def mag_rows(k, imu_rate, mag_rate):
+    """Rows (by nominal IMU index ``k``) at which a new magnetometer sample arrives: the first
+    IMU row at or after each magnetometer tick."""
+    if mag_rate <= 0:
+        return np.zeros(len(k), bool)
+    tick = np.floor(k * (mag_rate / imu_rate) + 1e-9)
+    return np.concatenate([[True], tick[1:] > tick[:-1]])

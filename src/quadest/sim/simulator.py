@@ -1,0 +1,118 @@
+"""``simulate``: a scenario, a preset and a seed in, a :class:`~quadest.data.Recording` out."""
+from __future__ import annotations
+
+import numpy as np
+
+from quadest.data.recording import Recording
+from quadest.rotation import quat_continuous
+from quadest.sim import sensors as S
+from quadest.sim.params import SimConfig, load_toml_overrides, preset_config
+from quadest.sim.truth import SCENARIOS, Truth, default_duration, make_motion
+
+CHUNK_S = 10.0  # simulated seconds per chunk (memory and progress granularity)
+
+
+def build_config(preset: str = "bebop2", overrides: dict | None = None, toml=None,
+                 ideal: bool = False) -> SimConfig:
+    """A preset, then a TOML file's overrides, then ``overrides`` (``{"gyro.noise_std": 0.02}``);
+    ``ideal`` removes every sensor error (see :meth:`SimConfig.idealized`)."""
+    cfg = preset_config(preset)
+    if toml is not None:
+        cfg = cfg.with_overrides(load_toml_overrides(toml), source=str(toml))
+    if overrides:
+        cfg = cfg.with_overrides(overrides)
+    return cfg.idealized() if ideal else cfg
+
+
+def simulate(scenario: str, preset: str = "bebop2", seed: int = 0, duration: float | None = None,
+             overrides: dict | None = None, *, config: SimConfig | None = None, ideal: bool = False,
+             toml=None, progress: bool = False, return_truth: bool = False):
+    """Simulate one flight and its sensors. Deterministic for a given seed and configuration.
+
+    Parameters
+    ----------
+    scenario : one of ``hover``, ``nominal``, ``damaged-rotor``, ``throw``.
+    preset : ``bebop2``, ``lowcost-20hz`` or ``fma`` (ignored when ``config`` is given).
+    seed : seed of every random draw (motion, sensor errors, timing).
+    duration : seconds; the scenario's default when None.
+    overrides : ``{"section.field": value}`` on top of the preset (docs/simulator.md).
+    ideal : remove all sensor errors (noise, bias, scale, misalignment, saturation, jitter...).
+    progress : show a progress bar for runs that take more than a second.
+    return_truth : also return the :class:`~quadest.sim.truth.Truth` (with angular acceleration).
+    """
+    if scenario not in SCENARIOS:
+        raise ValueError(f"unknown scenario {scenario!r}; scenarios: {', '.join(SCENARIOS)}")
+    cfg = config if config is not None else build_config(preset, overrides, toml, ideal)
+    if config is not None and ideal:
+        cfg = cfg.idealized()
+    if duration is None:
+        duration = default_duration(scenario, cfg)
+    if not duration > 0:
+        raise ValueError(f"duration must be positive, got {duration}")
+    rate = cfg.imu.rate_hz
+    if not rate > 0:
+        raise ValueError("imu.rate_hz must be positive")
+    ss = np.random.SeedSequence(int(seed))
+    rng_motion, rng_gyro, rng_acc, rng_mag, rng_time, rng_vib = (np.random.default_rng(s) for s in ss.spawn(6))
+
+    # sampling instants: nominal grid, jitter, then dropped rows
+    k = np.arange(int(np.floor(duration * rate + 1e-9)) + 1)
+    t = k / rate
+    if cfg.imu.jitter_std_s > 0:
+        t = t + np.clip(rng_time.normal(0, cfg.imu.jitter_std_s, len(t)), -0.3 / rate, 0.3 / rate)
+    keep = rng_time.random(len(t)) >= cfg.imu.drop_prob if cfg.imu.drop_prob > 0 else np.ones(len(t), bool)
+    has_mag = S.mag_rows(k, rate, cfg.mag.rate_hz)
+
+    motion = make_motion(scenario, cfg, rng_motion, duration)
+    chunk = max(1, int(CHUNK_S * rate))
+    parts = []
+    from tqdm.auto import tqdm
+
+    with tqdm(total=len(t), unit="sample", desc=f"simulate {scenario}", delay=1.0,
+              disable=not progress, leave=False) as bar:
+        for i in range(0, len(t), chunk):
+            parts.append(motion.evaluate(t[i:i + chunk]))
+            bar.update(len(parts[-1].t))
+    truth = Truth.concat(parts)
+    truth.meta = motion.meta
+    truth.q = quat_continuous(truth.q)
+
+    g_err = S.draw_errors(cfg.gyro, rng_gyro)
+    a_err = S.draw_errors(cfg.acc, rng_acc)
+    f_imu = S.specific_force_at_imu(truth.q, truth.acc_n, truth.gyr, truth.gyr_dot, cfg.acc.lever_arm,
+                                    cfg.environment.gravity)
+    gyr = S.inertial(truth.gyr, t, cfg.gyro, g_err, rng_gyro)
+    vib = S.vibration(t, truth.rotor_load, cfg.vehicle.rotor_hz_hover, cfg.acc.vibration_amp, rng_vib)
+    acc = S.inertial(f_imu, t, cfg.acc, a_err, rng_acc, extra=vib)
+    mag = np.full((len(t), 3), np.nan)
+    if has_mag.any():
+        mag[has_mag] = S.magnetometer(truth.q[has_mag], truth.throttle[has_mag], cfg.environment,
+                                      cfg.mag, rng_mag)
+
+    sat = np.abs(truth.gyr @ g_err["matrix"].T) > cfg.gyro.range
+    meta = {
+        "source": "quadest simulate",
+        "scenario": scenario,
+        "preset": preset if config is None else "custom",
+        "seed": int(seed),
+        "imu_rate_hz": rate,
+        "mag_rate_hz": cfg.mag.rate_hz,
+        "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT"},
+        "ideal_sensors": bool(ideal),
+        "earth_field_ned_ut": S.earth_field(cfg.environment).tolist(),
+        "gyro_saturated_share": float(sat.any(axis=1)[keep].mean()),
+        "sensor_errors": {
+            "gyr": {k_: v.tolist() for k_, v in g_err.items()},
+            "acc": {k_: v.tolist() for k_, v in a_err.items()},
+        },
+        "scenario_info": truth.meta,
+        "config": cfg.to_dict(),
+    }
+    rec = Recording(t=t[keep], gyr=gyr[keep], acc=acc[keep], mag=mag[keep], true_q=truth.q[keep],
+                    true_gyr=truth.gyr[keep], true_pos=truth.pos[keep], true_vel=truth.vel[keep],
+                    true_acc=f_imu[keep], meta=meta, check_units=False)
+    if return_truth:
+        sel = {n: getattr(truth, n)[keep] for n in ("t", "q", "gyr", "gyr_dot", "pos", "vel", "acc_n",
+                                                    "throttle", "rotor_load")}
+        return rec, Truth(**sel, meta=truth.meta)
+    return rec

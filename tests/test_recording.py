@@ -1,0 +1,141 @@
+"""The Recording type: validation, files (CSV, Parquet) and summaries."""
+import numpy as np
+import pytest
+
+from quadest import Recording, load_recording, save_recording
+from quadest.data import format_summary, summarize
+from quadest.data.recording import columns_of
+
+
+def make(n=200, rate=100.0, truth=True, rng=None):
+    rng = rng or np.random.default_rng(0)
+    t = np.arange(n) / rate
+    gyr = rng.normal(0, 0.1, (n, 3))
+    acc = rng.normal(0, 0.1, (n, 3)) + [0, 0, -9.81]
+    mag = np.full((n, 3), np.nan)
+    mag[::4] = rng.normal(0, 20, (len(mag[::4]), 3))
+    kw = {}
+    if truth:
+        q = rng.normal(size=(n, 4))
+        kw["true_q"] = q / np.linalg.norm(q, axis=1, keepdims=True)
+        for k in ("true_gyr", "true_pos", "true_vel", "true_acc"):
+            kw[k] = rng.normal(size=(n, 3))
+        kw["true_q"][5] = np.nan  # a row without truth
+    return Recording(t=t, gyr=gyr, acc=acc, mag=mag, meta={"source": "test", "units": {"mag": "uT"},
+                                                            "nested": {"a": [1, 2.5]}}, **kw)
+
+
+def raises(match, **kw):
+    base = dict(t=np.arange(20) * 0.01, gyr=np.zeros((20, 3)), acc=np.tile([0, 0, -9.81], (20, 1)))
+    base.update(kw)
+    with pytest.raises(ValueError, match=match):
+        Recording(**base)
+
+
+def test_validation_names_field_and_row():
+    raises(r"gyr: expected shape \(N, 3\), got \(20, 2\)", gyr=np.zeros((20, 2)))
+    raises("acc: has 19 rows but t has 20", acc=np.zeros((19, 3)))
+    t = np.arange(20) * 0.01
+    t[7] = np.nan
+    raises("t: non-finite value at row 7", t=t)
+    t = np.arange(20) * 0.01
+    t[9] = t[8]
+    raises("t: not strictly increasing at row 9", t=t)
+    g = np.zeros((20, 3))
+    g[4, 1] = np.inf
+    raises("gyr: non-finite value at row 4", gyr=g)
+    m = np.zeros((20, 3))
+    m[3, 0] = np.nan
+    raises("mag: row 3 is partly NaN", mag=m)
+    q = np.tile([1.0, 0, 0, 0], (20, 1))
+    q[6] = [0.5, 0, 0, 0]
+    raises("true_q: row 6 is not a unit quaternion", true_q=q)
+    raises("meta: must be JSON", meta={"x": object()})
+
+
+def test_unit_mistakes_are_refused():
+    g = np.zeros((20, 3))
+    g[11, 2] = 200.0  # deg/s
+    raises(r"gyr: 200.0 at row 11 .* deg/s", gyr=g)
+    raises("acc: norms look like g", acc=np.tile([0, 0, -1.0], (20, 1)))
+    a = np.tile([0, 0, -9.81], (20, 1))
+    a[2] = [0, 0, -9810.0]  # mm/s² or mg
+    raises("acc: norm 9810.0 at row 2", acc=a)
+    # free fall is not a unit mistake, and the check can be switched off
+    Recording(t=np.arange(20) * 0.01, gyr=np.zeros((20, 3)), acc=np.zeros((20, 3)))
+    Recording(t=np.arange(20) * 0.01, gyr=np.zeros((20, 3)), acc=np.tile([0, 0, -1.0], (20, 1)),
+              check_units=False)
+
+
+@pytest.mark.parametrize("ext", [".csv", ".parquet"])
+def test_lossless_round_trip(tmp_path, ext):
+    rec = make()
+    back = load_recording(save_recording(rec, tmp_path / f"r{ext}"))
+    for name in ("t", "gyr", "acc", "mag", *rec.truth):
+        np.testing.assert_array_equal(getattr(back, name), getattr(rec, name), err_msg=name)
+    assert back.truth == rec.truth
+    assert back.meta == rec.meta
+
+
+def test_round_trip_without_truth_or_mag(tmp_path):
+    rec = Recording(t=np.arange(30) * 0.01, gyr=np.zeros((30, 3)), acc=np.tile([0, 0, -9.81], (30, 1)))
+    back = load_recording(save_recording(rec, tmp_path / "r.csv"))
+    assert back.truth == [] and not back.has_mag
+    assert np.isnan(back.mag).all()
+
+
+def test_csv_header_is_fixed(tmp_path):
+    path = save_recording(make(), tmp_path / "r.csv")
+    lines = path.read_text().splitlines()
+    assert lines[0] == "# quadest recording v1"
+    header = next(line for line in lines if not line.startswith("#"))
+    want = ["t"] + [c for f in ("gyr", "acc", "mag", "true_q", "true_gyr", "true_pos", "true_vel",
+                                "true_acc") for c in columns_of(f)]
+    assert header.split(",") == want
+    assert want[10:14] == ["true_q_w", "true_q_x", "true_q_y", "true_q_z"]
+    assert want[17:20] == ["true_pos_n", "true_pos_e", "true_pos_d"]
+
+
+def test_bad_files_give_one_clear_error(tmp_path):
+    p = tmp_path / "bad.csv"
+    p.write_text("t,gyr_x\n0,1\n")
+    with pytest.raises(ValueError, match="missing column"):
+        load_recording(p)
+    good = save_recording(make(), tmp_path / "good.csv").read_text()
+    p.write_text(good[: len(good) // 2] + "\n1,2\n")  # truncated mid-row
+    with pytest.raises(ValueError, match="bad.csv"):
+        load_recording(p)
+    with pytest.raises(ValueError, match="unknown recording extension"):
+        load_recording(tmp_path / "x.txt")
+    with pytest.raises(ValueError, match="no such file"):
+        load_recording(tmp_path / "missing.csv")
+    (tmp_path / "bad.parquet").write_bytes(b"not parquet")
+    with pytest.raises(ValueError, match="not a readable Parquet"):
+        load_recording(tmp_path / "bad.parquet")
+    p.write_text(good.replace("true_acc_z", "true_acc_q"))
+    with pytest.raises(ValueError, match="true_acc needs all"):
+        load_recording(p)
+
+
+def test_summary_rates_gaps_and_truth():
+    t = np.concatenate([np.arange(100) * 0.01, 1.5 + np.arange(100) * 0.01])  # one 0.51 s gap
+    n = len(t)
+    mag = np.full((n, 3), np.nan)
+    mag[::5] = 1.0
+    rec = Recording(t=t, gyr=np.zeros((n, 3)), acc=np.tile([0, 0, -9.81], (n, 1)), mag=mag,
+                    true_q=np.tile([1.0, 0, 0, 0], (n, 1)))
+    s = summarize(rec)
+    assert s["imu_rate_hz"] == pytest.approx(100.0)
+    assert s["gaps"]["count"] == 1 and s["gaps"]["longest_s"] == pytest.approx(0.51)
+    assert s["gaps"]["first_at_s"] == pytest.approx(0.99)
+    assert s["mag_samples"] == 40
+    assert list(s["truth"]) == ["true_q"]
+    text = format_summary(s, "x.csv")
+    assert "gaps        1" in text and "true_q" in text
+
+
+def test_select_and_between():
+    rec = make()
+    part = rec.between(0.5, 1.0)
+    assert part.t[0] >= 0.5 and part.t[-1] <= 1.0 and len(part) == 51
+    assert part.meta == rec.meta
