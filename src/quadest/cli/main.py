@@ -36,6 +36,12 @@ def cmd_simulate(args):
     if args.list_params:
         rows = param_table(cfg, args.preset)
         w = max(len(r["key"]) for r in rows)
+        if args.markdown:
+            _say("| parameter | value | unit | meaning | source |\n|---|---|---|---|---|")
+            for r in rows:
+                _say(f"| `{r['key']}` | {json.dumps(r['value'], default=str)} | {r['unit']} | "
+                     f"{r['doc']} | {r['source']} |")
+            return 0
         for r in rows:
             _say(f"{r['key']:<{w}}  {json.dumps(r['value'], default=str):<28} {r['unit']:<12} "
                  f"{r['doc']} [{r['source']}]")
@@ -128,6 +134,7 @@ def build_parser():
     s.add_argument("--plot", metavar="PNG", help="also draw attitude, rates and sensor signals")
     s.add_argument("--list-params", action="store_true",
                    help="print every parameter (after preset and overrides) and exit")
+    s.add_argument("--markdown", action="store_true", help="with --list-params: a Markdown table")
     s.set_defaults(func=cmd_simulate)
 
     i = sub.add_parser("info", help="summarise a recording",

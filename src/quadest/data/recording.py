@@ -141,7 +141,6 @@ class Recording:
             raise ValueError(f"{name}: expected shape {shape}, got {a.shape}")
         if n is not None and len(a) != n:
             raise ValueError(f"{name}: has {len(a)} rows but t has {n}")
-        a.setflags(write=False)
         return a
 
     @staticmethod

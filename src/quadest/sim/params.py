@@ -34,7 +34,7 @@ class Vehicle:
     mass_kg: float = P(0.5, "kg", "vehicle mass")
     inertia: tuple = P((0.0023, 0.0023, 0.0046), "kg m²", "principal moments of inertia (x, y, z)")
     arm_m: float = P(0.17, "m", "distance from centre to rotor axis")
-    thrust_to_weight: float = P(2.0, "-", "maximum collective thrust over weight (throttle scale)")
+    thrust_to_weight: float = P(2.0, "-", "maximum collective thrust over weight (motor-current scale)")
     rotor_drag: float = P(0.3, "1/s", "linear rotor drag: body x/y specific force -d·v (Faessler 2018)")
     rotor_hz_hover: float = P(110.0, "Hz", "rotor rotation frequency at hover (vibration tone)")
 
@@ -82,7 +82,7 @@ class Magnetometer:
     hard_iron: tuple = P((0.0, 0.0, 0.0), "µT", "hard-iron offset, body frame")
     soft_iron: tuple = P(((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)), "-",
                          "soft-iron matrix applied to the earth field in the body frame")
-    motor_coef: tuple = P((0.0, 0.0, 0.0), "µT", "motor-current disturbance at full throttle, body frame")
+    motor_coef: tuple = P((0.0, 0.0, 0.0), "µT", "disturbance at maximum motor current (all rotors at full thrust), body frame")
     range: float = P(4900.0, "µT", "saturation limit per axis")
 
 
@@ -125,7 +125,7 @@ class DamagedRotor:
     manoeuvre_acc_max: float = P(1.0, "m/s²", "peak acceleration of the spin centre after the failure",
                                  "issue #2")
     manoeuvre_band_hz: tuple = P((0.02, 0.2), "Hz", "frequency band of the spin-centre manoeuvres")
-    active_rotors: int = P(3, "-", "rotors producing thrust after the failure (vibration, throttle)")
+    active_rotors: int = P(3, "-", "rotors producing thrust after the failure (vibration, motor current)")
 
 
 @dataclass(frozen=True)

@@ -10,10 +10,11 @@ noise, and for the accelerometer the IMU's lever arm ``r`` from the centre of ma
 vibration tone whose frequency follows the rotor speed and whose amplitude grows with rotor load.
 Magnetometer (µT)::
 
-    mag = S Rᵀ B_n + b_hard + k_motor · throttle + n
+    mag = S Rᵀ B_n + b_hard + k_motor · current + n
 
 with the earth field ``B_n = F [cos I cos D, cos I sin D, sin I]`` (NED), a soft-iron matrix
-``S``, a hard-iron offset and a motor-current disturbance that grows with throttle.
+``S``, a hard-iron offset and a disturbance proportional to the motor current (which grows
+with thrust, and at equal thrust when a rotor is lost).
 """
 from __future__ import annotations
 
@@ -78,10 +79,10 @@ def vibration(t, rotor_load, rotor_hz_hover, amp, rng):
     return np.sin(phase[:, None] + offs) * amp * rotor_load[:, None]
 
 
-def magnetometer(q, throttle, env: Environment, model: Magnetometer, rng):
+def magnetometer(q, current, env: Environment, model: Magnetometer, rng):
     B_b = quat_rotate(quat_conj(q), earth_field(env))
     m = B_b @ np.array(model.soft_iron, float).T + np.array(model.hard_iron, float)
-    m = m + np.outer(throttle, np.array(model.motor_coef, float))
+    m = m + np.outer(current, np.array(model.motor_coef, float))
     if model.noise_std > 0:
         m = m + rng.normal(0.0, model.noise_std, m.shape)
     return np.clip(m, -model.range, model.range)

@@ -86,7 +86,7 @@ def simulate(scenario: str, preset: str = "bebop2", seed: int = 0, duration: flo
     acc = S.inertial(f_imu, t, cfg.acc, a_err, rng_acc, extra=vib)
     mag = np.full((len(t), 3), np.nan)
     if has_mag.any():
-        mag[has_mag] = S.magnetometer(truth.q[has_mag], truth.throttle[has_mag], cfg.environment,
+        mag[has_mag] = S.magnetometer(truth.q[has_mag], truth.current[has_mag], cfg.environment,
                                       cfg.mag, rng_mag)
 
     sat = np.abs(truth.gyr @ g_err["matrix"].T) > cfg.gyro.range
@@ -113,6 +113,6 @@ def simulate(scenario: str, preset: str = "bebop2", seed: int = 0, duration: flo
                     true_acc=f_imu[keep], meta=meta, check_units=False)
     if return_truth:
         sel = {n: getattr(truth, n)[keep] for n in ("t", "q", "gyr", "gyr_dot", "pos", "vel", "acc_n",
-                                                    "throttle", "rotor_load")}
+                                                    "current", "rotor_load")}
         return rec, Truth(**sel, meta=truth.meta)
     return rec

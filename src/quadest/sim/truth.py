@@ -32,16 +32,24 @@ class Truth:
     pos: np.ndarray  # (N, 3) centre of mass, NED
     vel: np.ndarray  # (N, 3)
     acc_n: np.ndarray  # (N, 3) acceleration of the centre of mass, NED
-    throttle: np.ndarray  # (N,) collective thrust over maximum thrust
+    current: np.ndarray  # (N,) motor current over its maximum (all rotors at full thrust)
     rotor_load: np.ndarray  # (N,) thrust per active rotor over hover thrust per rotor
     meta: dict = field(default_factory=dict)
 
     @classmethod
     def concat(cls, parts):
-        names = ["t", "q", "gyr", "gyr_dot", "pos", "vel", "acc_n", "throttle", "rotor_load"]
+        names = ["t", "q", "gyr", "gyr_dot", "pos", "vel", "acc_n", "current", "rotor_load"]
         out = cls(**{k: np.concatenate([getattr(p, k) for p in parts]) for k in names})
         out.meta = parts[0].meta if parts else {}
         return out
+
+
+def motor_current(load, n_active, thrust_to_weight):
+    """Motor current over its maximum. A rotor's power grows as thrust^1.5 (momentum theory):
+    ``(n_active/4) (load/TW)^1.5`` with ``load`` the thrust per rotor over its hover value and
+    ``TW`` the thrust-to-weight ratio (the load at full thrust). Losing a rotor at equal total
+    thrust raises the current by √(4/3)."""
+    return (np.asarray(n_active) / 4.0) * (np.maximum(load, 0.0) / thrust_to_weight) ** 1.5
 
 
 def _quat(R):
@@ -82,10 +90,10 @@ class FlightMotion:
         w, wdot = J.body_rates(R)
         g = self.cfg.environment.gravity
         v = self.cfg.vehicle
-        throttle = thrust_spec / (g * v.thrust_to_weight)
         load = (thrust_spec / n_active) / (g / 4.0)
         return Truth(t=t, q=_quat(R.v), gyr=w, gyr_dot=wdot, pos=pos.v, vel=pos.d1, acc_n=pos.d2,
-                     throttle=throttle, rotor_load=load, meta=self.meta)
+                     current=motor_current(load, n_active, v.thrust_to_weight), rotor_load=load,
+                     meta=self.meta)
 
 
 class HoverMotion(FlightMotion):
@@ -299,11 +307,11 @@ class ThrowMotion:
         R = J.matmul(Rr, J.rot_axis(axis, sigma * wn))
         n = len(t)
         return Truth(t=t, q=_quat(R.v), gyr=np.outer(S, self.w0), gyr_dot=np.outer(S1 / T, self.w0),
-                     pos=pos.v, vel=pos.d1, acc_n=pos.d2, throttle=self._throttle(n),
+                     pos=pos.v, vel=pos.d1, acc_n=pos.d2, current=self._current(n),
                      rotor_load=self._load(n), meta=self.meta)
 
-    def _throttle(self, n):
-        return np.full(n, self.idle / (self.cfg.environment.gravity * self.cfg.vehicle.thrust_to_weight))
+    def _current(self, n):
+        return np.full(n, motor_current(self._load(1)[0], 4, self.cfg.vehicle.thrust_to_weight))
 
     def _load(self, n):
         return np.full(n, self.idle / self.cfg.environment.gravity)
@@ -319,7 +327,7 @@ class ThrowMotion:
         self.state = (t[-1], X[-1].copy())
         n = len(t)
         return Truth(t=t, q=quat_continuous(X[:, 6:10]), gyr=X[:, 10:13], gyr_dot=dX[:, 10:13],
-                     pos=X[:, 0:3], vel=X[:, 3:6], acc_n=dX[:, 3:6], throttle=self._throttle(n),
+                     pos=X[:, 0:3], vel=X[:, 3:6], acc_n=dX[:, 3:6], current=self._current(n),
                      rotor_load=self._load(n), meta=self.meta)
 
     def evaluate(self, t) -> Truth:

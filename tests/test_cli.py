@@ -1,0 +1,80 @@
+"""The command line, run in-process and headless."""
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from quadest import load_recording
+from quadest.cli.main import main
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_help_and_version(capsys):
+    for argv in (["--help"], ["simulate", "--help"], ["info", "--help"], ["demo", "--help"]):
+        with pytest.raises(SystemExit) as e:
+            main(argv)
+        assert e.value.code == 0
+        assert "usage: quadest" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        main(["--version"])
+    assert capsys.readouterr().out.startswith("quadest ")
+
+
+def test_simulate_info_and_plot(tmp_path, capsys):
+    out = tmp_path / "r.parquet"
+    png = tmp_path / "r.png"
+    code, text, _ = run(capsys, "simulate", "--scenario", "damaged-rotor", "--preset", "bebop2", "--seed", "2",
+                        "--duration", "8", "--set", "gyro.noise_std=0.02", "-o", str(out), "--plot", str(png))
+    assert code == 0 and "gyroscope saturated" in text
+    rec = load_recording(out)
+    assert rec.meta["config"]["gyro"]["noise_std"] == 0.02 and rec.meta["seed"] == 2
+    assert png.stat().st_size > 10_000 and png.read_bytes()[:4] == b"\x89PNG"
+    code, text, _ = run(capsys, "info", str(out))
+    assert code == 0 and "500.00 Hz" in text and "true_q" in text and "gaps        none" in text
+    code, text, _ = run(capsys, "info", "--json", str(out))
+    assert code == 0 and '"imu_rate_hz": 500.0' in text
+
+
+def test_same_seed_same_file(tmp_path, capsys):
+    a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    for p in (a, b):
+        assert run(capsys, "simulate", "--scenario", "throw", "--preset", "fma", "--seed", "5", "-o", str(p))[0] == 0
+    assert a.read_bytes() == b.read_bytes()
+
+
+def test_list_params(capsys):
+    code, text, _ = run(capsys, "simulate", "--preset", "lowcost-20hz", "--list-params")
+    assert code == 0 and "imu.rate_hz" in text and "20.0" in text and "QUKF paper" in text
+
+
+def test_errors_are_one_line(tmp_path, capsys):
+    for argv in (["simulate", "--set", "gyro.nope=1", "-o", str(tmp_path / "x.csv")],
+                 ["simulate", "--set", "novalue", "-o", str(tmp_path / "x.csv")],
+                 ["simulate"],
+                 ["info", str(tmp_path / "missing.csv")]):
+        code, _, err = run(capsys, *argv)
+        assert code == 1
+        assert err.count("\n") == 1 and err.startswith("quadest ") and "Traceback" not in err
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,gyr_x,gyr_y\n0,1,2\n")
+    code, _, err = run(capsys, "info", str(bad))
+    assert code == 1 and "missing column" in err
+
+
+def test_demo(tmp_path, capsys):
+    code, text, _ = run(capsys, "demo", "--out", str(tmp_path))
+    assert code == 0 and "step 3/3" in text
+    rec = load_recording(tmp_path / "damaged-rotor.csv")
+    assert len(rec) == 15001 and np.isfinite(rec.gyr).all()
+    assert (tmp_path / "damaged-rotor.png").is_file()
+
+
+def test_console_script_entry_point():
+    r = subprocess.run([sys.executable, "-m", "quadest.cli.main", "--version"], capture_output=True, text=True)
+    assert r.returncode == 0 and "quadest" in r.stdout
