@@ -27,18 +27,13 @@ def plot_recording(rec: Recording, path, title: str | None = None):
             for j, name in enumerate(("roll", "pitch", "yaw")):
                 ax.plot(t, e[:, j], color=colors[j], lw=0.8, label=f"true {name}")
             ax.set_ylabel("attitude [deg]")
-        elif panel == "gyr":
+        elif panel in ("gyr", "acc"):
+            meas, true = getattr(rec, panel), getattr(rec, "true_" + panel)
             for j, a in enumerate("xyz"):
-                ax.plot(t, rec.gyr[:, j], color=colors[j], lw=0.5, alpha=0.7, label=f"gyro {a}")
-                if rec.true_gyr is not None:
-                    ax.plot(t, rec.true_gyr[:, j], color=colors[j], lw=1.0, ls="--")
-            ax.set_ylabel("body rate [rad/s]")
-        elif panel == "acc":
-            for j, a in enumerate("xyz"):
-                ax.plot(t, rec.acc[:, j], color=colors[j], lw=0.5, alpha=0.7, label=f"acc {a}")
-                if rec.true_acc is not None:
-                    ax.plot(t, rec.true_acc[:, j], color=colors[j], lw=1.0, ls="--")
-            ax.set_ylabel("specific force [m/s²]")
+                ax.plot(t, meas[:, j], color=colors[j], lw=0.5, alpha=0.7, label=f"{panel} {a}")
+                if true is not None:
+                    ax.plot(t, true[:, j], color=colors[j], lw=1.0, ls="--")
+            ax.set_ylabel("body rate [rad/s]" if panel == "gyr" else "specific force [m/s²]")
         else:
             ok = np.isfinite(rec.mag[:, 0])
             for j, a in enumerate("xyz"):
