@@ -139,3 +139,23 @@ def test_select_and_between():
     part = rec.between(0.5, 1.0)
     assert part.t[0] >= 0.5 and part.t[-1] <= 1.0 and len(part) == 51
     assert part.meta == rec.meta
+
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+finite = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False, width=64)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(*[finite] * 9), min_size=1, max_size=20), st.booleans())
+def test_csv_round_trip_property(rows, with_mag):
+    import tempfile
+    from pathlib import Path
+    a = np.array(rows, float)
+    n = len(a)
+    mag = a[:, 6:9] if with_mag else None
+    rec = Recording(t=np.arange(n) * 0.01 + 0.1, gyr=a[:, :3], acc=a[:, 3:6], mag=mag, check_units=False)
+    with tempfile.TemporaryDirectory() as d:
+        back = load_recording(save_recording(rec, Path(d) / "r.csv"))
+    for name in ("t", "gyr", "acc", "mag"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(rec, name))

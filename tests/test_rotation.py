@@ -135,3 +135,19 @@ def test_normalize_rejects_zero():
 def test_continuity():
     q = np.array([[1.0, 0, 0, 0], [-1.0, 0, 0, 0], [-1.0, 0, 0, 0], [1.0, 0, 0, 0]])
     np.testing.assert_array_equal(R.quat_continuous(q)[:, 0], [1, 1, 1, 1])
+
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+angle = st.floats(-np.pi, np.pi, allow_nan=False)
+
+
+@settings(max_examples=300, deadline=None)
+@given(angle, st.floats(-np.pi / 2, np.pi / 2), angle)
+def test_euler_round_trip_property(roll, pitch, yaw):
+    q = R.euler_to_quat([roll, pitch, yaw])
+    e = R.quat_to_euler(q)
+    # near gimbal lock the split of roll and yaw is arbitrary; the rotation is not
+    assert R.angle_between(R.euler_to_quat(e), q) < 1e-6
+    want = Rotation.from_euler("ZYX", [yaw, pitch, roll]).as_quat(scalar_first=True)
+    assert R.angle_between(q, want) < 1e-12

@@ -50,9 +50,8 @@ def cmd_simulate(args):
         raise CliError("simulate needs -o FILE (.csv or .parquet), or --list-params")
     _say(f"simulating {args.scenario} with preset {args.preset}, seed {args.seed}"
          + (", ideal sensors" if args.ideal else ""))
-    rec = simulate(args.scenario, seed=args.seed, duration=args.duration, config=cfg,
+    rec = simulate(args.scenario, args.preset, seed=args.seed, duration=args.duration, config=cfg,
                    progress=True)
-    rec.meta["preset"] = args.preset
     path = save_recording(rec, args.output)
     _say(f"wrote {path}: {len(rec)} samples, {rec.duration:.2f} s")
     if args.scenario == "damaged-rotor":

@@ -200,11 +200,10 @@ class Recording:
 
     def mag_rate_hz(self) -> float:
         """Mean magnetometer rate, Hz (0 without magnetometer)."""
-        k = np.isfinite(self.mag[:, 0]).sum()
-        if k < 2 or self.duration <= 0:
+        tm = self.t[np.isfinite(self.mag[:, 0])]
+        if len(tm) < 2:
             return 0.0
-        return float((k - 1) / (self.t[np.isfinite(self.mag[:, 0])][-1]
-                                - self.t[np.isfinite(self.mag[:, 0])][0]))
+        return float((len(tm) - 1) / (tm[-1] - tm[0]))
 
     def select(self, index) -> "Recording":
         """A new recording with the rows ``index`` (slice, boolean mask or integer array)."""

@@ -180,7 +180,7 @@ class SimConfig:
         cfg = self
         for key, value in flat.items():
             section, _, name = key.partition(".")
-            if not hasattr(cfg, section) or section not in SECTIONS:
+            if section not in SECTIONS:
                 raise ValueError(f"{source}: unknown section {section!r} in {key!r}; sections: "
                                  + ", ".join(SECTIONS))
             rec = getattr(cfg, section)
@@ -238,10 +238,10 @@ def _coerce(key, current, value):
         value = _tuples(value)
     if value is None:
         return None
-    if isinstance(current, bool) or isinstance(current, int) and not isinstance(current, bool):
+    if isinstance(current, int):  # whole-number parameters (counts)
         if not isinstance(value, (int, float)) or float(value) != int(value):
             raise ValueError(f"{key}: expected a whole number, got {value!r}")
-        return int(value) if not isinstance(current, bool) else bool(value)
+        return int(value)
     if isinstance(current, float):
         if not isinstance(value, (int, float)):
             raise ValueError(f"{key}: expected a number, got {value!r}")

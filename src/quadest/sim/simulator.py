@@ -32,7 +32,8 @@ def simulate(scenario: str, preset: str = "bebop2", seed: int = 0, duration: flo
     Parameters
     ----------
     scenario : one of ``hover``, ``nominal``, ``damaged-rotor``, ``throw``.
-    preset : ``bebop2``, ``lowcost-20hz`` or ``fma`` (ignored when ``config`` is given).
+    preset : ``bebop2``, ``lowcost-20hz`` or ``fma``; with ``config`` given, only the name
+        recorded in the metadata (the configuration itself is stored there in full).
     seed : seed of every random draw (motion, sensor errors, timing).
     duration : seconds; the scenario's default when None.
     overrides : ``{"section.field": value}`` on top of the preset (docs/simulator.md).
@@ -93,7 +94,7 @@ def simulate(scenario: str, preset: str = "bebop2", seed: int = 0, duration: flo
     meta = {
         "source": "quadest simulate",
         "scenario": scenario,
-        "preset": preset if config is None else "custom",
+        "preset": preset,
         "seed": int(seed),
         "imu_rate_hz": rate,
         "mag_rate_hz": cfg.mag.rate_hz,
