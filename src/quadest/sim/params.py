@@ -101,7 +101,8 @@ class Hover:
 class Nominal:
     duration_s: float = P(60.0, "s", "default duration of the nominal scenario")
     acc_max: float = P(3.0, "m/s²", "peak acceleration of the path", "issue #2")
-    band_hz: tuple = P((0.03, 0.25), "Hz", "frequency band of the path")
+    band_hz: tuple = P((0.1, 0.5), "Hz", "frequency band of the path's accelerations (periods 2-10 s)")
+    ramp_s: float = P(1.0, "s", "time constant with which the manoeuvres start from hover")
     vertical_ratio: float = P(0.3, "-", "vertical over horizontal path amplitude")
     yaw_rate_max: float = P(1.0, "rad/s", "peak yaw rate", "issue #2")
     yaw_band_hz: tuple = P((0.02, 0.15), "Hz", "frequency band of the yaw motion")

@@ -128,12 +128,14 @@ class HoverMotion(FlightMotion):
 
 class NominalMotion(HoverMotion):
     """Moving flight along a smooth random 3-D path (peak acceleration ``acc_max``), yaw rate up
-    to ``yaw_rate_max``."""
+    to ``yaw_rate_max``. The flight starts from hover: the path's acceleration ramps in from
+    zero (``RampedSinusoids``), so the first samples see the vehicle at rest as a real log does."""
 
     def __init__(self, cfg, rng, duration):
         FlightMotion.__init__(self, cfg)
         n = cfg.nominal
-        path = Sinusoids.random(rng, n.band_hz, n.components, 3).scaled([1.0, 1.0, n.vertical_ratio])
+        path = RampedSinusoids.random(rng, n.band_hz, n.components, 3, 0.0, n.ramp_s,
+                                      scale_dims=[1.0, 1.0, n.vertical_ratio])
         self.path = path.scaled(n.acc_max / path.peak(duration, k=2))
         self.start = np.array([0.0, 0.0, -20.0])
         yaw = Sinusoids.random(rng, n.yaw_band_hz, n.components, 1, power=1.0)

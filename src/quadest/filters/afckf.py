@@ -1,0 +1,306 @@
+"""Adaptive Fuzzy Complementary Kalman Filter (Solanki & de Visser, AIAA SciTech 2022), §III.
+
+The attitude of a quadcopter that spins at ~15 rad/s after losing a rotor, from MARG sensors:
+
+A. centrifugal compensation ``a_cor = (a − ω_z² [ω1, ω2, 0]) / g`` (eqs 13-15);
+B. one gradient-descent step per sample from ``a_cor`` with adaptive step
+   ``μ_t = β |q̇_ω| Δt`` (eqs 16-24);
+C. an additive Kalman filter fusing the gyro prediction (process model eqs 25-31) with the
+   gradient-descent attitude (measurement eq 32, noise eq 33); the measurement noise is switched
+   off (R = ∞, prediction only) while |‖a_cor‖ − 1| > λ_a (eqs 35-38);
+D. gyro bias by integral feedback (eqs 39-42);
+E. a separate yaw channel: gyro yaw integration (eq 43), tilt-compensated magnetometer heading
+   plus declination (eqs 44-45), a fuzzy complementary gain κ (eqs 46-51: two exponential
+   memberships, minimum inference, centre-of-gravity defuzzification over four extreme-case
+   gains) and an adaptive-window moving average (eqs 52-53) taken on the circle.
+Roll and pitch come from the Kalman channel, yaw from the yaw channel.
+
+Corrections of the printed equations (each pinned by a test):
+
+- eq 23: the gradient step starts from the gyro prediction ``q_ω,t`` (eq 26), not from
+  ``q_{t−1}``: ``q_∇,t = q_ω,t − μ_t ∇f/‖∇f‖`` with ``∇f`` evaluated at ``q_ω,t``. J_g cannot see
+  rotations about gravity, so R of eq 33 is singular in that direction and the Kalman gain there
+  is one; a measurement started from ``q_{t−1}`` would then undo the gyro's rotation about the
+  vertical at every step, and a vehicle spinning at 15 rad/s would be estimated as not
+  spinning, its tilt collapsing onto the accelerometer's body z. Eq 24's own argument (the step
+  must keep up with the physical rate of change) describes a measurement of the attitude at t.
+- eq 31: ``Q_t = Δt²/4 · Ξ(q) Σ_ω² Ξ(q)ᵀ`` with ``q ⊗ [0, e] = Ξ(q) e`` — the process noise
+  ``e_q = ½ q ⊗ [0, e_ω] Δt`` of eq 30 has this covariance; the printed product of a quaternion, a
+  diagonal matrix and a transposed quaternion is not a 4x4 covariance.
+- eq 33: ``R_t = μ_t²/‖∇f‖² · J_gᵀ Σ_acc² J_g`` with ``Σ_acc`` in units of g (``a_cor`` is
+  normalised by g, eq 15); J_g is the 3x4 Jacobian of eq 22.
+- eq 38: the threshold on ``|ξ| = |‖a_cor‖ − 1|`` is ``λ_a = α ‖[1 1 1] Σ_a‖ / g``; the printed
+  ``‖g/‖g‖‖ + …`` is the upper end of the spread of ‖a_cor‖ (eq 37), not a bound on ξ.
+- eq 40: ``b_t = b_{t−1} − ρ (a_cor × v̂) Δt`` with ``v̂ = q* ⊗ ĝ ⊗ q`` the predicted gravity
+  direction: the sign of Mahony's integral feedback (eq 48c of ref [12], which the paper follows).
+  The printed ``+ρ Σ ω_e Δt`` together with eq 39 (``ω_cor = ω − b``) integrates the error the
+  wrong way and drives the bias away.
+- eq 44: tilt compensation ``m_h = Ry(θ) Rx(φ) m``: ``m_h,x = m_x cos θ + (m_y sin φ + m_z cos φ)
+  sin θ``, ``m_h,y = m_y cos φ − m_z sin φ``; the printed form mixes sin/cos and has a stray ψ.
+  Eq 45 in NED/FRD: ``ψ_m = atan2(−m_h,y, m_h,x) + ν``.
+- eq 46 blends angles: ``ψ = ψ_ω + κ wrap(ψ_m − ψ_ω)``, on the circle.
+- eq 50: ``ρ_|m| = |‖m_t‖ − ‖b_e‖|`` as the text defines it (the printed ``‖m_t − b_e‖`` would need
+  the attitude); clipped at λ_m.
+- eq 53: the window ``i = ι e^{−|ψ̇|}`` shrinks with the yaw rate, as the formula says (the text
+  says it grows): averaging the last i headings lags by (i − 1)/2 samples times the rate, and
+  e^{+|ψ̇|} would ask for millions of samples at 15 rad/s.
+
+The gradient step and the Kalman channel work in the paper's z-up earth frame (eq 19:
+``ĝ = [0, 0, 0, 1]``) on ``q' = q_F ⊗ q_nb``, as Madgwick's filter does (:mod:`.madgwick`).
+The paper publishes no values for β, ρ, ϑ, κ_i, ι, α; quadest's defaults below are chosen from
+the sensors' noise and the vehicle's rates and documented; none was fitted to the checked seeds.
+"""
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from quadest.filters.base import Estimator, P, Params
+from quadest.filters.common import (BASE, YAW_PENDING, euler_to_q, finite3, mag_heading, norm3,
+                                    prepare, q_to_euler, xi)
+
+IQ = BASE  # Kalman-channel quaternion q' (paper's z-up frame), 4
+IP = BASE + 4  # its covariance, 16
+IB = BASE + 20  # gyro bias, 3
+IPSI = BASE + 23  # fused yaw (before the moving average)
+IMREF = BASE + 24  # local field norm ‖b_e‖ (0: from the first sample)
+ISTART = BASE + 25  # 1 once the channels are initialised
+IHEAD = BASE + 26  # ring buffer position
+IBUF = BASE + 27  # ring buffer of fused yaw, WMAX values
+WMAX = 256
+
+ONE_G = 9.80665
+
+
+@dataclass(frozen=True)
+class AfckfParams(Params):
+    use_mag: bool = P(True, "-", "use the magnetometer yaw channel", "-")
+    omega1: float = P(0.0, "m", "centrifugal constant ω1 of eq 13 (m/s² per (rad/s)²)",
+                      "calibration (eq 13): fit_centrifugal on a spinning segment")
+    omega2: float = P(0.0, "m", "centrifugal constant ω2 of eq 13", "calibration (eq 13)")
+    beta: float = P(1.5, "-", "step scale β > 1 of eq 24", "assumption (eq 24 requires β > 1)")
+    gyro_std: float = P(0.01, "rad/s", "gyro noise σ_ω per sample (eq 27)", "bebop2 gyro noise")
+    acc_std: float = P(0.3, "m/s²", "accelerometer noise σ_acc per sample (eq 34)", "bebop2 accelerometer")
+    alpha_a: float = P(3.0, "-", "spread multiple α of eqs 37-38", "assumption (3σ)")
+    omega_d: float = P(0.005, "rad/s²", "bias drift rate ω_d; ρ = √(3/4) ω_d (eq 42)", "assumption")
+    mag_std: float = P(0.5, "mag unit", "magnetometer noise σ_m per sample (eq 49)", "bebop2 magnetometer")
+    alpha_m: float = P(3.0, "-", "spread multiple α of eq 49", "assumption (3σ)")
+    mag_norm: float = P(0.0, "mag unit", "local field norm ‖b_e‖ (0: the first sample's norm)", "-")
+    omega_sat: float = P(np.radians(1000.0), "rad/s", "gyro yaw-rate saturation ω_ψ,sat (eq 48)",
+                         "bebop2 gyro range")
+    theta_m: float = P(10.0, "-", "membership curvature ϑ_m of eq 47", "assumption")
+    theta_w: float = P(10.0, "-", "membership curvature ϑ_ω of eq 48", "assumption")
+    kappa_1: float = P(0.01, "-", "κ when the field is clean and the rate low (per magnetometer sample)",
+                       "assumption")
+    kappa_2: float = P(0.2, "-", "κ when the field is clean and the gyro near saturation", "assumption")
+    kappa_3: float = P(0.001, "-", "κ when the field is disturbed and the rate low", "assumption")
+    kappa_4: float = P(0.02, "-", "κ when the field is disturbed and the gyro near saturation", "assumption")
+    iota: float = P(20.0, "samples", "window scale ι of eq 53 (at most 256)", "assumption")
+    p0: float = P(1.0, "-", "initial covariance P0 = p0·I ('large', §III AEKF)", "assumption")
+    gravity: float = P(ONE_G, "m/s²", "|g| of eq 15", "standard gravity")
+
+
+@njit(cache=True)
+def _wrap(a):
+    return (a + np.pi) % (2.0 * np.pi) - np.pi
+
+
+@njit(cache=True)
+def _to_up(q):
+    """q' = q_F ⊗ q_nb = [−x, w, −z, y] (NED -> the paper's z-up frame)."""
+    out = np.empty(4)
+    out[0], out[1], out[2], out[3] = -q[1], q[0], -q[3], q[2]
+    return out
+
+
+@njit(cache=True)
+def _from_up(q):
+    out = np.empty(4)
+    out[0], out[1], out[2], out[3] = q[1], -q[0], q[3], -q[2]
+    return out
+
+
+@njit(cache=True)
+def membership(v, vmax, theta):
+    """Eqs 47-48: ``y = (e^{ln(ϑ) v/v_max} − 1)/(ϑ − 1)`` for v in [0, v_max]."""
+    v = min(max(v, 0.0), vmax)
+    if vmax <= 0.0:
+        return 1.0
+    return (np.exp(np.log(theta) * v / vmax) - 1.0) / (theta - 1.0)
+
+
+@njit(cache=True)
+def fuzzy_gain(rho, lam_m, w_abs, w_sat, th_m, th_w, k1, k2, k3, k4):
+    """Eqs 47-51: minimum inference over the four extreme cases, centre-of-gravity output."""
+    ym = membership(rho, lam_m, th_m)  # "field disturbed"
+    yw = membership(w_abs, w_sat, th_w)  # "gyro near saturation"
+    w1 = min(1.0 - ym, 1.0 - yw)
+    w2 = min(1.0 - ym, yw)
+    w3 = min(ym, 1.0 - yw)
+    w4 = min(ym, yw)
+    s = w1 + w2 + w3 + w4
+    return (w1 * k1 + w2 * k2 + w3 * k3 + w4 * k4) / s
+
+
+@njit(cache=True)
+def afckf_step(x, p, gyr, acc, mag, dt, diag):
+    use_mag = p[0] > 0.0
+    om1, om2, beta, sg, sa, alpha_a, om_d = p[1], p[2], p[3], p[4], p[5], p[6], p[7]
+    sm, alpha_m, mnorm_p, w_sat, th_m, th_w = p[8], p[9], p[10], p[11], p[12], p[13]
+    k1, k2, k3, k4, iota, p0, grav = p[14], p[15], p[16], p[17], p[18], p[19], p[20]
+    for i in range(7):
+        diag[i] = 0.0
+    pending = x[YAW_PENDING] != 0.0
+    if not prepare(x, acc, mag, use_mag):
+        return
+    if x[ISTART] == 0.0 or (pending and x[YAW_PENDING] == 0.0):
+        # channels start from the initial attitude (or the heading just set by the magnetometer)
+        x[IQ:IQ + 4] = _to_up(x[0:4])
+        P0 = np.eye(4) * p0
+        x[IP:IP + 16] = P0.ravel()
+        x[IPSI] = q_to_euler(x[0:4])[2]
+        for i in range(WMAX):
+            x[IBUF + i] = x[IPSI]
+        x[ISTART] = 1.0
+    q = x[IQ:IQ + 4].copy()
+    P = x[IP:IP + 16].copy().reshape((4, 4))
+    # D. eq 39: ω_cor = ω − b
+    w = np.zeros(3)
+    if finite3(gyr):
+        w[0], w[1], w[2] = gyr[0] - x[IB], gyr[1] - x[IB + 1], gyr[2] - x[IB + 2]
+    # C. eqs 25-26, 31: gyro prediction and its process noise
+    qw, qx, qy, qz = q[0], q[1], q[2], q[3]
+    qdot = np.empty(4)
+    qdot[0] = 0.5 * (-qx * w[0] - qy * w[1] - qz * w[2])
+    qdot[1] = 0.5 * (qw * w[0] + qy * w[2] - qz * w[1])
+    qdot[2] = 0.5 * (qw * w[1] - qx * w[2] + qz * w[0])
+    qdot[3] = 0.5 * (qw * w[2] + qx * w[1] - qy * w[0])
+    q_w = q + qdot * dt
+    q_w /= np.sqrt(np.sum(q_w * q_w))
+    X = xi(q)
+    Q = (dt * dt / 4.0) * (X * (sg * sg)) @ X.T  # eq 31, corrected
+    Pp = P + Q  # Φ = Λ = I
+    q_new = q_w
+    r_off = 1.0
+    mu = 0.0
+    an = norm3(acc) if finite3(acc) else 0.0
+    if an > 0.0:
+        # A. eqs 13-15: centrifugal compensation about body z, normalised by g
+        wz2 = w[2] * w[2]
+        a0 = (acc[0] - wz2 * om1) / grav
+        a1 = (acc[1] - wz2 * om2) / grav
+        a2 = acc[2] / grav
+        xi_a = np.sqrt(a0 * a0 + a1 * a1 + a2 * a2) - 1.0  # eq 36
+        lam_a = alpha_a * np.sqrt(3.0) * sa / grav  # eq 38, corrected
+        # B. eqs 21-24: one gradient-descent step, from the gyro prediction q_ω,t (eq 23
+        # corrected, see the module doc)
+        pw, px, py, pz = q_w[0], q_w[1], q_w[2], q_w[3]
+        f0 = 2.0 * (px * pz - pw * py) - a0
+        f1 = 2.0 * (pw * px + py * pz) - a1
+        f2 = 2.0 * (0.5 - px * px - py * py) - a2
+        J = np.empty((3, 4))
+        J[0, 0], J[0, 1], J[0, 2], J[0, 3] = -2.0 * py, 2.0 * pz, -2.0 * pw, 2.0 * px
+        J[1, 0], J[1, 1], J[1, 2], J[1, 3] = 2.0 * px, 2.0 * pw, 2.0 * pz, 2.0 * py
+        J[2, 0], J[2, 1], J[2, 2], J[2, 3] = 0.0, -4.0 * px, -4.0 * py, 0.0
+        fv = np.empty(3)
+        fv[0], fv[1], fv[2] = f0, f1, f2
+        grad = J.T @ fv
+        gn = np.sqrt(np.sum(grad * grad))
+        mu = beta * np.sqrt(np.sum(qdot * qdot)) * dt  # eq 24
+        if abs(xi_a) <= lam_a and gn > 0.0 and mu > 0.0:
+            q_grad = q_w - mu * grad / gn  # eq 23, from q_ω,t
+            sa_g = sa / grav
+            R = (mu * mu / (gn * gn)) * (J.T @ J) * (sa_g * sa_g)  # eq 33, corrected
+            K = Pp @ np.linalg.inv(Pp + R)
+            q_new = q_w + K @ (q_grad - q_w)
+            Pp = (np.eye(4) - K) @ Pp
+            r_off = 0.0
+            # D. eqs 40-42: bias by integral feedback (sign corrected), from the measured and
+            # predicted up directions a_cor and v̂ = Rᵀ ĝ
+            rho = np.sqrt(0.75) * om_d
+            vx, vy, vz = f0 + a0, f1 + a1, f2 + a2
+            ex = a1 * vz - a2 * vy
+            ey = a2 * vx - a0 * vz
+            ez = a0 * vy - a1 * vx
+            x[IB] -= rho * ex * dt
+            x[IB + 1] -= rho * ey * dt
+            x[IB + 2] -= rho * ez * dt
+    q_new /= np.sqrt(np.sum(q_new * q_new))
+    x[IQ:IQ + 4] = q_new
+    x[IP:IP + 16] = (0.5 * (Pp + Pp.T)).ravel()
+    # roll and pitch from the Kalman channel
+    e = q_to_euler(_from_up(q_new))
+    roll, pitch = e[0], e[1]
+    # E. eq 43: gyro yaw integration with the ZYX Euler rate ψ̇ = (ω_y sin φ + ω_z cos φ)/cos θ
+    cth = np.cos(pitch)
+    psi_dot = (w[1] * np.sin(roll) + w[2] * np.cos(roll)) / (cth if abs(cth) > 1e-6 else 1e-6)
+    psi = x[IPSI] + psi_dot * dt
+    kappa = 0.0
+    if use_mag and finite3(mag) and norm3(mag) > 0.0:
+        mn = norm3(mag)
+        if x[IMREF] == 0.0:
+            x[IMREF] = mnorm_p if mnorm_p > 0.0 else mn
+        lam_m = alpha_m * np.sqrt(3.0) * sm  # eq 49
+        rho_m = min(abs(mn - x[IMREF]), lam_m)  # eq 50 (text's definition)
+        w_abs = min(abs(gyr[2]) if finite3(gyr) else 0.0, w_sat)
+        kappa = fuzzy_gain(rho_m, lam_m, w_abs, w_sat, th_m, th_w, k1, k2, k3, k4)
+        psi_m = mag_heading(mag, roll, pitch)  # eqs 44-45, corrected (ν: declination of the run)
+        psi = psi + kappa * _wrap(psi_m - psi)  # eq 46 on the circle
+    psi = _wrap(psi)
+    x[IPSI] = psi
+    # eqs 52-53: adaptive-window moving average on the circle
+    head = int(x[IHEAD])
+    x[IBUF + head] = psi
+    x[IHEAD] = (head + 1) % WMAX
+    win = int(round(min(iota, WMAX) * np.exp(-abs(psi_dot))))
+    win = max(1, min(win, WMAX))
+    ss = 0.0
+    cs = 0.0
+    for j in range(win):
+        v = x[IBUF + (head - j) % WMAX]
+        ss += np.sin(v)
+        cs += np.cos(v)
+    yaw = np.arctan2(ss, cs)
+    x[0:4] = euler_to_q(roll, pitch, yaw)
+    diag[0], diag[1], diag[2], diag[3] = kappa, mu, r_off, float(win)
+    diag[4], diag[5], diag[6] = x[IB], x[IB + 1], x[IB + 2]
+
+
+def fit_centrifugal(gyr, acc, *, min_rate: float = 5.0, gyro_range: float = np.inf):
+    """Least-squares ``ω1, ω2`` of eq 13 from a spinning segment: ``a_xy ≈ ω_z² [ω1, ω2] + c``
+    over samples with ``|ω_z| > min_rate`` and the gyroscope below its range. Returns
+    ``(omega1, omega2, rms_residual)``; raises ValueError without enough spinning samples."""
+    gyr, acc = np.asarray(gyr, float), np.asarray(acc, float)
+    ok = (np.abs(gyr[:, 2]) > min_rate) & (np.abs(gyr).max(axis=1) < gyro_range) & np.isfinite(acc).all(axis=1)
+    if ok.sum() < 50:
+        raise ValueError(f"fit_centrifugal: {int(ok.sum())} samples spin faster than {min_rate} rad/s; "
+                         "need a spinning segment of at least 50 samples")
+    A = np.column_stack([gyr[ok, 2] ** 2, np.ones(ok.sum())])
+    out = []
+    res = []
+    for j in (0, 1):
+        coef, *_ = np.linalg.lstsq(A, acc[ok, j], rcond=None)
+        out.append(coef[0])
+        res.append(acc[ok, j] - A @ coef)
+    return out[0], out[1], float(np.sqrt(np.mean(np.square(res))))
+
+
+@njit(cache=True)
+def afckf_run(x, p, dt, gyr, acc, mag, q_out, diag_out):
+    """Batch: the same step over every sample, in compiled code."""
+    for k in range(len(dt)):
+        afckf_step(x, p, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
+        q_out[k] = x[0:4]
+
+
+class Afckf(Estimator):
+    """The AFCKF. Diagnostics per sample: the fuzzy gain ``kappa``, the step ``mu``,
+    ``r_off`` (1 when the measurement noise was switched off), the averaging ``window`` and the
+    bias estimate ``bias_x/y/z`` (rad/s)."""
+
+    name = "afckf"
+    Params = AfckfParams
+    state_size = IBUF + WMAX
+    diag_names = ("kappa", "mu", "r_off", "window", "bias_x", "bias_y", "bias_z")
+    step = staticmethod(afckf_step)
+    batch = staticmethod(afckf_run)

@@ -1,0 +1,130 @@
+"""Compiled pieces shared by the estimators (quadest conventions: NED/FRD, ``q_nb``).
+
+State arrays of every estimator start with the same four slots and two flags:
+``x[0:4]`` the attitude ``q_nb``, ``x[INIT]`` 1 once the attitude has been initialised,
+``x[YAW_PENDING]`` 1 while the heading still waits for a first magnetometer sample. Each
+estimator's own state follows from ``x[BASE]``.
+"""
+import numpy as np
+from numba import njit
+
+INIT = 4
+YAW_PENDING = 5
+BASE = 6
+
+
+@njit(cache=True)
+def finite3(v):
+    return np.isfinite(v[0]) and np.isfinite(v[1]) and np.isfinite(v[2])
+
+
+@njit(cache=True)
+def norm3(v):
+    return np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+
+
+@njit(cache=True)
+def euler_to_q(roll, pitch, yaw):
+    """ZYX Euler angles to ``q_nb`` (same as :func:`quadest.rotation.euler_to_quat`)."""
+    cr, sr = np.cos(0.5 * roll), np.sin(0.5 * roll)
+    cp, sp = np.cos(0.5 * pitch), np.sin(0.5 * pitch)
+    cy, sy = np.cos(0.5 * yaw), np.sin(0.5 * yaw)
+    q = np.empty(4)
+    q[0] = cy * cp * cr + sy * sp * sr
+    q[1] = cy * cp * sr - sy * sp * cr
+    q[2] = cy * sp * cr + sy * cp * sr
+    q[3] = sy * cp * cr - cy * sp * sr
+    return q
+
+
+@njit(cache=True)
+def q_to_euler(q):
+    """``[roll, pitch, yaw]`` of ``q_nb`` (ZYX), as :func:`quadest.rotation.quat_to_euler`
+    away from gimbal lock."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    r20 = 2.0 * (x * z - w * y)
+    sinp = min(1.0, max(-1.0, -r20))
+    out = np.empty(3)
+    out[0] = np.arctan2(2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y))
+    out[1] = np.arcsin(sinp)
+    out[2] = np.arctan2(2.0 * (x * y + w * z), 1.0 - 2.0 * (y * y + z * z))
+    return out
+
+
+@njit(cache=True)
+def tilt_from_acc(acc):
+    """Roll and pitch from a specific-force sample (``f_b = −g Rᵀ e_z`` at rest):
+    ``roll = atan2(−f_y, −f_z)``, ``pitch = atan2(f_x, √(f_y² + f_z²))``."""
+    roll = np.arctan2(-acc[1], -acc[2])
+    pitch = np.arctan2(acc[0], np.sqrt(acc[1] * acc[1] + acc[2] * acc[2]))
+    return roll, pitch
+
+
+@njit(cache=True)
+def mag_heading(mag, roll, pitch):
+    """Tilt-compensated magnetic heading, rad: the magnetometer levelled by roll and pitch,
+    ``m_h = Ry(pitch) Rx(roll) m``, and ``yaw = atan2(−m_h,y, m_h,x)`` (NED, FRD)."""
+    cr, sr, cp, sp = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch)
+    mhx = mag[0] * cp + (mag[1] * sr + mag[2] * cr) * sp
+    mhy = mag[1] * cr - mag[2] * sr
+    return np.arctan2(-mhy, mhx)
+
+
+@njit(cache=True)
+def initialise(x, acc, mag, use_mag):
+    """Attitude from the first usable accelerometer (and magnetometer) sample. Returns True
+    once initialised. Without a magnetometer sample the heading is 0 and ``YAW_PENDING`` is set."""
+    if not finite3(acc) or norm3(acc) == 0.0:
+        return False
+    roll, pitch = tilt_from_acc(acc)
+    yaw = 0.0
+    have_mag = use_mag and finite3(mag) and norm3(mag) > 0.0
+    if have_mag:
+        yaw = mag_heading(mag, roll, pitch)
+    x[0:4] = euler_to_q(roll, pitch, yaw)
+    x[INIT] = 1.0
+    x[YAW_PENDING] = 1.0 if (use_mag and not have_mag) else 0.0
+    return True
+
+
+@njit(cache=True)
+def settle_heading(x, mag):
+    """First magnetometer sample after a start without one: set the heading, keep the tilt."""
+    e = q_to_euler(x[0:4])
+    x[0:4] = euler_to_q(e[0], e[1], mag_heading(mag, e[0], e[1]))
+    x[YAW_PENDING] = 0.0
+
+
+@njit(cache=True)
+def prepare(x, acc, mag, use_mag):
+    """Common start of every step: initialise on the first usable sample, set a pending heading.
+    Returns False while the attitude is not initialised (the step then does nothing)."""
+    if x[INIT] == 0.0:
+        return initialise(x, acc, mag, use_mag)
+    if x[YAW_PENDING] != 0.0 and use_mag and finite3(mag) and norm3(mag) > 0.0:
+        settle_heading(x, mag)
+    return True
+
+
+@njit(cache=True)
+def xi(q):
+    """``Ξ(q)`` (4x3) with ``q ⊗ [0, v] = Ξ(q) v``."""
+    w, a, b, c = q[0], q[1], q[2], q[3]
+    X = np.empty((4, 3))
+    X[0, 0], X[0, 1], X[0, 2] = -a, -b, -c
+    X[1, 0], X[1, 1], X[1, 2] = w, -c, b
+    X[2, 0], X[2, 1], X[2, 2] = c, w, -a
+    X[3, 0], X[3, 1], X[3, 2] = -b, a, w
+    return X
+
+
+@njit(cache=True)
+def omega_matrix(w, dt):
+    """``I + dt/2 Ω(ω)`` with ``Ω(ω) q = q ⊗ [0, ω]`` (first-order quaternion integration)."""
+    F = np.eye(4)
+    h = 0.5 * dt
+    F[0, 1], F[0, 2], F[0, 3] = -h * w[0], -h * w[1], -h * w[2]
+    F[1, 0], F[1, 2], F[1, 3] = h * w[0], h * w[2], -h * w[1]
+    F[2, 0], F[2, 1], F[2, 3] = h * w[1], -h * w[2], h * w[0]
+    F[3, 0], F[3, 1], F[3, 2] = h * w[2], h * w[1], -h * w[0]
+    return F

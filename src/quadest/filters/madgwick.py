@@ -1,0 +1,110 @@
+"""Madgwick's gradient-descent orientation filter, MARG and IMU forms.
+
+S. O. H. Madgwick, A. J. L. Harrison, R. Vaidyanathan, "Estimation of IMU and MARG orientation
+using a gradient descent algorithm", ICORR 2011 (AFCKF ref [11]).
+
+The paper's earth frame has z up (gravity reference ``[0, 0, 1]``, met by the up-pointing
+specific force) and x towards magnetic north: north-west-up. The gradient step is taken in that
+frame, on ``q' = q_F ⊗ q_nb`` with ``q_F = [0, 1, 0, 0]`` (NED -> NWU, a half turn about x), and
+the result is mapped back to NED. This matters: the objective is written in the unit-quaternion
+form of the rotation and its 4-D gradient is normalised including its radial part, so an NED
+rewrite that is equal on the unit sphere takes slightly different steps (0.25° apart after 20 s).
+ahrs's implementation of the paper gives the same attitude in NWU (tested to 1e-9 rad).
+"""
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from quadest.filters.base import Estimator, P, Params
+from quadest.filters.common import BASE, finite3, norm3, prepare
+
+
+@dataclass(frozen=True)
+class MadgwickParams(Params):
+    use_mag: bool = P(True, "-", "use the magnetometer (MARG form) when samples are present", "-")
+    beta_marg: float = P(0.041, "-", "gradient-descent gain β in the MARG form",
+                         "Madgwick 2010 report / reference implementation")
+    beta_imu: float = P(0.033, "-", "gradient-descent gain β in the IMU (6-axis) form",
+                        "Madgwick 2010 report / reference implementation")
+
+
+@njit(cache=True)
+def madgwick_step(x, p, gyr, acc, mag, dt, diag):
+    use_mag = p[0] > 0.0
+    diag[0] = 0.0
+    if not prepare(x, acc, mag, use_mag):
+        return
+    beta = p[1] if use_mag else p[2]
+    # the paper's z-up frame: q' = q_F ⊗ q_nb = [−x, w, −z, y]
+    qw, qx, qy, qz = -x[1], x[0], -x[3], x[2]
+    # eq 12: q̇_ω = ½ q ⊗ [0, ω]
+    d = np.zeros(4)
+    if finite3(gyr):
+        gx, gy, gz = gyr[0], gyr[1], gyr[2]
+        d[0] = 0.5 * (-qx * gx - qy * gy - qz * gz)
+        d[1] = 0.5 * (qw * gx + qy * gz - qz * gy)
+        d[2] = 0.5 * (qw * gy - qx * gz + qz * gx)
+        d[3] = 0.5 * (qw * gz + qx * gy - qy * gx)
+    an = norm3(acc) if finite3(acc) else 0.0
+    if an > 0.0:
+        ax, ay, az = acc[0] / an, acc[1] / an, acc[2] / an  # up-pointing specific force
+        f0 = 2.0 * (qx * qz - qw * qy) - ax
+        f1 = 2.0 * (qw * qx + qy * qz) - ay
+        f2 = 2.0 * (0.5 - qx * qx - qy * qy) - az
+        # J_gᵀ f_g (eqs 25-26)
+        s0 = -2.0 * qy * f0 + 2.0 * qx * f1
+        s1 = 2.0 * qz * f0 + 2.0 * qw * f1 - 4.0 * qx * f2
+        s2 = -2.0 * qw * f0 + 2.0 * qz * f1 - 4.0 * qy * f2
+        s3 = 2.0 * qx * f0 + 2.0 * qy * f1
+        mn = norm3(mag) if (use_mag and finite3(mag)) else 0.0
+        if mn > 0.0:
+            mx, my, mz = mag[0] / mn, mag[1] / mn, mag[2] / mn
+            # eq 45: h = q ⊗ m ⊗ q*, eq 46: b = [√(hx² + hy²), 0, hz]
+            hx = mx * (1 - 2 * (qy * qy + qz * qz)) + my * 2 * (qx * qy - qw * qz) + mz * 2 * (qx * qz + qw * qy)
+            hy = mx * 2 * (qx * qy + qw * qz) + my * (1 - 2 * (qx * qx + qz * qz)) + mz * 2 * (qy * qz - qw * qx)
+            hz = mx * 2 * (qx * qz - qw * qy) + my * 2 * (qy * qz + qw * qx) + mz * (1 - 2 * (qx * qx + qy * qy))
+            bx = np.sqrt(hx * hx + hy * hy)
+            bz = hz
+            f3 = 2.0 * bx * (0.5 - qy * qy - qz * qz) + 2.0 * bz * (qx * qz - qw * qy) - mx
+            f4 = 2.0 * bx * (qx * qy - qw * qz) + 2.0 * bz * (qw * qx + qy * qz) - my
+            f5 = 2.0 * bx * (qw * qy + qx * qz) + 2.0 * bz * (0.5 - qx * qx - qy * qy) - mz
+            # J_bᵀ f_b (eq 32)
+            s0 += -2.0 * bz * qy * f3 + (-2.0 * bx * qz + 2.0 * bz * qx) * f4 + 2.0 * bx * qy * f5
+            s1 += 2.0 * bz * qz * f3 + (2.0 * bx * qy + 2.0 * bz * qw) * f4 + (2.0 * bx * qz - 4.0 * bz * qx) * f5
+            s2 += (-4.0 * bx * qy - 2.0 * bz * qw) * f3 + (2.0 * bx * qx + 2.0 * bz * qz) * f4 + (2.0 * bx * qw - 4.0 * bz * qy) * f5
+            s3 += (-4.0 * bx * qz + 2.0 * bz * qx) * f3 + (-2.0 * bx * qw + 2.0 * bz * qy) * f4 + 2.0 * bx * qx * f5
+            diag[0] = 2.0
+        else:
+            diag[0] = 1.0
+        sn = np.sqrt(s0 * s0 + s1 * s1 + s2 * s2 + s3 * s3)
+        if sn > 0.0:
+            # eq 33: q̇ = q̇_ω − β ∇f/|∇f|
+            d[0] -= beta * s0 / sn
+            d[1] -= beta * s1 / sn
+            d[2] -= beta * s2 / sn
+            d[3] -= beta * s3 / sn
+    # eq 13: q_t = q_{t−1} + q̇ Δt, normalised; back to NED: q_nb = q_F* ⊗ q' = [q'x, −q'w, q'z, −q'y]
+    q0, q1, q2, q3 = qw + d[0] * dt, qx + d[1] * dt, qy + d[2] * dt, qz + d[3] * dt
+    n = np.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+    x[0], x[1], x[2], x[3] = q1 / n, -q0 / n, q3 / n, -q2 / n
+
+
+@njit(cache=True)
+def madgwick_run(x, p, dt, gyr, acc, mag, q_out, diag_out):
+    """Batch: the same step over every sample, in compiled code."""
+    for k in range(len(dt)):
+        madgwick_step(x, p, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
+        q_out[k] = x[0:4]
+
+
+class Madgwick(Estimator):
+    """Madgwick's filter. Diagnostic ``correction``: 0 none, 1 accelerometer, 2 accelerometer
+    and magnetometer."""
+
+    name = "madgwick"
+    Params = MadgwickParams
+    state_size = BASE
+    diag_names = ("correction",)
+    step = staticmethod(madgwick_step)
+    batch = staticmethod(madgwick_run)
