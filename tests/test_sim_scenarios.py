@@ -104,12 +104,3 @@ def test_presets_rates():
     assert rec.imu_rate_hz() == pytest.approx(1000.0) and not rec.has_mag
     rec = simulate("hover", "bebop2", seed=0, duration=2.0)
     assert rec.mag_rate_hz() == pytest.approx(100.0)
-
-
-def test_docs_list_every_parameter():
-    from pathlib import Path
-
-    from quadest.sim import param_table
-    doc = (Path(__file__).parents[1] / "docs" / "simulator.md").read_text()
-    missing = [r["key"] for r in param_table(build_config("bebop2")) if f"`{r['key']}`" not in doc]
-    assert not missing, f"docs/simulator.md does not document {missing}"
