@@ -1,5 +1,5 @@
 # quadest: two commands on a fresh machine (Python >= 3.11, pip, make):
-#   make demo   creates .venv, installs quadest, runs its main job
+#   make demo   creates .venv, installs quadest, runs its main job (quadest reproduce afckf)
 #   make test   installs the test extra into .venv and runs every test
 PYTHON ?= python3
 VENV   ?= .venv
@@ -26,7 +26,7 @@ $(VENV)/.installed-test: $(VENV)/.installed
 install: $(VENV)/.installed
 
 demo: $(VENV)/.installed
-	@$(BIN)/quadest demo --out $(OUT)
+	@$(BIN)/quadest reproduce afckf --plot-dir $(OUT) --json $(OUT)/afckf.json
 
 test: $(VENV)/.installed-test
 	$(BIN)/python -m pytest

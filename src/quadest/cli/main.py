@@ -77,6 +77,114 @@ def cmd_info(args):
     return 0
 
 
+# -- compare -------------------------------------------------------------------------------
+def _recording_from_args(args):
+    from quadest.data import load_recording
+    from quadest.sim import build_config, simulate
+
+    if args.recording:
+        return load_recording(args.recording), str(args.recording)
+    cfg = build_config(args.preset, _parse_sets(args.set))
+    rec = simulate(args.scenario, args.preset, seed=args.seed, duration=args.duration, config=cfg,
+                   progress=True)
+    return rec, f"simulated {args.scenario} / {args.preset} / seed {args.seed}"
+
+
+def cmd_compare(args):
+    from quadest.evaluation.compare import compare, format_tables, parse_filters, parse_params
+
+    names = parse_filters(args.filters)
+    params = parse_params(args.param)
+    rec, source = _recording_from_args(args)
+    _say(f"comparing {', '.join(names)} on {source} ({len(rec)} samples"
+         + (f", errors from t = {args.t_from:g} s)" if args.t_from is not None else ")"))
+    report, results = compare(rec, names, params=params, t_from=args.t_from, timing=not args.no_timing,
+                              source=source)
+    _say(format_tables(report))
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(report, indent=2))
+        _say(f"wrote {args.json}")
+    if args.plot_dir:
+        from quadest.plot import plot_errors
+
+        for p in plot_errors(rec.t, rec.true_q, results, args.plot_dir, title=f"({source})", t_from=args.t_from):
+            _say(f"wrote {p}")
+    return 0
+
+
+# -- reproduce -----------------------------------------------------------------------------
+def _parse_seeds(text):
+    a, dash, b = text.partition("-")
+    try:
+        seeds = list(range(int(a), int(b) + 1)) if dash else [int(v) for v in text.split(",")]
+    except ValueError:
+        raise CliError(f"--seeds expects a range like 1-5 or a list like 1,2,3, got {text!r}") from None
+    if not seeds:
+        raise CliError("--seeds selects no seed")
+    return seeds
+
+
+def cmd_reproduce(args):
+    from quadest.evaluation import reproduce as R
+
+    seeds = _parse_seeds(args.seeds)
+    if args.paper == "afckf":
+        _say("Reproducing Solanki & de Visser 2022 (AFCKF), Tables I-V, on the simulator: a Bebop 2 "
+             f"that loses a rotor (errors from the failure on) and in normal flight, seeds {args.seeds}.")
+        _say("(first use compiles the estimators: about a minute)")
+        result = R.reproduce_afckf(seeds, progress=True)
+    else:
+        _say("Reproducing Liang et al. 2023 (QUKF), Table 1, on the simulator: MPU6050 + HMC5883L at "
+             f"20 Hz, 30 s of hover and of motion, seeds {args.seeds}.")
+        result = R.reproduce_qukf(seeds, progress=True)
+    _say(R.format_reproduction(args.paper, result))
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(result, indent=2))
+        _say(f"wrote {args.json}")
+    if args.plot_dir:
+        from quadest.evaluation.compare import run_filters
+        from quadest.plot import plot_errors, plot_recording
+        from quadest.sim import simulate
+
+        if args.paper == "afckf":
+            scen, preset, names, t_from = "damaged-rotor", "bebop2", ["madgwick", "complementary", "kalman", "afckf"], 5.0
+            params = {"afckf": {k: result["calibration"][k] for k in ("omega1", "omega2")}}
+        else:
+            scen, preset, names, t_from, params = "nominal", "lowcost-20hz", ["qukf", "ekf", "complementary"], None, {}
+        rec = simulate(scen, preset, seed=seeds[0], duration=None if args.paper == "afckf" else 30.0)
+        out = Path(args.plot_dir)
+        for p in plot_errors(rec.t, rec.true_q, run_filters(rec, names, params), out / args.paper,
+                             title=f"({scen}, seed {seeds[0]})", t_from=t_from):
+            _say(f"wrote {p}")
+        _say(f"wrote {plot_recording(rec, out / args.paper / 'flight.png', title=f'{scen} / {preset} / seed {seeds[0]}')}")
+    return 0
+
+
+# -- benchmark -----------------------------------------------------------------------------
+def cmd_benchmark(args):
+    from quadest.evaluation.metrics import time_estimator
+    from quadest.filters import FILTERS, make_filter
+    from quadest.sim import simulate
+
+    if args.what != "speed":
+        raise CliError(f"benchmark {args.what} comes with the readers (issue #5); available: speed")
+    rec = simulate("damaged-rotor", "bebop2", seed=1, duration=args.duration)
+    _say(f"µs per sample on {len(rec)} samples of a simulated damaged-rotor flight (bebop2), one core; "
+         "batch: best of 3 after a warm-up; streaming: update() called from Python")
+    out = {}
+    _say(f"{'filter':<15}{'batch':>10}{'streaming':>12}")
+    for name in FILTERS:
+        tm = time_estimator(lambda n=name: make_filter(n, declination=0.035), rec)
+        out[name] = {"batch_us": tm["batch_us"], "stream_us": tm["stream_us"]}
+        _say(f"{name:<15}{tm['batch_us']:>10.3f}{tm['stream_us']:>12.2f}")
+    if args.json:
+        Path(args.json).write_text(json.dumps({"samples": len(rec), "filters": out}, indent=2))
+        _say(f"wrote {args.json}")
+    return 0
+
+
 # -- demo ----------------------------------------------------------------------------------
 def cmd_demo(args):
     """The main job on a fresh machine; grows with the project."""
@@ -143,7 +251,50 @@ def build_parser():
     i.add_argument("--json", action="store_true", help="print JSON instead of text")
     i.set_defaults(func=cmd_info)
 
-    d = sub.add_parser("demo", help="the main job, as `make demo` runs it",
+    from quadest.filters import FILTERS
+
+    c = sub.add_parser("compare", help="run estimators on one recording and tabulate their errors",
+                       description="Run attitude estimators on a simulated flight or a recording with "
+                                   "truth; print RMS error, variance and mean absolute error per axis "
+                                   "(filters as columns) and the execution time, like the papers' "
+                                   "tables. Filters: " + ", ".join(FILTERS) + ".")
+    src = c.add_mutually_exclusive_group()
+    src.add_argument("--recording", type=Path, metavar="FILE", help="recording with true_q (.csv/.parquet)")
+    src.add_argument("--scenario", choices=SCENARIOS, default="damaged-rotor",
+                     help="simulate this scenario (default: damaged-rotor)")
+    c.add_argument("--preset", choices=list(PRESETS), default="bebop2", help="with --scenario (default: bebop2)")
+    c.add_argument("--seed", type=int, default=1, help="with --scenario (default: 1)")
+    c.add_argument("--duration", type=float, default=None, help="with --scenario: seconds")
+    c.add_argument("--set", action="append", metavar="KEY=VALUE", help="with --scenario: simulator parameter")
+    c.add_argument("--filters", default="all", help="all, or a comma-separated list (default: all)")
+    c.add_argument("--param", action="append", metavar="FILTER.NAME=VALUE",
+                   help="estimator parameter, e.g. --param afckf.omega1=-0.0145 (repeatable)")
+    c.add_argument("--from", dest="t_from", type=float, default=None, metavar="SECONDS",
+                   help="count errors from this time on (e.g. 5 for the failure in damaged-rotor)")
+    c.add_argument("--json", metavar="OUT", help="write the figures as JSON")
+    c.add_argument("--plot-dir", metavar="DIR", help="draw the error of every filter over time per axis")
+    c.add_argument("--no-timing", action="store_true", help="skip the execution-time measurement")
+    c.set_defaults(func=cmd_compare)
+
+    r = sub.add_parser("reproduce", help="reproduce a paper's experiments on the simulator",
+                       description="Run a paper's experiment on simulated flights over several seeds and "
+                                   "print our figures next to the published ones. afckf: Tables I-V of "
+                                   "Solanki & de Visser 2022; qukf: Table 1 of Liang et al. 2023.")
+    r.add_argument("paper", choices=["afckf", "qukf"])
+    r.add_argument("--seeds", default="1-5", help="seed range or list (default: 1-5)")
+    r.add_argument("--json", metavar="OUT", help="write all figures (per seed too) as JSON")
+    r.add_argument("--plot-dir", metavar="DIR", help="draw the errors over time for the first seed")
+    r.set_defaults(func=cmd_reproduce)
+
+    b = sub.add_parser("benchmark", help="measure the estimators' speed",
+                       description="benchmark speed: microseconds per sample of every estimator, batch "
+                                   "and streaming, on one core.")
+    b.add_argument("what", choices=["speed"], help="what to benchmark")
+    b.add_argument("--duration", type=float, default=60.0, help="seconds of simulated data (default: 60)")
+    b.add_argument("--json", metavar="OUT", help="write the figures as JSON")
+    b.set_defaults(func=cmd_benchmark)
+
+    d = sub.add_parser("demo", help="the simulator demo: a rotor failure, summarised and plotted",
                        description="Simulate a rotor failure on a Bebop 2, summarise and plot it.")
     d.add_argument("--out", default="demo-output", help="output folder (default: demo-output)")
     d.set_defaults(func=cmd_demo)

@@ -56,6 +56,7 @@ import numpy as np
 from numba import njit
 
 from quadest.filters.base import Estimator, P, Params
+from quadest.filters.linalg import inv_spd, mm, mm_t, mv
 from quadest.filters.common import (BASE, YAW_PENDING, euler_to_q, finite3, mag_heading, norm3,
                                     prepare, q_to_euler, xi)
 
@@ -66,8 +67,8 @@ IPSI = BASE + 23  # fused yaw (before the moving average)
 IMREF = BASE + 24  # local field norm ‖b_e‖ (0: from the first sample)
 ISTART = BASE + 25  # 1 once the channels are initialised
 IHEAD = BASE + 26  # ring buffer position
-IBUF = BASE + 27  # ring buffer of fused yaw, WMAX values
 WMAX = 256
+IBUF = BASE + 27  # ring buffers of sin and cos of the fused yaw, WMAX values each
 
 ONE_G = 9.80665
 
@@ -159,8 +160,10 @@ def afckf_step(x, p, gyr, acc, mag, dt, diag):
         P0 = np.eye(4) * p0
         x[IP:IP + 16] = P0.ravel()
         x[IPSI] = q_to_euler(x[0:4])[2]
+        s0, c0 = np.sin(x[IPSI]), np.cos(x[IPSI])
         for i in range(WMAX):
-            x[IBUF + i] = x[IPSI]
+            x[IBUF + i] = s0
+            x[IBUF + WMAX + i] = c0
         x[ISTART] = 1.0
     q = x[IQ:IQ + 4].copy()
     P = x[IP:IP + 16].copy().reshape((4, 4))
@@ -178,7 +181,7 @@ def afckf_step(x, p, gyr, acc, mag, dt, diag):
     q_w = q + qdot * dt
     q_w /= np.sqrt(np.sum(q_w * q_w))
     X = xi(q)
-    Q = (dt * dt / 4.0) * (X * (sg * sg)) @ X.T  # eq 31, corrected
+    Q = mm_t(X, X) * (dt * dt / 4.0 * sg * sg)  # eq 31, corrected
     Pp = P + Q  # Φ = Λ = I
     q_new = q_w
     r_off = 1.0
@@ -204,16 +207,17 @@ def afckf_step(x, p, gyr, acc, mag, dt, diag):
         J[2, 0], J[2, 1], J[2, 2], J[2, 3] = 0.0, -4.0 * px, -4.0 * py, 0.0
         fv = np.empty(3)
         fv[0], fv[1], fv[2] = f0, f1, f2
-        grad = J.T @ fv
+        grad = mv(J.T.copy(), fv)
         gn = np.sqrt(np.sum(grad * grad))
         mu = beta * np.sqrt(np.sum(qdot * qdot)) * dt  # eq 24
         if abs(xi_a) <= lam_a and gn > 0.0 and mu > 0.0:
             q_grad = q_w - mu * grad / gn  # eq 23, from q_ω,t
             sa_g = sa / grav
-            R = (mu * mu / (gn * gn)) * (J.T @ J) * (sa_g * sa_g)  # eq 33, corrected
-            K = Pp @ np.linalg.inv(Pp + R)
-            q_new = q_w + K @ (q_grad - q_w)
-            Pp = (np.eye(4) - K) @ Pp
+            Jt = J.T.copy()
+            R = mm(Jt, J) * (mu * mu / (gn * gn) * sa_g * sa_g)  # eq 33, corrected
+            K = mm(Pp, inv_spd(Pp + R))
+            q_new = q_w + mv(K, q_grad - q_w)
+            Pp = Pp - mm(K, Pp)
             r_off = 0.0
             # D. eqs 40-42: bias by integral feedback (sign corrected), from the measured and
             # predicted up directions a_cor and v̂ = Rᵀ ĝ
@@ -250,16 +254,17 @@ def afckf_step(x, p, gyr, acc, mag, dt, diag):
     x[IPSI] = psi
     # eqs 52-53: adaptive-window moving average on the circle
     head = int(x[IHEAD])
-    x[IBUF + head] = psi
+    x[IBUF + head] = np.sin(psi)
+    x[IBUF + WMAX + head] = np.cos(psi)
     x[IHEAD] = (head + 1) % WMAX
     win = int(round(min(iota, WMAX) * np.exp(-abs(psi_dot))))
     win = max(1, min(win, WMAX))
     ss = 0.0
     cs = 0.0
     for j in range(win):
-        v = x[IBUF + (head - j) % WMAX]
-        ss += np.sin(v)
-        cs += np.cos(v)
+        k = (head - j) % WMAX
+        ss += x[IBUF + k]
+        cs += x[IBUF + WMAX + k]
     yaw = np.arctan2(ss, cs)
     x[0:4] = euler_to_q(roll, pitch, yaw)
     diag[0], diag[1], diag[2], diag[3] = kappa, mu, r_off, float(win)
@@ -300,7 +305,7 @@ class Afckf(Estimator):
 
     name = "afckf"
     Params = AfckfParams
-    state_size = IBUF + WMAX
+    state_size = IBUF + 2 * WMAX
     diag_names = ("kappa", "mu", "r_off", "window", "bias_x", "bias_y", "bias_z")
     step = staticmethod(afckf_step)
     batch = staticmethod(afckf_run)

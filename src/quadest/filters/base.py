@@ -21,6 +21,7 @@ import numpy as np
 
 from quadest.filters.common import BASE, INIT
 from quadest.rotation import quat_mul, quat_to_euler
+from quadest.rotation.kernels import qmul
 
 
 def P(default, unit: str, doc: str, source: str):
@@ -89,6 +90,8 @@ class Estimator:
         self.params = params
         self._p = params.as_array()
         self.declination = float(declination)
+        self._dq = _declination_quat(self.declination) if self.declination != 0.0 else None
+        self._step = type(self).step
         self._q0 = None if q0 is None else np.asarray(q0, float) / np.linalg.norm(q0)
         self._diag = np.zeros(max(1, len(self.diag_names)))
         self.reset()
@@ -126,18 +129,17 @@ class Estimator:
         return self._out(self._x[0:4])
 
     def _out(self, q):
-        if self.declination == 0.0:
-            return np.array(q, dtype=float)
-        return quat_mul(_declination_quat(self.declination), q)
+        if self._dq is None:
+            return q.copy()
+        return qmul(self._dq, q)
 
     # -- use ------------------------------------------------------------------------------
     def update(self, gyr, acc, mag=None, *, dt: float) -> np.ndarray:
         """One sample: gyroscope (rad/s), accelerometer (m/s²), magnetometer (any unit or None),
         time since the previous sample (s). Returns the attitude ``q_nb``."""
-        m = _NAN3 if mag is None else np.asarray(mag, dtype=np.float64)
-        type(self).step(self._x, self._p, np.asarray(gyr, dtype=np.float64),
-                        np.asarray(acc, dtype=np.float64), m, float(dt), self._diag)
-        return self._out(self._x[0:4])
+        self._step(self._x, self._p, _f64(gyr), _f64(acc), _NAN3 if mag is None else _f64(mag),
+                   float(dt), self._diag)
+        return self._out(self._x[:4])
 
     @property
     def diagnostics(self) -> dict:
@@ -169,6 +171,12 @@ class Estimator:
 
 
 _NAN3 = np.full(3, np.nan)
+_F8 = np.dtype(np.float64)
+
+
+def _f64(v):
+    """A float64 array without copying one that already is (the streaming hot path)."""
+    return v if type(v) is np.ndarray and v.dtype is _F8 else np.asarray(v, dtype=np.float64)
 
 
 def sample_intervals(t) -> np.ndarray:

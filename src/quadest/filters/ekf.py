@@ -18,6 +18,7 @@ from numba import njit
 
 from quadest.filters.base import Estimator
 from quadest.filters.common import BASE, finite3, omega_matrix, prepare
+from quadest.filters.linalg import inv_spd, mm, mm_t, mv
 from quadest.filters.quatmeas import measurement_quaternion
 from quadest.filters.qukf import PB, QukfParams, noise
 
@@ -36,15 +37,15 @@ def ekf_step(x, p, gyr, acc, mag, dt, diag):
     S, R = noise(p, dt)
     P = x[PB:PB + 16].copy().reshape((4, 4))
     F = omega_matrix(gyr, dt) if finite3(gyr) else np.eye(4)
-    X = F @ x[0:4]
-    P = F @ P @ F.T + np.eye(4) * S
+    X = mv(F, x[0:4])
+    P = mm_t(mm(F, P), F) + np.eye(4) * S
     z, ok = measurement_quaternion(acc, mag, X, use_mag)
     if ok:
-        K = P @ np.linalg.inv(P + np.eye(4) * R)
-        X = X + K @ (z - X)
+        K = mm(P, inv_spd(P + np.eye(4) * R))
+        X = X + mv(K, z - X)
         IK = np.eye(4) - K
         # Joseph form: keeps P symmetric positive definite
-        P = IK @ P @ IK.T + (K * R) @ K.T
+        P = mm_t(mm(IK, P), IK) + mm_t(K, K) * R
         diag[0] = 1.0
     x[0:4] = X / np.sqrt(np.sum(X * X))
     x[PB:PB + 16] = (0.5 * (P + P.T)).ravel()

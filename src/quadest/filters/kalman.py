@@ -28,6 +28,7 @@ from numba import njit
 
 from quadest.filters.base import Estimator, P, Params
 from quadest.filters.common import BASE, finite3, norm3, prepare
+from quadest.filters.linalg import inv_spd, mm, mm_t, mv
 
 IB = BASE  # gyro bias (3)
 ID = BASE + 3  # magnetic disturbance, navigation frame, in reference-field units (3)
@@ -91,11 +92,12 @@ def _qexp_mul(q, v):
 @njit(cache=True)
 def _update(x, P, r, H, Rm):
     """Kalman update with residual r, Jacobian H (m x 9), noise Rm; injects the error."""
-    S = H @ P @ H.T + Rm
-    K = P @ H.T @ np.linalg.inv(S)
-    dx = K @ r
-    IKH = np.eye(9) - K @ H
-    P[:, :] = IKH @ P @ IKH.T + K @ Rm @ K.T  # Joseph form: keeps P symmetric positive definite
+    PHt = mm_t(P, H)
+    S = mm(H, PHt) + Rm
+    K = mm(PHt, inv_spd(S))
+    dx = mv(K, r)
+    IKH = np.eye(9) - mm(K, H)
+    P[:, :] = mm_t(mm(IKH, P), IKH) + mm_t(mm(K, Rm), K)  # Joseph form: keeps P symmetric positive definite
     x[0:4] = _qexp_mul(x[0:4], dx[0:3])
     x[IB:IB + 3] += dx[3:6]
     x[ID:ID + 3] += dx[6:9]
@@ -128,7 +130,7 @@ def kalman_step(x, p, gyr, acc, mag, dt, diag):
         Q[i, i] = (sg * dt) ** 2
         Q[3 + i, 3 + i] = sb * sb * dt
         Q[6 + i, 6 + i] = sd * sd * (1.0 - cd * cd)
-    P = F @ P @ F.T + Q
+    P = mm_t(mm(F, P), F) + Q
     # -- accelerometer: f = −g Rᵀ e_z ---------------------------------------------------------
     if finite3(acc) and norm3(acc) > 0.0:
         R = _rot(x[0:4])
@@ -143,13 +145,13 @@ def kalman_step(x, p, gyr, acc, mag, dt, diag):
         if x[INORM] == 0.0:  # reference field from the first sample, in the current frame
             x[INORM] = norm3(mag)
             R = _rot(x[0:4])
-            x[IREF:IREF + 3] = R @ (mag / x[INORM])
+            x[IREF:IREF + 3] = mv(R, mag / x[INORM])
             x[IREF + 1] = 0.0  # magnetic frame: no east component
             x[IREF:IREF + 3] /= norm3(x[IREF:IREF + 3])
         else:
             R = _rot(x[0:4])
             u = x[IREF:IREF + 3] + x[ID:ID + 3]
-            h = R.T @ u
+            h = mv(R.T.copy(), u)
             r = mag / x[INORM] - h
             H = np.zeros((3, 9))
             H[:, 0:3] = _skew(h)

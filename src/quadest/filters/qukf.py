@@ -23,6 +23,7 @@ from numba import njit
 
 from quadest.filters.base import Estimator, P, Params
 from quadest.filters.common import BASE, finite3, omega_matrix, prepare
+from quadest.filters.linalg import cholesky, inv_spd, mm, mm_t, mv
 from quadest.filters.quatmeas import measurement_quaternion
 
 PB = BASE  # covariance P, 16 values, row-major
@@ -61,7 +62,57 @@ def _sqrt_psd(P, scale):
     M = _sym(P) * scale
     for i in range(4):
         M[i, i] += 1e-15
-    return np.linalg.cholesky(M)
+    return cholesky(M)
+
+
+@njit(cache=True)
+def _sigma(X, L):
+    """Eq 20: ``X``, ``X + L_i``, ``X − L_i`` (rows), L the columns of √((n+λ)P)."""
+    n = len(X)
+    chi = np.empty((2 * n + 1, n))
+    for j in range(n):
+        chi[0, j] = X[j]
+    for i in range(n):
+        for j in range(n):
+            chi[1 + i, j] = X[j] + L[j, i]
+            chi[1 + n + i, j] = X[j] - L[j, i]
+    return chi
+
+
+@njit(cache=True)
+def _propagate(F, chi):
+    """Each sigma point (row) through the linear process model ``F``."""
+    out = np.empty_like(chi)
+    for k in range(chi.shape[0]):
+        for i in range(4):
+            out[k, i] = F[i, 0] * chi[k, 0] + F[i, 1] * chi[k, 1] + F[i, 2] * chi[k, 2] + F[i, 3] * chi[k, 3]
+    return out
+
+
+@njit(cache=True)
+def _ut_mean(chi, w0, wi):
+    n = chi.shape[1]
+    m = np.empty(n)
+    for j in range(n):
+        s = w0 * chi[0, j]
+        for k in range(1, chi.shape[0]):
+            s += wi * chi[k, j]
+        m[j] = s
+    return m
+
+
+@njit(cache=True)
+def _ut_cov(A, ma, B, mb, w0, wi):
+    """``Σ w_i (A_i − ma)(B_i − mb)ᵀ`` with w_0 for the central point."""
+    n = A.shape[1]
+    C = np.zeros((n, n))
+    for k in range(A.shape[0]):
+        w = w0 if k == 0 else wi
+        for i in range(n):
+            da = w * (A[k, i] - ma[i])
+            for j in range(n):
+                C[i, j] += da * (B[k, j] - mb[j])
+    return C
 
 
 @njit(cache=True)
@@ -74,49 +125,31 @@ def qukf_step(x, p, gyr, acc, mag, dt, diag):
     lam, alpha, beta = p[1], p[2], p[3]
     S, R = noise(p, dt)
     P = x[PB:PB + 16].copy().reshape((4, 4))
+    # eq 21, corrected: w_m0 = λ/(n+λ), w_c0 = w_m0 + 1 − α² + β, w_i = 1/(2(n+λ))
     wm0 = lam / (n + lam)
     wc0 = wm0 + 1.0 - alpha * alpha + beta
-    wi = 1.0 / (2.0 * (n + lam))  # eq 21, corrected
+    wi = 1.0 / (2.0 * (n + lam))
     X = x[0:4].copy()
     F = omega_matrix(gyr, dt) if finite3(gyr) else np.eye(4)
-    # eqs 20, 22-24: sigma points through the process model
-    L = _sqrt_psd(P, n + lam)
-    chi = np.empty((2 * n + 1, 4))
-    chi[0] = F @ X
-    for i in range(n):
-        chi[1 + i] = F @ (X + L[:, i])
-        chi[1 + n + i] = F @ (X - L[:, i])
-    Xp = wm0 * chi[0]
-    for i in range(1, 2 * n + 1):
-        Xp = Xp + wi * chi[i]
-    Pp = np.eye(4) * S
-    d = chi[0] - Xp
-    Pp += wc0 * np.outer(d, d)
-    for i in range(1, 2 * n + 1):
-        d = chi[i] - Xp
-        Pp += wi * np.outer(d, d)
+    # eq 20: 2n + 1 sigma points; eq 22: through the process model
+    chi = _propagate(F, _sigma(X, _sqrt_psd(P, n + lam)))
+    # eqs 23-24
+    Xp = _ut_mean(chi, wm0, wi)
+    Pp = _ut_cov(chi, Xp, chi, Xp, wc0, wi)
+    for i in range(4):
+        Pp[i, i] += S
     z, ok = measurement_quaternion(acc, mag, Xp, use_mag)
     if ok:
-        # eq 25: new sigma points; eq 26: Z_i = H X̃_i = X̃_i
-        L = _sqrt_psd(Pp, n + lam)
-        sig = np.empty((2 * n + 1, 4))
-        sig[0] = Xp
-        for i in range(n):
-            sig[1 + i] = Xp + L[:, i]
-            sig[1 + n + i] = Xp - L[:, i]
-        Zh = wm0 * sig[0]
-        for i in range(1, 2 * n + 1):
-            Zh = Zh + wi * sig[i]
-        Pzz = np.eye(4) * R  # eq 28
-        Pxz = np.zeros((4, 4))  # eq 29
-        for i in range(2 * n + 1):
-            w = wc0 if i == 0 else wi
-            dz = sig[i] - Zh
-            Pzz += w * np.outer(dz, dz)
-            Pxz += w * np.outer(sig[i] - Xp, dz)
-        K = Pxz @ np.linalg.inv(Pzz)  # eq 30
-        Xp = Xp + K @ (z - Zh)  # eq 31
-        Pp = Pp - K @ Pzz @ K.T  # eq 32
+        sig = _sigma(Xp, _sqrt_psd(Pp, n + lam))  # eq 25
+        Zs = sig.copy()  # eq 26: Z_i = H X̃_i with H = I
+        Zh = _ut_mean(Zs, wm0, wi)  # eq 27
+        Pzz = _ut_cov(Zs, Zh, Zs, Zh, wc0, wi)  # eq 28
+        for i in range(4):
+            Pzz[i, i] += R
+        Pxz = _ut_cov(sig, Xp, Zs, Zh, wc0, wi)  # eq 29
+        K = mm(Pxz, inv_spd(Pzz))  # eq 30
+        Xp = Xp + mv(K, z - Zh)  # eq 31
+        Pp = Pp - mm_t(mm(K, Pzz), K)  # eq 32
         diag[0] = 1.0
     Pp = _sym(Pp)
     nq = np.sqrt(np.sum(Xp * Xp))

@@ -1,0 +1,86 @@
+"""Attitude errors and their statistics (quadest conventions: ``q_nb``, NED, ZYX).
+
+- Per-axis Euler error: ``euler(q_est) − euler(q_true)``, each wrapped to ±180°, as the AFCKF
+  and QUKF papers tabulate (roll, pitch, yaw).
+- Total, heading and inclination error as the BROAD benchmark defines them (Laidig et al. 2021):
+  the error rotation in the navigation frame ``e = q_est ⊗ q_true⁻¹`` split into a rotation about
+  the vertical (heading, ``2 atan2(|e_z|, |e_w|)``) and the rest (inclination,
+  ``2 acos(√(e_w² + e_z²))``); the total is its angle ``2 atan2(|e_xyz|, |e_w|)``.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from quadest.rotation import quat_conj, quat_mul, quat_to_euler
+
+AXES = ("roll", "pitch", "yaw")
+
+
+def _wrap(a):
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def euler_errors(q_est, q_true) -> np.ndarray:
+    """Per-axis ZYX Euler error (rad) wrapped to ±π, shape (N, 3): roll, pitch, yaw."""
+    return _wrap(quat_to_euler(q_est) - quat_to_euler(q_true))
+
+
+def error_angles(q_est, q_true) -> dict:
+    """Total, heading and inclination error angles (rad) per sample (BROAD's definitions)."""
+    e = quat_mul(q_est, quat_conj(q_true))
+    w, z = np.abs(e[:, 0]), np.abs(e[:, 3])
+    total = 2 * np.arctan2(np.linalg.norm(e[:, 1:], axis=1), w)
+    heading = 2 * np.arctan2(z, w)
+    inclination = 2 * np.arccos(np.clip(np.sqrt(e[:, 0] ** 2 + e[:, 3] ** 2), 0.0, 1.0))
+    return {"total": total, "heading": heading, "inclination": inclination}
+
+
+def _rms(x):
+    return float(np.sqrt(np.mean(np.square(x)))) if len(x) else float("nan")
+
+
+def summarize_errors(q_est, q_true, mask=None) -> dict:
+    """RMS, variance and mean absolute value of the per-axis errors (degrees, degrees²) and the
+    RMS of total, heading and inclination errors, over the rows in ``mask`` with truth."""
+    q_est, q_true = np.asarray(q_est, float), np.asarray(q_true, float)
+    ok = np.isfinite(q_true).all(axis=1) & np.isfinite(q_est).all(axis=1)
+    if mask is not None:
+        ok &= np.asarray(mask, bool)
+    if not ok.any():
+        raise ValueError("no samples with truth to evaluate")
+    e = np.degrees(euler_errors(q_est[ok], q_true[ok]))
+    ang = {k: np.degrees(v) for k, v in error_angles(q_est[ok], q_true[ok]).items()}
+    return {
+        "samples": int(ok.sum()),
+        "rms_deg": {a: _rms(e[:, i]) for i, a in enumerate(AXES)},
+        "var_deg2": {a: float(np.var(e[:, i])) for i, a in enumerate(AXES)},
+        "mae_deg": {a: float(np.mean(np.abs(e[:, i]))) for i, a in enumerate(AXES)},
+        "total_rmse_deg": _rms(ang["total"]),
+        "heading_rmse_deg": _rms(ang["heading"]),
+        "inclination_rmse_deg": _rms(ang["inclination"]),
+    }
+
+
+def time_estimator(factory, rec, *, repeat: int = 3, streaming_samples: int = 2000) -> dict:
+    """Microseconds per sample in batch (best of ``repeat`` runs after a warm-up) and in
+    streaming use (``update`` called from Python on the first ``streaming_samples`` rows)."""
+    factory().run(rec)  # compile / warm up
+    best = np.inf
+    for _ in range(repeat):
+        f = factory()
+        t0 = time.perf_counter()
+        f.run(rec)
+        best = min(best, time.perf_counter() - t0)
+    n = min(streaming_samples, len(rec))
+    f = factory()
+    dt = np.diff(rec.t[: n + 1], prepend=rec.t[0])
+    dt[0] = dt[1] if n > 1 else 0.0
+    gyr, acc, mag = rec.gyr[:n], rec.acc[:n], rec.mag[:n]
+    f.update(gyr[0], acc[0], mag[0], dt=dt[0])
+    t0 = time.perf_counter()
+    for k in range(n):
+        f.update(gyr[k], acc[k], mag[k], dt=dt[k])
+    stream = (time.perf_counter() - t0) / n
+    return {"batch_us": 1e6 * best / len(rec), "stream_us": 1e6 * stream}
