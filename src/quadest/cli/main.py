@@ -236,7 +236,8 @@ def build_parser():
                         "acc.lever_arm=[0,0,0.01] (repeatable)")
     s.add_argument("--config", metavar="TOML", help="TOML file of [section] key = value overrides")
     s.add_argument("--ideal", action="store_true",
-                   help="ideal sensors: no noise, bias, scale error, saturation or disturbance")
+                   help="ideal sensors: no noise, bias, scale error, saturation or disturbance "
+                        "(--set and --config then add chosen errors back)")
     s.add_argument("-o", "--output", metavar="FILE", help="recording to write (.csv or .parquet)")
     s.add_argument("--plot", metavar="PNG", help="also draw attitude, rates and sensor signals")
     s.add_argument("--list-params", action="store_true",

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
-from quadest.filters.common import BASE, INIT
+from quadest.filters.common import BASE, INIT, T_LAST
 from quadest.rotation import quat_mul, quat_to_euler
 from quadest.rotation.kernels import qmul
 
@@ -106,6 +106,7 @@ class Estimator:
             self._q0 = np.asarray(q0, float) / np.linalg.norm(q0)
         x = np.zeros(self.state_size)
         x[0] = 1.0
+        x[T_LAST] = np.nan
         if self._q0 is not None:
             # the estimator's frame is magnetic; q0 is given in the geographic frame
             x[0:4] = quat_mul(_declination_quat(-self.declination), self._q0)
@@ -161,9 +162,13 @@ class Estimator:
             if a.shape != (n, 3):
                 raise ValueError(f"{self.name}: {name} must have shape ({n}, 3), got {a.shape}")
         dt = sample_intervals(t)
+        if n and np.isfinite(self._x[T_LAST]):  # resuming: the real interval to the last sample
+            dt[0] = t[0] - self._x[T_LAST]
         q = np.empty((n, 4))
         diag = np.zeros((n, max(1, len(self.diag_names))))
         type(self).batch(self._x, self._p, dt, gyr, acc, mag, q, diag)
+        if n:
+            self._x[T_LAST] = t[-1]
         if self.declination != 0.0:
             q = quat_mul(_declination_quat(self.declination), q)
         return FilterResult(self.name, t, q, {nm: diag[:, i] for i, nm in enumerate(self.diag_names)},

@@ -1,16 +1,18 @@
 """Compiled pieces shared by the estimators (quadest conventions: NED/FRD, ``q_nb``).
 
-State arrays of every estimator start with the same four slots and two flags:
-``x[0:4]`` the attitude ``q_nb``, ``x[INIT]`` 1 once the attitude has been initialised,
-``x[YAW_PENDING]`` 1 while the heading still waits for a first magnetometer sample. Each
-estimator's own state follows from ``x[BASE]``.
+State arrays of every estimator start with the same slots: ``x[0:4]`` the attitude ``q_nb``,
+``x[INIT]`` 1 once the attitude has been initialised, ``x[YAW_PENDING]`` 1 while the heading
+still waits for a first magnetometer sample, ``x[T_LAST]`` the timestamp of the last sample of a
+batch run (NaN before; lets a run resume exactly). Each estimator's own state follows from
+``x[BASE]``.
 """
 import numpy as np
 from numba import njit
 
 INIT = 4
 YAW_PENDING = 5
-BASE = 6
+T_LAST = 6
+BASE = 7
 
 
 @njit(cache=True)

@@ -8,8 +8,10 @@ estimates the errors of the orientation (3, body frame), of the gyro bias (3) an
 disturbance in the navigation frame (3), modelled as a first-order Gauss-Markov process
 ``d_k = c_d d_{k−1} + w`` with ``c_d = exp(−dt/τ_d)``. Accelerometer and magnetometer enter as
 vector measurements: ``f = −g Rᵀ e_z + (acceleration, treated as noise)`` and
-``m/|m_ref| = Rᵀ (m_ref + d) + noise`` with the unit reference field ``m_ref`` fixed at the start
-in the magnetic NED frame. After each update the error is moved into the nominal state
+``m/|m_ref| = Rᵀ (m_ref + d) + noise`` with the unit reference field ``m_ref = [cos I, 0, sin I]``
+in the magnetic NED frame, its norm and dip I measured on the first magnetometer sample (the dip
+from the angle between the field and the accelerometer's down direction, so a wrong initial
+attitude does not enter the reference). After each update the error is moved into the nominal state
 (``q ← q ⊗ Exp(δθ)``, ``b ← b + δb``, ``d ← d + δd``).
 
 Jacobians (checked against finite differences in the tests), right-multiplied error
@@ -142,12 +144,20 @@ def kalman_step(x, p, gyr, acc, mag, dt, diag):
         diag[0] = 1.0
     # -- magnetometer: m/|m_ref| = Rᵀ (m_ref + d) ----------------------------------------------
     if use_mag and finite3(mag) and norm3(mag) > 0.0:
-        if x[INORM] == 0.0:  # reference field from the first sample, in the current frame
-            x[INORM] = norm3(mag)
-            R = _rot(x[0:4])
-            x[IREF:IREF + 3] = mv(R, mag / x[INORM])
-            x[IREF + 1] = 0.0  # magnetic frame: no east component
-            x[IREF:IREF + 3] /= norm3(x[IREF:IREF + 3])
+        if x[INORM] == 0.0:
+            # reference field from the first sample: norm, and dip from the angle between the
+            # field and the accelerometer's down direction, independent of the attitude estimate
+            mn = norm3(mag)
+            x[INORM] = mn
+            an = norm3(acc) if finite3(acc) else 0.0
+            if an > 0.0:
+                s_dip = -(acc[0] * mag[0] + acc[1] * mag[1] + acc[2] * mag[2]) / (an * mn)
+                s_dip = min(1.0, max(-1.0, s_dip))
+                x[IREF], x[IREF + 1], x[IREF + 2] = np.sqrt(1.0 - s_dip * s_dip), 0.0, s_dip
+            else:
+                x[IREF:IREF + 3] = mv(_rot(x[0:4]), mag / mn)
+                x[IREF + 1] = 0.0  # magnetic frame: no east component
+                x[IREF:IREF + 3] /= norm3(x[IREF:IREF + 3])
         else:
             R = _rot(x[0:4])
             u = x[IREF:IREF + 3] + x[ID:ID + 3]

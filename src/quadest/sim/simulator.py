@@ -14,14 +14,17 @@ CHUNK_S = 10.0  # simulated seconds per chunk (memory and progress granularity)
 
 def build_config(preset: str = "bebop2", overrides: dict | None = None, toml=None,
                  ideal: bool = False) -> SimConfig:
-    """A preset, then a TOML file's overrides, then ``overrides`` (``{"gyro.noise_std": 0.02}``);
-    ``ideal`` removes every sensor error (see :meth:`SimConfig.idealized`)."""
+    """A preset; ``ideal`` removes every sensor error (:meth:`SimConfig.idealized`); then a TOML
+    file's overrides and ``overrides`` (``{"gyro.noise_std": 0.02}``), so that chosen errors can
+    be put back on ideal sensors."""
     cfg = preset_config(preset)
+    if ideal:
+        cfg = cfg.idealized()
     if toml is not None:
         cfg = cfg.with_overrides(load_toml_overrides(toml), source=str(toml))
     if overrides:
         cfg = cfg.with_overrides(overrides)
-    return cfg.idealized() if ideal else cfg
+    return cfg
 
 
 def simulate(scenario: str, preset: str = "bebop2", seed: int = 0, duration: float | None = None,
