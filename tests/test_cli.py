@@ -78,3 +78,34 @@ def test_demo(tmp_path, capsys):
 def test_console_script_entry_point():
     r = subprocess.run([sys.executable, "-m", "quadest.cli.main", "--version"], capture_output=True, text=True)
     assert r.returncode == 0 and "quadest" in r.stdout
+
+
+def test_compare_prints_tables_json_and_plots(tmp_path, capsys):
+    out = tmp_path / "c.json"
+    code, text, _ = run(capsys, "compare", "--scenario", "damaged-rotor", "--seed", "2", "--duration", "8",
+                        "--filters", "afckf,madgwick", "--from", "5", "--param", "afckf.beta=2",
+                        "--json", str(out), "--plot-dir", str(tmp_path / "plots"))
+    assert code == 0
+    for title in ("RMS error [deg]", "variance [deg²]", "mean absolute error [deg]", "execution time"):
+        assert title in text
+    import json
+    rep = json.loads(out.read_text())
+    assert set(rep["filters"]) == {"afckf", "madgwick"}
+    for key in ("rms_deg", "var_deg2", "mae_deg"):
+        assert set(rep["filters"]["afckf"][key]) == {"roll", "pitch", "yaw"}
+    assert rep["filters"]["afckf"]["us_per_sample"] > 0
+    assert (tmp_path / "plots" / "error_yaw.png").is_file()
+
+
+def test_compare_refuses_bad_arguments(tmp_path, capsys):
+    for argv in (["compare", "--filters", "nope"], ["compare", "--param", "afckf"],
+                 ["compare", "--param", "afckf.beta=x"]):
+        code, _, err = run(capsys, *argv, "--no-timing", "--duration", "2")
+        assert code == 1 and err.count("\n") == 1
+
+
+def test_reproduce_qukf_and_benchmark(tmp_path, capsys):
+    code, text, _ = run(capsys, "reproduce", "qukf", "--seeds", "1-2", "--json", str(tmp_path / "q.json"))
+    assert code == 0 and "paper" in text and "0.529" in text  # the published QUKF roll RMSE
+    code, text, _ = run(capsys, "benchmark", "speed", "--duration", "2")
+    assert code == 0 and "afckf" in text and "kalman" in text

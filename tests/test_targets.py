@@ -1,0 +1,44 @@
+"""The accuracy targets of issue #3, measured as `quadest reproduce afckf` measures them.
+
+Deterministic (simulated seeds), so they guard against regressions; speed targets are measured
+by `quadest benchmark speed`, never here.
+"""
+import pytest
+
+from quadest.evaluation.reproduce import reproduce_afckf
+
+
+@pytest.fixture(scope="module")
+def afckf():
+    return reproduce_afckf(range(1, 6))
+
+
+def test_afckf_damaged_rotor_targets(afckf):
+    r = afckf["cases"]["damaged-rotor"]["afckf"]["rms_deg"]
+    assert r["roll"] <= 1.5 and r["pitch"] <= 1.5 and r["yaw"] <= 8.0
+
+
+# Measured (seeds 1-5, mean roll / pitch RMS): afckf 1.54/1.41, madgwick 2.25/2.11, kalman
+# 1.24/1.15 meet 3°; mahony 3.45/3.54, qukf and ekf 4.62/4.80, complementary 5.11/5.36 do not:
+# with their papers' gains they follow the manoeuvre accelerations (time constants of 0.2-1 s).
+# docs/estimators.md reports this; the test fails loudly if either side changes.
+MEETS_3DEG = {"afckf", "madgwick", "kalman"}
+
+
+def test_nominal_flight_roll_pitch():
+    import numpy as np
+
+    from quadest.evaluation.compare import run_filters
+    from quadest.evaluation.metrics import summarize_errors
+    from quadest.filters import FILTERS
+    from quadest.sim import simulate
+
+    worst = {n: [] for n in FILTERS}
+    for seed in range(1, 6):
+        rec = simulate("nominal", "bebop2", seed=seed)
+        for name, res in run_filters(rec, list(FILTERS)).items():
+            r = summarize_errors(res.q, rec.true_q)["rms_deg"]
+            worst[name].append((r["roll"], r["pitch"]))
+    for name, v in worst.items():
+        mean = np.mean(v, axis=0).max()
+        assert (mean <= 3.0) == (name in MEETS_3DEG), (name, mean)
