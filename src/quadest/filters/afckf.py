@@ -56,9 +56,7 @@ import numpy as np
 from numba import njit
 
 from quadest.filters.base import Estimator, P, Params
-from quadest.filters.linalg import inv_spd, mm, mm_t, mv
-from quadest.filters.common import (BASE, YAW_PENDING, euler_to_q, finite3, mag_heading, norm3,
-                                    prepare, q_to_euler, xi)
+from quadest.filters.common import BASE, YAW_PENDING, finite3, mag_heading, norm3, prepare, q_to_euler
 
 IQ = BASE  # Kalman-channel quaternion q' (paper's z-up frame), 4
 IP = BASE + 4  # its covariance, 16
@@ -115,10 +113,23 @@ def _to_up(q):
 
 
 @njit(cache=True)
-def _from_up(q):
-    out = np.empty(4)
-    out[0], out[1], out[2], out[3] = q[1], -q[0], q[3], -q[2]
-    return out
+def _inv4_spd(M, out):
+    """Inverse of a symmetric positive definite 4x4 matrix by Gauss-Jordan, into ``out``
+    (destroys ``M``)."""
+    for i in range(4):
+        for j in range(4):
+            out[i, j] = 1.0 if i == j else 0.0
+    for c in range(4):
+        d = M[c, c]
+        for j in range(4):
+            M[c, j] /= d
+            out[c, j] /= d
+        for r in range(4):
+            if r != c:
+                f = M[r, c]
+                for j in range(4):
+                    M[r, j] -= f * M[c, j]
+                    out[r, j] -= f * out[c, j]
 
 
 @njit(cache=True)
@@ -143,7 +154,12 @@ def fuzzy_gain(rho, lam_m, w_abs, w_sat, th_m, th_w, k1, k2, k3, k4):
     return (w1 * k1 + w2 * k2 + w3 * k3 + w4 * k4) / s
 
 
-@njit(cache=True)
+# contract/reassoc/arcp let LLVM fuse and reorder floating-point arithmetic; NaN and Inf keep
+# their meaning (no nnan/ninf), which the bad-input handling needs
+FASTMATH = {"contract", "reassoc", "arcp"}
+
+
+@njit(cache=True, fastmath=FASTMATH)
 def afckf_step(x, p, gyr, acc, mag, dt, diag):
     use_mag = p[0] > 0.0
     om1, om2, beta, sg, sa, alpha_a, om_d = p[1], p[2], p[3], p[4], p[5], p[6], p[7]
@@ -165,79 +181,109 @@ def afckf_step(x, p, gyr, acc, mag, dt, diag):
             x[IBUF + i] = s0
             x[IBUF + WMAX + i] = c0
         x[ISTART] = 1.0
-    q = x[IQ:IQ + 4].copy()
-    P = x[IP:IP + 16].copy().reshape((4, 4))
+    # the Kalman channel works in place on the state: P is a view of x
+    P = x[IP:IP + 16].reshape((4, 4))
+    qw, qx, qy, qz = x[IQ], x[IQ + 1], x[IQ + 2], x[IQ + 3]
     # D. eq 39: ω_cor = ω − b
-    w = np.zeros(3)
     if finite3(gyr):
-        w[0], w[1], w[2] = gyr[0] - x[IB], gyr[1] - x[IB + 1], gyr[2] - x[IB + 2]
-    # C. eqs 25-26, 31: gyro prediction and its process noise
-    qw, qx, qy, qz = q[0], q[1], q[2], q[3]
-    qdot = np.empty(4)
-    qdot[0] = 0.5 * (-qx * w[0] - qy * w[1] - qz * w[2])
-    qdot[1] = 0.5 * (qw * w[0] + qy * w[2] - qz * w[1])
-    qdot[2] = 0.5 * (qw * w[1] - qx * w[2] + qz * w[0])
-    qdot[3] = 0.5 * (qw * w[2] + qx * w[1] - qy * w[0])
-    q_w = q + qdot * dt
-    q_w /= np.sqrt(np.sum(q_w * q_w))
-    X = xi(q)
-    Q = mm_t(X, X) * (dt * dt / 4.0 * sg * sg)  # eq 31, corrected
-    Pp = P + Q  # Φ = Λ = I
-    q_new = q_w
+        w0, w1, w2 = gyr[0] - x[IB], gyr[1] - x[IB + 1], gyr[2] - x[IB + 2]
+    else:
+        w0, w1, w2 = 0.0, 0.0, 0.0
+    # C. eqs 25-26: q̇_ω = ½ q ⊗ [0, ω], q_ω = q + q̇_ω Δt (normalised)
+    d0 = 0.5 * (-qx * w0 - qy * w1 - qz * w2)
+    d1 = 0.5 * (qw * w0 + qy * w2 - qz * w1)
+    d2 = 0.5 * (qw * w1 - qx * w2 + qz * w0)
+    d3 = 0.5 * (qw * w2 + qx * w1 - qy * w0)
+    qdot_norm = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2 + d3 * d3)
+    pw, px, py, pz = qw + d0 * dt, qx + d1 * dt, qy + d2 * dt, qz + d3 * dt
+    nq = np.sqrt(pw * pw + px * px + py * py + pz * pz)
+    pw, px, py, pz = pw / nq, px / nq, py / nq, pz / nq
+    # eq 31, corrected: P⁻ = P + Δt²/4 σ² Ξ(q) Ξ(q)ᵀ (Φ = Λ = I); Ξ rows of q ⊗ [0, e]
+    c = dt * dt / 4.0 * sg * sg
+    X0, X1, X2, X3 = (-qx, -qy, -qz), (qw, -qz, qy), (qz, qw, -qx), (-qy, qx, qw)
+    Xr = (X0, X1, X2, X3)
+    for i in range(4):
+        for j in range(4):
+            P[i, j] += c * (Xr[i][0] * Xr[j][0] + Xr[i][1] * Xr[j][1] + Xr[i][2] * Xr[j][2])
+    nw, nx, ny, nz = pw, px, py, pz
     r_off = 1.0
     mu = 0.0
     an = norm3(acc) if finite3(acc) else 0.0
     if an > 0.0:
         # A. eqs 13-15: centrifugal compensation about body z, normalised by g
-        wz2 = w[2] * w[2]
+        wz2 = w2 * w2
         a0 = (acc[0] - wz2 * om1) / grav
         a1 = (acc[1] - wz2 * om2) / grav
         a2 = acc[2] / grav
         xi_a = np.sqrt(a0 * a0 + a1 * a1 + a2 * a2) - 1.0  # eq 36
         lam_a = alpha_a * np.sqrt(3.0) * sa / grav  # eq 38, corrected
         # B. eqs 21-24: one gradient-descent step, from the gyro prediction q_ω,t (eq 23
-        # corrected, see the module doc)
-        pw, px, py, pz = q_w[0], q_w[1], q_w[2], q_w[3]
+        # corrected, see the module doc); f_g of eq 21 and J_g of eq 22 at q_ω
         f0 = 2.0 * (px * pz - pw * py) - a0
         f1 = 2.0 * (pw * px + py * pz) - a1
         f2 = 2.0 * (0.5 - px * px - py * py) - a2
-        J = np.empty((3, 4))
-        J[0, 0], J[0, 1], J[0, 2], J[0, 3] = -2.0 * py, 2.0 * pz, -2.0 * pw, 2.0 * px
-        J[1, 0], J[1, 1], J[1, 2], J[1, 3] = 2.0 * px, 2.0 * pw, 2.0 * pz, 2.0 * py
-        J[2, 0], J[2, 1], J[2, 2], J[2, 3] = 0.0, -4.0 * px, -4.0 * py, 0.0
-        fv = np.empty(3)
-        fv[0], fv[1], fv[2] = f0, f1, f2
-        grad = mv(J.T.copy(), fv)
-        gn = np.sqrt(np.sum(grad * grad))
-        mu = beta * np.sqrt(np.sum(qdot * qdot)) * dt  # eq 24
+        J0 = (-2.0 * py, 2.0 * pz, -2.0 * pw, 2.0 * px)
+        J1 = (2.0 * px, 2.0 * pw, 2.0 * pz, 2.0 * py)
+        J2 = (0.0, -4.0 * px, -4.0 * py, 0.0)
+        g0 = J0[0] * f0 + J1[0] * f1 + J2[0] * f2
+        g1 = J0[1] * f0 + J1[1] * f1 + J2[1] * f2
+        g2 = J0[2] * f0 + J1[2] * f1 + J2[2] * f2
+        g3 = J0[3] * f0 + J1[3] * f1 + J2[3] * f2
+        gn = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2 + g3 * g3)
+        mu = beta * qdot_norm * dt  # eq 24
         if abs(xi_a) <= lam_a and gn > 0.0 and mu > 0.0:
-            q_grad = q_w - mu * grad / gn  # eq 23, from q_ω,t
+            # eq 33, corrected: R = μ²/‖∇f‖² J_gᵀ (Σ_acc/g)² J_g; M = P⁻ + R
             sa_g = sa / grav
-            Jt = J.T.copy()
-            R = mm(Jt, J) * (mu * mu / (gn * gn) * sa_g * sa_g)  # eq 33, corrected
-            K = mm(Pp, inv_spd(Pp + R))
-            q_new = q_w + mv(K, q_grad - q_w)
-            Pp = Pp - mm(K, Pp)
+            cr = mu * mu / (gn * gn) * sa_g * sa_g
+            W = np.empty(48)  # scratch: M, its inverse, K
+            M = W[0:16].reshape((4, 4))
+            for i in range(4):
+                for j in range(4):
+                    M[i, j] = P[i, j] + cr * (J0[i] * J0[j] + J1[i] * J1[j] + J2[i] * J2[j])
+            Minv = W[16:32].reshape((4, 4))
+            _inv4_spd(M, Minv)
+            K = W[32:48].reshape((4, 4))  # K = P⁻ M⁻¹
+            for i in range(4):
+                for j in range(4):
+                    K[i, j] = P[i, 0] * Minv[0, j] + P[i, 1] * Minv[1, j] + P[i, 2] * Minv[2, j] + P[i, 3] * Minv[3, j]
+            # innovation q_∇ − q_ω = −μ ∇f/‖∇f‖ (eq 23)
+            s_ = -mu / gn
+            e0, e1, e2, e3 = s_ * g0, s_ * g1, s_ * g2, s_ * g3
+            nw = pw + K[0, 0] * e0 + K[0, 1] * e1 + K[0, 2] * e2 + K[0, 3] * e3
+            nx = px + K[1, 0] * e0 + K[1, 1] * e1 + K[1, 2] * e2 + K[1, 3] * e3
+            ny = py + K[2, 0] * e0 + K[2, 1] * e1 + K[2, 2] * e2 + K[2, 3] * e3
+            nz = pz + K[3, 0] * e0 + K[3, 1] * e1 + K[3, 2] * e2 + K[3, 3] * e3
+            # P = (I − K) P⁻, in place through M as a copy of P⁻
+            for i in range(4):
+                for j in range(4):
+                    M[i, j] = P[i, j]
+            for i in range(4):
+                for j in range(4):
+                    P[i, j] = M[i, j] - (K[i, 0] * M[0, j] + K[i, 1] * M[1, j] + K[i, 2] * M[2, j] + K[i, 3] * M[3, j])
             r_off = 0.0
             # D. eqs 40-42: bias by integral feedback (sign corrected), from the measured and
-            # predicted up directions a_cor and v̂ = Rᵀ ĝ
+            # predicted up directions a_cor and v̂ = Rᵀ ĝ (v̂ = f_g + a_cor)
             rho = np.sqrt(0.75) * om_d
             vx, vy, vz = f0 + a0, f1 + a1, f2 + a2
-            ex = a1 * vz - a2 * vy
-            ey = a2 * vx - a0 * vz
-            ez = a0 * vy - a1 * vx
-            x[IB] -= rho * ex * dt
-            x[IB + 1] -= rho * ey * dt
-            x[IB + 2] -= rho * ez * dt
-    q_new /= np.sqrt(np.sum(q_new * q_new))
-    x[IQ:IQ + 4] = q_new
-    x[IP:IP + 16] = (0.5 * (Pp + Pp.T)).ravel()
-    # roll and pitch from the Kalman channel
-    e = q_to_euler(_from_up(q_new))
-    roll, pitch = e[0], e[1]
+            x[IB] -= rho * (a1 * vz - a2 * vy) * dt
+            x[IB + 1] -= rho * (a2 * vx - a0 * vz) * dt
+            x[IB + 2] -= rho * (a0 * vy - a1 * vx) * dt
+    # symmetric P
+    for i in range(4):
+        for j in range(i + 1, 4):
+            v = 0.5 * (P[i, j] + P[j, i])
+            P[i, j] = v
+            P[j, i] = v
+    nq = np.sqrt(nw * nw + nx * nx + ny * ny + nz * nz)
+    nw, nx, ny, nz = nw / nq, nx / nq, ny / nq, nz / nq
+    x[IQ], x[IQ + 1], x[IQ + 2], x[IQ + 3] = nw, nx, ny, nz
+    # roll and pitch of the Kalman channel's q_nb = q_F* ⊗ q' = [q'x, −q'w, q'z, −q'y]
+    bw, bx, by, bz = nx, -nw, nz, -ny
+    roll = np.arctan2(2.0 * (by * bz + bw * bx), 1.0 - 2.0 * (bx * bx + by * by))
+    pitch = np.arcsin(min(1.0, max(-1.0, -2.0 * (bx * bz - bw * by))))
     # E. eq 43: gyro yaw integration with the ZYX Euler rate ψ̇ = (ω_y sin φ + ω_z cos φ)/cos θ
     cth = np.cos(pitch)
-    psi_dot = (w[1] * np.sin(roll) + w[2] * np.cos(roll)) / (cth if abs(cth) > 1e-6 else 1e-6)
+    psi_dot = (w1 * np.sin(roll) + w2 * np.cos(roll)) / (cth if abs(cth) > 1e-6 else 1e-6)
     psi = x[IPSI] + psi_dot * dt
     kappa = 0.0
     if use_mag and finite3(mag) and norm3(mag) > 0.0:
@@ -266,7 +312,12 @@ def afckf_step(x, p, gyr, acc, mag, dt, diag):
         ss += x[IBUF + k]
         cs += x[IBUF + WMAX + k]
     yaw = np.arctan2(ss, cs)
-    x[0:4] = euler_to_q(roll, pitch, yaw)
+    # output: roll and pitch of the Kalman channel, yaw of the yaw channel — the Kalman
+    # channel's q_nb turned about the vertical by (yaw − its own yaw)
+    yaw_kf = np.arctan2(2.0 * (bx * by + bw * bz), 1.0 - 2.0 * (by * by + bz * bz))
+    h = 0.5 * _wrap(yaw - yaw_kf)
+    ch, sh = np.cos(h), np.sin(h)
+    x[0], x[1], x[2], x[3] = ch * bw - sh * bz, ch * bx - sh * by, ch * by + sh * bx, ch * bz + sh * bw
     diag[0], diag[1], diag[2], diag[3] = kappa, mu, r_off, float(win)
     diag[4], diag[5], diag[6] = x[IB], x[IB + 1], x[IB + 2]
 
