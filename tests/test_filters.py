@@ -353,7 +353,7 @@ def test_fit_centrifugal_recovers_the_lever_arm():
 
 # -- small linear algebra --------------------------------------------------------------------------
 def test_linalg_kernels_match_numpy():
-    from quadest.filters.linalg import cholesky, inv_spd, mm, mm_t, mv
+    from quadest.filters.linalg import cholesky, inv_spd, inv_spd_into, mm, mm_t, mv
     rng = np.random.default_rng(4)
     for n in (3, 4, 9):
         A, B = rng.normal(size=(n, n)), rng.normal(size=(n, 5))
@@ -362,4 +362,7 @@ def test_linalg_kernels_match_numpy():
         np.testing.assert_allclose(mm_t(A, B.T), A @ B, atol=1e-12)
         np.testing.assert_allclose(mv(A, B[:, 0]), A @ B[:, 0], atol=1e-12)
         np.testing.assert_allclose(inv_spd(S), np.linalg.inv(S), atol=1e-10)
+        out = np.empty((n, n))
+        inv_spd_into(S.copy(), out)
+        np.testing.assert_allclose(out, np.linalg.inv(S), atol=1e-10)
         np.testing.assert_allclose(cholesky(S), np.linalg.cholesky(S), atol=1e-10)

@@ -56,7 +56,8 @@ import numpy as np
 from numba import njit
 
 from quadest.filters.base import Estimator, P, Params
-from quadest.filters.common import BASE, YAW_PENDING, finite3, mag_heading, norm3, prepare, q_to_euler
+from quadest.filters.linalg import inv_spd_into
+from quadest.filters.common import BASE, FASTMATH, YAW_PENDING, finite3, mag_heading, norm3, prepare, q_to_euler
 
 IQ = BASE  # Kalman-channel quaternion q' (paper's z-up frame), 4
 IP = BASE + 4  # its covariance, 16
@@ -113,26 +114,6 @@ def _to_up(q):
 
 
 @njit(cache=True)
-def _inv4_spd(M, out):
-    """Inverse of a symmetric positive definite 4x4 matrix by Gauss-Jordan, into ``out``
-    (destroys ``M``)."""
-    for i in range(4):
-        for j in range(4):
-            out[i, j] = 1.0 if i == j else 0.0
-    for c in range(4):
-        d = M[c, c]
-        for j in range(4):
-            M[c, j] /= d
-            out[c, j] /= d
-        for r in range(4):
-            if r != c:
-                f = M[r, c]
-                for j in range(4):
-                    M[r, j] -= f * M[c, j]
-                    out[r, j] -= f * out[c, j]
-
-
-@njit(cache=True)
 def membership(v, vmax, theta):
     """Eqs 47-48: ``y = (e^{ln(ϑ) v/v_max} − 1)/(ϑ − 1)`` for v in [0, v_max]."""
     v = min(max(v, 0.0), vmax)
@@ -152,11 +133,6 @@ def fuzzy_gain(rho, lam_m, w_abs, w_sat, th_m, th_w, k1, k2, k3, k4):
     w4 = min(ym, yw)
     s = w1 + w2 + w3 + w4
     return (w1 * k1 + w2 * k2 + w3 * k3 + w4 * k4) / s
-
-
-# contract/reassoc/arcp let LLVM fuse and reorder floating-point arithmetic; NaN and Inf keep
-# their meaning (no nnan/ninf), which the bad-input handling needs
-FASTMATH = {"contract", "reassoc", "arcp"}
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -241,7 +217,7 @@ def afckf_step(x, p, gyr, acc, mag, dt, diag):
                 for j in range(4):
                     M[i, j] = P[i, j] + cr * (J0[i] * J0[j] + J1[i] * J1[j] + J2[i] * J2[j])
             Minv = W[16:32].reshape((4, 4))
-            _inv4_spd(M, Minv)
+            inv_spd_into(M, Minv)
             K = W[32:48].reshape((4, 4))  # K = P⁻ M⁻¹
             for i in range(4):
                 for j in range(4):

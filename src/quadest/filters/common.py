@@ -9,6 +9,10 @@ batch run (NaN before; lets a run resume exactly). Each estimator's own state fo
 import numpy as np
 from numba import njit
 
+# Floating-point flags for the compiled steps: LLVM may fuse and reorder arithmetic (contract,
+# reassoc, arcp); NaN and Inf keep their meaning (no nnan/ninf), which bad-input handling needs.
+FASTMATH = {"contract", "reassoc", "arcp"}
+
 INIT = 4
 YAW_PENDING = 5
 T_LAST = 6

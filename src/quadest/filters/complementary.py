@@ -51,41 +51,33 @@ class ComplementaryParams(Params):
 
 
 @njit(cache=True)
-def _scale(q, gain, threshold):
-    """LERP (eq 50) or SLERP (eq 52) between identity and ``q`` by ``gain``, normalised."""
-    out = np.empty(4)
-    if q[0] > threshold:
-        out[0] = (1.0 - gain) + gain * q[0]
-        out[1], out[2], out[3] = gain * q[1], gain * q[2], gain * q[3]
+def _scaled_delta(d0, d1, d2, d3, gain, threshold):
+    """LERP (eq 50) or SLERP (eq 52) between identity and ``d`` by ``gain``, normalised."""
+    if d0 > threshold:
+        s0, s1, s2, s3 = (1.0 - gain) + gain * d0, gain * d1, gain * d2, gain * d3
     else:
-        ang = np.arccos(q[0])
-        s = np.sin(ang)
-        a, b = np.sin((1.0 - gain) * ang) / s, np.sin(gain * ang) / s
-        out[0] = a + b * q[0]
-        out[1], out[2], out[3] = b * q[1], b * q[2], b * q[3]
-    n = np.sqrt(out[0] ** 2 + out[1] ** 2 + out[2] ** 2 + out[3] ** 2)
-    return out / n
+        ang = np.arccos(d0)
+        sn = np.sin(ang)
+        a, b = np.sin((1.0 - gain) * ang) / sn, np.sin(gain * ang) / sn
+        s0, s1, s2, s3 = a + b * d0, b * d1, b * d2, b * d3
+    n = np.sqrt(s0 * s0 + s1 * s1 + s2 * s2 + s3 * s3)
+    return s0 / n, s1 / n, s2 / n, s3 / n
 
 
 @njit(cache=True)
-def _apply_conj(dq, q):
-    """``dq* ⊗ q``."""
-    w, a, b, c = dq[0], -dq[1], -dq[2], -dq[3]
-    out = np.empty(4)
-    out[0] = w * q[0] - a * q[1] - b * q[2] - c * q[3]
-    out[1] = w * q[1] + a * q[0] + b * q[3] - c * q[2]
-    out[2] = w * q[2] - a * q[3] + b * q[0] + c * q[1]
-    out[3] = w * q[3] + a * q[2] - b * q[1] + c * q[0]
-    return out
+def _conj_mul(d0, d1, d2, d3, q0, q1, q2, q3):
+    """``d* ⊗ q``."""
+    w, a, b, c = d0, -d1, -d2, -d3
+    return (w * q0 - a * q1 - b * q2 - c * q3, w * q1 + a * q0 + b * q3 - c * q2,
+            w * q2 - a * q3 + b * q0 + c * q1, w * q3 + a * q2 - b * q1 + c * q0)
 
 
 @njit(cache=True)
-def _to_nav(q, v):
+def _to_nav(w, x, y, z, v0, v1, v2):
     """``R(q) v``."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    return (v[0] * (1 - 2 * (y * y + z * z)) + v[1] * 2 * (x * y - w * z) + v[2] * 2 * (x * z + w * y),
-            v[0] * 2 * (x * y + w * z) + v[1] * (1 - 2 * (x * x + z * z)) + v[2] * 2 * (y * z - w * x),
-            v[0] * 2 * (x * z - w * y) + v[1] * 2 * (y * z + w * x) + v[2] * (1 - 2 * (x * x + y * y)))
+    return (v0 * (1 - 2 * (y * y + z * z)) + v1 * 2 * (x * y - w * z) + v2 * 2 * (x * z + w * y),
+            v0 * 2 * (x * y + w * z) + v1 * (1 - 2 * (x * x + z * z)) + v2 * 2 * (y * z - w * x),
+            v0 * 2 * (x * z - w * y) + v1 * 2 * (y * z + w * x) + v2 * (1 - 2 * (x * x + y * y)))
 
 
 @njit(cache=True)
@@ -100,13 +92,11 @@ def complementary_step(x, p, gyr, acc, mag, dt, diag):
     an = norm3(acc) if finite3(acc) else 0.0
     # steady-state gyro bias estimate (section 5.1)
     if bias_on and gyr_ok and an > 0.0:
-        steady = abs(an - grav) < s_acc
-        if x[B + 6] > 0.0:
+        steady = abs(an - grav) < s_acc and x[B + 6] > 0.0
+        if steady:
             for i in range(3):
                 if abs(gyr[i] - x[B + 3 + i]) > s_delta or abs(gyr[i] - x[B + i]) > s_rate:
                     steady = False
-        else:
-            steady = False
         if steady:
             for i in range(3):
                 x[B + i] += b_alpha * (gyr[i] - x[B + i])
@@ -114,49 +104,44 @@ def complementary_step(x, p, gyr, acc, mag, dt, diag):
         for i in range(3):
             x[B + 3 + i] = gyr[i]
         x[B + 6] = 1.0
-    q = x[0:4].copy()
+    qw, qx, qy, qz = x[0], x[1], x[2], x[3]
     # eq 42: prediction, q_nb + ½ q_nb ⊗ [0, ω − b] Δt
     if gyr_ok:
         w0, w1, w2 = gyr[0] - x[B], gyr[1] - x[B + 1], gyr[2] - x[B + 2]
         h = 0.5 * dt
-        qw, qx, qy, qz = q[0], q[1], q[2], q[3]
-        q[0] = qw + h * (-qx * w0 - qy * w1 - qz * w2)
-        q[1] = qx + h * (qw * w0 + qy * w2 - qz * w1)
-        q[2] = qy + h * (qw * w1 - qx * w2 + qz * w0)
-        q[3] = qz + h * (qw * w2 + qx * w1 - qy * w0)
-        q /= np.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+        qw, qx, qy, qz = (qw + h * (-qx * w0 - qy * w1 - qz * w2), qx + h * (qw * w0 + qy * w2 - qz * w1),
+                          qy + h * (qw * w1 - qx * w2 + qz * w0), qz + h * (qw * w2 + qx * w1 - qy * w0))
+        n = np.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+        qw, qx, qy, qz = qw / n, qx / n, qy / n, qz / n
     if an > 0.0:
-        a = np.empty(3)
-        a[0], a[1], a[2] = -acc[0] / an, -acc[1] / an, -acc[2] / an
-        gx, gy, gz = _to_nav(q, a)  # eq 44: predicted gravity direction (down, NED)
+        # eq 44: predicted gravity direction (down, NED) from the negated accelerometer
+        gx, gy, gz = _to_nav(qw, qx, qy, qz, -acc[0] / an, -acc[1] / an, -acc[2] / an)
         if gz > -1.0 + 1e-12:
             s = np.sqrt(2.0 * (gz + 1.0))
-            dq = np.empty(4)
-            dq[0], dq[1], dq[2], dq[3] = np.sqrt((gz + 1.0) / 2.0), -gy / s, gx / s, 0.0  # eq 47
             alpha = g_acc
             if adaptive:  # eq 60
                 em = abs(an - grav) / grav
                 f = 1.0 if em <= t1 else (0.0 if em >= t2 else (t2 - em) / (t2 - t1))
                 alpha = g_acc * f
             diag[0] = alpha
-            q = _apply_conj(_scale(dq, alpha, thr), q)
+            # eq 47, scaled (eqs 50-52), applied as Δq* ⊗ q_nb
+            d0, d1, d2, d3 = _scaled_delta(np.sqrt((gz + 1.0) / 2.0), -gy / s, gx / s, 0.0, alpha, thr)
+            qw, qx, qy, qz = _conj_mul(d0, d1, d2, d3, qw, qx, qy, qz)
         mn = norm3(mag) if (use_mag and finite3(mag)) else 0.0
         if mn > 0.0:
-            m = np.empty(3)
-            m[0], m[1], m[2] = mag[0] / mn, mag[1] / mn, mag[2] / mn
-            lx, ly, _ = _to_nav(q, m)  # eq 54
+            lx, ly, _ = _to_nav(qw, qx, qy, qz, mag[0] / mn, mag[1] / mn, mag[2] / mn)  # eq 54
             G = lx * lx + ly * ly  # eq 28
             if G > 0.0:
                 r = np.sqrt(G + lx * np.sqrt(G))
-                dq = np.empty(4)
                 if r > 1e-12:
-                    dq[0], dq[1], dq[2], dq[3] = r / np.sqrt(2.0 * G), 0.0, 0.0, ly / (np.sqrt(2.0) * r)  # eq 58
+                    m0, m3 = r / np.sqrt(2.0 * G), ly / (np.sqrt(2.0) * r)  # eq 58
                 else:  # field pointing exactly south: a half turn about z
-                    dq[0], dq[1], dq[2], dq[3] = 0.0, 0.0, 0.0, 1.0
-                q = _apply_conj(_scale(dq, g_mag, thr), q)
-    x[0:4] = q / np.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+                    m0, m3 = 0.0, 1.0
+                d0, d1, d2, d3 = _scaled_delta(m0, 0.0, 0.0, m3, g_mag, thr)
+                qw, qx, qy, qz = _conj_mul(d0, d1, d2, d3, qw, qx, qy, qz)
+    n = np.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+    x[0], x[1], x[2], x[3] = qw / n, qx / n, qy / n, qz / n
     diag[1], diag[2], diag[3] = x[B], x[B + 1], x[B + 2]
-
 
 @njit(cache=True)
 def complementary_run(x, p, dt, gyr, acc, mag, q_out, diag_out):

@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit
 
 from quadest.filters.base import Estimator
-from quadest.filters.common import BASE, finite3, omega_matrix, prepare
+from quadest.filters.common import BASE, FASTMATH, finite3, omega_matrix, prepare
 from quadest.filters.linalg import inv_spd, mm, mm_t, mv
 from quadest.filters.quatmeas import measurement_quaternion
 from quadest.filters.qukf import PB, QukfParams, noise
@@ -28,7 +28,7 @@ class EkfParams(QukfParams):
     """The QUKF's parameters; λ, α and β are unused."""
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def ekf_step(x, p, gyr, acc, mag, dt, diag):
     use_mag = p[0] > 0.0
     diag[0] = 0.0
@@ -52,7 +52,7 @@ def ekf_step(x, p, gyr, acc, mag, dt, diag):
     diag[1] = np.trace(P)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def ekf_run(x, p, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):

@@ -29,7 +29,7 @@ import numpy as np
 from numba import njit
 
 from quadest.filters.base import Estimator, P, Params
-from quadest.filters.common import BASE, finite3, norm3, prepare
+from quadest.filters.common import BASE, FASTMATH, finite3, norm3, prepare
 from quadest.filters.linalg import inv_spd, mm, mm_t, mv
 
 IB = BASE  # gyro bias (3)
@@ -58,14 +58,14 @@ class KalmanParams(Params):
     p0_bias: float = P(1e-4, "(rad/s)²", "initial gyro bias variance", "assumption")
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def _skew(v):
     S = np.zeros((3, 3))
     S[0, 1], S[0, 2], S[1, 0], S[1, 2], S[2, 0], S[2, 1] = -v[2], v[1], v[2], -v[0], -v[1], v[0]
     return S
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def _rot(q):
     w, x, y, z = q[0], q[1], q[2], q[3]
     R = np.empty((3, 3))
@@ -75,7 +75,7 @@ def _rot(q):
     return R
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def _qexp_mul(q, v):
     """``q ⊗ Exp(v)``, normalised."""
     th = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
@@ -91,7 +91,7 @@ def _qexp_mul(q, v):
     return out / np.sqrt(np.sum(out * out))
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def _update(x, P, r, H, Rm):
     """Kalman update with residual r, Jacobian H (m x 9), noise Rm; injects the error."""
     PHt = mm_t(P, H)
@@ -106,7 +106,7 @@ def _update(x, P, r, H, Rm):
     return dx
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def kalman_step(x, p, gyr, acc, mag, dt, diag):
     use_mag = p[0] > 0.0
     sg, sb, sa, sl, sm, sd, tau, grav = p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8]
@@ -173,7 +173,7 @@ def kalman_step(x, p, gyr, acc, mag, dt, diag):
     diag[5] = norm3(x[ID:ID + 3])
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def kalman_run(x, p, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):

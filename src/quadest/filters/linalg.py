@@ -7,8 +7,10 @@ instructions. Each function is tested against numpy.
 import numpy as np
 from numba import njit
 
+from quadest.filters.common import FASTMATH
 
-@njit(cache=True)
+
+@njit(cache=True, fastmath=FASTMATH)
 def mm(A, B):
     """``A @ B``."""
     n, k = A.shape
@@ -23,7 +25,7 @@ def mm(A, B):
     return C
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def mm_t(A, B):
     """``A @ B.T``."""
     n, k = A.shape
@@ -38,7 +40,7 @@ def mm_t(A, B):
     return C
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def mv(A, v):
     """``A @ v``."""
     n, k = A.shape
@@ -51,7 +53,7 @@ def mv(A, v):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def inv_spd(A):
     """Inverse of a symmetric positive definite matrix by Gauss-Jordan elimination (no pivoting
     is needed for SPD matrices)."""
@@ -73,7 +75,28 @@ def inv_spd(A):
     return inv
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
+def inv_spd_into(M, out):
+    """Inverse of a symmetric positive definite matrix into ``out`` by Gauss-Jordan, without
+    allocating (``M`` is destroyed)."""
+    n = M.shape[0]
+    for i in range(n):
+        for j in range(n):
+            out[i, j] = 1.0 if i == j else 0.0
+    for c in range(n):
+        d = M[c, c]
+        for j in range(n):
+            M[c, j] /= d
+            out[c, j] /= d
+        for r in range(n):
+            if r != c:
+                f = M[r, c]
+                for j in range(n):
+                    M[r, j] -= f * M[c, j]
+                    out[r, j] -= f * out[c, j]
+
+
+@njit(cache=True, fastmath=FASTMATH)
 def cholesky(A):
     """Lower Cholesky factor of a symmetric positive (semi)definite matrix (clamped at 0)."""
     n = A.shape[0]

@@ -22,8 +22,8 @@ import numpy as np
 from numba import njit
 
 from quadest.filters.base import Estimator, P, Params
-from quadest.filters.common import BASE, finite3, omega_matrix, prepare
-from quadest.filters.linalg import cholesky, inv_spd, mm, mm_t, mv
+from quadest.filters.common import BASE, FASTMATH, finite3, omega_matrix, prepare
+from quadest.filters.linalg import inv_spd_into
 from quadest.filters.quatmeas import measurement_quaternion
 
 PB = BASE  # covariance P, 16 values, row-major
@@ -42,7 +42,7 @@ class QukfParams(Params):
     scale_with_rate: bool = P(True, "-", "scale s by dt/T and r by T/dt", "quadest (see module doc)")
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def noise(p, dt):
     """Per-step S and R at interval dt (module doc)."""
     if p[8] > 0.0 and dt > 0.0:
@@ -51,71 +51,65 @@ def noise(p, dt):
     return p[4], p[5]
 
 
-@njit(cache=True)
-def _sym(P):
-    return 0.5 * (P + P.T)
+@njit(cache=True, fastmath=FASTMATH)
+def _chol_scaled(P, scale, L):
+    """Lower Cholesky factor of ``scale·(P + Pᵀ)/2`` into ``L`` (clamped at 0; a 1e-15 jitter on
+    the diagonal keeps it positive definite)."""
+    n = P.shape[0]
+    for j in range(n):
+        for i in range(n):
+            L[i, j] = 0.0
+    for j in range(n):
+        s = scale * P[j, j] + 1e-15
+        for k in range(j):
+            s -= L[j, k] * L[j, k]
+        d = np.sqrt(s) if s > 0.0 else 0.0
+        L[j, j] = d
+        for i in range(j + 1, n):
+            s = scale * 0.5 * (P[i, j] + P[j, i])
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            L[i, j] = s / d if d > 0.0 else 0.0
 
 
-@njit(cache=True)
-def _sqrt_psd(P, scale):
-    """Cholesky factor of ``scale·P`` (a small jitter keeps it positive definite)."""
-    M = _sym(P) * scale
-    for i in range(4):
-        M[i, i] += 1e-15
-    return cholesky(M)
-
-
-@njit(cache=True)
-def _sigma(X, L):
-    """Eq 20: ``X``, ``X + L_i``, ``X − L_i`` (rows), L the columns of √((n+λ)P)."""
+@njit(cache=True, fastmath=FASTMATH)
+def _sigma(X, L, chi):
+    """Eq 20: ``X``, ``X + L_i``, ``X − L_i`` (rows of ``chi``), L the columns of √((n+λ)P)."""
     n = len(X)
-    chi = np.empty((2 * n + 1, n))
     for j in range(n):
         chi[0, j] = X[j]
     for i in range(n):
         for j in range(n):
             chi[1 + i, j] = X[j] + L[j, i]
             chi[1 + n + i, j] = X[j] - L[j, i]
-    return chi
 
 
-@njit(cache=True)
-def _propagate(F, chi):
-    """Each sigma point (row) through the linear process model ``F``."""
-    out = np.empty_like(chi)
-    for k in range(chi.shape[0]):
-        for i in range(4):
-            out[k, i] = F[i, 0] * chi[k, 0] + F[i, 1] * chi[k, 1] + F[i, 2] * chi[k, 2] + F[i, 3] * chi[k, 3]
-    return out
-
-
-@njit(cache=True)
-def _ut_mean(chi, w0, wi):
+@njit(cache=True, fastmath=FASTMATH)
+def _ut_mean(chi, w0, wi, m):
     n = chi.shape[1]
-    m = np.empty(n)
     for j in range(n):
         s = w0 * chi[0, j]
         for k in range(1, chi.shape[0]):
             s += wi * chi[k, j]
         m[j] = s
-    return m
 
 
-@njit(cache=True)
-def _ut_cov(A, ma, B, mb, w0, wi):
-    """``Σ w_i (A_i − ma)(B_i − mb)ᵀ`` with w_0 for the central point."""
+@njit(cache=True, fastmath=FASTMATH)
+def _ut_cov(A, ma, B, mb, w0, wi, C):
+    """``C = Σ w_i (A_i − ma)(B_i − mb)ᵀ`` with w_0 for the central point."""
     n = A.shape[1]
-    C = np.zeros((n, n))
+    for i in range(n):
+        for j in range(n):
+            C[i, j] = 0.0
     for k in range(A.shape[0]):
         w = w0 if k == 0 else wi
         for i in range(n):
             da = w * (A[k, i] - ma[i])
             for j in range(n):
                 C[i, j] += da * (B[k, j] - mb[j])
-    return C
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def qukf_step(x, p, gyr, acc, mag, dt, diag):
     use_mag = p[0] > 0.0
     diag[0] = 0.0
@@ -124,41 +118,77 @@ def qukf_step(x, p, gyr, acc, mag, dt, diag):
     n = 4
     lam, alpha, beta = p[1], p[2], p[3]
     S, R = noise(p, dt)
-    P = x[PB:PB + 16].copy().reshape((4, 4))
+    P = x[PB:PB + 16].reshape((4, 4))  # a view: updated in place
+    W = np.empty(2 * 36 + 7 * 16 + 8)  # one scratch buffer for every intermediate
+    chi = W[0:36].reshape((9, 4))
+    sig = W[36:72].reshape((9, 4))
+    L = W[72:88].reshape((4, 4))
+    Pp = W[88:104].reshape((4, 4))
+    Pzz = W[104:120].reshape((4, 4))
+    Pxz = W[120:136].reshape((4, 4))
+    K = W[136:152].reshape((4, 4))
+    M = W[152:168].reshape((4, 4))
+    Minv = W[168:184].reshape((4, 4))
+    Xp = W[184:188]
+    Zh = W[188:192]
     # eq 21, corrected: w_m0 = λ/(n+λ), w_c0 = w_m0 + 1 − α² + β, w_i = 1/(2(n+λ))
     wm0 = lam / (n + lam)
     wc0 = wm0 + 1.0 - alpha * alpha + beta
     wi = 1.0 / (2.0 * (n + lam))
-    X = x[0:4].copy()
-    F = omega_matrix(gyr, dt) if finite3(gyr) else np.eye(4)
-    # eq 20: 2n + 1 sigma points; eq 22: through the process model
-    chi = _propagate(F, _sigma(X, _sqrt_psd(P, n + lam)))
+    # eq 20: 2n + 1 sigma points; eq 22: through the process model F = I + T/2 Ω(ω)
+    _chol_scaled(P, n + lam, L)
+    _sigma(x[0:4], L, sig)
+    if finite3(gyr):
+        F = omega_matrix(gyr, dt)
+        for k in range(9):
+            for i in range(4):
+                chi[k, i] = F[i, 0] * sig[k, 0] + F[i, 1] * sig[k, 1] + F[i, 2] * sig[k, 2] + F[i, 3] * sig[k, 3]
+    else:
+        chi[:, :] = sig
     # eqs 23-24
-    Xp = _ut_mean(chi, wm0, wi)
-    Pp = _ut_cov(chi, Xp, chi, Xp, wc0, wi)
+    _ut_mean(chi, wm0, wi, Xp)
+    _ut_cov(chi, Xp, chi, Xp, wc0, wi, Pp)
     for i in range(4):
         Pp[i, i] += S
     z, ok = measurement_quaternion(acc, mag, Xp, use_mag)
     if ok:
-        sig = _sigma(Xp, _sqrt_psd(Pp, n + lam))  # eq 25
-        Zs = sig.copy()  # eq 26: Z_i = H X̃_i with H = I
-        Zh = _ut_mean(Zs, wm0, wi)  # eq 27
-        Pzz = _ut_cov(Zs, Zh, Zs, Zh, wc0, wi)  # eq 28
+        _chol_scaled(Pp, n + lam, L)
+        _sigma(Xp, L, sig)  # eq 25; eq 26: Z_i = H X̃_i = X̃_i
+        _ut_mean(sig, wm0, wi, Zh)  # eq 27
+        _ut_cov(sig, Zh, sig, Zh, wc0, wi, Pzz)  # eq 28
         for i in range(4):
             Pzz[i, i] += R
-        Pxz = _ut_cov(sig, Xp, Zs, Zh, wc0, wi)  # eq 29
-        K = mm(Pxz, inv_spd(Pzz))  # eq 30
-        Xp = Xp + mv(K, z - Zh)  # eq 31
-        Pp = Pp - mm_t(mm(K, Pzz), K)  # eq 32
+        _ut_cov(sig, Xp, sig, Zh, wc0, wi, Pxz)  # eq 29
+        for i in range(4):
+            for j in range(4):
+                M[i, j] = Pzz[i, j]
+        inv_spd_into(M, Minv)
+        for i in range(4):  # eq 30: K = P_xz P_zz⁻¹
+            for j in range(4):
+                K[i, j] = Pxz[i, 0] * Minv[0, j] + Pxz[i, 1] * Minv[1, j] + Pxz[i, 2] * Minv[2, j] + Pxz[i, 3] * Minv[3, j]
+        d0, d1, d2, d3 = z[0] - Zh[0], z[1] - Zh[1], z[2] - Zh[2], z[3] - Zh[3]
+        for i in range(4):  # eq 31
+            Xp[i] += K[i, 0] * d0 + K[i, 1] * d1 + K[i, 2] * d2 + K[i, 3] * d3
+        # eq 32: P = P⁻ − K P_zz Kᵀ  (M = K P_zz)
+        for i in range(4):
+            for j in range(4):
+                M[i, j] = K[i, 0] * Pzz[0, j] + K[i, 1] * Pzz[1, j] + K[i, 2] * Pzz[2, j] + K[i, 3] * Pzz[3, j]
+        for i in range(4):
+            for j in range(4):
+                Pp[i, j] -= M[i, 0] * K[j, 0] + M[i, 1] * K[j, 1] + M[i, 2] * K[j, 2] + M[i, 3] * K[j, 3]
         diag[0] = 1.0
-    Pp = _sym(Pp)
-    nq = np.sqrt(np.sum(Xp * Xp))
-    x[0:4] = Xp / nq
-    x[PB:PB + 16] = Pp.ravel()
-    diag[1] = np.trace(Pp)
+    tr = 0.0
+    for i in range(4):
+        for j in range(4):
+            P[i, j] = 0.5 * (Pp[i, j] + Pp[j, i])
+        tr += P[i, i]
+    nq = np.sqrt(Xp[0] * Xp[0] + Xp[1] * Xp[1] + Xp[2] * Xp[2] + Xp[3] * Xp[3])
+    for i in range(4):
+        x[i] = Xp[i] / nq
+    diag[1] = tr
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def qukf_run(x, p, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
