@@ -6,7 +6,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 OUT    ?= demo-output
 
-.PHONY: demo test install clean
+.PHONY: demo test install clean clean-cache
 
 $(BIN)/python:
 	@echo "==> creating virtual environment $(VENV)"
@@ -33,3 +33,6 @@ test: $(VENV)/.installed-test
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache
+
+clean-cache:
+	find src -name '*.nbi' -delete; find src -name '*.nbc' -delete
