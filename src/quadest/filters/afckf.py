@@ -253,13 +253,16 @@ def afckf_step(x, p, gyr, acc, mag, dt, diag):
     nq = np.sqrt(nw * nw + nx * nx + ny * ny + nz * nz)
     nw, nx, ny, nz = nw / nq, nx / nq, ny / nq, nz / nq
     x[IQ], x[IQ + 1], x[IQ + 2], x[IQ + 3] = nw, nx, ny, nz
-    # roll and pitch of the Kalman channel's q_nb = q_F* ⊗ q' = [q'x, −q'w, q'z, −q'y]
+    # the Kalman channel's q_nb = q_F* ⊗ q' = [q'x, −q'w, q'z, −q'y]; its roll and pitch are
+    # the estimate's. E. eq 43: gyro yaw integration with the ZYX Euler rate
+    # ψ̇ = (ω_y sin φ + ω_z cos φ)/cos θ = (R21 ω_y + R22 ω_z)/(1 − R20²), from the matrix
+    # entries (R20 = −sin θ, R21 = sin φ cos θ, R22 = cos φ cos θ): no trigonometry per sample
     bw, bx, by, bz = nx, -nw, nz, -ny
-    roll = np.arctan2(2.0 * (by * bz + bw * bx), 1.0 - 2.0 * (bx * bx + by * by))
-    pitch = np.arcsin(min(1.0, max(-1.0, -2.0 * (bx * bz - bw * by))))
-    # E. eq 43: gyro yaw integration with the ZYX Euler rate ψ̇ = (ω_y sin φ + ω_z cos φ)/cos θ
-    cth = np.cos(pitch)
-    psi_dot = (w1 * np.sin(roll) + w2 * np.cos(roll)) / (cth if abs(cth) > 1e-6 else 1e-6)
+    r20 = 2.0 * (bx * bz - bw * by)
+    r21 = 2.0 * (by * bz + bw * bx)
+    r22 = 1.0 - 2.0 * (bx * bx + by * by)
+    c2 = max(1.0 - r20 * r20, 1e-12)
+    psi_dot = (r21 * w1 + r22 * w2) / c2
     psi = x[IPSI] + psi_dot * dt
     kappa = 0.0
     if use_mag and finite3(mag) and norm3(mag) > 0.0:
@@ -270,6 +273,8 @@ def afckf_step(x, p, gyr, acc, mag, dt, diag):
         rho_m = min(abs(mn - x[IMREF]), lam_m)  # eq 50 (text's definition)
         w_abs = min(abs(gyr[2]) if finite3(gyr) else 0.0, w_sat)
         kappa = fuzzy_gain(rho_m, lam_m, w_abs, w_sat, th_m, th_w, k1, k2, k3, k4)
+        roll = np.arctan2(r21, r22)
+        pitch = np.arcsin(min(1.0, max(-1.0, -r20)))
         psi_m = mag_heading(mag, roll, pitch)  # eqs 44-45, corrected (ν: declination of the run)
         psi = psi + kappa * _wrap(psi_m - psi)  # eq 46 on the circle
     psi = _wrap(psi)
