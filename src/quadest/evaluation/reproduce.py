@@ -170,3 +170,96 @@ def format_reproduction(paper: str, result: dict) -> str:
             p = pub.get("time_us", {}).get(n)
             lines.append(f"{n:<15}{tm['batch_us']:>10.3f}{tm['stream_us']:>10.2f}" + (f"{p:>12.1f}" if p else ""))
     return "\n".join(lines)
+
+
+# -- recovery ------------------------------------------------------------------------------
+RECOVERY_FIT_SEEDS = range(100_000, 100_020)  # throws for the fitted model, never evaluated
+RECOVERY_PERTURB_SEED = 7
+
+
+def _pct(values, q):
+    return float(np.percentile(values, q)) if len(values) else float("nan")
+
+
+def recovery_stats(summaries: list, horizon_s: float = 1.5) -> dict:
+    """Shares and error statistics over throws (the JSON block of one model case)."""
+    n = len(summaries)
+    conv = [s for s in summaries if s.get("converged")]
+    ok = [s for s in conv if s.get("t_converge_s") is not None and 0.0 <= s["t_converge_s"] <= horizon_s]
+    t = [s["t_converge_s"] for s in conv if s.get("t_converge_s") is not None]
+    g = [s["gravity_err_deg"] for s in conv if "gravity_err_deg" in s]
+    v = [s["vel_err_mps"] for s in conv if "vel_err_mps" in s]
+    return {
+        "throws": n,
+        "detected_share": sum(bool(s.get("detected")) for s in summaries) / n if n else float("nan"),
+        "converged_share": len(conv) / n if n else float("nan"),
+        "converged_within_share": len(ok) / n if n else float("nan"),
+        "horizon_s": horizon_s,
+        "converged_before_release": sum(1 for x in t if x < 0.0),
+        "t_converge_s": {"median": _pct(t, 50), "p90": _pct(t, 90)},
+        "gravity_err_deg": {"median": _pct(g, 50), "p90": _pct(g, 90), "max": max(g) if g else float("nan")},
+        "vel_err_mps": {"median": _pct(v, 50), "p90": _pct(v, 90), "max": max(v) if v else float("nan")},
+    }
+
+
+def recovery_models(preset: str = "fma") -> dict:
+    """The three model cases: the simulation's own, one fitted on separate throws, and the
+    simulation's with every parameter scaled by a random factor in [0.8, 1.2]."""
+    from quadest.recovery.aero import AeroModel, fit_aero
+
+    cfg = build_config(preset)
+    true = AeroModel.from_config(cfg)
+    fitted = fit_aero([simulate("throw", preset, seed=s) for s in RECOVERY_FIT_SEEDS], cfg.vehicle.mass_kg)
+    rng = np.random.default_rng(RECOVERY_PERTURB_SEED)
+    perturbed = true.scaled(rng.uniform(0.8, 1.2, size=(3, 16)))
+    return {"true": true, "fitted": fitted, "perturbed": perturbed}
+
+
+def reproduce_recovery(throws: int = 100, seed: int = 1, progress: bool = False, preset: str = "fma",
+                       params=None, keep_runs: bool = False) -> dict:
+    """Simulate ``throws`` throws (seeds ``seed``..) and run the recovery with each model case."""
+    from tqdm.auto import tqdm
+
+    from quadest.recovery.logic import recover
+
+    models = recovery_models(preset)
+    seeds = list(range(seed, seed + throws))
+    per_case = {name: [] for name in models}
+    for s in tqdm(seeds, desc="throws", disable=not progress, leave=False):
+        rec = simulate("throw", preset, seed=s)
+        for name, model in models.items():
+            per_case[name].append(recover(rec, model, params).summary)
+    out = {"preset": preset, "seeds": [seeds[0], seeds[-1]], "cases": {},
+           "fitted_model": models["fitted"].info,
+           "published": {"t_converge_s": 0.570, "gravity_err_deg_detailed": 10.0, "recovered": "21 of 32 real throws"}}
+    for name, summaries in per_case.items():
+        out["cases"][name] = recovery_stats(summaries)
+        if keep_runs:
+            out["cases"][name]["runs"] = summaries
+    return out
+
+
+def format_recovery(result: dict) -> str:
+    lines = [f"{result['cases']['true']['throws']} simulated throws ({result['preset']} preset, seeds "
+             f"{result['seeds'][0]}..{result['seeds'][1]}); errors at convergence"]
+    hdr = f"{'':34}" + "".join(f"{n:>12}" for n in result["cases"])
+    lines.append(hdr)
+
+    def row(label, fn, fmt):
+        lines.append(f"{label:34}" + "".join(f"{fn(c):>12{fmt}}" for c in result["cases"].values()))
+    row("detected share", lambda c: 100 * c["detected_share"], ".1f")
+    row("converged share [%]", lambda c: 100 * c["converged_share"], ".1f")
+    row("converged within 1.5 s [%]", lambda c: 100 * c["converged_within_share"], ".1f")
+    row("converged before release [throws]", lambda c: c["converged_before_release"], "d")
+    row("time to convergence median [s]", lambda c: c["t_converge_s"]["median"], ".3f")
+    row("time to convergence p90 [s]", lambda c: c["t_converge_s"]["p90"], ".3f")
+    row("gravity error median [deg]", lambda c: c["gravity_err_deg"]["median"], ".2f")
+    row("gravity error p90 [deg]", lambda c: c["gravity_err_deg"]["p90"], ".2f")
+    row("gravity error max [deg]", lambda c: c["gravity_err_deg"]["max"], ".1f")
+    row("velocity error median [m/s]", lambda c: c["vel_err_mps"]["median"], ".3f")
+    row("velocity error p90 [m/s]", lambda c: c["vel_err_mps"]["p90"], ".3f")
+    row("velocity error max [m/s]", lambda c: c["vel_err_mps"]["max"], ".2f")
+    p = result["published"]
+    lines.append(f"paper (real throws): convergence after {p['t_converge_s'] * 1e3:.0f} ms with about "
+                 f"{p['gravity_err_deg_detailed']:.0f}° gravity error in the detailed experiment; {p['recovered']} recovered")
+    return "\n".join(lines)

@@ -10,10 +10,14 @@ Q(P)`` where ``Q`` maps ``ψ`` of the FRD rate to ``ψ`` of the paper's rate (se
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from numba import njit
+
+FORMAT_TAG = "quadest aero model v1"
 
 
 def psi(w):
@@ -50,18 +54,63 @@ def aero_force(vb, w, A, B, C):
 
 @dataclass(frozen=True)
 class AeroModel:
-    """Parameter matrices of eq 9 (body frame FRD): A (3, 3) N s/m, B (3, 3) N s²/m², C (3, 10)."""
+    """Parameter matrices of eq 9 (body frame FRD): A (3, 3) N s/m, B (3, 3) N s²/m², C (3, 10),
+    and the vehicle mass (kg) that turns the force into the accelerometer's specific force (eq 7)."""
 
     A: np.ndarray
     B: np.ndarray
     C: np.ndarray
+    mass_kg: float = 0.5
+    info: dict = field(default_factory=dict, compare=False)
 
     def __post_init__(self):
         for name, shape in (("A", (3, 3)), ("B", (3, 3)), ("C", (3, 10))):
             a = np.array(getattr(self, name), dtype=float)
             if a.shape != shape:
                 raise ValueError(f"aero model {name}: expected shape {shape}, got {a.shape}")
+            if not np.isfinite(a).all():
+                raise ValueError(f"aero model {name}: non-finite value")
             object.__setattr__(self, name, a)
+        if not self.mass_kg > 0:
+            raise ValueError(f"aero model: mass must be positive, got {self.mass_kg}")
+
+    @classmethod
+    def from_config(cls, cfg) -> "AeroModel":
+        """The model a simulation used (``SimConfig.aero`` and the vehicle mass)."""
+        return cls(cfg.aero.A, cfg.aero.B, cfg.aero.C, cfg.vehicle.mass_kg)
+
+    def specific_force(self, v, w):
+        """Eq 7 without noise: ``f_c / m`` (m/s², body frame)."""
+        return self.force(v, w) / self.mass_kg
+
+    def scaled(self, factors) -> "AeroModel":
+        """A copy with every entry of Λ = [A B C] multiplied by ``factors`` (3, 16)."""
+        L = self.Lambda * np.asarray(factors, float)
+        return AeroModel(L[:, :3], L[:, 3:6], L[:, 6:], self.mass_kg, dict(self.info))
+
+    def to_dict(self) -> dict:
+        return {"format": FORMAT_TAG, "frame": "body FRD (quadest conventions)", "mass_kg": self.mass_kg,
+                "A": self.A.tolist(), "B": self.B.tolist(), "C": self.C.tolist(), "info": self.info}
+
+    def save(self, path) -> Path:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(self.to_dict(), indent=2))
+        return path
+
+    @classmethod
+    def load(cls, path) -> "AeroModel":
+        path = Path(path)
+        try:
+            d = json.loads(path.read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            raise ValueError(f"{path}: not a readable aero model ({exc})") from None
+        if not isinstance(d, dict) or d.get("format") != FORMAT_TAG:
+            raise ValueError(f"{path}: not a quadest aero model (expected format {FORMAT_TAG!r})")
+        try:
+            return cls(d["A"], d["B"], d["C"], float(d["mass_kg"]), d.get("info", {}))
+        except KeyError as exc:
+            raise ValueError(f"{path}: aero model lacks {exc}") from None
 
     @property
     def Lambda(self):
@@ -79,3 +128,43 @@ class AeroModel:
         # ψ of the paper's rate (P ω) in terms of ψ of ours: odd terms in y or z flip sign
         Q = np.diag([1, -1, -1, 1, 1, 1, -1, 1, -1, 1]).astype(float)
         return cls(P @ np.asarray(A) @ P, P @ np.asarray(B) @ P, P @ np.asarray(C) @ Q)
+
+
+def free_flight_mask(rec) -> np.ndarray:
+    """Samples where the model applies: after the release of a simulated throw (its metadata),
+    otherwise every sample."""
+    info = rec.meta.get("scenario_info", {}) if isinstance(rec.meta, dict) else {}
+    if "release_time_s" in info:
+        return rec.t >= info["release_time_s"]
+    return np.ones(len(rec), bool)
+
+
+def fit_aero(recordings, mass_kg: float, masks=None) -> AeroModel:
+    """Eq 14: the least-squares Λ* of ``m z_acc ≈ Λ φ(v, ω)`` over the samples of recordings that
+    carry true velocity and attitude (``true_vel``, ``true_q``). The body velocity is the true
+    navigation-frame velocity rotated into the body; ω is the gyroscope sample (as in the paper).
+    ``masks`` selects samples per recording (default: :func:`free_flight_mask`).
+
+    The fit's RMS residual (m/s², per axis) and sample count are in ``model.info``."""
+    from quadest.rotation import quat_conj, quat_rotate
+
+    rows, targets, names = [], [], []
+    for k, rec in enumerate(recordings):
+        if rec.true_vel is None or rec.true_q is None:
+            raise ValueError(f"recording {k}: fitting needs true_vel and true_q")
+        mask = free_flight_mask(rec) if masks is None else np.asarray(masks[k], bool)
+        ok = mask & np.isfinite(rec.true_vel).all(axis=1) & np.isfinite(rec.true_q).all(axis=1)
+        vb = quat_rotate(quat_conj(rec.true_q[ok]), rec.true_vel[ok])
+        rows.append(features(vb, rec.gyr[ok]))
+        targets.append(mass_kg * rec.acc[ok])
+        names.append(str(rec.meta.get("source", k)) + (f" seed {rec.meta['seed']}" if "seed" in rec.meta else ""))
+    Phi, Y = np.vstack(rows), np.vstack(targets)
+    if len(Phi) < 16 * 3:
+        raise ValueError(f"fitting needs at least 48 samples, got {len(Phi)}")
+    Lam_T, *_ = np.linalg.lstsq(Phi, Y, rcond=None)  # Φ Λᵀ ≈ m z
+    L = Lam_T.T
+    resid = (Y - Phi @ Lam_T) / mass_kg
+    info = {"samples": int(len(Phi)), "recordings": names,
+            "residual_rms_mps2": np.sqrt(np.mean(resid ** 2, axis=0)).tolist(),
+            "condition_number": float(np.linalg.cond(Phi))}
+    return AeroModel(L[:, :3], L[:, 3:6], L[:, 6:], mass_kg, info)

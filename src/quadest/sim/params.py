@@ -135,6 +135,9 @@ class Throw:
     hold_s: float = P(0.75, "s", "time held still in the hand before the throwing motion")
     throw_s: float = P(0.25, "s", "duration of the throwing motion before release")
     speed_max: float = P(5.0, "m/s", "release speed drawn uniformly in [0, speed_max]", "issue #2")
+    any_direction: bool = P(False, "-",
+                            "release velocity of any direction (default: upward or horizontal only; a "
+                            "downward throw makes the hand's own acceleration trigger eq 37 before release)")
     rate_max: float = P(10.0, "rad/s", "release body-rate magnitude drawn in [0, rate_max]", "issue #2")
     tremor_acc: float = P(0.2, "m/s²", "hand tremor acceleration amplitude while held")
     release_height_m: float = P(1.5, "m", "height of the release point above the origin")

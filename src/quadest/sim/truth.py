@@ -260,8 +260,8 @@ def _uniform_direction(rng):
 class ThrowMotion:
     """Held in the hand, thrown, released with a random state, then free flight.
 
-    Release state: attitude uniform on SO(3), velocity of uniform direction and speed in
-    ``[0, speed_max]``, body rate of uniform direction and magnitude in ``[0, rate_max]``. The
+    Release state: attitude uniform on SO(3), velocity of uniform direction over the upper
+    hemisphere (any direction with ``any_direction``) and speed in ``[0, speed_max]``, body rate of uniform direction and magnitude in ``[0, rate_max]``. The
     hand motion before release is a smooth ramp of velocity ``v0 S(x)`` and body rate
     ``ω0 S(x)`` over ``throw_s`` (S the smoothstep), after ``hold_s`` held still with a small
     tremor, so that the release state is reached continuously. Propellers idle throughout; the
@@ -273,7 +273,10 @@ class ThrowMotion:
         th = cfg.throw
         self.t_release = th.hold_s + th.throw_s
         self.q_r = uniform_quaternion(rng)
-        self.v0 = _uniform_direction(rng) * rng.uniform(0.0, th.speed_max)
+        d = _uniform_direction(rng)
+        if not th.any_direction and d[2] > 0.0:  # upward or horizontal: no down component (NED)
+            d[2] = -d[2]
+        self.v0 = d * rng.uniform(0.0, th.speed_max)
         self.w0 = _uniform_direction(rng) * rng.uniform(0.0, th.rate_max)
         self.p_r = np.array([0.0, 0.0, -th.release_height_m])
         tremor = Sinusoids.random(rng, (3.0, 8.0), 3, 3)

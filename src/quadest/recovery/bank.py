@@ -1,0 +1,228 @@
+"""The bank of EKFs of the recovery paper (Beffa, Ledergerber & D'Andrea), section IV, eqs 15-36
+and the appendix (eqs 40-46), on quadest's conventions.
+
+Each hypothesis i carries a reference attitude ``q_ref`` (``q_nb``, body to NED) and a stochastic
+state ``x = (v_b, δ_x, δ_y)``: the body-frame velocity and two components of an error rotation,
+``q = q_ref ⊗ Exp(δ)`` with ``δ_z = 0`` (eqs 17, 19; the heading about gravity is unobservable).
+The paper's ``R = exp(−[δ]×) R_ref`` (inertial to body) is this same right-multiplied error.
+
+Prior (eqs 22-25), with ω the previous gyroscope sample and ``g_b = R_bn g_n`` (g_n = [0, 0, g]):
+
+    v̄ = v + ΔT (−ω × v + f_c(v, ω)/m + g_b),   q_ref ← q_ref ⊗ Exp(ω ΔT),   P̄ = F P Fᵀ + Q
+
+with ``F = I + ΔT [[−[ω]× + Υ/m, Γ2], [0, Γ4]]``, ``Γ2 = ∂g_b/∂(δx, δy)`` = the first two columns
+of ``[g_b]×`` (eq 42) and ``Γ4 = [[0, ω_z], [−ω_z, 0]]``.
+
+Posterior (eqs 26-30): ``r = z_acc − f_c(v̄, ω)/m``, ``H = [Υ/m, 0]``, ``W = H P̄ Hᵀ + Σ_acc``,
+``K = P̄ Hᵀ W⁻¹``, ``x = x̄ + K r``, ``P = (I − K H) P̄``, then ``q_ref ← q_ref ⊗ Exp((δx, δy, 0))``
+and δ back to zero. The covariance reset of the paper's ref [18] multiplies the δ block by
+``I − ½[δ]×``; restricted to (δx, δy) with δ_z = 0 that block is the identity, so P is kept.
+
+Likelihood (eqs 31-34) in the log domain: ``ℓ_i += −½ rᵀ W⁻¹ r − ½ log det(2π W)`` and the
+probabilities ``p_i ∝ exp(ℓ_i)`` are normalised by log-sum-exp, so they never underflow.
+
+Corrections of the printed appendix (pinned by finite-difference tests):
+
+- eq 44 prints ``Γ4 = ½ [[0, ω_z], [−ω_z, 0]]``. Both q and q_ref turn with ω, so
+  ``Exp(δ⁺) = Exp(−ω ΔT) Exp(δ) Exp(ω ΔT)``: ``δ̇ = −ω × δ``, whose (x, y) block has no ½.
+- eq 45 prints ``Υ = A + (v vᵀ + I ‖v‖²)/‖v‖``; the derivative of ``B ‖v‖ v`` is
+  ``B (v vᵀ + I ‖v‖²)/‖v‖``: the B is missing.
+- eq 33 prints the normaliser ``1/√(2π|W|)``; for the 3-D accelerometer residual it is
+  ``(2π)^{−3/2} |W|^{−1/2}`` (the constant cancels between hypotheses, |W| does not).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from quadest.filters.common import FASTMATH
+
+LOG_2PI = np.log(2.0 * np.pi)
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def _aero(v, w, A, B, C, m, f, U):
+    """f = f_c(v, ω)/m (eq 9) and U = Υ/m = (∂f_c/∂v)/m (eq 45, corrected), in place."""
+    sp = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    ps0, ps1, ps2 = w[0], w[1], w[2]
+    ps3, ps4, ps5 = w[0] * w[0], w[1] * w[1], w[2] * w[2]
+    ps6, ps7, ps8 = w[0] * w[1], w[1] * w[2], w[2] * w[0]
+    for i in range(3):
+        s = C[i, 0] * ps0 + C[i, 1] * ps1 + C[i, 2] * ps2 + C[i, 3] * ps3 + C[i, 4] * ps4
+        s += C[i, 5] * ps5 + C[i, 6] * ps6 + C[i, 7] * ps7 + C[i, 8] * ps8 + C[i, 9]
+        for j in range(3):
+            s += (A[i, j] + B[i, j] * sp) * v[j]
+        f[i] = s / m
+    for i in range(3):
+        for j in range(3):
+            u = A[i, j]
+            if sp > 0.0:
+                # B (v vᵀ + I |v|²)/|v|: column j of B v vᵀ/|v| plus B[i, j] |v|
+                u += (B[i, 0] * v[0] + B[i, 1] * v[1] + B[i, 2] * v[2]) * v[j] / sp + B[i, j] * sp
+            U[i, j] = u / m
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def _qexp_right(q, a, b, c):
+    """q ← q ⊗ Exp([a, b, c]) in place, normalised."""
+    th = np.sqrt(a * a + b * b + c * c)
+    cw = np.cos(0.5 * th)
+    k = 0.5 - th * th / 48.0 if th < 1e-6 else np.sin(0.5 * th) / th
+    ex, ey, ez = k * a, k * b, k * c
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    q0 = w * cw - x * ex - y * ey - z * ez
+    q1 = w * ex + x * cw + y * ez - z * ey
+    q2 = w * ey - x * ez + y * cw + z * ex
+    q3 = w * ez + x * ey - y * ex + z * cw
+    n = np.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+    q[0], q[1], q[2], q[3] = q0 / n, q1 / n, q2 / n, q3 / n
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def gravity_body(q, g, out):
+    """g_b = R_bn g_n = g · (row 2 of R_nb)."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    out[0] = g * 2.0 * (x * z - w * y)
+    out[1] = g * 2.0 * (y * z + w * x)
+    out[2] = g * (1.0 - 2.0 * (x * x + y * y))
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def bank_step(V, Qr, P, L, w_prev, gyr, acc, dt, prm, A, B, C):
+    """Advance every hypothesis by one IMU sample (in place). ``prm`` = [g, m, σ²_acc (3),
+    q_v, q_δ]: gravity, mass, accelerometer noise variances, and the process noise intensities
+    of velocity ((m/s²)²·s) and error rotation (rad²/s)."""
+    g, m = prm[0], prm[1]
+    n = V.shape[0]
+    f = np.empty(3)
+    U = np.empty((3, 3))
+    gb = np.empty(3)
+    F = np.empty((5, 5))
+    T = np.empty((5, 5))
+    PH = np.empty((5, 3))
+    Wm = np.empty((3, 3))
+    Wi = np.empty((3, 3))
+    K = np.empty((5, 3))
+    vbar = np.empty(3)
+    w = w_prev
+    for i in range(n):
+        v = V[i]
+        Pi = P[i]
+        # -- prior (eqs 22-25) ---------------------------------------------------------------
+        gravity_body(Qr[i], g, gb)
+        _aero(v, w, A, B, C, m, f, U)
+        vbar[0] = v[0] + dt * (-(w[1] * v[2] - w[2] * v[1]) + f[0] + gb[0])
+        vbar[1] = v[1] + dt * (-(w[2] * v[0] - w[0] * v[2]) + f[1] + gb[1])
+        vbar[2] = v[2] + dt * (-(w[0] * v[1] - w[1] * v[0]) + f[2] + gb[2])
+        _qexp_right(Qr[i], w[0] * dt, w[1] * dt, w[2] * dt)  # eq 23
+        # F = I + ΔT [[−[ω]× + Υ/m, Γ2], [0, Γ4]] (eqs 40-45)
+        for r in range(5):
+            for c in range(5):
+                F[r, c] = 0.0
+        for r in range(3):
+            for c in range(3):
+                F[r, c] = dt * U[r, c]
+        F[0, 1] += dt * w[2]
+        F[0, 2] -= dt * w[1]
+        F[1, 0] -= dt * w[2]
+        F[1, 2] += dt * w[0]
+        F[2, 0] += dt * w[1]
+        F[2, 1] -= dt * w[0]
+        F[0, 4] = -dt * gb[2]  # Γ2: columns x, y of [g_b]×
+        F[1, 3] = dt * gb[2]
+        F[2, 3] = -dt * gb[1]
+        F[2, 4] = dt * gb[0]
+        F[3, 4] = dt * w[2]  # Γ4 (eq 44, corrected)
+        F[4, 3] = -dt * w[2]
+        for r in range(5):
+            F[r, r] += 1.0
+        # P̄ = F P Fᵀ + Q
+        for r in range(5):
+            for c in range(5):
+                s = 0.0
+                for k in range(5):
+                    s += F[r, k] * Pi[k, c]
+                T[r, c] = s
+        for r in range(5):
+            for c in range(r, 5):
+                s = 0.0
+                for k in range(5):
+                    s += T[r, k] * F[c, k]
+                Pi[r, c] = s
+                Pi[c, r] = s
+        for r in range(3):
+            Pi[r, r] += prm[5] * dt
+        Pi[3, 3] += prm[6] * dt
+        Pi[4, 4] += prm[6] * dt
+        # -- posterior (eqs 26-29) -------------------------------------------------------------
+        _aero(vbar, gyr, A, B, C, m, f, U)
+        r0, r1, r2 = acc[0] - f[0], acc[1] - f[1], acc[2] - f[2]
+        # PHᵀ = P[:, 0:3] Uᵀ (H = [U, 0])
+        for r in range(5):
+            for c in range(3):
+                PH[r, c] = Pi[r, 0] * U[c, 0] + Pi[r, 1] * U[c, 1] + Pi[r, 2] * U[c, 2]
+        for r in range(3):
+            for c in range(3):
+                Wm[r, c] = U[r, 0] * PH[0, c] + U[r, 1] * PH[1, c] + U[r, 2] * PH[2, c]
+            Wm[r, r] += prm[2 + r]
+        # 3x3 inverse and determinant by cofactors
+        c00 = Wm[1, 1] * Wm[2, 2] - Wm[1, 2] * Wm[2, 1]
+        c01 = Wm[1, 2] * Wm[2, 0] - Wm[1, 0] * Wm[2, 2]
+        c02 = Wm[1, 0] * Wm[2, 1] - Wm[1, 1] * Wm[2, 0]
+        det = Wm[0, 0] * c00 + Wm[0, 1] * c01 + Wm[0, 2] * c02
+        Wi[0, 0], Wi[1, 0], Wi[2, 0] = c00 / det, c01 / det, c02 / det
+        Wi[0, 1] = (Wm[0, 2] * Wm[2, 1] - Wm[0, 1] * Wm[2, 2]) / det
+        Wi[1, 1] = (Wm[0, 0] * Wm[2, 2] - Wm[0, 2] * Wm[2, 0]) / det
+        Wi[2, 1] = (Wm[0, 1] * Wm[2, 0] - Wm[0, 0] * Wm[2, 1]) / det
+        Wi[0, 2] = (Wm[0, 1] * Wm[1, 2] - Wm[0, 2] * Wm[1, 1]) / det
+        Wi[1, 2] = (Wm[0, 2] * Wm[1, 0] - Wm[0, 0] * Wm[1, 2]) / det
+        Wi[2, 2] = (Wm[0, 0] * Wm[1, 1] - Wm[0, 1] * Wm[1, 0]) / det
+        for r in range(5):
+            for c in range(3):
+                K[r, c] = PH[r, 0] * Wi[0, c] + PH[r, 1] * Wi[1, c] + PH[r, 2] * Wi[2, c]
+        dx = np.empty(5)
+        for r in range(5):
+            dx[r] = K[r, 0] * r0 + K[r, 1] * r1 + K[r, 2] * r2
+        v[0], v[1], v[2] = vbar[0] + dx[0], vbar[1] + dx[1], vbar[2] + dx[2]
+        # P = (I − K H) P̄ = P̄ − K (P H ᵀ)ᵀ, symmetrised
+        for r in range(5):
+            for c in range(5):
+                T[r, c] = Pi[r, c] - (K[r, 0] * PH[c, 0] + K[r, 1] * PH[c, 1] + K[r, 2] * PH[c, 2])
+        for r in range(5):
+            for c in range(5):
+                Pi[r, c] = 0.5 * (T[r, c] + T[c, r])
+        _qexp_right(Qr[i], dx[3], dx[4], 0.0)  # eq 30; δ back to zero
+        # eq 33 in the log domain
+        maha = (r0 * (Wi[0, 0] * r0 + Wi[0, 1] * r1 + Wi[0, 2] * r2)
+                + r1 * (Wi[1, 0] * r0 + Wi[1, 1] * r1 + Wi[1, 2] * r2)
+                + r2 * (Wi[2, 0] * r0 + Wi[2, 1] * r1 + Wi[2, 2] * r2))
+        L[i] += -0.5 * maha - 0.5 * (3.0 * LOG_2PI + np.log(det))
+    top = L[0]
+    for i in range(1, n):
+        if L[i] > top:
+            top = L[i]
+    for i in range(n):
+        L[i] -= top
+    w_prev[0], w_prev[1], w_prev[2] = gyr[0], gyr[1], gyr[2]
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def summarize(Qr, L, g, prob, gdirs):
+    """Probabilities (eq 31, normalised), each hypothesis's gravity direction in the body,
+    the most likely index (eq 35) and the spherical variance S_g (eq 39)."""
+    n = L.shape[0]
+    s = 0.0
+    best = 0
+    for i in range(n):
+        prob[i] = np.exp(L[i])
+        s += prob[i]
+        if L[i] > L[best]:
+            best = i
+    mx = my = mz = 0.0
+    for i in range(n):
+        prob[i] /= s
+        gravity_body(Qr[i], 1.0, gdirs[i])
+        mx += prob[i] * gdirs[i, 0]
+        my += prob[i] * gdirs[i, 1]
+        mz += prob[i] * gdirs[i, 2]
+    return best, 1.0 - np.sqrt(mx * mx + my * my + mz * mz)
