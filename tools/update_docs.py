@@ -33,7 +33,16 @@ def estimator_params() -> str:
     return "\n".join(out).rstrip()
 
 
-GENERATORS = {"simulator-params": simulator_params, "estimator-params": estimator_params}
+def recovery_params() -> str:
+    from quadest.recovery.logic import param_rows
+    rows = ["| parameter | default | unit | meaning | source |", "|---|---|---|---|---|"]
+    for d in param_rows():
+        rows.append(f"| `{d['name']}` | {d['default']} | {d['unit']} | {d['doc']} | {d['source']} |")
+    return "\n".join(rows)
+
+
+GENERATORS = {"simulator-params": simulator_params, "estimator-params": estimator_params,
+              "recovery-params": recovery_params}
 PATTERN = re.compile(r"(<!-- generated:([a-z-]+) -->\n)(.*?)(<!-- /generated -->)", re.S)
 
 

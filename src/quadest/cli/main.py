@@ -6,6 +6,8 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from quadest import __version__
 
 
@@ -128,6 +130,8 @@ def _parse_seeds(text):
 def cmd_reproduce(args):
     from quadest.evaluation import reproduce as R
 
+    if args.paper == "recovery":
+        return _reproduce_recovery(args, R)
     seeds = _parse_seeds(args.seeds)
     if args.paper == "afckf":
         _say("Reproducing Solanki & de Visser 2022 (AFCKF), Tables I-V, on the simulator: a Bebop 2 "
@@ -159,6 +163,103 @@ def cmd_reproduce(args):
                              title=f"({scen}, seed {seeds[0]})", t_from=t_from):
             _say(f"wrote {p}")
         _say(f"wrote {plot_recording(rec, out / args.paper / 'flight.png', title=f'{scen} / {preset} / seed {seeds[0]}')}")
+    return 0
+
+
+# -- recovery ------------------------------------------------------------------------------
+def cmd_fit_aero(args):
+    from quadest.data import load_recording
+    from quadest.recovery import fit_aero
+
+    recs = [load_recording(p) for p in args.recordings]
+    mass = args.mass
+    if mass is None:
+        masses = {r.meta.get("config", {}).get("vehicle", {}).get("mass_kg") for r in recs}
+        if len(masses) != 1 or None in masses:
+            raise CliError("give the vehicle mass with --mass KG (the recordings do not state one)")
+        mass = masses.pop()
+    model = fit_aero(recs, mass)
+    model.save(args.output)
+    res = model.info["residual_rms_mps2"]
+    _say(f"fitted eq 14 on {model.info['samples']} samples of {len(recs)} recording(s), mass {mass} kg")
+    _say(f"residual RMS x/y/z: {res[0]:.3f} / {res[1]:.3f} / {res[2]:.3f} m/s²")
+    _say(f"constant term (idle thrust) C[:, 9] = {np.array2string(model.C[:, 9], precision=3)} N")
+    _say(f"wrote {args.output}")
+    return 0
+
+
+def _aero_for(rec, path):
+    from quadest.recovery import AeroModel
+    from quadest.sim.params import SimConfig
+
+    if path:
+        return AeroModel.load(path)
+    cfg = rec.meta.get("config")
+    if not cfg:
+        raise CliError("this recording does not carry a simulation's aerodynamic model: give --aero aero.json "
+                       "(quadest fit-aero)")
+    base = SimConfig()
+    return AeroModel.from_config(base.with_overrides({"aero": cfg["aero"], "vehicle.mass_kg": cfg["vehicle"]["mass_kg"]}))
+
+
+def cmd_recover(args):
+    from quadest.data import load_recording
+    from quadest.recovery import RecoveryParams, recover
+
+    rec = load_recording(args.file)
+    model = _aero_for(rec, args.aero)
+    params = RecoveryParams(n_hypotheses=args.hypotheses, beta1=args.beta1, beta2=args.beta2)
+    res = recover(rec, model, params, record_all=bool(args.plot))
+    s = res.summary
+    for ev in s["events"]:
+        _say(f"{ev['t_s']:8.3f} s  {ev['state']}")
+    if not s["detected"]:
+        _say(f"no throw detected (‖acc‖ never below {params.beta1} m/s² for {params.detect_samples} samples)")
+    elif not s["converged"]:
+        _say(f"the bank did not converge (S_g never below {params.beta2})")
+    else:
+        g = s["gravity_dir_body"]
+        v = s["velocity_body_mps"]
+        _say(f"converged {s['t_converge_from_detection_s'] * 1e3:.0f} ms after detection"
+             + (f", {s['t_converge_s'] * 1e3:.0f} ms after release" if "t_converge_s" in s else ""))
+        _say(f"gravity direction (body) [{g[0]:+.3f}, {g[1]:+.3f}, {g[2]:+.3f}], velocity (body) "
+             f"[{v[0]:+.2f}, {v[1]:+.2f}, {v[2]:+.2f}] m/s")
+        if "gravity_err_deg" in s:
+            _say(f"errors against truth: gravity direction {s['gravity_err_deg']:.2f}°"
+                 + (f", velocity {s['vel_err_mps']:.3f} m/s" if "vel_err_mps" in s else ""))
+    if args.json:
+        Path(args.json).write_text(json.dumps(s, indent=2))
+        _say(f"wrote {args.json}")
+    if args.plot:
+        from quadest.plot import plot_recovery
+
+        _say(f"wrote {plot_recovery(res, rec, args.plot, title=f'recovery: {args.file}')}")
+    return 0
+
+
+def _reproduce_recovery(args, R):
+    _say(f"Reproducing Beffa, Ledergerber & D'Andrea (state estimate recovery) on {args.throws} simulated "
+         f"throws (fma preset, seeds {args.seed}..{args.seed + args.throws - 1}), with the simulation's "
+         "aerodynamic model, one fitted on 20 separate throws, and one perturbed by ±20 %.")
+    result = R.reproduce_recovery(args.throws, args.seed, progress=True, keep_runs=bool(args.json or args.plot_dir))
+    _say(R.format_recovery(result))
+    if args.plot_dir:
+        from quadest.plot import plot_recovery, plot_recovery_histograms
+        from quadest.recovery import recover
+        from quadest.sim import simulate
+
+        out = Path(args.plot_dir) / "recovery"
+        out.mkdir(parents=True, exist_ok=True)
+        runs = {n: c["runs"] for n, c in result["cases"].items()}
+        _say(f"wrote {plot_recovery_histograms(runs, out / 'errors_histogram.png')}")
+        rec = simulate("throw", "fma", seed=args.seed)
+        models = R.recovery_models()
+        res = recover(rec, models["true"], record_all=True)
+        _say(f"wrote {plot_recovery(res, rec, out / 'throw.png', title=f'throw seed {args.seed}, true model')}")
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(result, indent=2))
+        _say(f"wrote {args.json}")
     return 0
 
 
@@ -280,12 +381,38 @@ def build_parser():
     r = sub.add_parser("reproduce", help="reproduce a paper's experiments on the simulator",
                        description="Run a paper's experiment on simulated flights over several seeds and "
                                    "print our figures next to the published ones. afckf: Tables I-V of "
-                                   "Solanki & de Visser 2022; qukf: Table 1 of Liang et al. 2023.")
-    r.add_argument("paper", choices=["afckf", "qukf"])
-    r.add_argument("--seeds", default="1-5", help="seed range or list (default: 1-5)")
+                                   "Solanki & de Visser 2022; qukf: Table 1 of Liang et al. 2023; "
+                                   "recovery: throws and the bank of EKFs of Beffa et al.")
+    r.add_argument("paper", choices=["afckf", "qukf", "recovery"])
+    r.add_argument("--seeds", default="1-5", help="afckf, qukf: seed range or list (default: 1-5)")
+    r.add_argument("--throws", type=int, default=100, help="recovery: number of throws (default: 100)")
+    r.add_argument("--seed", type=int, default=1, help="recovery: first seed (default: 1)")
     r.add_argument("--json", metavar="OUT", help="write all figures (per seed too) as JSON")
     r.add_argument("--plot-dir", metavar="DIR", help="draw the errors over time for the first seed")
     r.set_defaults(func=cmd_reproduce)
+
+    fa = sub.add_parser("fit-aero", help="fit the recovery paper's aerodynamic model (eq 14)",
+                        description="Least-squares fit of f_c = A v + B|v|v + C ψ(ω) (recovery paper eqs "
+                                    "9-14) from recordings with true velocity and attitude (simulated "
+                                    "throws: the free flight after release; other recordings: every sample).")
+    fa.add_argument("recordings", nargs="+", type=Path, metavar="RECORDING")
+    fa.add_argument("-o", "--output", required=True, metavar="JSON", help="model file to write")
+    fa.add_argument("--mass", type=float, default=None, help="vehicle mass, kg (default: from a simulation)")
+    fa.set_defaults(func=cmd_fit_aero)
+
+    rv = sub.add_parser("recover", help="recover attitude and velocity of a thrown vehicle from the IMU",
+                        description="Run the recovery logic (throw detection, the bank of EKFs, hand-over "
+                                    "to a nominal estimator) on a recording; report detection and "
+                                    "convergence times, gravity direction and velocity, and their errors "
+                                    "when the recording has truth.")
+    rv.add_argument("file", type=Path, help="recording (.csv or .parquet)")
+    rv.add_argument("--aero", metavar="JSON", help="aerodynamic model (default: a simulation's own)")
+    rv.add_argument("--hypotheses", type=int, default=40, help="hypotheses of the bank (default: 40)")
+    rv.add_argument("--beta1", type=float, default=7.0, help="detection threshold, m/s² (default: 7)")
+    rv.add_argument("--beta2", type=float, default=0.06, help="convergence threshold on S_g (default: 0.06)")
+    rv.add_argument("--json", metavar="OUT", help="write the summary as JSON")
+    rv.add_argument("--plot", metavar="PNG", help="hypothesis errors, probabilities and velocity over time")
+    rv.set_defaults(func=cmd_recover)
 
     b = sub.add_parser("benchmark", help="measure the estimators' speed",
                        description="benchmark speed: microseconds per sample of every estimator, batch "

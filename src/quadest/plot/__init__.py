@@ -1,5 +1,6 @@
 """Figures. Computing lives elsewhere; these functions only draw what they are given."""
 from quadest.plot.errors import plot_errors
 from quadest.plot.recording import plot_recording
+from quadest.plot.recovery import plot_recovery, plot_recovery_histograms
 
-__all__ = ["plot_errors", "plot_recording"]
+__all__ = ["plot_errors", "plot_recording", "plot_recovery", "plot_recovery_histograms"]

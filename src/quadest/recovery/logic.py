@@ -10,7 +10,7 @@ velocity kept). The paper's detection is per sample; requiring a few consecutive
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 from numba import njit
@@ -136,11 +136,17 @@ def detect_throw(acc, beta1: float, samples: int) -> int | None:
 
 
 def recover(rec, model: AeroModel, params: RecoveryParams | None = None, *, record_all: bool = False,
-            t_release: float | None = None) -> RecoveryResult:
+            t_release: float | None = None, dirs=None) -> RecoveryResult:
     """Run the recovery logic over a recording (IMU only). With truth in the recording the
     summary holds the errors at convergence; ``t_release`` (or a simulated throw's metadata)
-    gives the time from release to convergence."""
+    gives the time from release to convergence. ``dirs`` (H, 3) replaces the hypotheses' gravity
+    directions in the body (default: ``spread_points(n_hypotheses)``)."""
     p = params or RecoveryParams()
+    if dirs is not None:
+        dirs = np.asarray(dirs, float)
+        if dirs.ndim != 2 or dirs.shape[1] != 3 or len(dirs) < 1:
+            raise ValueError(f"dirs must have shape (H, 3), got {dirs.shape}")
+        p = replace(p, n_hypotheses=len(dirs))
     n = len(rec)
     t = np.ascontiguousarray(rec.t, dtype=np.float64)
     gyr = np.ascontiguousarray(rec.gyr, dtype=np.float64)
@@ -159,7 +165,8 @@ def recover(rec, model: AeroModel, params: RecoveryParams | None = None, *, reco
     if k_det is not None and n > 1:
         events.append(("thrown", float(t[k_det])))
         events.append(("converging", float(t[k_det])))
-        dirs = spread_points(H)
+        if dirs is None:
+            dirs = spread_points(H)
         V = np.zeros((H, 3))
         Qr = np.array([shortest_arc(d) for d in dirs])
         P0 = np.diag([p.sigma_v0 ** 2] * 3 + [p.sigma_delta0 ** 2] * 2)
