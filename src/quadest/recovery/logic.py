@@ -235,3 +235,32 @@ def _summarize(res: RecoveryResult, rec, t_release, p) -> dict:
 
 def param_rows():
     return [{"name": f.name, "default": f.default, **f.metadata} for f in fields(RecoveryParams)]
+
+
+def time_bank(n_hypotheses: int = 40, duration: float = 20.0, seed: int = 1) -> float:
+    """µs per IMU sample of the whole bank advancing together (compiled loop over a simulated
+    throw's free flight, after a warm-up)."""
+    import time
+
+    from quadest.sim import build_config, simulate
+
+    rec = simulate("throw", "fma", seed=seed, duration=duration)
+    model = AeroModel.from_config(build_config("fma"))
+    p = RecoveryParams(n_hypotheses=n_hypotheses, beta2=-1.0)  # never converges: the bank runs on
+    n = len(rec)
+    bufs = dict(best_out=np.zeros(n, np.int64), sg_out=np.zeros(n), prob_out=np.empty((1, 1)),
+                gd_out=np.zeros((n, 1, 3)), v_out=np.zeros((n, 3)))
+
+    def once():
+        dirs = spread_points(n_hypotheses)
+        V = np.zeros((n_hypotheses, 3))
+        Qr = np.array([shortest_arc(d) for d in dirs])
+        P = np.repeat(np.diag([9.0, 9, 9, 1, 1])[None], n_hypotheses, axis=0)
+        t0 = time.perf_counter()
+        _run_bank(V, Qr, P, np.zeros(n_hypotheses), rec.gyr[0].copy(), rec.t, rec.gyr, rec.acc, 1,
+                  p.as_array(model.mass_kg), model.A, model.B, model.C, p.beta2, bufs["best_out"],
+                  bufs["sg_out"], bufs["prob_out"], bufs["gd_out"], bufs["v_out"], False)
+        return time.perf_counter() - t0
+
+    once()
+    return 1e6 * min(once() for _ in range(3)) / (n - 1)
