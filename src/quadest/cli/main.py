@@ -95,9 +95,14 @@ def _recording_from_args(args):
 def cmd_compare(args):
     from quadest.evaluation.compare import compare, format_tables, parse_filters, parse_params
 
+    from quadest.calibration import apply_calibrations
+
     names = parse_filters(args.filters)
     params = parse_params(args.param)
     rec, source = _recording_from_args(args)
+    rec, cal_params = apply_calibrations(rec, args.calibration)
+    for name, kv in cal_params.items():
+        params[name] = {**kv, **params.get(name, {})}
     _say(f"comparing {', '.join(names)} on {source} ({len(rec)} samples"
          + (f", errors from t = {args.t_from:g} s)" if args.t_from is not None else ")"))
     report, results = compare(rec, names, params=params, t_from=args.t_from, timing=not args.no_timing,
@@ -206,8 +211,22 @@ def cmd_recover(args):
     from quadest.data import load_recording
     from quadest.recovery import RecoveryParams, recover
 
+    from quadest.calibration import apply_calibrations, load_calibration
+    from quadest.recovery import AeroModel
+
     rec = load_recording(args.file)
-    model = _aero_for(rec, args.aero)
+    model = None
+    sensor_cals = []
+    for path in args.calibration or []:
+        cal = load_calibration(path)
+        if cal.kind == "aero":
+            v = cal.values
+            model = AeroModel(v["A"], v["B"], v["C"], v["mass_kg"])
+        else:
+            sensor_cals.append(path)
+    rec, _ = apply_calibrations(rec, sensor_cals)
+    if model is None:
+        model = _aero_for(rec, args.aero)
     params = RecoveryParams(n_hypotheses=args.hypotheses, beta1=args.beta1, beta2=args.beta2)
     res = recover(rec, model, params, record_all=bool(args.plot))
     s = res.summary
@@ -261,6 +280,65 @@ def _reproduce_recovery(args, R):
         Path(args.json).write_text(json.dumps(result, indent=2))
         _say(f"wrote {args.json}")
     return 0
+
+
+# -- calibration and estimation ----------------------------------------------------------------------
+def cmd_calibrate(args):
+    from quadest.calibration import calibrate
+    from quadest.data import load_recording
+
+    recs = [load_recording(p) for p in args.recordings]
+    kw = {"mass_kg": args.mass} if args.kind == "aero" else {}
+    cal = calibrate(args.kind, recs, **kw)
+    cal.save(args.output)
+    _say(f"{args.kind} calibration from {len(recs)} recording(s)")
+    for key, val in cal.values.items():
+        unc = cal.uncertainty.get(key)
+        _say(f"  {key:<22} {np.array2string(np.asarray(val), precision=5, suppress_small=True)}"
+             + (f"  ± {np.array2string(np.asarray(unc), formatter={'float_kind': lambda x: f'{x:.1e}'})}"
+                if unc is not None else ""))
+    for key, val in cal.quality.items():
+        if key in ("samples_per_position", "recordings"):
+            continue
+        _say(f"  {key:<22} {val if not isinstance(val, float) else round(val, 5)}")
+    _say(f"wrote {args.output}")
+    return 0
+
+
+def cmd_estimate(args):
+    from quadest.calibration import apply_calibrations
+    from quadest.data import load_recording
+    from quadest.evaluation.compare import declination_of, parse_params
+    from quadest.filters import make_filter
+    from quadest.rotation import quat_to_euler
+
+    rec = load_recording(args.file)
+    rec, cal_params = apply_calibrations(rec, args.calibration)
+    params = parse_params(args.param)
+    kw = {**cal_params.get(args.filter, {}), **params.get(args.filter, {})}
+    decl = np.radians(args.declination_deg) if args.declination_deg is not None else declination_of(rec)
+    res = make_filter(args.filter, declination=decl, **kw).run(rec)
+    e = quat_to_euler(res.q)
+    cols = {"t": res.t, "q_w": res.q[:, 0], "q_x": res.q[:, 1], "q_y": res.q[:, 2], "q_z": res.q[:, 3],
+            "roll": e[:, 0], "pitch": e[:, 1], "yaw": e[:, 2]}
+    _write_table(cols, Path(args.output))
+    _say(f"{args.filter}: {len(rec)} samples -> {args.output} (t, q_w, q_x, q_y, q_z, roll, pitch, yaw; rad)")
+    return 0
+
+
+def _write_table(cols: dict, path: Path):
+    import pyarrow as pa
+
+    table = pa.table(cols)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.suffix.lower() == ".csv":
+        import pyarrow.csv as pcsv
+        pcsv.write_csv(table, path, pcsv.WriteOptions(quoting_style="none"))
+    elif path.suffix.lower() in (".parquet", ".pq"):
+        import pyarrow.parquet as pq
+        pq.write_table(table, path)
+    else:
+        raise CliError(f"{path}: use .csv or .parquet")
 
 
 # -- benchmark -----------------------------------------------------------------------------
@@ -381,6 +459,8 @@ def build_parser():
     c.add_argument("--json", metavar="OUT", help="write the figures as JSON")
     c.add_argument("--plot-dir", metavar="DIR", help="draw the error of every filter over time per axis")
     c.add_argument("--no-timing", action="store_true", help="skip the execution-time measurement")
+    c.add_argument("--calibration", action="append", metavar="CALIB.json",
+                     help="apply a calibration from quadest calibrate before any filter (repeatable)")
     c.set_defaults(func=cmd_compare)
 
     r = sub.add_parser("reproduce", help="reproduce a paper's experiments on the simulator",
@@ -417,7 +497,36 @@ def build_parser():
     rv.add_argument("--beta2", type=float, default=0.06, help="convergence threshold on S_g (default: 0.06)")
     rv.add_argument("--json", metavar="OUT", help="write the summary as JSON")
     rv.add_argument("--plot", metavar="PNG", help="hypothesis errors, probabilities and velocity over time")
+    rv.add_argument("--calibration", action="append", metavar="CALIB.json",
+                     help="apply a calibration from quadest calibrate before any filter (repeatable)")
     rv.set_defaults(func=cmd_recover)
+
+    cb = sub.add_parser("calibrate", help="calibrate a sensor from recordings",
+                        description="Fit a calibration and write it with its uncertainty and quality "
+                                    "figures. gyro: bias from rest segments (found automatically); accel: "
+                                    "bias, scale and misalignment from a six-position or many-position "
+                                    "static set; mag: hard and soft iron by ellipsoid fit from a rotation "
+                                    "sequence; centrifugal: the AFCKF's ω1, ω2 from a spinning segment; "
+                                    "aero: the recovery paper's model (as fit-aero). docs/calibration.md "
+                                    "gives the procedures.")
+    cb.add_argument("kind", choices=["gyro", "accel", "mag", "centrifugal", "aero"])
+    cb.add_argument("recordings", nargs="+", type=Path, metavar="RECORDING")
+    cb.add_argument("-o", "--output", required=True, metavar="CALIB.json")
+    cb.add_argument("--mass", type=float, default=None, help="aero: vehicle mass, kg")
+    cb.set_defaults(func=cmd_calibrate)
+
+    es = sub.add_parser("estimate", help="run one estimator on a recording and write its attitude",
+                        description="Run an estimator over a recording (.csv/.parquet) and write t, q_w, "
+                                    "q_x, q_y, q_z, roll, pitch, yaw (radians) to .csv or .parquet.")
+    es.add_argument("file", type=Path, help="recording (.csv or .parquet)")
+    es.add_argument("--filter", required=True, choices=list(FILTERS), help="estimator")
+    es.add_argument("-o", "--output", required=True, metavar="OUT", help=".csv or .parquet")
+    es.add_argument("--param", action="append", metavar="FILTER.NAME=VALUE", help="estimator parameter")
+    es.add_argument("--declination-deg", type=float, default=None,
+                    help="magnetic declination (default: from a simulation's metadata, else 0)")
+    es.add_argument("--calibration", action="append", metavar="CALIB.json",
+                     help="apply a calibration from quadest calibrate before any filter (repeatable)")
+    es.set_defaults(func=cmd_estimate)
 
     b = sub.add_parser("benchmark", help="measure the estimators' speed",
                        description="benchmark speed: microseconds per sample of every estimator, batch "
@@ -442,6 +551,8 @@ def main(argv=None):
         return 2
     try:
         return args.func(args)
+    except BrokenPipeError:  # output piped into a command that stopped reading (head)
+        return 0
     except (CliError, ValueError, OSError) as exc:
         print(f"quadest {args.command}: error: {exc}", file=sys.stderr)
         return 1

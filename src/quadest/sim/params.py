@@ -145,6 +145,18 @@ class Throw:
 
 
 @dataclass(frozen=True)
+class Calibration:
+    """Motions a user performs to calibrate, hand-held with the motors off."""
+    rest_s: float = P(30.0, "s", "default duration of the rest scenario")
+    hold_s: float = P(6.0, "s", "six-position: time held in each orientation")
+    turn_s: float = P(2.0, "s", "six-position: time of each turn between orientations")
+    figure8_s: float = P(60.0, "s", "default duration of the figure-eight rotation")
+    figure8_period_s: float = P(12.0, "s", "figure-eight: period of the heading sweep")
+    tilt_amp_deg: float = P(75.0, "deg", "figure-eight: roll and pitch amplitude")
+    six_tilt_deg: float = P(0.0, "deg", "six-position: error of each placement (random axis)")
+
+
+@dataclass(frozen=True)
 class Aero:
     """Recovery paper eq 9, in quadest's body frame (FRD): f_c = A v + B|v|v + C ψ(ω), N."""
     A: tuple = P(((-0.20, 0.0, 0.0), (0.0, -0.20, 0.0), (0.0, 0.0, -0.30)), "N s/m",
@@ -171,6 +183,7 @@ class SimConfig:
     nominal: Nominal = field(default_factory=Nominal)
     damaged: DamagedRotor = field(default_factory=DamagedRotor)
     throw: Throw = field(default_factory=Throw)
+    calibration: Calibration = field(default_factory=Calibration)
     aero: Aero = field(default_factory=Aero)
 
     def with_overrides(self, overrides: dict, source: str = "--set") -> "SimConfig":

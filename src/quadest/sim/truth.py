@@ -18,7 +18,8 @@ from quadest.sim.jets import Jet
 from quadest.sim.params import SimConfig
 from quadest.sim.signals import RampedSinusoids, Sinusoids
 
-SCENARIOS = ("hover", "nominal", "damaged-rotor", "throw")
+SCENARIOS = ("hover", "nominal", "damaged-rotor", "throw", "rest", "six-position", "figure-eight")
+CALIBRATION_SCENARIOS = ("rest", "six-position", "figure-eight")
 
 
 @dataclass
@@ -345,8 +346,102 @@ class ThrowMotion:
         return Truth.concat(parts)
 
 
+class CalibrationMotion:
+    """Hand-held calibration motions with the motors off (no vibration, no motor current); the
+    position is fixed, so the accelerometer reads gravity plus its lever-arm terms.
+
+    - ``rest``: a fixed attitude (level, random heading).
+    - ``six-position``: each body axis pointing down and up in turn (z down, z up, x up, x down,
+      y up, y down), held ``hold_s``, turned over ``turn_s`` by a smooth rotation; each placement
+      may be off by ``six_tilt_deg`` about a random axis.
+    - ``figure-eight``: heading sweeping full turns while roll and pitch swing by ``tilt_amp_deg``
+      at incommensurate rates, so the body axes visit every direction (for the magnetometer's
+      ellipsoid fit).
+    """
+
+    def __init__(self, scenario, cfg: SimConfig, rng, duration):
+        self.cfg = cfg
+        self.kind = scenario
+        c = cfg.calibration
+        self.yaw0 = rng.uniform(-np.pi, np.pi)
+        self.pos = np.array([0.0, 0.0, -1.0])
+        self.meta = {"motors": "off"}
+        if scenario == "six-position":
+            from quadest.rotation import euler_to_quat, quat_mul, quat_from_rotvec
+            base = [(0.0, 0.0), (np.pi, 0.0), (0.0, np.pi / 2), (0.0, -np.pi / 2), (-np.pi / 2, 0.0), (np.pi / 2, 0.0)]
+            qs = []
+            for roll, pitch in base:
+                q = euler_to_quat([roll, pitch, self.yaw0])
+                if c.six_tilt_deg > 0:
+                    ax = rng.normal(size=3)
+                    q = quat_mul(quat_from_rotvec(np.radians(c.six_tilt_deg) * ax / np.linalg.norm(ax)), q)
+                qs.append(q)
+            self.quats = qs
+            self.hold, self.turn = c.hold_s, c.turn_s
+            # the body axis that points down or up in each position (pitch +90°: nose up)
+            self.meta["positions"] = ["z down", "z up", "x up", "x down", "y up", "y down"]
+            self.meta["segments_s"] = [[k * (self.hold + self.turn), k * (self.hold + self.turn) + self.hold]
+                                       for k in range(6)]
+
+    def evaluate(self, t) -> Truth:
+        from quadest.rotation import matrix_to_quat, quat_to_matrix, quat_mul, quat_conj, quat_to_rotvec
+        n = len(t)
+        if self.kind == "rest":
+            R = Jet.const(np.broadcast_to(quat_to_matrix(euler_q(0.0, 0.0, self.yaw0)), (n, 3, 3)))
+        elif self.kind == "figure-eight":
+            c = self.cfg.calibration
+            wy = 2 * np.pi / c.figure8_period_s
+            A = np.radians(c.tilt_amp_deg)
+            yaw = Jet(self.yaw0 + wy * t, np.full(n, wy), np.zeros(n))
+            wp, wr = wy * 1.618, wy * 2.414
+            pitch = Jet(A * np.sin(wp * t), A * wp * np.cos(wp * t), -A * wp * wp * np.sin(wp * t))
+            roll = Jet(A * np.sin(wr * t + 0.7), A * wr * np.cos(wr * t + 0.7), -A * wr * wr * np.sin(wr * t + 0.7))
+            R = J.matmul(J.matmul(J.rot_z(yaw), J.rot_axis([0, 1, 0], pitch)), J.rot_axis([1, 0, 0], roll))
+        else:  # six-position
+            period = self.hold + self.turn
+            k = np.clip((t // period).astype(int), 0, 5)
+            x = np.clip((t - k * period - self.hold) / self.turn, 0.0, 1.0)
+            x = np.where(k >= 5, 0.0, x)
+            I, S, S1, S2 = _smoothstep(x)
+            Rs = np.empty((n, 3, 3))
+            axis = np.zeros((n, 3))
+            ang = np.zeros(n)
+            for j in range(6):
+                sel = k == j
+                if not sel.any():
+                    continue
+                q0 = self.quats[j]
+                q1 = self.quats[min(j + 1, 5)]
+                rv = quat_to_rotvec(quat_mul(quat_conj(q0), q1))
+                a = np.linalg.norm(rv)
+                Rs[sel] = quat_to_matrix(q0)
+                axis[sel] = rv / a if a > 0 else np.array([0.0, 0.0, 1.0])
+                ang[sel] = a
+            th = Jet(ang * S, ang * S1 / self.turn, ang * S2 / self.turn ** 2)
+            # per-sample axis: Rodrigues with the jet of the angle (axis constant within a turn)
+            c_, s_ = J.cos(th), J.sin(th)
+            K = np.zeros((n, 3, 3))
+            K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
+            K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = axis[:, 2], -axis[:, 1], axis[:, 0]
+            KK = K @ K
+            rot = Jet.const(np.broadcast_to(np.eye(3), (n, 3, 3))) + J.scale(s_, Jet.const(K)) + J.scale(1.0 - c_, Jet.const(KK))
+            R = J.matmul(Jet.const(Rs), rot)
+        w, wdot = J.body_rates(R)
+        zeros = np.zeros((n, 3))
+        return Truth(t=t, q=_quat(R.v), gyr=w, gyr_dot=wdot, pos=np.broadcast_to(self.pos, (n, 3)).copy(),
+                     vel=zeros.copy(), acc_n=zeros.copy(), current=np.zeros(n), rotor_load=np.zeros(n),
+                     meta=self.meta)
+
+
+def euler_q(roll, pitch, yaw):
+    from quadest.rotation import euler_to_quat
+    return euler_to_quat([roll, pitch, yaw])
+
+
 def make_motion(scenario: str, cfg: SimConfig, rng, duration: float):
     """The motion model of a scenario (its random draws come from ``rng``)."""
+    if scenario in CALIBRATION_SCENARIOS:
+        return CalibrationMotion(scenario, cfg, rng, duration)
     cls = {"hover": HoverMotion, "nominal": NominalMotion, "damaged-rotor": DamagedRotorMotion,
            "throw": ThrowMotion}.get(scenario)
     if cls is None:
@@ -355,6 +450,13 @@ def make_motion(scenario: str, cfg: SimConfig, rng, duration: float):
 
 
 def default_duration(scenario: str, cfg: SimConfig) -> float:
+    c = cfg.calibration
+    if scenario == "rest":
+        return c.rest_s
+    if scenario == "six-position":
+        return 6 * c.hold_s + 5 * c.turn_s
+    if scenario == "figure-eight":
+        return c.figure8_s
     sec = {"hover": cfg.hover, "nominal": cfg.nominal, "damaged-rotor": cfg.damaged,
            "throw": cfg.throw}[scenario]
     return sec.duration_s

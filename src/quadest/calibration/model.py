@@ -1,0 +1,117 @@
+"""The calibration file and how a calibration is applied to a recording.
+
+Models (quadest conventions; the accelerometer's is the QUKF paper's eq 4, ``a = R_a (a' − a_e)``):
+
+- gyro: ``ω = ω' − b``
+- accel: ``a = T (a' − b)`` with T the full 3x3 matrix that undoes scale and misalignment
+- mag: ``m = W (m' − h)``: hard iron h and the soft-iron correction W (symmetric)
+- centrifugal: the AFCKF's ``ω1, ω2`` (eq 13), applied as estimator parameters
+- aero: the recovery paper's model (eq 9), used by ``quadest recover``
+
+A calibration states the sensor and the unit of the data it was fitted from (``unit``; for
+centrifugal and aero, the accelerometer's); applying it to a recording whose unit differs is
+refused. The parameters' own units: biases and hard iron in the sensor's unit, ω1 and ω2 in m,
+A, B, C in N s/m, N s²/m², N.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+FORMAT_TAG = "quadest calibration v1"
+KINDS = ("gyro", "accel", "mag", "centrifugal", "aero")
+SENSOR = {"gyro": "gyr", "accel": "acc", "mag": "mag", "centrifugal": "acc", "aero": "acc"}
+
+
+@dataclass
+class Calibration:
+    """One calibration: ``values`` (model parameters), ``uncertainty`` (1σ of the same keys),
+    ``quality`` (fit figures) and where it came from."""
+
+    kind: str
+    unit: str
+    values: dict
+    uncertainty: dict = field(default_factory=dict)
+    quality: dict = field(default_factory=dict)
+    source: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        if self.kind not in KINDS:
+            raise ValueError(f"unknown calibration kind {self.kind!r}; kinds: {', '.join(KINDS)}")
+
+    @property
+    def sensor(self) -> str:
+        return SENSOR[self.kind]
+
+    def to_dict(self) -> dict:
+        return {"format": FORMAT_TAG, "kind": self.kind, "sensor": self.sensor, "unit": self.unit,
+                "values": self.values, "uncertainty": self.uncertainty, "quality": self.quality,
+                "source": self.source}
+
+    def save(self, path) -> Path:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(self.to_dict(), indent=2))
+        return path
+
+    def check(self, rec) -> None:
+        """Refuse a recording whose sensor unit differs from the calibration's."""
+        units = rec.meta.get("units", {})
+        have = units.get(self.sensor)
+        if have is not None and have != "unknown" and have != self.unit:
+            raise ValueError(f"calibration {self.kind} was made for {self.sensor} in {self.unit}, but the "
+                             f"recording's {self.sensor} is in {have}")
+        if self.kind == "mag" and not rec.has_mag:
+            raise ValueError("a magnetometer calibration needs a recording with magnetometer samples")
+
+    def apply(self, rec):
+        """A new recording with this calibration applied (gyro, accel, mag kinds)."""
+        from quadest.data.recording import Recording
+
+        self.check(rec)
+        kw = {k: getattr(rec, k) for k in ("t", "gyr", "acc", "mag", *rec.truth)}
+        v = self.values
+        if self.kind == "gyro":
+            kw["gyr"] = rec.gyr - np.asarray(v["bias"])
+        elif self.kind == "accel":
+            kw["acc"] = (rec.acc - np.asarray(v["bias"])) @ np.asarray(v["matrix"]).T
+        elif self.kind == "mag":
+            kw["mag"] = (rec.mag - np.asarray(v["hard_iron"])) @ np.asarray(v["soft_iron_correction"]).T
+        else:
+            return rec
+        meta = dict(rec.meta)
+        meta["calibrations"] = list(meta.get("calibrations", [])) + [self.kind]
+        return Recording(**kw, meta=meta, check_units=False)
+
+    def filter_params(self) -> dict:
+        """Estimator parameters this calibration sets (``{"afckf": {"omega1": ..}}``)."""
+        if self.kind == "centrifugal":
+            return {"afckf": {"omega1": self.values["omega1"], "omega2": self.values["omega2"]}}
+        return {}
+
+
+def load_calibration(path) -> Calibration:
+    path = Path(path)
+    try:
+        d = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{path}: not a readable calibration ({exc})") from None
+    if not isinstance(d, dict) or d.get("format") != FORMAT_TAG:
+        raise ValueError(f"{path}: not a quadest calibration (expected format {FORMAT_TAG!r})")
+    return Calibration(d["kind"], d["unit"], d["values"], d.get("uncertainty", {}), d.get("quality", {}),
+                       d.get("source", {}))
+
+
+def apply_calibrations(rec, paths):
+    """Load and apply calibration files in order; returns the recording and the estimator
+    parameters they set."""
+    params: dict = {}
+    for p in paths or []:
+        cal = load_calibration(p)
+        rec = cal.apply(rec)
+        for name, kv in cal.filter_params().items():
+            params.setdefault(name, {}).update(kv)
+    return rec, params
