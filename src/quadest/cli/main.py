@@ -333,7 +333,9 @@ def _write_table(cols: dict, path: Path):
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.suffix.lower() == ".csv":
         import pyarrow.csv as pcsv
-        pcsv.write_csv(table, path, pcsv.WriteOptions(quoting_style="none"))
+        with open(path, "wb") as fh:  # pyarrow quotes header names; write a plain header ourselves
+            fh.write((",".join(cols) + "\n").encode())
+            pcsv.write_csv(table, fh, pcsv.WriteOptions(include_header=False, quoting_style="none"))
     elif path.suffix.lower() in (".parquet", ".pq"):
         import pyarrow.parquet as pq
         pq.write_table(table, path)

@@ -16,7 +16,6 @@ import numpy as np
 from quadest.evaluation.compare import declination_of, run_filters
 from quadest.evaluation.metrics import AXES, summarize_errors, time_estimator
 from quadest.filters import make_filter
-from quadest.filters.afckf import fit_centrifugal
 from quadest.sim import build_config, simulate
 
 # Published figures (degrees; AFCKF Table V in seconds per step).
@@ -60,13 +59,18 @@ CALIBRATION_SEED = 1000
 
 
 def afckf_calibration(seed: int = CALIBRATION_SEED) -> dict:
-    """ω1, ω2 of eq 13 fitted on a separate simulated damaged-rotor flight (the spinning part,
-    gyroscope below its range)."""
+    """ω1, ω2 of eq 13 fitted on a separate simulated damaged-rotor flight, through
+    ``quadest calibrate centrifugal`` (:func:`quadest.calibration.calibrate_centrifugal`) on its
+    steady spin (from five spin-up time constants after the failure; gyroscope below its range)."""
+    from quadest.calibration import calibrate_centrifugal
+
     rec = simulate("damaged-rotor", "bebop2", seed=seed)
     cfg = build_config("bebop2")
-    spin = rec.t > cfg.damaged.failure_s + 5 * cfg.damaged.spin_up_tau_s
-    o1, o2, res = fit_centrifugal(rec.gyr[spin], rec.acc[spin], gyro_range=cfg.gyro.range * (1 - 1e-9))
-    return {"omega1": o1, "omega2": o2, "residual_mps2": res, "seed": seed}
+    spin = rec.between(cfg.damaged.failure_s + 5 * cfg.damaged.spin_up_tau_s, np.inf)
+    cal = calibrate_centrifugal([spin])
+    return {"omega1": float(cal.values["omega1"]), "omega2": float(cal.values["omega2"]),
+            "uncertainty_m": float(cal.uncertainty["omega1"]), "residual_mps2": cal.quality["residual_rms_mps2"],
+            "seed": seed}
 
 
 def _aggregate(per_seed: list[dict], names) -> dict:
@@ -143,7 +147,8 @@ def format_reproduction(paper: str, result: dict) -> str:
     if paper == "afckf":
         cal = result["calibration"]
         lines.append(f"AFCKF centrifugal calibration (eq 13) from calibration flight seed {cal['seed']}: "
-                     f"ω1 = {cal['omega1']:.4f} m, ω2 = {cal['omega2']:.4f} m (residual {cal['residual_mps2']:.2f} m/s²)")
+                     f"ω1 = {cal['omega1']:.4f} m, ω2 = {cal['omega2']:.4f} m (± {cal['uncertainty_m']:.1e} m, residual "
+                     f"{cal['residual_mps2']:.2f} m/s²; quadest calibrate centrifugal)")
     lines.append(f"seeds {result['seeds'][0]}..{result['seeds'][-1]} (mean over seeds); "
                  "'paper' = published value")
     for case, res in result["cases"].items():

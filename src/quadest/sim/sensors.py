@@ -52,13 +52,15 @@ def random_walk(t, std, rng):
 
 
 def inertial(true, t, model: Gyroscope | Accelerometer, errors, rng, extra=None):
-    """Apply scale/misalignment, bias, random walk, extra terms, noise and saturation."""
-    out = true @ errors["matrix"].T + errors["bias"] + random_walk(t, model.bias_rw_std, rng)
+    """Apply scale/misalignment, bias, random walk, extra terms, noise and saturation.
+    Returns the readings and the bias at each sample (constant part plus random walk)."""
+    bias = errors["bias"] + random_walk(t, model.bias_rw_std, rng)
+    out = true @ errors["matrix"].T + bias
     if extra is not None:
         out = out + extra
     if model.noise_std > 0:
         out = out + rng.normal(0.0, model.noise_std, out.shape)
-    return np.clip(out, -model.range, model.range)
+    return np.clip(out, -model.range, model.range), bias
 
 
 def specific_force_at_imu(q, acc_n, w, wdot, lever, gravity):

@@ -42,7 +42,8 @@ def simulate(scenario: str, preset: str = "bebop2", seed: int = 0, duration: flo
     overrides : ``{"section.field": value}`` on top of the preset (docs/simulator.md).
     ideal : remove all sensor errors (noise, bias, scale, misalignment, saturation, jitter...).
     progress : show a progress bar for runs that take more than a second.
-    return_truth : also return the :class:`~quadest.sim.truth.Truth` (with angular acceleration).
+    return_truth : also return the :class:`~quadest.sim.truth.Truth` (with angular acceleration and
+        the sensors' true biases over time, random walk included).
     """
     if scenario not in SCENARIOS:
         raise ValueError(f"unknown scenario {scenario!r}; scenarios: {', '.join(SCENARIOS)}")
@@ -85,9 +86,9 @@ def simulate(scenario: str, preset: str = "bebop2", seed: int = 0, duration: flo
     a_err = S.draw_errors(cfg.acc, rng_acc)
     f_imu = S.specific_force_at_imu(truth.q, truth.acc_n, truth.gyr, truth.gyr_dot, cfg.acc.lever_arm,
                                     cfg.environment.gravity)
-    gyr = S.inertial(truth.gyr, t, cfg.gyro, g_err, rng_gyro)
+    gyr, gyr_bias = S.inertial(truth.gyr, t, cfg.gyro, g_err, rng_gyro)
     vib = S.vibration(t, truth.rotor_load, cfg.vehicle.rotor_hz_hover, cfg.acc.vibration_amp, rng_vib)
-    acc = S.inertial(f_imu, t, cfg.acc, a_err, rng_acc, extra=vib)
+    acc, acc_bias = S.inertial(f_imu, t, cfg.acc, a_err, rng_acc, extra=vib)
     mag = np.full((len(t), 3), np.nan)
     if has_mag.any():
         mag[has_mag] = S.magnetometer(truth.q[has_mag], truth.current[has_mag], cfg.environment,
@@ -118,5 +119,5 @@ def simulate(scenario: str, preset: str = "bebop2", seed: int = 0, duration: flo
     if return_truth:
         sel = {n: getattr(truth, n)[keep] for n in ("t", "q", "gyr", "gyr_dot", "pos", "vel", "acc_n",
                                                     "current", "rotor_load")}
-        return rec, Truth(**sel, meta=truth.meta)
+        return rec, Truth(**sel, meta=truth.meta, gyr_bias=gyr_bias[keep], acc_bias=acc_bias[keep])
     return rec

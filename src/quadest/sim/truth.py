@@ -36,6 +36,8 @@ class Truth:
     current: np.ndarray  # (N,) motor current over its maximum (all rotors at full thrust)
     rotor_load: np.ndarray  # (N,) thrust per active rotor over hover thrust per rotor
     meta: dict = field(default_factory=dict)
+    gyr_bias: np.ndarray | None = None  # (N, 3) gyroscope bias incl. random walk (simulate(return_truth=True))
+    acc_bias: np.ndarray | None = None  # (N, 3) accelerometer bias incl. random walk
 
     @classmethod
     def concat(cls, parts):
