@@ -15,6 +15,13 @@ class CliError(Exception):
     """An error to report as one line, without a traceback."""
 
 
+def _write_json(path, obj):
+    """Write ``obj`` as indented JSON and say so."""
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    Path(path).write_text(json.dumps(obj, indent=2))
+    _say(f"wrote {path}")
+
+
 def _say(msg):
     print(msg, flush=True)
 
@@ -66,11 +73,49 @@ def cmd_simulate(args):
     return 0
 
 
+# -- reading any supported file ---------------------------------------------------------------
+def _add_input_args(p):
+    """The options every recording-taking command shares (docs/readers.md)."""
+    from quadest.readers import FORMATS
+
+    g = p.add_argument_group("input format (chosen from the file unless --format is given)")
+    g.add_argument("--format", choices=FORMATS, default=None,
+                   help="reader: " + ", ".join(FORMATS))
+    g.add_argument("--map", action="append", metavar="FIELD=COL[,COL..]",
+                   help="--format csv: which columns are t, gyr, acc, mag, true_q, true_pos, true_vel "
+                        "(e.g. --map gyr=gx,gy,gz; repeatable)")
+    g.add_argument("--units", action="append", metavar="FIELD=UNIT",
+                   help="--format csv: t=s|ms|us|ns, gyr=rad/s|deg/s, acc=m/s^2|g|mg, mag=uT|nT|T|gauss|mgauss")
+    g.add_argument("--frame", choices=["ned-frd", "enu-flu"], default="ned-frd",
+                   help="--format csv: the file's navigation/body frames (default: ned-frd)")
+    g.add_argument("--quat-order", choices=["wxyz", "xyzw"], default="wxyz", help="--format csv: true_q order")
+    g.add_argument("--topic", action="append", metavar="KIND=TOPIC",
+                   help="ROS bags: imu=/imu/data, mag=/imu/mag, truth=/vicon/pose when several are present")
+
+
+def _read(args, path):
+    from quadest.readers import read_recording
+    from quadest.readers.generic import parse_columns, parse_units
+
+    opts = {}
+    fmt = getattr(args, "format", None)
+    if fmt == "csv" or getattr(args, "map", None):
+        fmt = fmt or "csv"
+        opts = {"columns": parse_columns(args.map), "units": parse_units(args.units), "frame": args.frame,
+                "quat_order": args.quat_order}
+    for item in getattr(args, "topic", None) or []:
+        kind, sep, topic = item.partition("=")
+        if not sep or kind not in ("imu", "mag", "truth"):
+            raise CliError(f"--topic {item!r}: expected imu=TOPIC, mag=TOPIC or truth=TOPIC")
+        opts[f"{kind}_topic"] = topic
+    return read_recording(path, fmt, **opts)
+
+
 # -- info ----------------------------------------------------------------------------------
 def cmd_info(args):
-    from quadest.data import format_summary, load_recording, summarize
+    from quadest.data import format_summary, summarize
 
-    rec = load_recording(args.file)
+    rec = _read(args, args.file)
     s = summarize(rec)
     if args.json:
         _say(json.dumps(s, indent=2))
@@ -81,11 +126,10 @@ def cmd_info(args):
 
 # -- compare -------------------------------------------------------------------------------
 def _recording_from_args(args):
-    from quadest.data import load_recording
     from quadest.sim import build_config, simulate
 
     if args.recording:
-        return load_recording(args.recording), str(args.recording)
+        return _read(args, args.recording), str(args.recording)
     cfg = build_config(args.preset, _parse_sets(args.set))
     rec = simulate(args.scenario, args.preset, seed=args.seed, duration=args.duration, config=cfg,
                    progress=True)
@@ -106,12 +150,19 @@ def cmd_compare(args):
     _say(f"comparing {', '.join(names)} on {source} ({len(rec)} samples"
          + (f", errors from t = {args.t_from:g} s)" if args.t_from is not None else ")"))
     report, results = compare(rec, names, params=params, t_from=args.t_from, timing=not args.no_timing,
-                              source=source)
+                              source=source, align=args.align, align_body=args.align_body)
+    if report["against"] == "ref_q":
+        _say("no independent truth in this recording: errors are against the log's onboard attitude (ref_q)")
+    for name, entry in report["filters"].items():
+        if "alignment" in entry:
+            a = entry["alignment"]
+            parts = [f"heading {a['heading_offset_deg']:+.2f}°" if "heading_offset_deg" in a else "",
+                     f"navigation rotation {a['nav_rotation_deg']:.2f}°" if "nav_rotation_deg" in a else "",
+                     f"body rotation {a['body_rotation_deg']:.2f}°" if "body_rotation_deg" in a else ""]
+            _say(f"alignment removed for {name}: " + ", ".join(p for p in parts if p))
     _say(format_tables(report))
     if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(report, indent=2))
-        _say(f"wrote {args.json}")
+        _write_json(args.json, report)
     if args.plot_dir:
         from quadest.plot import plot_errors
 
@@ -149,9 +200,7 @@ def cmd_reproduce(args):
         result = R.reproduce_qukf(seeds, progress=True)
     _say(R.format_reproduction(args.paper, result))
     if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(result, indent=2))
-        _say(f"wrote {args.json}")
+        _write_json(args.json, result)
     if args.plot_dir:
         from quadest.evaluation.compare import run_filters
         from quadest.plot import plot_errors, plot_recording
@@ -173,10 +222,9 @@ def cmd_reproduce(args):
 
 # -- recovery ------------------------------------------------------------------------------
 def cmd_fit_aero(args):
-    from quadest.data import load_recording
     from quadest.recovery import fit_aero
 
-    recs = [load_recording(p) for p in args.recordings]
+    recs = [_read(args, p) for p in args.recordings]
     mass = args.mass
     if mass is None:
         masses = {r.meta.get("config", {}).get("vehicle", {}).get("mass_kg") for r in recs}
@@ -208,13 +256,12 @@ def _aero_for(rec, path):
 
 
 def cmd_recover(args):
-    from quadest.data import load_recording
     from quadest.recovery import RecoveryParams, recover
 
     from quadest.calibration import apply_calibrations, load_calibration
     from quadest.recovery import AeroModel
 
-    rec = load_recording(args.file)
+    rec = _read(args, args.file)
     model = None
     sensor_cals = []
     for path in args.calibration or []:
@@ -247,8 +294,7 @@ def cmd_recover(args):
             _say(f"errors against truth: gravity direction {s['gravity_err_deg']:.2f}°"
                  + (f", velocity {s['vel_err_mps']:.3f} m/s" if "vel_err_mps" in s else ""))
     if args.json:
-        Path(args.json).write_text(json.dumps(s, indent=2))
-        _say(f"wrote {args.json}")
+        _write_json(args.json, s)
     if args.plot:
         from quadest.plot import plot_recovery
 
@@ -276,18 +322,15 @@ def _reproduce_recovery(args, R):
         res = recover(rec, models["true"], record_all=True)
         _say(f"wrote {plot_recovery(res, rec, out / 'throw.png', title=f'throw seed {args.seed}, true model')}")
     if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(result, indent=2))
-        _say(f"wrote {args.json}")
+        _write_json(args.json, result)
     return 0
 
 
 # -- calibration and estimation ----------------------------------------------------------------------
 def cmd_calibrate(args):
     from quadest.calibration import calibrate
-    from quadest.data import load_recording
 
-    recs = [load_recording(p) for p in args.recordings]
+    recs = [_read(args, p) for p in args.recordings]
     kw = {"mass_kg": args.mass} if args.kind == "aero" else {}
     cal = calibrate(args.kind, recs, **kw)
     cal.save(args.output)
@@ -307,12 +350,11 @@ def cmd_calibrate(args):
 
 def cmd_estimate(args):
     from quadest.calibration import apply_calibrations
-    from quadest.data import load_recording
     from quadest.evaluation.compare import declination_of, parse_params
     from quadest.filters import make_filter
     from quadest.rotation import quat_to_euler
 
-    rec = load_recording(args.file)
+    rec = _read(args, args.file)
     rec, cal_params = apply_calibrations(rec, args.calibration)
     params = parse_params(args.param)
     kw = {**cal_params.get(args.filter, {}), **params.get(args.filter, {})}
@@ -345,30 +387,89 @@ def _write_table(cols: dict, path: Path):
 
 # -- benchmark -----------------------------------------------------------------------------
 def cmd_benchmark(args):
+    if args.what == "speed":
+        return _benchmark_speed(args)
+    from quadest.evaluation import benchmark as B
+
+    if not args.data:
+        raise CliError(f"benchmark {args.what} needs --data DIR")
+    names = _filter_names(args.filters)
+    if args.what == "broad":
+        _say(f"BROAD on {args.data}: {', '.join(names)}; BROAD's metric over the movement phases")
+        res = B.benchmark_broad(args.data, names, trials=args.trials, nav=args.align or "none", progress=True)
+        _say(B.format_broad(res))
+    else:
+        _say(f"quadrotor flights under {args.data}: {', '.join(names)}; 6-axis, roll/pitch/yaw RMS")
+        res = B.benchmark_flights(args.data, names, nav=args.align or "heading", progress=True)
+        _say(B.format_flights(res))
+    if args.json:
+        _write_json(args.json, res)
+    return 0
+
+
+def _filter_names(spec):
+    """``all`` (quadest's filters and the installed peers), ``quadest``, ``peers`` or a list."""
+    from quadest.evaluation.compare import parse_filters
+
+    return parse_filters(spec, all_includes_peers=True)
+
+
+def _benchmark_speed(args):
+    import time
+
     from quadest.evaluation.metrics import time_estimator
+    from quadest.evaluation.peers import run_peer
     from quadest.filters import FILTERS, make_filter
     from quadest.sim import simulate
 
-    if args.what != "speed":
-        raise CliError(f"benchmark {args.what} comes with the readers (issue #5); available: speed")
+    names = _filter_names(args.filters)
     rec = simulate("damaged-rotor", "bebop2", seed=1, duration=args.duration)
     _say(f"µs per sample on {len(rec)} samples of a simulated damaged-rotor flight (bebop2), one core; "
-         "batch: best of 3 after a warm-up; streaming: update() called from Python")
+         "batch: best of 3 after a warm-up; streaming: update() called from Python. Peers: their "
+         "whole-recording call (the same Python loop per sample for imufusion and ahrs)")
     out = {}
     _say(f"{'filter':<15}{'batch':>10}{'streaming':>12}")
-    for name in FILTERS:
-        tm = time_estimator(lambda n=name: make_filter(n, declination=0.035), rec)
-        out[name] = {"batch_us": tm["batch_us"], "stream_us": tm["stream_us"]}
-        _say(f"{name:<15}{tm['batch_us']:>10.3f}{tm['stream_us']:>12.2f}")
+    for name in names:
+        if name in FILTERS:
+            tm = time_estimator(lambda n=name: make_filter(n, declination=0.035), rec)
+            out[name] = {"batch_us": tm["batch_us"], "stream_us": tm["stream_us"]}
+        else:
+            part = rec.select(slice(0, min(len(rec), 10000)))
+            run_peer(name, part.select(slice(0, 200)))  # warm-up
+            best = np.inf
+            for _ in range(2):
+                t0 = time.perf_counter()
+                run_peer(name, part)
+                best = min(best, time.perf_counter() - t0)
+            us = best / len(part) * 1e6
+            out[name] = {"batch_us": us, "stream_us": _peer_stream_us(name, part) or us}
+        _say(f"{name:<15}{out[name]['batch_us']:>10.3f}{out[name]['stream_us']:>12.2f}")
     from quadest.recovery.logic import time_bank
 
     bank = time_bank(40)
     _say(f"{'recovery bank of 40 EKFs':<27}{bank:>8.2f} µs per IMU sample (whole bank, batch)")
     if args.json:
-        Path(args.json).write_text(json.dumps({"samples": len(rec), "filters": out,
-                                               "recovery_bank_40_us": bank}, indent=2))
-        _say(f"wrote {args.json}")
+        _write_json(args.json, {"samples": len(rec), "filters": out, "recovery_bank_40_us": bank})
     return 0
+
+
+def _peer_stream_us(name, rec):
+    """VQF's per-sample update() from Python; None for the peers whose batch is that loop."""
+    import time
+
+    if name != "vqf":
+        return None
+    from vqf import VQF
+
+    from quadest.rotation.frames import vec_frd_to_flu
+
+    g, a = vec_frd_to_flu(rec.gyr), vec_frd_to_flu(rec.acc)
+    f = VQF(float(np.median(np.diff(rec.t))))
+    n = min(len(rec), 3000)
+    t0 = time.perf_counter()
+    for k in range(n):
+        f.update(g[k], a[k])
+    return (time.perf_counter() - t0) / n * 1e6
 
 
 # -- demo ----------------------------------------------------------------------------------
@@ -433,9 +534,10 @@ def build_parser():
 
     i = sub.add_parser("info", help="summarise a recording",
                        description="Print duration, rates, ranges, gaps and which truth a "
-                                   "recording (.csv or .parquet) holds.")
-    i.add_argument("file", type=Path, help="recording (.csv or .parquet)")
+                                   "recording holds; any supported format (docs/readers.md).")
+    i.add_argument("file", type=Path, help="recording: any supported format (docs/readers.md)")
     i.add_argument("--json", action="store_true", help="print JSON instead of text")
+    _add_input_args(i)
     i.set_defaults(func=cmd_info)
 
     from quadest.filters import FILTERS
@@ -444,16 +546,18 @@ def build_parser():
                        description="Run attitude estimators on a simulated flight or a recording with "
                                    "truth; print RMS error, variance and mean absolute error per axis "
                                    "(filters as columns) and the execution time, like the papers' "
-                                   "tables. Filters: " + ", ".join(FILTERS) + ".")
+                                   "tables. Filters: " + ", ".join(FILTERS) + "; with quadest[peers] "
+                                   "also vqf, vqf-offline, imufusion, ahrs-madgwick, ahrs-mahony, ahrs-ekf, "
+                                   "ahrs-aqua (--filters peers).")
     src = c.add_mutually_exclusive_group()
-    src.add_argument("--recording", type=Path, metavar="FILE", help="recording with true_q (.csv/.parquet)")
+    src.add_argument("--recording", type=Path, metavar="FILE", help="recording with true_q, any supported format")
     src.add_argument("--scenario", choices=SCENARIOS, default="damaged-rotor",
                      help="simulate this scenario (default: damaged-rotor)")
     c.add_argument("--preset", choices=list(PRESETS), default="bebop2", help="with --scenario (default: bebop2)")
     c.add_argument("--seed", type=int, default=1, help="with --scenario (default: 1)")
     c.add_argument("--duration", type=float, default=None, help="with --scenario: seconds")
     c.add_argument("--set", action="append", metavar="KEY=VALUE", help="with --scenario: simulator parameter")
-    c.add_argument("--filters", default="all", help="all, or a comma-separated list (default: all)")
+    c.add_argument("--filters", default="all", help="all (quadest's seven), peers (installed peers), or a comma-separated list of filters and peers (default: all)")
     c.add_argument("--param", action="append", metavar="FILTER.NAME=VALUE",
                    help="estimator parameter, e.g. --param afckf.omega1=-0.0145 (repeatable)")
     c.add_argument("--from", dest="t_from", type=float, default=None, metavar="SECONDS",
@@ -463,6 +567,12 @@ def build_parser():
     c.add_argument("--no-timing", action="store_true", help="skip the execution-time measurement")
     c.add_argument("--calibration", action="append", metavar="CALIB.json",
                      help="apply a calibration from quadest calibrate before any filter (repeatable)")
+    c.add_argument("--align", choices=["none", "heading", "full"], default=None,
+                   help="remove a constant rotation between the estimate's and the truth's navigation "
+                        "frames (default: what the reader recommends, e.g. heading for DIDO/Blackbird)")
+    c.add_argument("--align-body", action=argparse.BooleanOptionalAction, default=None,
+                   help="also remove a constant rotation between IMU and truth body (default: on for RepoIMU)")
+    _add_input_args(c)
     c.set_defaults(func=cmd_compare)
 
     r = sub.add_parser("reproduce", help="reproduce a paper's experiments on the simulator",
@@ -485,6 +595,7 @@ def build_parser():
     fa.add_argument("recordings", nargs="+", type=Path, metavar="RECORDING")
     fa.add_argument("-o", "--output", required=True, metavar="JSON", help="model file to write")
     fa.add_argument("--mass", type=float, default=None, help="vehicle mass, kg (default: from a simulation)")
+    _add_input_args(fa)
     fa.set_defaults(func=cmd_fit_aero)
 
     rv = sub.add_parser("recover", help="recover attitude and velocity of a thrown vehicle from the IMU",
@@ -492,7 +603,7 @@ def build_parser():
                                     "to a nominal estimator) on a recording; report detection and "
                                     "convergence times, gravity direction and velocity, and their errors "
                                     "when the recording has truth.")
-    rv.add_argument("file", type=Path, help="recording (.csv or .parquet)")
+    rv.add_argument("file", type=Path, help="recording: any supported format (docs/readers.md)")
     rv.add_argument("--aero", metavar="JSON", help="aerodynamic model (default: a simulation's own)")
     rv.add_argument("--hypotheses", type=int, default=40, help="hypotheses of the bank (default: 40)")
     rv.add_argument("--beta1", type=float, default=7.0, help="detection threshold, m/s² (default: 7)")
@@ -501,6 +612,7 @@ def build_parser():
     rv.add_argument("--plot", metavar="PNG", help="hypothesis errors, probabilities and velocity over time")
     rv.add_argument("--calibration", action="append", metavar="CALIB.json",
                      help="apply a calibration from quadest calibrate before any filter (repeatable)")
+    _add_input_args(rv)
     rv.set_defaults(func=cmd_recover)
 
     cb = sub.add_parser("calibrate", help="calibrate a sensor from recordings",
@@ -515,12 +627,13 @@ def build_parser():
     cb.add_argument("recordings", nargs="+", type=Path, metavar="RECORDING")
     cb.add_argument("-o", "--output", required=True, metavar="CALIB.json")
     cb.add_argument("--mass", type=float, default=None, help="aero: vehicle mass, kg")
+    _add_input_args(cb)
     cb.set_defaults(func=cmd_calibrate)
 
     es = sub.add_parser("estimate", help="run one estimator on a recording and write its attitude",
-                        description="Run an estimator over a recording (.csv/.parquet) and write t, q_w, "
+                        description="Run an estimator over a recording (any supported format) and write t, q_w, "
                                     "q_x, q_y, q_z, roll, pitch, yaw (radians) to .csv or .parquet.")
-    es.add_argument("file", type=Path, help="recording (.csv or .parquet)")
+    es.add_argument("file", type=Path, help="recording: any supported format (docs/readers.md)")
     es.add_argument("--filter", required=True, choices=list(FILTERS), help="estimator")
     es.add_argument("-o", "--output", required=True, metavar="OUT", help=".csv or .parquet")
     es.add_argument("--param", action="append", metavar="FILTER.NAME=VALUE", help="estimator parameter")
@@ -528,13 +641,26 @@ def build_parser():
                     help="magnetic declination (default: from a simulation's metadata, else 0)")
     es.add_argument("--calibration", action="append", metavar="CALIB.json",
                      help="apply a calibration from quadest calibrate before any filter (repeatable)")
+    _add_input_args(es)
     es.set_defaults(func=cmd_estimate)
 
-    b = sub.add_parser("benchmark", help="measure the estimators' speed",
-                       description="benchmark speed: microseconds per sample of every estimator, batch "
-                                   "and streaming, on one core.")
-    b.add_argument("what", choices=["speed"], help="what to benchmark")
-    b.add_argument("--duration", type=float, default=60.0, help="seconds of simulated data (default: 60)")
+    b = sub.add_parser("benchmark", help="benchmarks: BROAD, quadrotor flights, speed",
+                       description="broad: every filter on every BROAD trial in --data with the benchmark's "
+                                   "metric (total, heading, inclination RMSE over the movement phases), per "
+                                   "trial and per group of trials.json. flights: roll/pitch/yaw RMS on the "
+                                   "DIDO and Blackbird flights under --data (6-axis; heading offset removed). "
+                                   "speed: microseconds per sample of every filter, batch and streaming. "
+                                   "quadest's filters and the installed peers (pip install 'quadest[peers]': "
+                                   "vqf, imufusion, ahrs) run side by side.")
+    b.add_argument("what", choices=["broad", "flights", "speed"], help="what to benchmark")
+    b.add_argument("--data", type=Path, metavar="DIR", help="broad, flights: folder with the data")
+    b.add_argument("--filters", default="all",
+                   help="all (quadest and installed peers), quadest, peers, or a comma-separated list")
+    b.add_argument("--trials", default="*", metavar="GLOB", help="broad: trial files to run (default: all)")
+    b.add_argument("--align", choices=["none", "heading", "full"], default=None,
+                   help="constant navigation-frame rotation removed before the errors (default: none "
+                        "for broad, heading for flights)")
+    b.add_argument("--duration", type=float, default=60.0, help="speed: seconds of simulated data (default: 60)")
     b.add_argument("--json", metavar="OUT", help="write the figures as JSON")
     b.set_defaults(func=cmd_benchmark)
 

@@ -7,7 +7,7 @@ is fixed (docs/recordings.md)::
 
     t, gyr_x, gyr_y, gyr_z, acc_x, acc_y, acc_z, mag_x, mag_y, mag_z
     [, true_q_w, true_q_x, true_q_y, true_q_z] [, true_gyr_x, ...] [, true_pos_n, ...]
-    [, true_vel_n, ...] [, true_acc_x, ...]
+    [, true_vel_n, ...] [, true_acc_x, ...] [, ref_q_w, ...]
 
 and the metadata stands in ``# key: <json>`` comment lines at the top.
 """
@@ -29,6 +29,8 @@ TRUTH_FIELDS = {
     "true_pos": (("n", "e", "d"), "position, m, navigation frame"),
     "true_vel": (("n", "e", "d"), "velocity, m/s, navigation frame"),
     "true_acc": (("x", "y", "z"), "specific force at the IMU, m/s², body frame"),
+    "ref_q": (("w", "x", "y", "z"), "reference attitude q_nb from the vehicle's own estimator "
+                                     "(PX4 EKF2, ArduPilot EKF): not independent truth"),
 }
 SENSOR_FIELDS = ("gyr", "acc", "mag")
 
@@ -60,6 +62,8 @@ class Recording:
         a row of NaN means "no new magnetometer sample". ``None`` means no magnetometer.
     true_q, true_gyr, true_pos, true_vel, true_acc : optional ground truth (see
         ``TRUTH_FIELDS``); a row of NaN means "no truth at this sample".
+    ref_q : optional reference attitude from the vehicle's own estimator (a log's onboard
+        attitude), kept apart from truth.
     meta : JSON-serialisable metadata: ``preset``, ``imu_rate_hz``, ``mag_rate_hz``,
         ``source``, ``units`` and anything else.
     check_units : if true (default), refuse magnitudes that show a unit mistake (gyroscope in
@@ -77,6 +81,7 @@ class Recording:
     true_pos: np.ndarray | None = None
     true_vel: np.ndarray | None = None
     true_acc: np.ndarray | None = None
+    ref_q: np.ndarray | None = None
     meta: dict = field(default_factory=dict)
     check_units: bool = field(default=True, repr=False)
 
@@ -110,12 +115,12 @@ class Recording:
                 continue
             a = self._array(name, value, width=len(axes), n=n)
             self._check_nan_rows(name, a)
-            if name == "true_q":
+            if name in ("true_q", "ref_q"):
                 norm = np.linalg.norm(a, axis=1)
                 bad = np.isfinite(norm) & (np.abs(norm - 1.0) > 1e-6)
                 if bad.any():
                     i = _first_row(bad)
-                    raise ValueError(f"true_q: row {i} is not a unit quaternion (norm {norm[i]:.6g})")
+                    raise ValueError(f"{name}: row {i} is not a unit quaternion (norm {norm[i]:.6g})")
             object.__setattr__(self, name, a)
         if not isinstance(self.meta, dict):
             raise ValueError("meta: must be a dict")

@@ -1,0 +1,119 @@
+"""Readers: every supported file becomes a :class:`~quadest.data.Recording` in quadest's
+conventions (docs/readers.md).
+
+``read_recording(path, format=None, **options)`` picks the reader from the file (extension and
+contents) unless ``format`` names it. Formats:
+
+============  =====================================================================
+quadest       quadest's own CSV / Parquet (``save_recording``)
+csv           any CSV with a column mapping (``columns=``, ``units=``, ``frame=``)
+ulog          PX4 ULog (pyulog)
+dataflash     ArduPilot DataFlash .bin (pymavlink)
+rosbag        ROS 1 .bag or ROS 2 bag folder / .db3 / .mcap (rosbags)
+broad         BROAD trial, HDF5 or MAT
+dido          DIDO flight, HDF5
+blackbird     Blackbird as prepared by UZH-RPG: folder with data.hdf5 + ground truth
+repoimu       RepoIMU CSV
+============  =====================================================================
+
+Every failure is a :class:`ReaderError` (a ValueError) with one line naming the file.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from quadest.readers.common import ReaderError
+
+FORMATS = ("quadest", "csv", "ulog", "dataflash", "rosbag", "broad", "dido", "blackbird", "repoimu")
+
+
+def _reader(fmt):
+    from quadest.readers import benchmarks as B
+    from quadest.readers import generic, logs, ros
+
+    return {"csv": generic.read_csv_mapped, "ulog": logs.read_ulog, "dataflash": logs.read_dataflash,
+            "rosbag": ros.read_rosbag, "dido": B.read_dido, "blackbird": B.read_blackbird,
+            "repoimu": B.read_repoimu}[fmt]
+
+
+def _first_bytes(p: Path, n=256) -> bytes:
+    try:
+        with open(p, "rb") as f:
+            return f.read(n)
+    except OSError:
+        return b""
+
+
+def detect_format(path) -> str:
+    """The format of ``path`` from its extension and first bytes (or, for HDF5, its datasets)."""
+    p = Path(path)
+    if not p.exists():
+        raise ReaderError(f"{path}: no such file or folder")
+    if p.is_dir():
+        if (p / "metadata.yaml").is_file():
+            return "rosbag"
+        if (p / "data.hdf5").is_file() and (p / "stamped_groundtruth_imu.txt").is_file():
+            return "blackbird"
+        raise ReaderError(f"{path}: a folder that is neither a ROS 2 bag (metadata.yaml) nor a Blackbird "
+                          "sequence (data.hdf5 + stamped_groundtruth_imu.txt)")
+    ext = p.suffix.lower()
+    head = _first_bytes(p)
+    if head.startswith(b"ULog"):
+        return "ulog"
+    if ext in (".bin",) or head[:2] == b"\xa3\x95":
+        return "dataflash"
+    if ext in (".bag", ".db3", ".mcap") or head.startswith(b"#ROSBAG"):
+        return "rosbag"
+    if ext == ".parquet" or ext == ".pq":
+        return "quadest"
+    if ext == ".mat":
+        return "broad"
+    if ext in (".hdf5", ".h5") or head.startswith(b"\x89HDF"):
+        import h5py
+
+        try:
+            with h5py.File(p, "r") as f:
+                keys = set(f.keys())
+        except OSError as exc:
+            raise ReaderError(f"{path}: not a readable HDF5 file ({exc})") from None
+        if {"imu_gyr", "imu_acc", "opt_quat"} <= keys:
+            return "broad"
+        if {"ts", "gyr", "acc", "gt_q"} <= keys:
+            return "dido"
+        if {"ts", "gyro_raw", "accel_raw"} <= keys:
+            return "blackbird"
+        raise ReaderError(f"{path}: HDF5 file of unknown layout (datasets {', '.join(sorted(keys)[:8])}); "
+                          "known: BROAD, DIDO, Blackbird")
+    if ext == ".csv" or ext == ".txt":
+        if head.startswith(b"# quadest recording"):
+            return "quadest"
+        if head.startswith(b"Time (s);"):
+            return "repoimu"
+        first = head.split(b"\n")[0].decode("utf-8", "replace")
+        if first.startswith("t,gyr_x"):
+            return "quadest"
+        raise ReaderError(f"{path}: a CSV that is not quadest's own; say which columns are what: "
+                          "--format csv --map t=COL --map gyr=X,Y,Z --map acc=X,Y,Z [--map mag=...] "
+                          "[--units gyr=deg/s ...] (docs/readers.md)")
+    raise ReaderError(f"{path}: unknown file type {ext!r}; give --format (one of {', '.join(FORMATS)})")
+
+
+def read_recording(path, format: str | None = None, **options):
+    """Read any supported file as a Recording (see the module docstring)."""
+    fmt = format or detect_format(path)
+    if fmt not in FORMATS:
+        raise ReaderError(f"unknown format {fmt!r}; formats: {', '.join(FORMATS)}")
+    if fmt == "quadest":
+        from quadest.data import load_recording
+
+        return load_recording(path)
+    if fmt == "broad":
+        from quadest.readers.benchmarks import read_broad_hdf5, read_broad_mat
+
+        return (read_broad_mat if Path(path).suffix.lower() == ".mat" else read_broad_hdf5)(path, **options)
+    if not Path(path).exists():
+        raise ReaderError(f"{path}: no such file or folder")
+    return _reader(fmt)(path, **options)
+
+
+__all__ = ["FORMATS", "ReaderError", "detect_format", "read_recording"]

@@ -1,0 +1,159 @@
+"""Readers for the benchmark datasets: BROAD (HDF5 and MAT), DIDO (HDF5), Blackbird as prepared
+by UZH-RPG (data.hdf5 + stamped_groundtruth_imu.txt), RepoIMU (CSV). Frame conversions are in
+docs/readers.md; each was checked on the real files by rotating the measured specific force
+into the truth's navigation frame (it must average to +g up)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from quadest.readers.common import (ReaderError, enu_flu_quat, enu_vec, flu_body, make_recording,
+                                    z_up_nav_to_ned)
+
+
+def _h5(path):
+    import h5py
+
+    try:
+        return h5py.File(path, "r")
+    except OSError as exc:
+        raise ReaderError(f"{path}: not a readable HDF5 file ({exc})") from None
+
+
+def _need(d, keys, path, what):
+    missing = [k for k in keys if k not in d]
+    if missing:
+        raise ReaderError(f"{path}: not a {what} file (missing {', '.join(missing)})")
+
+
+def _intervals(t, mask):
+    """``[[t0, t1], ...]`` of the runs where ``mask`` is true (for meta['evaluate_intervals_s'])."""
+    m = np.asarray(mask, bool)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], m.astype(int), [0]])))
+    return [[float(t[a]), float(t[b - 1])] for a, b in zip(edges[::2], edges[1::2])]
+
+
+# -- BROAD ------------------------------------------------------------------------------------------
+def _broad(path, d, rate, info=""):
+    _need(d, ("imu_gyr", "imu_acc", "imu_mag", "opt_quat"), path, "BROAD")
+    gyr, acc, mag = (np.asarray(d[k], float).reshape(-1, 3) for k in ("imu_gyr", "imu_acc", "imu_mag"))
+    n = len(gyr)
+    if len(acc) != n or len(mag) != n:
+        raise ReaderError(f"{path}: imu_gyr, imu_acc and imu_mag differ in length (truncated file?)")
+    t = np.arange(n) / rate
+    q = np.asarray(d["opt_quat"], float).reshape(-1, 4)
+    bad = ~np.isfinite(q).all(axis=1)
+    q_ned = enu_flu_quat(np.where(bad[:, None], [1.0, 0, 0, 0], q))
+    q_ned[bad] = np.nan
+    movement = np.asarray(d["movement"], bool).ravel() if "movement" in d else np.ones(n, bool)
+    meta = {"dataset": "BROAD", "trial": Path(path).stem, "imu_rate_hz": float(rate),
+            "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT"},
+            "evaluate_intervals_s": _intervals(t, movement), "frames": "ENU/sensor z-up -> NED/FRD",
+            "truth_source": "optical motion capture (BROAD opt_quat)"}
+    if info:
+        meta["description"] = info.splitlines()[3] if len(info.splitlines()) > 3 else info
+    return make_recording(path, "broad", t, flu_body(gyr), flu_body(acc), flu_body(mag), meta, true_q=q_ned)
+
+
+def read_broad_hdf5(path, **_):
+    with _h5(path) as f:
+        if "sampling_rate" not in f.attrs:
+            raise ReaderError(f"{path}: not a BROAD file (no sampling_rate attribute)")
+        d = {k: f[k][()] for k in f.keys()}
+        return _broad(path, d, float(f.attrs["sampling_rate"]), str(f.attrs.get("info", "")))
+
+
+def read_broad_mat(path, **_):
+    from scipy.io import loadmat
+
+    try:
+        d = loadmat(path, squeeze_me=False)
+    except NotImplementedError:  # MATLAB v7.3 is HDF5
+        return read_broad_hdf5(path)
+    except (ValueError, OSError, TypeError) as exc:
+        raise ReaderError(f"{path}: not a readable MAT file ({exc})") from None
+    if "sampling_rate" not in d:
+        raise ReaderError(f"{path}: not a BROAD MAT file (no sampling_rate)")
+    return _broad(path, d, float(np.asarray(d["sampling_rate"]).ravel()[0]))
+
+
+# -- DIDO -------------------------------------------------------------------------------------------
+def read_dido(path, **_):
+    with _h5(path) as f:
+        _need(f, ("ts", "acc", "gyr", "gt_q"), path, "DIDO")
+        d = {k: f[k][()] for k in f.keys()}
+    t = np.asarray(d["ts"], float)
+    truth = {"true_q": enu_flu_quat(d["gt_q"])}
+    if "gt_p" in d:
+        truth["true_pos"] = enu_vec(d["gt_p"])
+    if "gt_v" in d:
+        truth["true_vel"] = enu_vec(d["gt_v"])
+    if "gt_gyr" in d:
+        truth["true_gyr"] = flu_body(d["gt_gyr"])
+    meta = {"dataset": "DIDO", "flight": Path(path).stem, "units": {"gyr": "rad/s", "acc": "m/s^2"},
+            "frames": "gravity-aligned z-up / body z-up -> NED/FRD (heading offset arbitrary)",
+            "truth_source": "motion capture (DIDO gt_*)", "align": {"nav": "heading"}}
+    return make_recording(path, "dido", t, flu_body(d["gyr"]), flu_body(d["acc"]), None, meta, **truth)
+
+
+# -- Blackbird (UZH-RPG preparation) -------------------------------------------------------------------
+def read_blackbird(path, *, calibrated: bool = False, **_):
+    """``path``: the folder with data.hdf5 and stamped_groundtruth_imu.txt, or data.hdf5 itself.
+    The IMU frame is kept as the body frame (it is the frame the Vicon pose is given for);
+    the z-up world becomes NED."""
+    from quadest.readers.common import resample_quat
+
+    p = Path(path)
+    folder = p if p.is_dir() else p.parent
+    h5, gt_path = folder / "data.hdf5", folder / "stamped_groundtruth_imu.txt"
+    for f_ in (h5, gt_path):
+        if not f_.is_file():
+            raise ReaderError(f"{path}: a Blackbird folder needs {f_.name}")
+    with _h5(h5) as f:
+        _need(f, ("ts", "gyro_raw", "accel_raw"), h5, "Blackbird")
+        t = f["ts"][()]
+        gyr = f["gyro_calib" if calibrated else "gyro_raw"][()]
+        acc = f["accel_calib" if calibrated else "accel_raw"][()]
+    try:
+        gt = np.loadtxt(gt_path, comments="#", ndmin=2)
+    except ValueError as exc:
+        raise ReaderError(f"{gt_path}: malformed ground-truth text ({exc})") from None
+    if gt.shape[1] < 8:
+        raise ReaderError(f"{gt_path}: expected ts x y z qx qy qz qw [vx vy vz] per row")
+    q = z_up_nav_to_ned(resample_quat(gt[:, 0], gt[:, [7, 4, 5, 6]], t))
+    truth = {"true_q": q}
+    if len(gt) == len(t) and np.allclose(gt[:, 0], t):
+        truth["true_pos"] = enu_vec(gt[:, 1:4])
+        if gt.shape[1] >= 11:
+            truth["true_vel"] = enu_vec(gt[:, 8:11])
+    meta = {"dataset": "Blackbird", "sequence": folder.name, "units": {"gyr": "rad/s", "acc": "m/s^2"},
+            "frames": "Vicon z-up world -> NED; body = the IMU's own axes",
+            "truth_source": "Vicon (stamped_groundtruth_imu.txt, x y z w)", "align": {"nav": "heading"}}
+    return make_recording(path, "blackbird", t, gyr, acc, None, meta, **truth)
+
+
+# -- RepoIMU ----------------------------------------------------------------------------------------
+def read_repoimu(path, **_):
+    """``;``-separated, two header rows: time, Vicon quaternion w x y z, accelerometer,
+    gyroscope, magnetometer (normalised). All-zero quaternions mean no truth."""
+    try:
+        data = np.genfromtxt(path, delimiter=";", skip_header=2, usecols=range(14), invalid_raise=False)
+    except (ValueError, OSError) as exc:
+        raise ReaderError(f"{path}: not a readable RepoIMU CSV ({exc})") from None
+    data = np.atleast_2d(data)
+    if data.shape[1] != 14 or len(data) == 0:
+        raise ReaderError(f"{path}: expected 14 ';'-separated columns (time, quaternion, acc, gyr, mag)")
+    data = data[np.isfinite(data[:, [0, 5, 6, 7, 8, 9, 10]]).all(axis=1)]
+    q = data[:, 1:5].copy()
+    none = (np.abs(q).sum(axis=1) == 0) | ~np.isfinite(q).all(axis=1)
+    q[none] = [1.0, 0, 0, 0]
+    q = enu_flu_quat(q / np.linalg.norm(q, axis=1, keepdims=True))
+    q[none] = np.nan
+    meta = {"dataset": "RepoIMU", "trial": Path(path).stem,
+            "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "normalised"},
+            "frames": "Vicon z-up world and sensor z-up -> NED/FRD; the IMU and marker bodies are not "
+                      "aligned (evaluation estimates the body rotation)",
+            "truth_source": "Vicon", "rows_without_truth": int(none.sum()), "align": {"nav": "heading", "body": True}}
+    return make_recording(path, "repoimu", data[:, 0], flu_body(data[:, 8:11]), flu_body(data[:, 5:8]),
+                          flu_body(data[:, 11:14]), meta, true_q=q)

@@ -1,0 +1,125 @@
+"""What every reader shares: unit factors, frame changes, putting magnetometer samples on IMU
+rows, resampling a reference attitude, and building the Recording with the file's name in any
+error (docs/readers.md)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from quadest.data.recording import Recording
+from quadest.rotation import quat_continuous, quat_normalize
+from quadest.rotation.frames import quat_enu_flu_to_ned_frd, vec_enu_to_ned, vec_flu_to_frd
+from quadest.rotation.quaternion import quat_mul
+
+# factors to quadest's units (SI; magnetometer µT)
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+GYR_UNITS = {"rad/s": 1.0, "deg/s": np.pi / 180.0}
+ACC_UNITS = {"m/s^2": 1.0, "g": 9.80665, "mg": 9.80665e-3}
+MAG_UNITS = {"uT": 1.0, "nT": 1e-3, "T": 1e6, "gauss": 100.0, "mgauss": 0.1, "mG": 0.1, "G": 100.0}
+
+_S = np.sqrt(0.5)
+Q_ENU_TO_NED = np.array([0.0, _S, _S, 0.0])
+
+
+class ReaderError(ValueError):
+    """A file that cannot be read; the message names the file and what is wrong."""
+
+
+def unit_factor(kind: str, unit: str) -> float:
+    table = {"t": TIME_UNITS, "gyr": GYR_UNITS, "acc": ACC_UNITS, "mag": MAG_UNITS}[kind]
+    if unit not in table:
+        raise ReaderError(f"unknown {kind} unit {unit!r}; known: {', '.join(table)}")
+    return table[unit]
+
+
+def z_up_nav_to_ned(q):
+    """``q_nb`` with a z-up navigation frame (ENU, or any x/y in the horizontal plane) and the
+    body frame left as it is -> NED navigation frame. A horizontal x/y that is not east/north
+    leaves a constant heading offset, which evaluation estimates and removes (docs/readers.md)."""
+    return quat_mul(Q_ENU_TO_NED, np.asarray(q, float))
+
+
+def flu_body(v):
+    """Body vectors of a z-up sensor frame (FLU) -> FRD."""
+    return vec_flu_to_frd(v)
+
+
+def enu_flu_quat(q):
+    return quat_enu_flu_to_ned_frd(q)
+
+
+def enu_vec(v):
+    return vec_enu_to_ned(v)
+
+
+def mag_on_imu_rows(t_imu, t_mag, mag):
+    """Put each magnetometer sample on the first IMU row at or after its time (the last sample
+    wins when several fall on one row); other rows are NaN, meaning "no new sample"."""
+    out = np.full((len(t_imu), 3), np.nan)
+    if len(t_mag) == 0:
+        return out
+    idx = np.searchsorted(t_imu, t_mag, side="left")
+    ok = idx < len(t_imu)
+    out[idx[ok]] = np.asarray(mag, float)[ok]
+    return out
+
+
+def resample_quat(t_src, q_src, t, max_gap: float = 0.1):
+    """Quaternions at ``t`` by spherical interpolation of ``(t_src, q_src)``; NaN outside the
+    source's time span and inside gaps longer than ``max_gap`` seconds."""
+    from scipy.spatial.transform import Rotation, Slerp
+
+    t_src = np.asarray(t_src, float)
+    q_src = np.asarray(q_src, float)
+    ok = np.isfinite(q_src).all(axis=1) & (np.linalg.norm(q_src, axis=1) > 0.5)
+    t_src, q_src = t_src[ok], quat_normalize(q_src[ok])
+    keep = np.concatenate([[True], np.diff(t_src) > 0])
+    t_src, q_src = t_src[keep], q_src[keep]
+    out = np.full((len(t), 4), np.nan)
+    if len(t_src) < 2:
+        return out
+    inside = (t >= t_src[0]) & (t <= t_src[-1])
+    slerp = Slerp(t_src, Rotation.from_quat(q_src, scalar_first=True))
+    out[inside] = slerp(t[inside]).as_quat(scalar_first=True)
+    j = np.clip(np.searchsorted(t_src, t, side="right"), 1, len(t_src) - 1)
+    gap = (t_src[j] - t_src[j - 1]) > max_gap
+    out[gap & inside] = np.nan
+    good = np.isfinite(out[:, 0])
+    out[good] = quat_continuous(out[good])
+    return out
+
+
+def make_recording(path, fmt: str, t, gyr, acc, mag=None, meta=None, **truth) -> Recording:
+    """A Recording from a reader's converted arrays: time starts at 0 (the file's first time is
+    kept in ``meta['t0_s']``), rows with repeated or decreasing timestamps are dropped (and
+    counted in ``meta['dropped_rows']``), and any validation error names the file."""
+    t = np.asarray(t, float)
+    if len(t) == 0:
+        raise ReaderError(f"{path}: no IMU samples")
+    good = np.isfinite(t) & np.isfinite(gyr).all(axis=1) & np.isfinite(acc).all(axis=1)
+    t_run = np.maximum.accumulate(np.where(good, t, -np.inf))
+    good &= np.concatenate([[True], t[1:] > t_run[:-1]])
+    meta = dict(meta or {})
+    meta.setdefault("source", str(path))
+    meta["format"] = fmt
+    meta["t0_s"] = float(t[good][0]) if good.any() else float("nan")
+    if (~good).any():
+        meta["dropped_rows"] = int((~good).sum())
+    if not good.any():
+        raise ReaderError(f"{path}: no valid IMU sample")
+    kw = {k: (np.asarray(v, float)[good] if v is not None else None) for k, v in truth.items()}
+    try:
+        return Recording(t=t[good] - t[good][0], gyr=np.asarray(gyr, float)[good], acc=np.asarray(acc, float)[good],
+                         mag=None if mag is None else np.asarray(mag, float)[good], meta=meta, **kw)
+    except ValueError as exc:
+        raise ReaderError(f"{path}: {exc}") from None
+
+
+def rate_of(t) -> float:
+    d = np.diff(np.asarray(t, float))
+    return float(1.0 / np.median(d)) if len(d) else 0.0
+
+
+def name_of(path) -> str:
+    return Path(path).name

@@ -1,0 +1,113 @@
+"""Any CSV with a header row: the user says which columns are what, in which units and frames.
+
+``columns`` maps quadest fields to the file's column names::
+
+    {"t": "timestamp", "gyr": ["gx", "gy", "gz"], "acc": ["ax", "ay", "az"],
+     "mag": ["mx", "my", "mz"], "true_q": ["qw", "qx", "qy", "qz"]}
+
+``units``: ``{"t": "ms", "gyr": "deg/s", "acc": "g", "mag": "gauss"}`` (defaults SI and µT);
+``frame``: ``"ned-frd"`` (default) or ``"enu-flu"``; ``quat_order``: ``"wxyz"`` or ``"xyzw"``.
+From the command line: ``--format csv --map t=timestamp --map gyr=gx,gy,gz ... --units gyr=deg/s
+--frame enu-flu`` (docs/readers.md)."""
+from __future__ import annotations
+
+import numpy as np
+
+from quadest.readers.common import (ReaderError, enu_flu_quat, enu_vec, flu_body, make_recording,
+                                    unit_factor)
+
+FIELDS = {"t": 1, "gyr": 3, "acc": 3, "mag": 3, "true_q": 4, "true_pos": 3, "true_vel": 3}
+
+
+def parse_columns(items) -> dict:
+    """``["t=time", "gyr=gx,gy,gz"]`` -> ``{"t": "time", "gyr": ["gx", "gy", "gz"]}``."""
+    out = {}
+    for item in items or []:
+        key, sep, val = item.partition("=")
+        key = key.strip()
+        if not sep or key not in FIELDS:
+            raise ReaderError(f"--map {item!r}: expected FIELD=COLUMN[,COLUMN...] with FIELD one of "
+                              f"{', '.join(FIELDS)}")
+        cols = [c.strip() for c in val.split(",")]
+        if len(cols) != FIELDS[key]:
+            raise ReaderError(f"--map {item!r}: {key} needs {FIELDS[key]} column(s), got {len(cols)}")
+        out[key] = cols[0] if key == "t" else cols
+    return out
+
+
+def parse_units(items) -> dict:
+    out = {}
+    for item in items or []:
+        key, sep, val = item.partition("=")
+        if not sep or key.strip() not in ("t", "gyr", "acc", "mag"):
+            raise ReaderError(f"--units {item!r}: expected t=s|ms|us|ns, gyr=rad/s|deg/s, acc=m/s^2|g|mg or "
+                              "mag=uT|nT|T|gauss|mgauss")
+        unit_factor(key.strip(), val.strip())  # validates
+        out[key.strip()] = val.strip()
+    return out
+
+
+def read_csv_mapped(path, *, columns=None, units=None, frame: str = "ned-frd", quat_order: str = "wxyz",
+                    delimiter=None, **_):
+    import pyarrow as pa
+    import pyarrow.csv as pcsv
+
+    columns = dict(columns or {})
+    units = dict(units or {})
+    missing = [k for k in ("t", "gyr", "acc") if k not in columns]
+    if missing:
+        raise ReaderError(f"{path}: a generic CSV needs the column mapping for {', '.join(missing)} "
+                          "(--map t=COL --map gyr=X,Y,Z --map acc=X,Y,Z)")
+    if frame not in ("ned-frd", "enu-flu"):
+        raise ReaderError(f"unknown frame {frame!r}; ned-frd or enu-flu")
+    parse = pcsv.ParseOptions(delimiter=delimiter) if delimiter else pcsv.ParseOptions()
+    try:
+        table = pcsv.read_csv(path, parse_options=parse,
+                              read_options=pcsv.ReadOptions(skip_rows=0))
+    except (pa.ArrowException, OSError) as exc:
+        raise ReaderError(f"{path}: malformed CSV ({str(exc).splitlines()[0]})") from None
+    names = [c.strip() for c in table.column_names]
+    table = table.rename_columns(names)
+
+    def col(name):
+        if name not in names:
+            raise ReaderError(f"{path}: no column {name!r}; columns: {', '.join(names)}")
+        c = table.column(name)
+        if not (pa.types.is_floating(c.type) or pa.types.is_integer(c.type) or pa.types.is_null(c.type)):
+            raise ReaderError(f"{path}: column {name!r} is not numeric")
+        return c.to_numpy(zero_copy_only=False).astype(float)
+
+    def vec(key):
+        return np.column_stack([col(c) for c in columns[key]]) if key in columns else None
+
+    t = col(columns["t"]) * unit_factor("t", units.get("t", "s"))
+    gyr = vec("gyr") * unit_factor("gyr", units.get("gyr", "rad/s"))
+    acc = vec("acc") * unit_factor("acc", units.get("acc", "m/s^2"))
+    mag = vec("mag")
+    if mag is not None:
+        mag = mag * unit_factor("mag", units.get("mag", "uT"))
+    truth = {}
+    q = vec("true_q")
+    if q is not None:
+        if quat_order == "xyzw":
+            q = q[:, [3, 0, 1, 2]]
+        elif quat_order != "wxyz":
+            raise ReaderError(f"unknown quaternion order {quat_order!r}; wxyz or xyzw")
+        truth["true_q"] = q
+    for k in ("true_pos", "true_vel"):
+        if k in columns:
+            truth[k] = vec(k)
+    if frame == "enu-flu":
+        gyr, acc = flu_body(gyr), flu_body(acc)
+        mag = flu_body(mag) if mag is not None else None
+        if "true_q" in truth:
+            truth["true_q"] = enu_flu_quat(truth["true_q"])
+        for k in ("true_pos", "true_vel"):
+            if k in truth:
+                truth[k] = enu_vec(truth[k])
+    if "true_q" in truth:
+        n = np.linalg.norm(truth["true_q"], axis=1, keepdims=True)
+        truth["true_q"] = np.where(n > 0.5, truth["true_q"] / np.where(n > 0, n, 1), np.nan)
+    meta = {"units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT" if mag is not None else "unknown"},
+            "column_map": columns, "units_in_file": units, "frames": f"{frame} -> NED/FRD"}
+    return make_recording(path, "csv", t, gyr, acc, mag, meta, **truth)
