@@ -193,11 +193,11 @@ def cmd_reproduce(args):
         _say("Reproducing Solanki & de Visser 2022 (AFCKF), Tables I-V, on the simulator: a Bebop 2 "
              f"that loses a rotor (errors from the failure on) and in normal flight, seeds {args.seeds}.")
         _say("(first use compiles the estimators: about a minute)")
-        result = R.reproduce_afckf(seeds, progress=True)
+        result = R.reproduce_afckf(seeds, progress=True, workers=args.workers, scheduler=args.scheduler)
     else:
         _say("Reproducing Liang et al. 2023 (QUKF), Table 1, on the simulator: MPU6050 + HMC5883L at "
              f"20 Hz, 30 s of hover and of motion, seeds {args.seeds}.")
-        result = R.reproduce_qukf(seeds, progress=True)
+        result = R.reproduce_qukf(seeds, progress=True, workers=args.workers, scheduler=args.scheduler)
     _say(R.format_reproduction(args.paper, result))
     if args.json:
         _write_json(args.json, result)
@@ -306,7 +306,8 @@ def _reproduce_recovery(args, R):
     _say(f"Reproducing Beffa, Ledergerber & D'Andrea (state estimate recovery) on {args.throws} simulated "
          f"throws (fma preset, seeds {args.seed}..{args.seed + args.throws - 1}), with the simulation's "
          "aerodynamic model, one fitted on 20 separate throws, and one perturbed by ±20 %.")
-    result = R.reproduce_recovery(args.throws, args.seed, progress=True, keep_runs=bool(args.json or args.plot_dir))
+    result = R.reproduce_recovery(args.throws, args.seed, progress=True, keep_runs=bool(args.json or args.plot_dir),
+                                  workers=args.workers, scheduler=args.scheduler)
     _say(R.format_recovery(result))
     if args.plot_dir:
         from quadest.plot import plot_recovery, plot_recovery_histograms
@@ -472,6 +473,95 @@ def _peer_stream_us(name, rec):
     return (time.perf_counter() - t0) / n * 1e6
 
 
+# -- sweeps and tuning -------------------------------------------------------------------------
+def _add_engine_args(p, default_workers=None):
+    g = p.add_argument_group("execution (Dask)")
+    g.add_argument("--workers", type=int, default=default_workers, metavar="N",
+                   help="worker processes of a local Dask cluster; 0 runs in this process "
+                        + ("(default: 0)" if default_workers == 0 else "(default: one per core)"))
+    g.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="run on an existing Dask cluster instead")
+
+
+def _add_sweep_args(p):
+    from quadest.sim import PRESETS, SCENARIOS
+
+    p.add_argument("--grid", action="append", metavar="FILTER.PARAM=VALUES",
+                   help="parameter values: a list 0.01,0.1, lin:A:B:N or log:A:B:N (repeatable; several "
+                        "parameters of one filter make their Cartesian product)")
+    src = p.add_argument_group("data: simulated flights (default) or recordings")
+    src.add_argument("--data", nargs="+", type=Path, metavar="PATH",
+                     help="recordings or folders of them (e.g. ../shared/data/broad), any supported format")
+    src.add_argument("--format", default=None, help="with --data: reader (default: chosen from each file)")
+    src.add_argument("--scenario", choices=SCENARIOS, default="nominal", help="simulated scenario (default: nominal)")
+    src.add_argument("--preset", choices=list(PRESETS), default="bebop2", help="simulator preset (default: bebop2)")
+    src.add_argument("--seeds", default="1-10", help="seed range or list (default: 1-10)")
+    src.add_argument("--duration", type=float, default=None, help="seconds per simulated flight")
+    src.add_argument("--set", action="append", metavar="KEY=VALUE", help="simulator parameter")
+    src.add_argument("--from", dest="t_from", type=float, default=None, metavar="SECONDS",
+                     help="count errors from this time on")
+    p.add_argument("--align", choices=["none", "heading", "full"], default=None,
+                   help="constant navigation-frame rotation removed (default: the reader's recommendation)")
+    p.add_argument("-o", "--out", required=True, type=Path, metavar="RESULTS.parquet",
+                   help="results folder (a Parquet dataset); an existing one is resumed")
+    p.add_argument("--retry-failed", action="store_true", help="run again the runs recorded as failed")
+    p.add_argument("--json", metavar="OUT", help="write the summary as JSON")
+    _add_engine_args(p)
+
+
+def _sweep_runs(args, filters):
+    from quadest.sweep import build_runs, file_sources, parse_grid, sim_sources
+
+    grid = parse_grid(args.grid)
+    if args.data:
+        sources = file_sources(args.data, args.format)
+    else:
+        sources = sim_sources(args.scenario, args.preset, _parse_seeds(args.seeds), args.duration,
+                              _parse_sets(args.set), args.t_from)
+    return build_runs(filters, grid, sources, args.align)
+
+
+def _run_sweep(args, runs):
+    from quadest.sweep import run_sweep
+
+    where = (f"the Dask cluster at {args.scheduler}" if args.scheduler else
+             "this process" if args.workers == 0 else f"a local Dask cluster of {args.workers or 'one per core'} worker(s)")
+    _say(f"{len(runs)} runs on {where}; results in {args.out}")
+    res = run_sweep(runs, args.out, workers=args.workers, scheduler=args.scheduler,
+                    retry_failed=args.retry_failed, progress=True)
+    _say(f"executed {res['executed']} (skipped {res['skipped']} already in {args.out}) in {res['wall_s']:.1f} s"
+         + (f"; {res['runs_per_s']:.2f} runs/s over {res['compute_s']:.1f} s of computing (cluster start-up "
+            "excluded)" if res["executed"] else "")
+         + f"; results hold {res['ok']} ok, {res['failed']} failed")
+    if res["failed"]:
+        _say("failed runs keep their error in the 'error' column; --retry-failed runs them again")
+    return res
+
+
+def cmd_sweep(args):
+    runs = _sweep_runs(args, args.filters)
+    res = _run_sweep(args, runs)
+    if args.json:
+        _write_json(args.json, res)
+    return 0
+
+
+def cmd_tune(args):
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    from quadest.sweep import ResultStore, format_selection, run_id, select
+
+    runs = _sweep_runs(args, args.filter)
+    res = _run_sweep(args, runs)
+    table = ResultStore(args.out).read()  # only this grid's runs, though the folder may hold more
+    table = table.filter(pc.is_in(table.column("run_id"), value_set=pa.array(sorted({run_id(r) for r in runs}))))
+    sel = select(table, args.filter, args.metric)
+    _say(format_selection(sel))
+    if args.json:
+        _write_json(args.json, {**sel, "sweep": res})
+    return 0
+
+
 # -- demo ----------------------------------------------------------------------------------
 def cmd_demo(args):
     """The main job on a fresh machine; grows with the project."""
@@ -586,6 +676,7 @@ def build_parser():
     r.add_argument("--seed", type=int, default=1, help="recovery: first seed (default: 1)")
     r.add_argument("--json", metavar="OUT", help="write all figures (per seed too) as JSON")
     r.add_argument("--plot-dir", metavar="DIR", help="draw the errors over time for the first seed")
+    _add_engine_args(r, default_workers=0)
     r.set_defaults(func=cmd_reproduce)
 
     fa = sub.add_parser("fit-aero", help="fit the recovery paper's aerodynamic model (eq 14)",
@@ -663,6 +754,26 @@ def build_parser():
     b.add_argument("--duration", type=float, default=60.0, help="speed: seconds of simulated data (default: 60)")
     b.add_argument("--json", metavar="OUT", help="write the figures as JSON")
     b.set_defaults(func=cmd_benchmark)
+
+    sw = sub.add_parser("sweep", help="run a grid of filters and parameters over many flights, on Dask",
+                        description="Run every (filter x parameter set x flight) and write one row per run "
+                                    "(parameters, metrics, status, error) to a Parquet dataset as runs finish. "
+                                    "Runs carry their seeds, so results do not depend on the number of workers; "
+                                    "an interrupted sweep resumes. docs/sweeps.md")
+    sw.add_argument("--filters", default="quadest", help="quadest (default), all, peers, or a comma-separated list")
+    _add_sweep_args(sw)
+    sw.set_defaults(func=cmd_sweep)
+
+    tu = sub.add_parser("tune", help="choose a filter's parameters that minimise a metric over a set",
+                        description="Sweep one filter's parameter grid over flights or recordings and report "
+                                    "the best set for all trials together (the lowest mean: BROAD's "
+                                    "trial-agnostic choice) and per trial. docs/sweeps.md")
+    tu.add_argument("filter", help="the filter to tune (quadest's or a peer's name)")
+    tu.add_argument("--metric", default="total_rmse_deg",
+                    choices=["total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg", "roll_rms_deg",
+                             "pitch_rms_deg", "yaw_rms_deg"], help="metric to minimise (default: total_rmse_deg)")
+    _add_sweep_args(tu)
+    tu.set_defaults(func=cmd_tune)
 
     d = sub.add_parser("demo", help="the simulator demo: a rotor failure, summarised and plotted",
                        description="Simulate a rotor failure on a Bebop 2, summarise and plot it.")

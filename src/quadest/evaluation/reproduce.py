@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from quadest.evaluation.compare import declination_of, run_filters
+from quadest.evaluation.compare import declination_of
 from quadest.evaluation.metrics import AXES, summarize_errors, time_estimator
 from quadest.filters import make_filter
 from quadest.sim import build_config, simulate
@@ -86,8 +86,9 @@ def _aggregate(per_seed: list[dict], names) -> dict:
     return out
 
 
-def reproduce_afckf(seeds=range(1, 6), progress: bool = False) -> dict:
-    """AFCKF Tables I-V on the simulator."""
+def reproduce_afckf(seeds=range(1, 6), progress: bool = False, workers: int = 0, scheduler=None) -> dict:
+    """AFCKF Tables I-V on the simulator. Seeds run through :func:`quadest.sweep.execute`:
+    in this process (``workers=0``), on a local Dask cluster or on ``scheduler``."""
     cal = afckf_calibration()
     cfg = build_config("bebop2")
     names = ["madgwick", "complementary", "kalman", "afckf", "afckf"]
@@ -95,9 +96,10 @@ def reproduce_afckf(seeds=range(1, 6), progress: bool = False) -> dict:
     params = {"afckf": {"omega1": cal["omega1"], "omega2": cal["omega2"]}, "afckf-nocal": {}}
     seeds = list(seeds)
     out = {"seeds": seeds, "calibration": cal, "published": PUBLISHED["afckf"], "cases": {}}
-    for scenario, t_from in (("damaged-rotor", lambda r: cfg.damaged.failure_s), ("nominal", lambda r: 0.0)):
+    for scenario in ("damaged-rotor", "nominal"):
         out["cases"][scenario] = _run_case_labelled(scenario, "bebop2", seeds, names, labels_list, params,
-                                                    t_from, progress, f"AFCKF {scenario}")
+                                                    cfg.damaged.failure_s if scenario == "damaged-rotor" else 0.0,
+                                                    progress, f"AFCKF {scenario}", workers, scheduler)
     rec = simulate("damaged-rotor", "bebop2", seed=seeds[0])
     decl = declination_of(rec)
     out["time_us"] = {}
@@ -107,36 +109,45 @@ def reproduce_afckf(seeds=range(1, 6), progress: bool = False) -> dict:
     return out
 
 
-def _run_case_labelled(scenario, preset, seeds, names, labels_list, params, t_from_fn, progress, desc):
-    from tqdm.auto import tqdm
-
-    per_seed = []
-    for seed in tqdm(seeds, desc=desc, disable=not progress, leave=False):
-        rec = simulate(scenario, preset, seed=seed)
-        mask = rec.t >= t_from_fn(rec)
-        decl = declination_of(rec)
-        out = {}
-        for name, label in zip(names, labels_list):
-            res = make_filter(name, declination=decl, **params.get(label, {})).run(rec)
-            out[label] = summarize_errors(res.q, rec.true_q, mask)
-        per_seed.append(out)
-    return _aggregate(per_seed, labels_list)
+def _one_seed(task) -> dict:
+    """One seed of a reproduction: simulate, run the filters, their errors (a picklable task)."""
+    scenario, preset, seed, duration, names, labels_list, params, t_from = task
+    rec = simulate(scenario, preset, seed=seed, duration=duration)
+    mask = rec.t >= t_from
+    decl = declination_of(rec)
+    out = {}
+    for name, label in zip(names, labels_list):
+        res = make_filter(name, declination=decl, **params.get(label, {})).run(rec)
+        out[label] = summarize_errors(res.q, rec.true_q, mask)
+    return out
 
 
-def reproduce_qukf(seeds=range(1, 6), progress: bool = False, duration: float = 30.0) -> dict:
+def _map_seeds(tasks, progress, desc, workers, scheduler) -> list:
+    from quadest.sweep.engine import execute
+
+    results = execute(_one_seed, tasks, workers=workers,
+                      scheduler=scheduler, progress=progress, desc=desc)
+    for r in results:
+        if isinstance(r, BaseException):
+            raise ValueError(f"a reproduction run failed: {type(r).__name__}: {r}")
+    return results
+
+
+def _run_case_labelled(scenario, preset, seeds, names, labels_list, params, t_from, progress, desc,
+                       workers=0, scheduler=None, duration=None):
+    tasks = [(scenario, preset, s, duration, list(names), list(labels_list), params, t_from) for s in seeds]
+    return _aggregate(_map_seeds(tasks, progress, desc, workers, scheduler), labels_list)
+
+
+def reproduce_qukf(seeds=range(1, 6), progress: bool = False, duration: float = 30.0, workers: int = 0,
+                   scheduler=None) -> dict:
     """QUKF Table 1 on the simulator: 30 s of hover and of motion at 20 Hz."""
     names = ["qukf", "ekf", "complementary"]
     seeds = list(seeds)
     out = {"seeds": seeds, "published": PUBLISHED["qukf"], "cases": {}}
-    for scenario, label in (("hover", "hover"), ("nominal", "nominal")):
-        per_seed = []
-        from tqdm.auto import tqdm
-
-        for seed in tqdm(seeds, desc=f"QUKF {label}", disable=not progress, leave=False):
-            rec = simulate(scenario, "lowcost-20hz", seed=seed, duration=duration)
-            res = run_filters(rec, names)
-            per_seed.append({n: summarize_errors(r.q, rec.true_q) for n, r in res.items()})
-        out["cases"][label] = _aggregate(per_seed, names)
+    for scenario in ("hover", "nominal"):
+        out["cases"][scenario] = _run_case_labelled(scenario, "lowcost-20hz", seeds, names, names, {}, 0.0,
+                                                    progress, f"QUKF {scenario}", workers, scheduler, duration)
     return out
 
 
@@ -220,20 +231,32 @@ def recovery_models(preset: str = "fma") -> dict:
     return {"true": true, "fitted": fitted, "perturbed": perturbed}
 
 
-def reproduce_recovery(throws: int = 100, seed: int = 1, progress: bool = False, preset: str = "fma",
-                       params=None, keep_runs: bool = False) -> dict:
-    """Simulate ``throws`` throws (seeds ``seed``..) and run the recovery with each model case."""
-    from tqdm.auto import tqdm
-
+def _one_throw(task) -> dict:
+    """One simulated throw, recovered with each model case (a picklable task)."""
     from quadest.recovery.logic import recover
+
+    preset, seed, models, params = task
+    rec = simulate("throw", preset, seed=seed)
+    return {name: recover(rec, model, params).summary for name, model in models.items()}
+
+
+def reproduce_recovery(throws: int = 100, seed: int = 1, progress: bool = False, preset: str = "fma",
+                       params=None, keep_runs: bool = False, workers: int = 0, scheduler=None) -> dict:
+    """Simulate ``throws`` throws (seeds ``seed``..) and run the recovery with each model case;
+    the throws run through :func:`quadest.sweep.execute` like the other reproductions."""
+
+    from quadest.sweep.engine import execute
 
     models = recovery_models(preset)
     seeds = list(range(seed, seed + throws))
     per_case = {name: [] for name in models}
-    for s in tqdm(seeds, desc="throws", disable=not progress, leave=False):
-        rec = simulate("throw", preset, seed=s)
-        for name, model in models.items():
-            per_case[name].append(recover(rec, model, params).summary)
+    results = execute(_one_throw, [(preset, s, models, params) for s in seeds], workers=workers,
+                      scheduler=scheduler, progress=progress, desc="throws")
+    for r in results:
+        if isinstance(r, BaseException):
+            raise ValueError(f"a throw failed: {type(r).__name__}: {r}")
+        for name in models:
+            per_case[name].append(r[name])
     out = {"preset": preset, "seeds": [seeds[0], seeds[-1]], "cases": {},
            "fitted_model": models["fitted"].info,
            "published": {"t_converge_s": 0.570, "gravity_err_deg_detailed": 10.0, "recovered": "21 of 32 real throws"}}

@@ -1,0 +1,193 @@
+"""What one run of a sweep is, how a grid becomes runs, and how a run is evaluated
+(docs/sweeps.md).
+
+A run is a JSON-able dict: the filter, its parameters, the source of the data (a simulated
+scenario with its seed, or a recording file) and how to evaluate. Its ``run_id`` is a hash of
+that dict, so the same run has the same id in every sweep, which is what resuming relies on,
+and the result depends on nothing else: the seed travels with the task.
+"""
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import math
+import time
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+METRICS = ("total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg", "roll_rms_deg", "pitch_rms_deg",
+           "yaw_rms_deg")
+
+
+def run_id(spec: dict) -> str:
+    return hashlib.sha1(json.dumps(spec, sort_keys=True).encode()).hexdigest()[:16]
+
+
+# -- grids ------------------------------------------------------------------------------------------
+def parse_values(text: str) -> list[float]:
+    """``0.1,0.2,0.5``; ``lin:A:B:N`` (N values from A to B); ``log:A:B:N`` (N log-spaced)."""
+    text = text.strip()
+    try:
+        if text.startswith(("lin:", "log:")):
+            kind, a, b, n = text.split(":")
+            a, b, n = float(a), float(b), int(n)
+            if n < 1 or (kind == "log" and (a <= 0 or b <= 0)):
+                raise ValueError
+            vals = np.linspace(a, b, n) if kind == "lin" else np.geomspace(a, b, n)
+            return [float(f"{v:.6g}") for v in vals]
+        return [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise ValueError(f"grid values {text!r}: give a list (0.1,0.2) or lin:A:B:N or log:A:B:N") from None
+
+
+def parse_grid(items) -> dict:
+    """``["madgwick.beta_marg=log:0.001:0.5:30", "mahony.k_p=0.5,1,2"]`` ->
+    ``{"madgwick": {"beta_marg": [...]}, "mahony": {"k_p": [...]}}``."""
+    out: dict = {}
+    for item in items or []:
+        key, eq, vals = item.partition("=")
+        name, dot, field = key.strip().partition(".")
+        if not eq or not dot:
+            raise ValueError(f"--grid expects FILTER.PARAM=VALUES, got {item!r}")
+        out.setdefault(name, {})[field] = parse_values(vals)
+    return out
+
+
+def param_sets(grid: dict) -> list[dict]:
+    """Cartesian product of one filter's grid (``[{}]`` when it has none)."""
+    if not grid:
+        return [{}]
+    keys = sorted(grid)
+    return [dict(zip(keys, combo)) for combo in itertools.product(*(grid[k] for k in keys))]
+
+
+def sim_sources(scenario, preset, seeds, duration=None, overrides=None, t_from=None) -> list[dict]:
+    return [{"kind": "sim", "scenario": scenario, "preset": preset, "seed": int(s), "duration": duration,
+             "set": dict(overrides or {}), "from_s": t_from} for s in seeds]
+
+
+def file_sources(paths, fmt=None) -> list[dict]:
+    out = []
+    for p in paths:
+        p = Path(p)
+        if p.is_dir() and not (p / "metadata.yaml").is_file() and not (p / "data.hdf5").is_file():
+            out += [{"kind": "file", "path": str(f.resolve()), "format": fmt}
+                    for f in sorted(p.iterdir()) if f.suffix.lower() in (".hdf5", ".h5", ".mat", ".csv", ".parquet",
+                                                                           ".ulg", ".bin", ".bag")]
+        else:
+            out.append({"kind": "file", "path": str(p.resolve()), "format": fmt})
+    if not out:
+        raise ValueError("no recording found among " + ", ".join(map(str, paths)))
+    return out
+
+
+def build_runs(filters, grid: dict, sources, align: str | None = None) -> list[dict]:
+    """Every (filter, parameter set, source) as a run spec."""
+    from quadest.evaluation.compare import parse_filters
+
+    names = parse_filters(",".join(filters), all_includes_peers=True) if not isinstance(filters, str) \
+        else parse_filters(filters, all_includes_peers=True)
+    unknown = [n for n in grid if n not in names]
+    if unknown:
+        raise ValueError(f"--grid names filter(s) {', '.join(unknown)} that the sweep does not run")
+    # source-major order: the runs on one flight follow each other, so a worker's cache of
+    # recent flights (simulated or read) serves them without simulating or reading again
+    runs = []
+    for src in sources:
+        for name in names:
+            for params in param_sets(grid.get(name, {})):
+                runs.append({"filter": name, "params": params, "source": src, "align": align})
+    return runs
+
+
+def source_label(src: dict) -> str:
+    if src["kind"] == "sim":
+        return f"{src['scenario']}/{src['preset']}/seed{src['seed']}"
+    return Path(src["path"]).stem if Path(src["path"]).is_file() else Path(src["path"]).name
+
+
+# -- executing one run --------------------------------------------------------------------------------
+@lru_cache(maxsize=8)
+def _sim(scenario, preset, seed, duration, overrides_json):
+    from quadest.sim import simulate
+
+    return simulate(scenario, preset, seed=seed, duration=duration, overrides=json.loads(overrides_json) or None)
+
+
+@lru_cache(maxsize=16)
+def _file(path, fmt):
+    from quadest.readers import read_recording
+
+    return read_recording(path, fmt)
+
+
+def load_source(src: dict):
+    if src["kind"] == "sim":
+        return _sim(src["scenario"], src["preset"], src["seed"], src.get("duration"),
+                    json.dumps(src.get("set") or {}, sort_keys=True))
+    return _file(src["path"], src.get("format"))
+
+
+def _check_params(name, params):
+    from quadest.filters import FILTERS
+
+    if name in FILTERS:
+        known = {f["name"] for f in FILTERS[name].Params.describe()}
+        bad = [k for k in params if k not in known]
+        if bad:
+            raise ValueError(f"{name} has no parameter {', '.join(bad)}; parameters: {', '.join(sorted(known))}")
+    elif params:
+        raise ValueError(f"peer {name} runs with its own defaults; it takes no --grid parameters")
+
+
+def run_group(specs: list) -> list:
+    """Several runs on the same flight, one after the other (one task: the flight is simulated
+    or read once, on the worker that runs them)."""
+    return [run_one(s) for s in specs]
+
+
+def group_runs(runs: list, max_runs: int = 32) -> list:
+    """Consecutive runs that share a source, in groups of at most ``max_runs``."""
+    groups: list = []
+    for r in runs:
+        if groups and groups[-1][0]["source"] == r["source"] and len(groups[-1]) < max_runs:
+            groups[-1].append(r)
+        else:
+            groups.append([r])
+    return groups
+
+
+def run_one(spec: dict) -> dict:
+    """Evaluate one run; never raises: a failure becomes a row with ``status='failed'``."""
+    from quadest.evaluation.benchmark import estimate_all, evaluate, evaluation_mask
+
+    t0 = time.perf_counter()
+    row = {"run_id": run_id(spec), "filter": spec["filter"], "params": json.dumps(spec["params"], sort_keys=True),
+           "source": source_label(spec["source"]), "seed": spec["source"].get("seed", -1),
+           "spec": json.dumps(spec, sort_keys=True), "status": "ok", "error": ""}
+    for k in METRICS:
+        row[k] = math.nan
+    row["samples"] = 0
+    try:
+        _check_params(spec["filter"], spec["params"])
+        rec = load_source(spec["source"])
+        q = estimate_all(rec, [spec["filter"]], {spec["filter"]: spec["params"]})[spec["filter"]]
+        mask = evaluation_mask(rec)
+        t_from = spec["source"].get("from_s")
+        if t_from is not None:
+            mask &= rec.t >= t_from
+        nav = spec.get("align") or rec.meta.get("align", {}).get("nav", "none")
+        body = bool(rec.meta.get("align", {}).get("body", False)) if spec.get("align") is None else False
+        s = evaluate(rec, q, nav=nav, body=body, mask=mask)
+        row.update({"total_rmse_deg": s["total_rmse_deg"], "heading_rmse_deg": s["heading_rmse_deg"],
+                    "inclination_rmse_deg": s["inclination_rmse_deg"], "roll_rms_deg": s["rms_deg"]["roll"],
+                    "pitch_rms_deg": s["rms_deg"]["pitch"], "yaw_rms_deg": s["rms_deg"]["yaw"],
+                    "samples": s["samples"]})
+    except Exception as exc:  # a failing run is recorded and the sweep goes on
+        row["status"] = "failed"
+        row["error"] = f"{type(exc).__name__}: {exc}"
+    row["seconds"] = time.perf_counter() - t0
+    return row

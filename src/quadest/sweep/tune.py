@@ -1,0 +1,49 @@
+"""Choosing parameters from a sweep's results (docs/sweeps.md): one set for all trials, the
+one with the lowest mean metric over the trials (BROAD's "trial-agnostic" choice), and the best
+set per trial."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+
+def select(table, filter_name: str, metric: str = "total_rmse_deg") -> dict:
+    """``{"trial_agnostic": {...}, "per_trial": {source: {...}}}`` from a results table. A
+    parameter set counts for the trial-agnostic choice only if it ran on every trial."""
+    rows = [r for r in table.to_pylist() if r["filter"] == filter_name and r["status"] == "ok"]
+    if not rows:
+        raise ValueError(f"no successful runs of {filter_name} in the results")
+    if metric not in rows[0]:
+        raise ValueError(f"unknown metric {metric!r}")
+    sources = sorted({r["source"] for r in rows})
+    by_params: dict = {}
+    for r in rows:
+        by_params.setdefault(r["params"], {})[r["source"]] = r[metric]
+    complete = {p: v for p, v in by_params.items() if len(v) == len(sources)}
+    if not complete:
+        raise ValueError("no parameter set ran on every trial")
+    means = {p: float(np.mean(list(v.values()))) for p, v in complete.items()}
+    best = min(means, key=means.get)
+    per_trial = {}
+    for s in sources:
+        cand = [(r[metric], r["params"]) for r in rows if r["source"] == s]
+        m, p = min(cand)
+        per_trial[s] = {"params": json.loads(p), metric: m, "with_agnostic": by_params[best].get(s)}
+    return {"filter": filter_name, "metric": metric, "trials": len(sources), "parameter_sets": len(by_params),
+            "trial_agnostic": {"params": json.loads(best), metric: means[best],
+                               "per_trial": by_params[best]},
+            "per_trial": per_trial,
+            "per_trial_mean": float(np.mean([v[metric] for v in per_trial.values()]))}
+
+
+def format_selection(sel: dict) -> str:
+    m = sel["metric"]
+    ta = sel["trial_agnostic"]
+    lines = [f"{sel['filter']}: {sel['parameter_sets']} parameter set(s) on {sel['trials']} trial(s), metric {m}",
+             f"trial-agnostic best: {ta['params']}  mean {ta[m]:.3f}",
+             f"per-trial best: mean {sel['per_trial_mean']:.3f}",
+             f"{'trial':<40}{'per-trial best':>16}{'agnostic':>10}  parameters"]
+    for s, v in sel["per_trial"].items():
+        lines.append(f"{s[:39]:<40}{v[m]:>16.3f}{v['with_agnostic']:>10.3f}  {v['params']}")
+    return "\n".join(lines)
