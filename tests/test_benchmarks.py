@@ -187,3 +187,21 @@ def test_real_repoimu_alignment_is_reported(capsys):
                  "--filters", "madgwick", "--no-timing"]) == 0
     out = capsys.readouterr().out
     assert "alignment removed for madgwick: heading" in out and "body rotation" in out
+
+
+def test_estimate_with_a_peer(tmp_path, marg):
+    """``quadest estimate --filter vqf`` writes the peer's attitude in quadest's convention."""
+    pytest.importorskip("vqf")
+    import pyarrow.parquet as pq
+
+    from quadest import save_recording
+
+    src, out = tmp_path / "f.parquet", tmp_path / "att.parquet"
+    save_recording(marg, src)
+    assert main(["estimate", str(src), "--filter", "vqf", "-o", str(out)]) == 0
+    t = pq.read_table(out)
+    q = np.column_stack([t.column(c).to_numpy() for c in ("q_w", "q_x", "q_y", "q_z")])
+    late = marg.t > 10
+    assert np.degrees(angle_between(q[late], marg.true_q[late])).mean() < 3.0
+    assert main(["estimate", str(src), "--filter", "vqf", "--param", "madgwick.beta_marg=1", "-o", str(out)]) == 0
+    assert main(["estimate", str(src), "--filter", "vqf", "--param", "vqf.x=1", "-o", str(out)]) == 1

@@ -352,7 +352,7 @@ def cmd_calibrate(args):
 def cmd_estimate(args):
     from quadest.calibration import apply_calibrations
     from quadest.evaluation.compare import declination_of, parse_params
-    from quadest.filters import make_filter
+    from quadest.filters import FILTERS, make_filter
     from quadest.rotation import quat_to_euler
 
     rec = _read(args, args.file)
@@ -360,9 +360,16 @@ def cmd_estimate(args):
     params = parse_params(args.param)
     kw = {**cal_params.get(args.filter, {}), **params.get(args.filter, {})}
     decl = np.radians(args.declination_deg) if args.declination_deg is not None else declination_of(rec)
-    res = make_filter(args.filter, declination=decl, **kw).run(rec)
-    e = quat_to_euler(res.q)
-    cols = {"t": res.t, "q_w": res.q[:, 0], "q_x": res.q[:, 1], "q_y": res.q[:, 2], "q_z": res.q[:, 3],
+    if args.filter in FILTERS:
+        q = make_filter(args.filter, declination=decl, **kw).run(rec).q
+    else:  # a peer, at its own defaults
+        from quadest.evaluation.peers import run_peer
+
+        if kw:
+            raise CliError(f"peer {args.filter} runs with its own defaults; it takes no --param")
+        q = run_peer(args.filter, rec, use_mag=rec.has_mag, declination=decl)
+    e = quat_to_euler(q)
+    cols = {"t": rec.t, "q_w": q[:, 0], "q_x": q[:, 1], "q_y": q[:, 2], "q_z": q[:, 3],
             "roll": e[:, 0], "pitch": e[:, 1], "yaw": e[:, 2]}
     _write_table(cols, Path(args.output))
     _say(f"{args.filter}: {len(rec)} samples -> {args.output} (t, q_w, q_x, q_y, q_z, roll, pitch, yaw; rad)")
@@ -725,7 +732,10 @@ def build_parser():
                         description="Run an estimator over a recording (any supported format) and write t, q_w, "
                                     "q_x, q_y, q_z, roll, pitch, yaw (radians) to .csv or .parquet.")
     es.add_argument("file", type=Path, help="recording: any supported format (docs/readers.md)")
-    es.add_argument("--filter", required=True, choices=list(FILTERS), help="estimator")
+    from quadest.evaluation.peers import PEERS
+
+    es.add_argument("--filter", required=True, choices=list(FILTERS) + list(PEERS),
+                    help="estimator: quadest's, or a peer with quadest[peers] installed")
     es.add_argument("-o", "--output", required=True, metavar="OUT", help=".csv or .parquet")
     es.add_argument("--param", action="append", metavar="FILTER.NAME=VALUE", help="estimator parameter")
     es.add_argument("--declination-deg", type=float, default=None,

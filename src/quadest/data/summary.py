@@ -35,7 +35,7 @@ def summarize(rec: Recording) -> dict:
         if ok.any():
             out["ranges"][name] = {"min": a[ok].min(axis=0).tolist(), "max": a[ok].max(axis=0).tolist(),
                                    "norm_mean": float(np.linalg.norm(a[ok], axis=1).mean())}
-    for key in ("source", "scenario", "preset", "seed"):
+    for key in ("source", "format", "dataset", "frames", "scenario", "preset", "seed"):
         if key in rec.meta:
             out[key] = rec.meta[key]
     return out
@@ -45,7 +45,7 @@ def format_summary(s: dict, name: str = "") -> str:
     """Human-readable text of :func:`summarize`'s dict."""
     u = s.get("units", {})
     lines = [f"recording   {name}".rstrip()]
-    for key in ("source", "scenario", "preset", "seed"):
+    for key in ("source", "format", "dataset", "frames", "scenario", "preset", "seed"):
         if key in s:
             lines.append(f"{key:<11} {s[key]}")
     lines += [

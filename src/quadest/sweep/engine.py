@@ -150,6 +150,9 @@ def execute(fn, items, *, keys=None, workers: int | None = 0, scheduler: str | N
 
     stats = stats if stats is not None else {}
     try:
+        if not items:
+            stats["compute_s"] = 0.0
+            return results
         if not scheduler and not workers:
             t0 = time.perf_counter()
             for i, item in enumerate(items):
