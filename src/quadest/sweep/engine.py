@@ -145,8 +145,8 @@ def execute(fn, items, *, keys=None, workers: int | None = 0, scheduler: str | N
             failed += sum(isinstance(x, dict) and x.get("status") == "failed" for x in r)
         if on_result is not None:
             on_result(i, r)
+        bar.set_postfix(done=bar.n + n - failed, failed=failed, refresh=False)
         bar.update(n)
-        bar.set_postfix(done=bar.n - failed, failed=failed, refresh=False)
 
     stats = stats if stats is not None else {}
     try:
