@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from quadest import load_recording, save_recording
+from quadest import save_recording
 from quadest.calibration import (Calibration, apply_calibrations, calibrate, calibrate_accel,
                                  calibrate_centrifugal, calibrate_gyro, calibrate_mag, load_calibration,
                                  static_segments)

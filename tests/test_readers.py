@@ -1,7 +1,6 @@
 """Readers (issue #5): every format is written here from a simulated flight in that format's own
 frames and units, read back, and compared with the simulation (which is in quadest's); broken
 files give one clear line; the real samples in ../shared/data are read when present."""
-import json
 import os
 import struct
 from pathlib import Path

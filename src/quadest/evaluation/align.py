@@ -65,9 +65,6 @@ class Alignment:
         return out
 
 
-IDENTITY = Alignment(np.array([1.0, 0, 0, 0]), np.array([1.0, 0, 0, 0]))
-
-
 def _body_init(q_est, q_true, lag):
     """Rotation R_B (IMU body -> marker body) from rotation increments: the truth's increment
     in its body frame is R_Bᵀ times the estimate's (Kabsch / Wahba)."""

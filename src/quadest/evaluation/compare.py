@@ -4,8 +4,6 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
-import numpy as np
-
 from quadest.data.recording import Recording
 from quadest.evaluation.metrics import AXES, summarize_errors, time_estimator
 from quadest.filters import FILTERS, make_filter

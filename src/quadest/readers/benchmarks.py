@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from quadest.readers.common import (ReaderError, enu_flu_quat, enu_vec, flu_body, make_recording,
-                                    z_up_nav_to_ned)
+from quadest.readers.common import ReaderError, make_recording, resample_quat, z_up_nav_to_ned
+from quadest.rotation.frames import quat_enu_flu_to_ned_frd, vec_enu_to_ned, vec_flu_to_frd
 
 
 def _h5(path):
@@ -44,7 +44,7 @@ def _broad(path, d, rate, info=""):
     t = np.arange(n) / rate
     q = np.asarray(d["opt_quat"], float).reshape(-1, 4)
     bad = ~np.isfinite(q).all(axis=1)
-    q_ned = enu_flu_quat(np.where(bad[:, None], [1.0, 0, 0, 0], q))
+    q_ned = quat_enu_flu_to_ned_frd(np.where(bad[:, None], [1.0, 0, 0, 0], q))
     q_ned[bad] = np.nan
     movement = np.asarray(d["movement"], bool).ravel() if "movement" in d else np.ones(n, bool)
     meta = {"dataset": "BROAD", "trial": Path(path).stem, "imu_rate_hz": float(rate),
@@ -53,7 +53,7 @@ def _broad(path, d, rate, info=""):
             "truth_source": "optical motion capture (BROAD opt_quat)"}
     if info:
         meta["description"] = info.splitlines()[3] if len(info.splitlines()) > 3 else info
-    return make_recording(path, "broad", t, flu_body(gyr), flu_body(acc), flu_body(mag), meta, true_q=q_ned)
+    return make_recording(path, "broad", t, vec_flu_to_frd(gyr), vec_flu_to_frd(acc), vec_flu_to_frd(mag), meta, true_q=q_ned)
 
 
 def read_broad_hdf5(path, **_):
@@ -84,17 +84,17 @@ def read_dido(path, **_):
         _need(f, ("ts", "acc", "gyr", "gt_q"), path, "DIDO")
         d = {k: f[k][()] for k in f.keys()}
     t = np.asarray(d["ts"], float)
-    truth = {"true_q": enu_flu_quat(d["gt_q"])}
+    truth = {"true_q": quat_enu_flu_to_ned_frd(d["gt_q"])}
     if "gt_p" in d:
-        truth["true_pos"] = enu_vec(d["gt_p"])
+        truth["true_pos"] = vec_enu_to_ned(d["gt_p"])
     if "gt_v" in d:
-        truth["true_vel"] = enu_vec(d["gt_v"])
+        truth["true_vel"] = vec_enu_to_ned(d["gt_v"])
     if "gt_gyr" in d:
-        truth["true_gyr"] = flu_body(d["gt_gyr"])
+        truth["true_gyr"] = vec_flu_to_frd(d["gt_gyr"])
     meta = {"dataset": "DIDO", "flight": Path(path).stem, "units": {"gyr": "rad/s", "acc": "m/s^2"},
             "frames": "gravity-aligned z-up / body z-up -> NED/FRD (heading offset arbitrary)",
             "truth_source": "motion capture (DIDO gt_*)", "align": {"nav": "heading"}}
-    return make_recording(path, "dido", t, flu_body(d["gyr"]), flu_body(d["acc"]), None, meta, **truth)
+    return make_recording(path, "dido", t, vec_flu_to_frd(d["gyr"]), vec_flu_to_frd(d["acc"]), None, meta, **truth)
 
 
 # -- Blackbird (UZH-RPG preparation) -------------------------------------------------------------------
@@ -102,8 +102,6 @@ def read_blackbird(path, *, calibrated: bool = False, **_):
     """``path``: the folder with data.hdf5 and stamped_groundtruth_imu.txt, or data.hdf5 itself.
     The IMU frame is kept as the body frame (it is the frame the Vicon pose is given for);
     the z-up world becomes NED."""
-    from quadest.readers.common import resample_quat
-
     p = Path(path)
     folder = p if p.is_dir() else p.parent
     h5, gt_path = folder / "data.hdf5", folder / "stamped_groundtruth_imu.txt"
@@ -124,9 +122,9 @@ def read_blackbird(path, *, calibrated: bool = False, **_):
     q = z_up_nav_to_ned(resample_quat(gt[:, 0], gt[:, [7, 4, 5, 6]], t))
     truth = {"true_q": q}
     if len(gt) == len(t) and np.allclose(gt[:, 0], t):
-        truth["true_pos"] = enu_vec(gt[:, 1:4])
+        truth["true_pos"] = vec_enu_to_ned(gt[:, 1:4])
         if gt.shape[1] >= 11:
-            truth["true_vel"] = enu_vec(gt[:, 8:11])
+            truth["true_vel"] = vec_enu_to_ned(gt[:, 8:11])
     meta = {"dataset": "Blackbird", "sequence": folder.name, "units": {"gyr": "rad/s", "acc": "m/s^2"},
             "frames": "Vicon z-up world -> NED; body = the IMU's own axes",
             "truth_source": "Vicon (stamped_groundtruth_imu.txt, x y z w)", "align": {"nav": "heading"}}
@@ -148,12 +146,12 @@ def read_repoimu(path, **_):
     q = data[:, 1:5].copy()
     none = (np.abs(q).sum(axis=1) == 0) | ~np.isfinite(q).all(axis=1)
     q[none] = [1.0, 0, 0, 0]
-    q = enu_flu_quat(q / np.linalg.norm(q, axis=1, keepdims=True))
+    q = quat_enu_flu_to_ned_frd(q / np.linalg.norm(q, axis=1, keepdims=True))
     q[none] = np.nan
     meta = {"dataset": "RepoIMU", "trial": Path(path).stem,
             "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "normalised"},
             "frames": "Vicon z-up world and sensor z-up -> NED/FRD; the IMU and marker bodies are not "
                       "aligned (evaluation estimates the body rotation)",
             "truth_source": "Vicon", "rows_without_truth": int(none.sum()), "align": {"nav": "heading", "body": True}}
-    return make_recording(path, "repoimu", data[:, 0], flu_body(data[:, 8:11]), flu_body(data[:, 5:8]),
-                          flu_body(data[:, 11:14]), meta, true_q=q)
+    return make_recording(path, "repoimu", data[:, 0], vec_flu_to_frd(data[:, 8:11]), vec_flu_to_frd(data[:, 5:8]),
+                          vec_flu_to_frd(data[:, 11:14]), meta, true_q=q)

@@ -3,13 +3,10 @@ rows, resampling a reference attitude, and building the Recording with the file'
 error (docs/readers.md)."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from quadest.data.recording import Recording
 from quadest.rotation import quat_continuous, quat_normalize
-from quadest.rotation.frames import quat_enu_flu_to_ned_frd, vec_enu_to_ned, vec_flu_to_frd
 from quadest.rotation.quaternion import quat_mul
 
 # factors to quadest's units (SI; magnetometer µT)
@@ -38,19 +35,6 @@ def z_up_nav_to_ned(q):
     body frame left as it is -> NED navigation frame. A horizontal x/y that is not east/north
     leaves a constant heading offset, which evaluation estimates and removes (docs/readers.md)."""
     return quat_mul(Q_ENU_TO_NED, np.asarray(q, float))
-
-
-def flu_body(v):
-    """Body vectors of a z-up sensor frame (FLU) -> FRD."""
-    return vec_flu_to_frd(v)
-
-
-def enu_flu_quat(q):
-    return quat_enu_flu_to_ned_frd(q)
-
-
-def enu_vec(v):
-    return vec_enu_to_ned(v)
 
 
 def mag_on_imu_rows(t_imu, t_mag, mag):
@@ -114,12 +98,3 @@ def make_recording(path, fmt: str, t, gyr, acc, mag=None, meta=None, **truth) ->
                          mag=None if mag is None else np.asarray(mag, float)[good], meta=meta, **kw)
     except ValueError as exc:
         raise ReaderError(f"{path}: {exc}") from None
-
-
-def rate_of(t) -> float:
-    d = np.diff(np.asarray(t, float))
-    return float(1.0 / np.median(d)) if len(d) else 0.0
-
-
-def name_of(path) -> str:
-    return Path(path).name

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from quadest.readers.common import (ReaderError, enu_flu_quat, enu_vec, flu_body, make_recording,
-                                    unit_factor)
+from quadest.readers.common import ReaderError, make_recording, unit_factor
+from quadest.rotation.frames import quat_enu_flu_to_ned_frd, vec_enu_to_ned, vec_flu_to_frd
 
 FIELDS = {"t": 1, "gyr": 3, "acc": 3, "mag": 3, "true_q": 4, "true_pos": 3, "true_vel": 3}
 
@@ -98,13 +98,13 @@ def read_csv_mapped(path, *, columns=None, units=None, frame: str = "ned-frd", q
         if k in columns:
             truth[k] = vec(k)
     if frame == "enu-flu":
-        gyr, acc = flu_body(gyr), flu_body(acc)
-        mag = flu_body(mag) if mag is not None else None
+        gyr, acc = vec_flu_to_frd(gyr), vec_flu_to_frd(acc)
+        mag = vec_flu_to_frd(mag) if mag is not None else None
         if "true_q" in truth:
-            truth["true_q"] = enu_flu_quat(truth["true_q"])
+            truth["true_q"] = quat_enu_flu_to_ned_frd(truth["true_q"])
         for k in ("true_pos", "true_vel"):
             if k in truth:
-                truth[k] = enu_vec(truth[k])
+                truth[k] = vec_enu_to_ned(truth[k])
     if "true_q" in truth:
         n = np.linalg.norm(truth["true_q"], axis=1, keepdims=True)
         truth["true_q"] = np.where(n > 0.5, truth["true_q"] / np.where(n > 0, n, 1), np.nan)

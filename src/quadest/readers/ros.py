@@ -10,7 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from quadest.readers.common import ReaderError, enu_flu_quat, enu_vec, flu_body, make_recording, mag_on_imu_rows
+from quadest.readers.common import ReaderError, make_recording, mag_on_imu_rows, resample_quat
+from quadest.rotation.frames import quat_enu_flu_to_ned_frd, vec_enu_to_ned, vec_flu_to_frd
 
 IMU = ("sensor_msgs/msg/Imu", "sensor_msgs/Imu")
 MAG = ("sensor_msgs/msg/MagneticField", "sensor_msgs/MagneticField")
@@ -98,18 +99,16 @@ def read_rosbag(path, *, imu_topic=None, mag_topic=None, truth_topic=None, **_):
     magv = None
     if mag:
         mag = np.array(sorted(mag), float)
-        magv = mag_on_imu_rows(t, mag[:, 0], flu_body(mag[:, 1:4] * 1e6))
+        magv = mag_on_imu_rows(t, mag[:, 0], vec_flu_to_frd(mag[:, 1:4] * 1e6))
     truth = {}
     if pose:
-        from quadest.readers.common import resample_quat
-
         pose = np.array(sorted(pose), float)
-        truth["true_q"] = enu_flu_quat(resample_quat(pose[:, 0], pose[:, 1:5], t))
+        truth["true_q"] = quat_enu_flu_to_ned_frd(resample_quat(pose[:, 0], pose[:, 1:5], t))
         inside = np.isfinite(truth["true_q"][:, 0])
         pos = np.full((len(t), 3), np.nan)
-        pos[inside] = enu_vec(np.column_stack([np.interp(t[inside], pose[:, 0], pose[:, 5 + i]) for i in range(3)]))
+        pos[inside] = vec_enu_to_ned(np.column_stack([np.interp(t[inside], pose[:, 0], pose[:, 5 + i]) for i in range(3)]))
         truth["true_pos"] = pos
     meta = {"source_format": "ROS bag", "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT"},
             "frames": "REP 103: ENU world, FLU body -> NED/FRD; tesla -> µT",
             "topics": {"imu": ci.topic, "mag": cm.topic if cm else None, "truth": ct.topic if ct else None}}
-    return make_recording(path, "rosbag", t, flu_body(imu[:, 1:4]), flu_body(imu[:, 4:7]), magv, meta, **truth)
+    return make_recording(path, "rosbag", t, vec_flu_to_frd(imu[:, 1:4]), vec_flu_to_frd(imu[:, 4:7]), magv, meta, **truth)

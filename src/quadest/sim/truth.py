@@ -386,7 +386,7 @@ class CalibrationMotion:
                                        for k in range(6)]
 
     def evaluate(self, t) -> Truth:
-        from quadest.rotation import matrix_to_quat, quat_to_matrix, quat_mul, quat_conj, quat_to_rotvec
+        from quadest.rotation import quat_conj, quat_mul, quat_to_matrix, quat_to_rotvec
         n = len(t)
         if self.kind == "rest":
             R = Jet.const(np.broadcast_to(quat_to_matrix(euler_q(0.0, 0.0, self.yaw0)), (n, 3, 3)))

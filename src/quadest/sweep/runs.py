@@ -88,8 +88,7 @@ def build_runs(filters, grid: dict, sources, align: str | None = None) -> list[d
     """Every (filter, parameter set, source) as a run spec."""
     from quadest.evaluation.compare import parse_filters
 
-    names = parse_filters(",".join(filters), all_includes_peers=True) if not isinstance(filters, str) \
-        else parse_filters(filters, all_includes_peers=True)
+    names = parse_filters(filters if isinstance(filters, str) else ",".join(filters), all_includes_peers=True)
     unknown = [n for n in grid if n not in names]
     if unknown:
         raise ValueError(f"--grid names filter(s) {', '.join(unknown)} that the sweep does not run")
