@@ -92,15 +92,15 @@ def _qexp_mul(q, v):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def _update(x, P, r, H, Rm, v_free):
+def _update(x, P, r, H, Rm, v_free, constrain):
     """Kalman update with residual r, Jacobian H (m x 9), noise Rm; injects the error.
-    ``v_free``: a unit body vector (the vertical) along which neither the orientation nor the
-    gyro bias is corrected (zero vector: no constraint); the Joseph form keeps P consistent
-    for this constrained gain."""
+    With ``constrain``, neither the orientation nor the gyro bias is corrected along the unit
+    body vector ``v_free`` (the vertical); the Joseph form keeps P consistent for this
+    constrained gain."""
     PHt = mm_t(P, H)
     S = mm(H, PHt) + Rm
     K = mm(PHt, inv_spd(S))
-    if v_free[0] != 0.0 or v_free[1] != 0.0 or v_free[2] != 0.0:
+    if constrain:
         Pv = np.eye(3) - np.outer(v_free, v_free)
         K[0:3, :] = mm(Pv, K[0:3, :].copy())
         K[3:6, :] = mm(Pv, K[3:6, :].copy())
@@ -150,8 +150,7 @@ def kalman_step(x, p, gyr, acc, mag, dt, diag):
         # quadest's extension for 6-axis use (docs/estimators.md): without a magnetometer the
         # heading and the bias about the vertical are unobservable, and the accelerometer must
         # not correct them through their correlation with tilt (it drove the heading away)
-        free = v.copy() if (not use_mag or x[INORM] == 0.0) else np.zeros(3)
-        _update(x, P, r, H, np.eye(3) * (sa * sa + sl * sl), free)
+        _update(x, P, r, H, np.eye(3) * (sa * sa + sl * sl), v, not use_mag or x[INORM] == 0.0)
         diag[0] = 1.0
     # -- magnetometer: m/|m_ref| = Rᵀ (m_ref + d) ----------------------------------------------
     if use_mag and finite3(mag) and norm3(mag) > 0.0:
@@ -177,7 +176,7 @@ def kalman_step(x, p, gyr, acc, mag, dt, diag):
             H = np.zeros((3, 9))
             H[:, 0:3] = _skew(h)
             H[:, 6:9] = R.T
-            _update(x, P, r, H, np.eye(3) * sm * sm, np.zeros(3))
+            _update(x, P, r, H, np.eye(3) * sm * sm, h, False)
             diag[4] = 1.0
     x[IP:IP + 81] = (0.5 * (P + P.T)).ravel()
     diag[1], diag[2], diag[3] = x[IB], x[IB + 1], x[IB + 2]
