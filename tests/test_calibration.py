@@ -241,3 +241,7 @@ def test_recover_takes_calibration(tmp_path, capsys):
     assert main(["recover", str(throw), "--calibration", str(tmp_path / "g.json")]) == 0
     out = capsys.readouterr().out
     assert "nominal" in out
+    # the calibration really goes through: one made for another unit is refused
+    Calibration("gyro", "deg/s", {"bias": [1.0, 0.0, 0.0]}).save(tmp_path / "d.json")
+    assert main(["recover", str(throw), "--calibration", str(tmp_path / "d.json")]) == 1
+    assert "made for gyr in deg/s" in capsys.readouterr().err
