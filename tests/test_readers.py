@@ -410,3 +410,31 @@ def test_real_px4_our_filter_agrees_with_ekf2():
     assert report["against"] == "ref_q"
     rms = report["filters"]["madgwick"]["rms_deg"]
     assert rms["roll"] < 1.0 and rms["pitch"] < 1.0
+
+
+def test_rosbag_odometry_as_truth(tmp_path, flight):
+    """nav_msgs/Odometry as the truth topic (pose.pose), ROS 2, no magnetometer topic."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    T = ts.types
+    short = flight.select(slice(0, 200))
+    path = tmp_path / "odom_bag"
+    with Writer(path, version=8) as w:
+        ci = w.add_connection("/imu", "sensor_msgs/msg/Imu", typestore=ts)
+        co = w.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=ts)
+        for t_ns, imu, _, pose in _ros_msgs(ts, short, ros1=False):
+            odom = T["nav_msgs/msg/Odometry"](
+                header=pose.header, child_frame_id="base_link",
+                pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose.pose, covariance=np.zeros(36)),
+                twist=T["geometry_msgs/msg/TwistWithCovariance"](
+                    twist=T["geometry_msgs/msg/Twist"](linear=T["geometry_msgs/msg/Vector3"](x=0, y=0, z=0),
+                                                        angular=T["geometry_msgs/msg/Vector3"](x=0, y=0, z=0)),
+                    covariance=np.zeros(36)))
+            w.write(ci, t_ns, ts.serialize_cdr(imu, "sensor_msgs/msg/Imu"))
+            w.write(co, t_ns, ts.serialize_cdr(odom, "nav_msgs/msg/Odometry"))
+    rec = read_recording(path)
+    assert rec.meta["topics"] == {"imu": "/imu", "mag": None, "truth": "/odom"}
+    assert not rec.has_mag
+    assert angle_between(rec.true_q, short.true_q).max() < 1e-6
