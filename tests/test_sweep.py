@@ -93,6 +93,13 @@ def test_tune_picks_trial_agnostic_and_per_trial(tmp_path):
     assert sel["per_trial_mean"] <= sel["trial_agnostic"]["total_rmse_deg"] + 1e-12
 
 
+def test_sweep_defaults_to_a_local_cluster(tmp_path, capsys):
+    assert main(["sweep", "--filters", "madgwick", "--scenario", "hover", "--seeds", "1", "--duration", "3",
+                 "-o", str(tmp_path / "r")]) == 0
+    assert "on a local Dask cluster (one worker per core)" in capsys.readouterr().out
+    assert ResultStore(tmp_path / "r").read().column("status").to_pylist() == ["ok"]
+
+
 def test_tune_command(tmp_path, capsys):
     out = tmp_path / "res"
     assert main(["tune", "madgwick", "--grid", "madgwick.beta_marg=0.01,0.1", "--scenario", "hover", "--seeds",

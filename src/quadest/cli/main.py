@@ -531,7 +531,9 @@ def _run_sweep(args, runs):
     from quadest.sweep import run_sweep
 
     where = (f"the Dask cluster at {args.scheduler}" if args.scheduler else
-             "this process" if args.workers == 0 else f"a local Dask cluster of {args.workers or 'one per core'} worker(s)")
+             "this process" if args.workers == 0 else
+             f"a local Dask cluster of {args.workers} worker(s)" if args.workers else
+             "a local Dask cluster (one worker per core)")
     _say(f"{len(runs)} runs on {where}; results in {args.out}")
     res = run_sweep(runs, args.out, workers=args.workers, scheduler=args.scheduler,
                     retry_failed=args.retry_failed, progress=True)

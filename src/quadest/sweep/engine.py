@@ -120,7 +120,7 @@ def execute(fn, items, *, keys=None, workers: int | None = 0, scheduler: str | N
             progress: bool = False, desc: str = "runs", max_inflight: int | None = None, stats: dict | None = None,
             weights=None):
     """Apply ``fn`` to every item; ``workers=0`` (and no scheduler) runs in this process,
-    otherwise on Dask. ``on_result(item_index, result_or_exception)`` is called as results
+    otherwise on Dask (``workers=None``: a local cluster with one worker per core). ``on_result(item_index, result_or_exception)`` is called as results
     arrive (in completion order); returns the results in item order. Exceptions from a task
     (a lost worker, a failing function) are passed on as values, never raised. ``stats`` gets
     ``compute_s``: the time from the first task to the last result, without the cluster's
@@ -153,7 +153,7 @@ def execute(fn, items, *, keys=None, workers: int | None = 0, scheduler: str | N
         if not items:
             stats["compute_s"] = 0.0
             return results
-        if not scheduler and not workers:
+        if not scheduler and workers == 0:
             t0 = time.perf_counter()
             for i, item in enumerate(items):
                 try:
