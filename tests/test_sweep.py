@@ -33,9 +33,13 @@ def _rows(path):
 
 
 def _raw_ids(path):
-    import pyarrow.parquet as pq
+    """Every run_id written, in the results file and in parts a killed sweep left."""
+    t = ResultStore(path).raw()
+    return t.column("run_id").to_pylist() if t is not None else []
 
-    return [i for p in sorted(Path(path).glob("part-*.parquet")) for i in pq.read_table(p).column("run_id").to_pylist()]
+
+def _parts(path):
+    return list(Path(str(path) + ".parts").glob("part-*.parquet"))
 
 
 # -- pieces -----------------------------------------------------------------------------------------------------
@@ -65,6 +69,7 @@ def test_a_failing_run_is_recorded_and_the_sweep_goes_on(tmp_path):
     assert again["executed"] == 0  # failed runs are finished runs, unless --retry-failed
     again = run_sweep(runs, tmp_path / "r", workers=0, progress=False, retry_failed=True)
     assert again["executed"] == 2 and len(ResultStore(tmp_path / "r").read()) == len(runs)
+    assert len(ResultStore(tmp_path / "r").raw()) == len(runs)  # the superseded failed rows are dropped
 
 
 def test_serial_equals_local_cluster_and_resume_skips(tmp_path):
@@ -172,7 +177,7 @@ def test_worker_killed_mid_sweep_loses_and_duplicates_nothing(cluster, tmp_path)
     t = threading.Thread(target=lambda: result.update(run_sweep(runs, out, scheduler=address, progress=False)))
     t.start()
     deadline = time.time() + 60
-    while time.time() < deadline and not list(out.glob("part-*.parquet")):
+    while time.time() < deadline and not _parts(out):
         time.sleep(0.05)
     procs[1].send_signal(signal.SIGKILL)  # one worker dies mid-sweep
     assert t.is_alive(), "the sweep finished before the worker was killed"
@@ -191,15 +196,19 @@ def test_interrupted_sweep_resumes_each_run_once(tmp_path):
            "--seeds", "1-30", "--duration", "30", "-o", str(out), "--workers", "0"]  # 90 runs, ~15 s
     p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 120
-    while time.time() < deadline and len(list(out.glob("part-*.parquet"))) < 1:
+    while time.time() < deadline and not _parts(out):
         time.sleep(0.05)
     p.send_signal(signal.SIGKILL)  # no chance to flush: what was buffered is lost and redone
     p.wait()
     first = _raw_ids(out)
-    assert 0 < len(first) < 90
+    assert 0 < len(first) < 90 and not out.exists()  # only parts: the killed sweep never folded them
     assert subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL).returncode == 0
     ids = _raw_ids(out)
     assert len(ids) == 90 and len(set(ids)) == 90  # each run exactly once across both sessions
+    assert out.is_file() and not _parts(out)  # one Parquet file in the end
+    import pyarrow.parquet as pq
+
+    assert pq.read_table(out).num_rows == 90
 
 
 def test_reproduce_runs_on_the_same_engine():

@@ -509,7 +509,8 @@ def _add_sweep_args(p):
     p.add_argument("--align", choices=["none", "heading", "full"], default=None,
                    help="constant navigation-frame rotation removed (default: the reader's recommendation)")
     p.add_argument("-o", "--out", required=True, type=Path, metavar="RESULTS.parquet",
-                   help="results folder (a Parquet dataset); an existing one is resumed")
+                   help="results file, one row per run (parts go to RESULTS.parquet.parts/ while it runs); "
+                        "an existing one is resumed")
     p.add_argument("--retry-failed", action="store_true", help="run again the runs recorded as failed")
     p.add_argument("--json", metavar="OUT", help="write the summary as JSON")
     _add_engine_args(p)
@@ -530,11 +531,11 @@ def _sweep_runs(args, filters):
 def _run_sweep(args, runs):
     from quadest.sweep import run_sweep
 
-    where = (f"the Dask cluster at {args.scheduler}" if args.scheduler else
-             "this process" if args.workers == 0 else
-             f"a local Dask cluster of {args.workers} worker(s)" if args.workers else
-             "a local Dask cluster (one worker per core)")
-    _say(f"{len(runs)} runs on {where}; results in {args.out}")
+    where = (f"on the Dask cluster at {args.scheduler}" if args.scheduler else
+             "in this process" if args.workers == 0 else
+             f"on a local Dask cluster of {args.workers} worker(s)" if args.workers else
+             "on a local Dask cluster (one worker per core)")
+    _say(f"{len(runs)} runs {where}; results in {args.out}")
     res = run_sweep(runs, args.out, workers=args.workers, scheduler=args.scheduler,
                     retry_failed=args.retry_failed, progress=True)
     _say(f"executed {res['executed']} (skipped {res['skipped']} already in {args.out}) in {res['wall_s']:.1f} s"
@@ -562,7 +563,7 @@ def cmd_tune(args):
 
     runs = _sweep_runs(args, args.filter)
     res = _run_sweep(args, runs)
-    table = ResultStore(args.out).read()  # only this grid's runs, though the folder may hold more
+    table = ResultStore(args.out).read()  # only this grid's runs, though the file may hold more
     table = table.filter(pc.is_in(table.column("run_id"), value_set=pa.array(sorted({run_id(r) for r in runs}))))
     sel = select(table, args.filter, args.metric)
     _say(format_selection(sel))
@@ -769,7 +770,7 @@ def build_parser():
 
     sw = sub.add_parser("sweep", help="run a grid of filters and parameters over many flights, on Dask",
                         description="Run every (filter x parameter set x flight) and write one row per run "
-                                    "(parameters, metrics, status, error) to a Parquet dataset as runs finish. "
+                                    "(parameters, metrics, status, error) to a Parquet file as runs finish. "
                                     "Runs carry their seeds, so results do not depend on the number of workers; "
                                     "an interrupted sweep resumes. docs/sweeps.md")
     sw.add_argument("--filters", default="quadest", help="quadest (default), all, peers, or a comma-separated list")

@@ -1,10 +1,11 @@
 """Executing many runs: in this process, on a local Dask cluster, or on an existing one
 (docs/sweeps.md).
 
-Results go to a Parquet dataset (a folder of part files, readable as one table by
-``pyarrow.parquet.read_table(folder)``), written as runs finish: every few seconds the rows
-that came in are flushed as a new part. A sweep started again on the same folder skips the
-runs already recorded there, so an interrupted sweep resumes without redoing finished runs.
+Results go to one Parquet file, one row per run, written as runs finish: every few seconds the
+rows that came in are flushed as a part file beside it (``<file>.parts/``), and the parts are
+folded into the file when the sweep ends. A sweep started again on the same file skips the runs
+already recorded (in the file or in parts a killed sweep left), so an interrupted sweep resumes
+without redoing finished runs.
 Each run's row is written once: Dask may execute a task twice when a worker dies, but the
 client receives each future's result once, and only the client writes.
 """
@@ -22,41 +23,51 @@ import numpy as np
 
 # -- the result store ---------------------------------------------------------------------------------
 class ResultStore:
-    """A Parquet dataset folder; rows are appended as part files."""
+    """One Parquet file of results, one row per run. While a sweep runs, rows go to part files
+    in ``<file>.parts/`` as they arrive; when it ends they are folded into the file and the
+    folder is removed. A sweep that was killed leaves its parts, and the next one reads them."""
 
     def __init__(self, path, flush_s: float = 2.0, flush_rows: int = 200):
         self.path = Path(path)
-        if self.path.exists() and not self.path.is_dir():
-            raise ValueError(f"{path}: exists and is not a results folder (sweeps write a Parquet folder)")
-        self.path.mkdir(parents=True, exist_ok=True)
+        if self.path.is_dir():
+            raise ValueError(f"{path}: is a folder; give the results file to write (e.g. results.parquet)")
+        self.parts = self.path.with_name(self.path.name + ".parts")
         self.flush_s, self.flush_rows = flush_s, flush_rows
         self._buf: list[dict] = []
         self._last = time.monotonic()
         self._session = uuid.uuid4().hex[:8]
         self._n = 0
 
-    def read(self):
-        """All rows so far as a pyarrow Table, the latest row per run_id (None if empty)."""
+    def _tables(self):
         import pyarrow as pa
         import pyarrow.parquet as pq
 
-        parts = sorted(self.path.glob("part-*.parquet"))
-        if not parts:
-            return None
+        files = ([self.path] if self.path.is_file() else []) + sorted(self.parts.glob("part-*.parquet"))
         tables = []
-        for p in parts:
+        for p in files:
             try:
                 tables.append(pq.read_table(p))
-            except (pa.ArrowException, OSError):  # a part cut by a crash: its runs are redone
-                continue
-        if not tables:
+            except (pa.ArrowException, OSError) as exc:
+                if p == self.path:
+                    raise ValueError(f"{p}: not a readable results file ({exc})") from None
+                continue  # a part cut by a crash: its runs are simply run again
+        return tables
+
+    def raw(self):
+        """Every row written, in order (None if none)."""
+        import pyarrow as pa
+
+        tables = self._tables()
+        return pa.concat_tables(tables, promote_options="default") if tables else None
+
+    def read(self):
+        """The results: the latest row of each run (None if empty)."""
+        t = self.raw()
+        if t is None:
             return None
-        t = pa.concat_tables(tables, promote_options="default")
         ids = t.column("run_id").to_pylist()
         last = {rid: i for i, rid in enumerate(ids)}
-        if len(last) != len(ids):
-            t = t.take(sorted(last.values()))
-        return t
+        return t if len(last) == len(ids) else t.take(sorted(last.values()))
 
     def done_ids(self, retry_failed: bool = False) -> set:
         t = self.read()
@@ -77,13 +88,37 @@ class ResultStore:
         self._last = time.monotonic()
         if not self._buf:
             return
+        self.parts.mkdir(parents=True, exist_ok=True)
         table = pa.Table.from_pylist(self._buf)
-        name = self.path / f"part-{time.strftime('%Y%m%dT%H%M%S')}-{self._session}-{self._n:05d}.parquet"
+        name = self.parts / f"part-{time.strftime('%Y%m%dT%H%M%S')}-{self._session}-{self._n:05d}.parquet"
         tmp = name.with_suffix(".tmp")
         pq.write_table(table, tmp)
         os.replace(tmp, name)  # a part appears whole or not at all
         self._n += 1
         self._buf = []
+
+    def compact(self):
+        """Fold the parts into the results file (atomically) and remove them. A failed row that
+        a later row of the same run replaced (``--retry-failed``) is dropped; nothing else is."""
+        import shutil
+
+        import pyarrow.parquet as pq
+
+        self.flush()
+        if not self.parts.is_dir():
+            return
+        t = self.raw()
+        if t is not None:
+            ids, status = t.column("run_id").to_pylist(), t.column("status").to_pylist()
+            last = {rid: i for i, rid in enumerate(ids)}
+            keep = [i for i, (rid, st) in enumerate(zip(ids, status)) if not (st == "failed" and last[rid] != i)]
+            if len(keep) != len(ids):
+                t = t.take(keep)
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = self.path.with_name(self.path.name + ".tmp")
+            pq.write_table(t, tmp)
+            os.replace(tmp, self.path)
+        shutil.rmtree(self.parts, ignore_errors=True)
 
 
 # -- execution -------------------------------------------------------------------------------------------
@@ -237,7 +272,7 @@ def run_sweep(runs, out, *, workers: int | None = 0, scheduler: str | None = Non
         execute(run_group, groups, keys=group_keys, workers=workers, scheduler=scheduler, on_result=on_result,
                 progress=progress, desc="sweep", stats=stats, weights=[len(g) for g in groups])
     finally:
-        store.flush()
+        store.compact()  # also on Ctrl-C; a killed process leaves its parts for the next sweep
     wall = time.perf_counter() - t0
     compute = stats.get("compute_s", wall)
     table = store.read()
