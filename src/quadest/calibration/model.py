@@ -94,15 +94,14 @@ class Calibration:
 
 
 def load_calibration(path) -> Calibration:
-    path = Path(path)
+    from quadest.data.tagged import read_tagged_json
+
+    d = read_tagged_json(path, FORMAT_TAG, "calibration")
     try:
-        d = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise ValueError(f"{path}: not a readable calibration ({exc})") from None
-    if not isinstance(d, dict) or d.get("format") != FORMAT_TAG:
-        raise ValueError(f"{path}: not a quadest calibration (expected format {FORMAT_TAG!r})")
-    return Calibration(d["kind"], d["unit"], d["values"], d.get("uncertainty", {}), d.get("quality", {}),
-                       d.get("source", {}))
+        return Calibration(d["kind"], d["unit"], d["values"], d.get("uncertainty", {}), d.get("quality", {}),
+                           d.get("source", {}))
+    except KeyError as exc:
+        raise ValueError(f"{path}: calibration lacks {exc}") from None
 
 
 def apply_calibrations(rec, paths):

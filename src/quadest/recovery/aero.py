@@ -100,13 +100,9 @@ class AeroModel:
 
     @classmethod
     def load(cls, path) -> "AeroModel":
-        path = Path(path)
-        try:
-            d = json.loads(path.read_text())
-        except (OSError, json.JSONDecodeError) as exc:
-            raise ValueError(f"{path}: not a readable aero model ({exc})") from None
-        if not isinstance(d, dict) or d.get("format") != FORMAT_TAG:
-            raise ValueError(f"{path}: not a quadest aero model (expected format {FORMAT_TAG!r})")
+        from quadest.data.tagged import read_tagged_json
+
+        d = read_tagged_json(path, FORMAT_TAG, "aero model")
         try:
             return cls(d["A"], d["B"], d["C"], float(d["mass_kg"]), d.get("info", {}))
         except KeyError as exc:
