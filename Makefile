@@ -34,5 +34,8 @@ test: $(VENV)/.installed-test
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache
 
+# compiled code is cached per hash of the source (src/quadest/_cache.py), so an edit never
+# reuses stale machine code; this removes every cached folder
 clean-cache:
+	rm -rf $${XDG_CACHE_HOME:-$$HOME/.cache}/quadest/numba
 	find src -name '*.nbi' -delete; find src -name '*.nbc' -delete

@@ -7,6 +7,12 @@ forward-right-down, ZYX Euler angles, SI units.
 """
 from importlib.metadata import PackageNotFoundError, version as _version
 
+from quadest import _cache
+
+NUMBA_CACHE_DIR = _cache.configure()
+"""Where compiled code is cached: a folder per hash of quadest's source (:mod:`quadest._cache`),
+or None when ``NUMBA_CACHE_DIR`` was set by the user."""
+
 try:
     __version__ = _version("quadest")
 except PackageNotFoundError:  # running from a source tree that is not installed
