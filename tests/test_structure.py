@@ -53,14 +53,24 @@ def _edit(path: Path, old: str, new: str):
     path.write_text(text.replace(old, new, 1))
 
 
-def test_an_edit_of_a_shared_kernel_reaches_every_filter(tmp_path):
+NAMED = "madgwick,afckf,complementary,kalman,qukf"
+
+
+@pytest.fixture(scope="module")
+def copied(tmp_path_factory):
+    """A copy of the package, its cache folder and the unmodified copy's estimates."""
+    tmp = tmp_path_factory.mktemp("copy")
+    pkg = _copy_package(tmp)
+    cache = tmp / "cache"
+    return pkg, cache, _run_copy(pkg, NAMED, cache)
+
+
+def test_an_edit_of_a_shared_kernel_reaches_every_filter(copied):
     """numba keys its cache on each function's own file: without quadest's cache folder per
     source hash, madgwick would keep its compiled copy of the shared ``prepare``."""
-    pkg = _copy_package(tmp_path)
-    cache = tmp_path / "cache"
-    first = _run_copy(pkg, "madgwick", cache)
+    pkg, cache, first = copied
     again = _run_copy(pkg, "madgwick", cache)
-    assert again["cache"] == first["cache"] and again["q"] == first["q"]
+    assert again["cache"] == first["cache"] and again["q"]["madgwick"] == first["q"]["madgwick"]
     # the shared step start never initialises: the attitude must stay at identity
     _edit(pkg / "filters" / "common.py", "def prepare(x, acc, mag, use_mag):\n",
           "def prepare(x, acc, mag, use_mag):\n    return False\n")
@@ -70,3 +80,31 @@ def test_an_edit_of_a_shared_kernel_reaches_every_filter(tmp_path):
     assert all(row == [1.0, 0.0, 0.0, 0.0] for row in edited["q"]["madgwick"])
     # old folders beyond the kept few are removed; the current one stays
     assert Path(edited["cache"]).is_dir()
+
+
+def _reverse_fields(path: Path, class_name: str):
+    """Reverse the order of a dataclass's field declarations in a source file."""
+    text = path.read_text()
+    lines = text.splitlines(keepends=True)
+    cls = next(n for n in ast.parse(text).body if isinstance(n, ast.ClassDef) and n.name == class_name)
+    fields = [n for n in cls.body if isinstance(n, ast.AnnAssign)]
+    assert len(fields) > 2
+    blocks = ["".join(lines[f.lineno - 1:f.end_lineno]) for f in fields]
+    first, last = fields[0].lineno - 1, fields[-1].end_lineno
+    assert all(f.end_lineno + 1 == g.lineno for f, g in zip(fields, fields[1:])), "fields must be contiguous"
+    path.write_text("".join(lines[:first]) + "".join(reversed(blocks)) + "".join(lines[last:]))
+
+
+def test_parameters_are_read_by_name_not_position(copied, tmp_path):
+    """Reversing the declaration order of every parameter record changes nothing: the compiled
+    steps read ``p.beta``, not ``p[3]``."""
+    _, _, first = copied
+    pkg = _copy_package(tmp_path)
+    for module, cls in (("madgwick", "MadgwickParams"), ("afckf", "AfckfParams"),
+                        ("complementary", "ComplementaryParams"), ("kalman", "KalmanParams"),
+                        ("qukf", "QukfParams")):
+        _reverse_fields(pkg / "filters" / f"{module}.py", cls)
+    reordered = _run_copy(pkg, NAMED, tmp_path / "cache")
+    assert reordered["cache"] != first["cache"]
+    for name in NAMED.split(","):
+        assert reordered["q"][name] == first["q"][name], name

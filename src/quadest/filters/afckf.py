@@ -50,26 +50,30 @@ The gradient step and the Kalman channel work in the paper's z-up earth frame (e
 The paper publishes no values for β, ρ, ϑ, κ_i, ι, α; quadest's defaults below are chosen from
 the sensors' noise and the vehicle's rates and documented; none was fitted to the checked seeds.
 """
+import math
+from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
-from quadest.filters.base import Estimator, P, Params
+from quadest.conventions import GRAVITY
+from quadest.filters.base import Estimator, P, Params, params_record
+from quadest.filters.common import (BASE, FASTMATH, YAW_PENDING, finite3, layout, mag_heading, norm3, prepare,
+                                    q_to_euler)
 from quadest.filters.linalg import inv_spd_into
-from quadest.filters.common import BASE, FASTMATH, YAW_PENDING, finite3, mag_heading, norm3, prepare, q_to_euler
 
-IQ = BASE  # Kalman-channel quaternion q' (paper's z-up frame), 4
-IP = BASE + 4  # its covariance, 16
-IB = BASE + 20  # gyro bias, 3
-IPSI = BASE + 23  # fused yaw (before the moving average)
-IMREF = BASE + 24  # local field norm ‖b_e‖ (0: from the first sample)
-ISTART = BASE + 25  # 1 once the channels are initialised
-IHEAD = BASE + 26  # ring buffer position
-WMAX = 256
-IBUF = BASE + 27  # ring buffers of sin and cos of the fused yaw, WMAX values each
-
-ONE_G = 9.80665
+WMAX = 256  # longest averaging window of eq 53, samples
+S = layout(("q_up", 4),  # Kalman-channel quaternion q' (paper's z-up frame)
+           ("P", 16),  # its covariance, row-major
+           ("bias", 3),  # gyro bias, rad/s
+           ("psi", 1),  # fused yaw (before the moving average), rad
+           ("mag_ref", 1),  # local field norm ‖b_e‖ (0: from the first sample)
+           ("started", 1),  # 1 once the channels are initialised
+           ("head", 1),  # ring buffer position
+           ("buf", 2 * WMAX),  # ring buffers of sin and cos of the fused yaw, WMAX values each
+           start=BASE)
+IQ, IP, IB, IPSI, IMREF, ISTART, IHEAD, IBUF = S.q_up, S.P, S.bias, S.psi, S.mag_ref, S.started, S.head, S.buf
 
 
 @dataclass(frozen=True)
@@ -97,7 +101,21 @@ class AfckfParams(Params):
     kappa_4: float = P(0.02, "-", "κ when the field is disturbed and the gyro near saturation", "assumption")
     iota: float = P(20.0, "samples", "window scale ι of eq 53 (at most 256)", "assumption")
     p0: float = P(1.0, "-", "initial covariance P0 = p0·I ('large', §III AEKF)", "assumption")
-    gravity: float = P(ONE_G, "m/s²", "|g| of eq 15", "standard gravity")
+    gravity: float = P(GRAVITY, "m/s²", "|g| of eq 15", "standard gravity")
+
+
+Record = params_record(AfckfParams)
+Coefficients = namedtuple("Coefficients", ["lam_a", "sa_g", "rho", "lam_m"])
+
+
+def coefficients(p: AfckfParams) -> Coefficients:
+    """Constants of eqs 33, 38, 42 and 49, from the parameters."""
+    return Coefficients(
+        lam_a=p.alpha_a * math.sqrt(3.0) * p.acc_std / p.gravity,  # eq 38, corrected: λ_a
+        sa_g=p.acc_std / p.gravity,  # eq 33: Σ_acc in units of g
+        rho=math.sqrt(0.75) * p.omega_d,  # eq 42: ρ = √(3/4) ω_d
+        lam_m=p.alpha_m * math.sqrt(3.0) * p.mag_std,  # eq 49: λ_m
+    )
 
 
 @njit(cache=True)
@@ -136,11 +154,9 @@ def fuzzy_gain(rho, lam_m, w_abs, w_sat, th_m, th_w, k1, k2, k3, k4):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def afckf_step(x, p, gyr, acc, mag, dt, diag):
-    use_mag = p[0] > 0.0
-    om1, om2, beta, sg, sa, alpha_a, om_d = p[1], p[2], p[3], p[4], p[5], p[6], p[7]
-    sm, alpha_m, mnorm_p, w_sat, th_m, th_w = p[8], p[9], p[10], p[11], p[12], p[13]
-    k1, k2, k3, k4, iota, p0, grav = p[14], p[15], p[16], p[17], p[18], p[19], p[20]
+def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
+    use_mag = p.use_mag
+    om1, om2, beta, sg, grav = p.omega1, p.omega2, p.beta, p.gyro_std, p.gravity
     for i in range(7):
         diag[i] = 0.0
     pending = x[YAW_PENDING] != 0.0
@@ -149,7 +165,7 @@ def afckf_step(x, p, gyr, acc, mag, dt, diag):
     if x[ISTART] == 0.0 or (pending and x[YAW_PENDING] == 0.0):
         # channels start from the initial attitude (or the heading just set by the magnetometer)
         x[IQ:IQ + 4] = _to_up(x[0:4])
-        P0 = np.eye(4) * p0
+        P0 = np.eye(4) * p.p0
         x[IP:IP + 16] = P0.ravel()
         x[IPSI] = q_to_euler(x[0:4])[2]
         s0, c0 = np.sin(x[IPSI]), np.cos(x[IPSI])
@@ -175,12 +191,12 @@ def afckf_step(x, p, gyr, acc, mag, dt, diag):
     nq = np.sqrt(pw * pw + px * px + py * py + pz * pz)
     pw, px, py, pz = pw / nq, px / nq, py / nq, pz / nq
     # eq 31, corrected: P⁻ = P + Δt²/4 σ² Ξ(q) Ξ(q)ᵀ (Φ = Λ = I); Ξ rows of q ⊗ [0, e]
-    c = dt * dt / 4.0 * sg * sg
+    cq = dt * dt / 4.0 * sg * sg
     X0, X1, X2, X3 = (-qx, -qy, -qz), (qw, -qz, qy), (qz, qw, -qx), (-qy, qx, qw)
     Xr = (X0, X1, X2, X3)
     for i in range(4):
         for j in range(4):
-            P[i, j] += c * (Xr[i][0] * Xr[j][0] + Xr[i][1] * Xr[j][1] + Xr[i][2] * Xr[j][2])
+            P[i, j] += cq * (Xr[i][0] * Xr[j][0] + Xr[i][1] * Xr[j][1] + Xr[i][2] * Xr[j][2])
     nw, nx, ny, nz = pw, px, py, pz
     r_off = 1.0
     mu = 0.0
@@ -192,7 +208,7 @@ def afckf_step(x, p, gyr, acc, mag, dt, diag):
         a1 = (acc[1] - wz2 * om2) / grav
         a2 = acc[2] / grav
         xi_a = np.sqrt(a0 * a0 + a1 * a1 + a2 * a2) - 1.0  # eq 36
-        lam_a = alpha_a * np.sqrt(3.0) * sa / grav  # eq 38, corrected
+        lam_a = c.lam_a  # eq 38, corrected
         # B. eqs 21-24: one gradient-descent step, from the gyro prediction q_ω,t (eq 23
         # corrected, see the module doc); f_g of eq 21 and J_g of eq 22 at q_ω
         f0 = 2.0 * (px * pz - pw * py) - a0
@@ -209,7 +225,7 @@ def afckf_step(x, p, gyr, acc, mag, dt, diag):
         mu = beta * qdot_norm * dt  # eq 24
         if abs(xi_a) <= lam_a and gn > 0.0 and mu > 0.0:
             # eq 33, corrected: R = μ²/‖∇f‖² J_gᵀ (Σ_acc/g)² J_g; M = P⁻ + R
-            sa_g = sa / grav
+            sa_g = c.sa_g
             cr = mu * mu / (gn * gn) * sa_g * sa_g
             W = np.empty(48)  # scratch: M, its inverse, K
             M = W[0:16].reshape((4, 4))
@@ -239,7 +255,7 @@ def afckf_step(x, p, gyr, acc, mag, dt, diag):
             r_off = 0.0
             # D. eqs 40-42: bias by integral feedback (sign corrected), from the measured and
             # predicted up directions a_cor and v̂ = Rᵀ ĝ (v̂ = f_g + a_cor)
-            rho = np.sqrt(0.75) * om_d
+            rho = c.rho
             vx, vy, vz = f0 + a0, f1 + a1, f2 + a2
             x[IB] -= rho * (a1 * vz - a2 * vy) * dt
             x[IB + 1] -= rho * (a2 * vx - a0 * vz) * dt
@@ -268,11 +284,12 @@ def afckf_step(x, p, gyr, acc, mag, dt, diag):
     if use_mag and finite3(mag) and norm3(mag) > 0.0:
         mn = norm3(mag)
         if x[IMREF] == 0.0:
-            x[IMREF] = mnorm_p if mnorm_p > 0.0 else mn
-        lam_m = alpha_m * np.sqrt(3.0) * sm  # eq 49
+            x[IMREF] = p.mag_norm if p.mag_norm > 0.0 else mn
+        lam_m = c.lam_m  # eq 49
         rho_m = min(abs(mn - x[IMREF]), lam_m)  # eq 50 (text's definition)
-        w_abs = min(abs(gyr[2]) if finite3(gyr) else 0.0, w_sat)
-        kappa = fuzzy_gain(rho_m, lam_m, w_abs, w_sat, th_m, th_w, k1, k2, k3, k4)
+        w_abs = min(abs(gyr[2]) if finite3(gyr) else 0.0, p.omega_sat)
+        kappa = fuzzy_gain(rho_m, lam_m, w_abs, p.omega_sat, p.theta_m, p.theta_w, p.kappa_1, p.kappa_2, p.kappa_3,
+                           p.kappa_4)
         roll = np.arctan2(r21, r22)
         pitch = np.arcsin(min(1.0, max(-1.0, -r20)))
         psi_m = mag_heading(mag, roll, pitch)  # eqs 44-45, corrected (ν: declination of the run)
@@ -284,7 +301,7 @@ def afckf_step(x, p, gyr, acc, mag, dt, diag):
     x[IBUF + head] = np.sin(psi)
     x[IBUF + WMAX + head] = np.cos(psi)
     x[IHEAD] = (head + 1) % WMAX
-    win = int(round(min(iota, WMAX) * np.exp(-abs(psi_dot))))
+    win = int(round(min(p.iota, WMAX) * np.exp(-abs(psi_dot))))
     win = max(1, min(win, WMAX))
     ss = 0.0
     cs = 0.0
@@ -323,10 +340,10 @@ def fit_centrifugal(gyr, acc, *, min_rate: float = 5.0, gyro_range: float = np.i
 
 
 @njit(cache=True)
-def afckf_run(x, p, dt, gyr, acc, mag, q_out, diag_out):
+def afckf_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
-        afckf_step(x, p, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
+        afckf_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
         q_out[k] = x[0:4]
 
 
@@ -337,7 +354,9 @@ class Afckf(Estimator):
 
     name = "afckf"
     Params = AfckfParams
-    state_size = IBUF + 2 * WMAX
+    Record = Record
+    coefficients = staticmethod(coefficients)
+    state_size = S.end
     diag_names = ("kappa", "mu", "r_off", "window", "bias_x", "bias_y", "bias_z")
     step = staticmethod(afckf_step)
     batch = staticmethod(afckf_run)

@@ -1,9 +1,18 @@
 """What every estimator shares: its parameter record, its state, streaming and batch use.
 
-An estimator module defines a frozen ``Params`` dataclass (unit, default and source in each
-field's metadata), the size of its state, the names of its per-sample diagnostics, a compiled
-``step(x, p, gyr, acc, mag, dt, diag)`` that is its single implementation, a compiled
-``batch`` loop that calls that step for every sample, and a subclass of :class:`Estimator`.
+An estimator module defines (docs/developing.md, adding an estimator):
+
+- a frozen ``Params`` dataclass (unit, default and source in each field's metadata);
+- ``Record = params_record(Params)``: the namedtuple the compiled step reads its parameters
+  from by name (``p.beta``), so the order of the fields never matters;
+- optionally a ``Coefficients`` namedtuple and ``coefficients(params)``: constants derived from
+  the parameters, computed once when the estimator is built, not at every step;
+- its state layout (:func:`quadest.filters.common.layout`), the names of its per-sample
+  diagnostics;
+- a compiled ``step(x, p, c, gyr, acc, mag, dt, diag)`` that is its single implementation, a
+  compiled ``batch`` loop that calls that step for every sample, and a subclass of
+  :class:`Estimator`.
+
 Streaming ``update`` calls the step once; batch ``run`` calls the loop. (Each module has its own
 four-line loop: numba cannot cache one loop that takes the step as an argument.)
 
@@ -15,6 +24,7 @@ the magnetometer correction is skipped for that step.
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
@@ -25,24 +35,39 @@ from quadest.rotation.kernels import qmul
 
 
 def P(default, unit: str, doc: str, source: str):
-    """A parameter: default, unit, meaning and where the default comes from."""
+    """A parameter: default, unit, meaning and where the default comes from (a publication,
+    or "chosen" and why)."""
     return field(default=default, metadata={"unit": unit, "doc": doc, "source": source})
 
 
 @dataclass(frozen=True)
 class Params:
-    """Base of the parameter records; fields are floats (or bools), packed in order."""
-
-    def as_array(self) -> np.ndarray:
-        out = []
-        for f in fields(self):
-            v = getattr(self, f.name)
-            out.extend(np.atleast_1d(np.asarray(v, dtype=float)).ravel().tolist())
-        return np.array(out, dtype=np.float64)
+    """Base of the parameter records; fields are floats or bools."""
 
     @classmethod
     def describe(cls) -> list[dict]:
         return [{"name": f.name, "default": f.default, **f.metadata} for f in fields(cls)]
+
+    def values(self) -> dict:
+        """``{name: value}`` with floats as ``float`` and flags as ``bool`` (the types the
+        compiled step was compiled for)."""
+        return {f.name: (bool(getattr(self, f.name)) if f.type in (bool, "bool") else float(getattr(self, f.name)))
+                for f in fields(self)}
+
+
+def params_record(params_cls, typename: str = "Record"):
+    """The namedtuple type of a parameter record in compiled code, one field per parameter.
+    Assign it at module level under ``typename`` (numba's cache finds it there)."""
+    return namedtuple(typename, [f.name for f in fields(params_cls)], module=params_cls.__module__)
+
+
+NoCoefficients = namedtuple("NoCoefficients", [])
+"""The coefficients of an estimator that derives none."""
+NO_COEFFICIENTS = NoCoefficients()
+
+
+def no_coefficients(params) -> NoCoefficients:
+    return NO_COEFFICIENTS
 
 
 @dataclass
@@ -66,14 +91,16 @@ def _declination_quat(declination):
 
 
 class Estimator:
-    """Base class: subclasses set ``name``, ``Params``, ``state_size``, ``diag_names``,
-    ``step`` (a compiled function) and may override :meth:`_init_state`."""
+    """Base class: subclasses set ``name``, ``Params``, ``Record``, ``state_size``,
+    ``diag_names``, ``step`` and ``batch`` (compiled functions), optionally ``coefficients``,
+    and may override :meth:`_init_state`."""
 
     name = "estimator"
     Params = Params
+    Record = None
+    coefficients = staticmethod(no_coefficients)
     state_size = BASE
     diag_names: tuple = ()
-    uses_mag = True
     step = None
     batch = None
 
@@ -88,10 +115,11 @@ class Estimator:
                                 f"parameters: {', '.join(sorted(names))}")
             params = replace(params, **overrides)
         self.params = params
-        self._p = params.as_array()
+        self._p = self.Record(**params.values())  # read by name in compiled code
+        self._c = type(self).coefficients(params)  # derived once, not at every step
         self.declination = float(declination)
         self._dq = _declination_quat(self.declination) if self.declination != 0.0 else None
-        self._step = type(self).step
+        self._call_step = self._first_step
         self._q0 = None if q0 is None else np.asarray(q0, float) / np.linalg.norm(q0)
         self._diag = np.zeros(max(1, len(self.diag_names)))
         self.reset()
@@ -138,9 +166,20 @@ class Estimator:
     def update(self, gyr, acc, mag=None, *, dt: float) -> np.ndarray:
         """One sample: gyroscope (rad/s), accelerometer (m/s²), magnetometer (any unit or None),
         time since the previous sample (s). Returns the attitude ``q_nb``."""
-        self._step(self._x, self._p, _f64(gyr), _f64(acc), _NAN3 if mag is None else _f64(mag),
-                   float(dt), self._diag)
+        self._call_step(self._x, self._p, self._c, _vec3(gyr), _vec3(acc), _NAN3 if mag is None else _vec3(mag),
+                        float(dt), self._diag)
         return self._out(self._x[:4])
+
+    def _first_step(self, *args):
+        """The first streaming call goes through numba's dispatcher (which compiles or loads the
+        step); later calls go to the compiled entry point of that signature directly, which
+        skips the dispatcher's type resolution (about 2 µs per call for namedtuple arguments).
+        The arguments' types cannot change: the records are this object's, the vectors are
+        checked by :func:`_vec3`, ``dt`` is a float."""
+        step = type(self).step
+        step(*args)
+        sig = tuple(step.typeof_pyval(a) for a in args)
+        self._call_step = step.overloads[sig].entry_point
 
     @property
     def diagnostics(self) -> dict:
@@ -156,8 +195,7 @@ class Estimator:
         n = len(t)
         gyr = np.ascontiguousarray(gyr, dtype=np.float64)
         acc = np.ascontiguousarray(acc, dtype=np.float64)
-        mag = (np.full((n, 3), np.nan) if mag is None or not self.uses_mag
-               else np.ascontiguousarray(mag, dtype=np.float64))
+        mag = np.full((n, 3), np.nan) if mag is None else np.ascontiguousarray(mag, dtype=np.float64)
         for name, a in (("gyr", gyr), ("acc", acc), ("mag", mag)):
             if a.shape != (n, 3):
                 raise ValueError(f"{self.name}: {name} must have shape ({n}, 3), got {a.shape}")
@@ -166,7 +204,7 @@ class Estimator:
             dt[0] = t[0] - self._x[T_LAST]
         q = np.empty((n, 4))
         diag = np.zeros((n, max(1, len(self.diag_names))))
-        type(self).batch(self._x, self._p, dt, gyr, acc, mag, q, diag)
+        type(self).batch(self._x, self._p, self._c, dt, gyr, acc, mag, q, diag)
         if n:
             self._x[T_LAST] = t[-1]
         if self.declination != 0.0:
@@ -179,9 +217,15 @@ _NAN3 = np.full(3, np.nan)
 _F8 = np.dtype(np.float64)
 
 
-def _f64(v):
-    """A float64 array without copying one that already is (the streaming hot path)."""
-    return v if type(v) is np.ndarray and v.dtype is _F8 else np.asarray(v, dtype=np.float64)
+def _vec3(v):
+    """A contiguous float64 vector of three, without copying one that already is (the streaming
+    hot path); anything else is converted, or refused."""
+    if type(v) is np.ndarray and v.dtype is _F8 and v.size == 3 and v.ndim == 1 and v.flags.c_contiguous:
+        return v
+    a = np.ascontiguousarray(v, dtype=np.float64)
+    if a.shape != (3,):
+        raise ValueError(f"expected a vector of 3 values, got shape {a.shape}")
+    return a
 
 
 def sample_intervals(t) -> np.ndarray:

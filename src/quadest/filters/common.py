@@ -1,11 +1,13 @@
 """Compiled pieces shared by the estimators (quadest conventions: NED/FRD, ``q_nb``).
 
-State arrays of every estimator start with the same slots: ``x[0:4]`` the attitude ``q_nb``,
-``x[INIT]`` 1 once the attitude has been initialised, ``x[YAW_PENDING]`` 1 while the heading
-still waits for a first magnetometer sample, ``x[T_LAST]`` the timestamp of the last sample of a
-batch run (NaN before; lets a run resume exactly). Each estimator's own state follows from
-``x[BASE]``.
+State arrays of every estimator start with the same slots (:data:`COMMON`): ``x[0:4]`` the
+attitude ``q_nb``, ``x[INIT]`` 1 once the attitude has been initialised, ``x[YAW_PENDING]`` 1
+while the heading still waits for a first magnetometer sample, ``x[T_LAST]`` the timestamp of
+the last sample of a batch run (NaN before; lets a run resume exactly). Each estimator's own
+state follows from ``x[BASE]``, declared once with :func:`layout`.
 """
+from collections import namedtuple
+
 import numpy as np
 from numba import njit
 
@@ -13,10 +15,26 @@ from numba import njit
 # reassoc, arcp); NaN and Inf keep their meaning (no nnan/ninf), which bad-input handling needs.
 FASTMATH = {"contract", "reassoc", "arcp"}
 
-INIT = 4
-YAW_PENDING = 5
-T_LAST = 6
-BASE = 7
+
+
+def layout(*slots, start: int = 0):
+    """Offsets of the named slots of a state vector, declared once:
+    ``layout(("P", 16), ("bias", 3), start=BASE)`` gives ``.P == BASE``, ``.bias == BASE + 16``
+    and ``.end`` (one past the last slot: the state size). Compiled code reads the offsets as
+    constants (``x[S.bias]``)."""
+    names, offsets = [], []
+    at = start
+    for name, size in slots:
+        if size < 1:
+            raise ValueError(f"slot {name!r}: size must be at least 1, got {size}")
+        names.append(name)
+        offsets.append(at)
+        at += size
+    return namedtuple("Layout", names + ["end"])(*offsets, at)
+
+
+COMMON = layout(("q", 4), ("init", 1), ("yaw_pending", 1), ("t_last", 1))
+INIT, YAW_PENDING, T_LAST, BASE = COMMON.init, COMMON.yaw_pending, COMMON.t_last, COMMON.end
 
 
 @njit(cache=True)

@@ -24,10 +24,12 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from quadest.filters.base import Estimator, P, Params
-from quadest.filters.common import BASE, finite3, norm3, prepare
+from quadest.conventions import GRAVITY
+from quadest.filters.base import Estimator, P, Params, params_record
+from quadest.filters.common import BASE, finite3, layout, norm3, prepare
 
-B = BASE  # gyro bias x[B:B+3], previous gyro sample x[B+3:B+6], have-previous flag x[B+6]
+S = layout(("bias", 3), ("gyr_prev", 3), ("have_prev", 1), start=BASE)
+B, GP, HP = S.bias, S.gyr_prev, S.have_prev
 
 
 @dataclass(frozen=True)
@@ -47,7 +49,10 @@ class ComplementaryParams(Params):
     steady_rate: float = P(0.2, "rad/s", "steady state: |ω − b| below this per axis", "ROS implementation")
     steady_delta: float = P(0.01, "rad/s", "steady state: change of ω below this per axis",
                             "ROS implementation")
-    gravity: float = P(9.80665, "m/s²", "gravity used for the magnitude error", "standard gravity")
+    gravity: float = P(GRAVITY, "m/s²", "gravity used for the magnitude error", "standard gravity")
+
+
+Record = params_record(ComplementaryParams)
 
 
 @njit(cache=True)
@@ -81,10 +86,11 @@ def _to_nav(w, x, y, z, v0, v1, v2):
 
 
 @njit(cache=True)
-def complementary_step(x, p, gyr, acc, mag, dt, diag):
-    use_mag = p[0] > 0.0
-    g_acc, g_mag, adaptive, t1, t2, thr = p[1], p[2], p[3] > 0, p[4], p[5], p[6]
-    bias_on, b_alpha, s_acc, s_rate, s_delta, grav = p[7] > 0, p[8], p[9], p[10], p[11], p[12]
+def complementary_step(x, p, c, gyr, acc, mag, dt, diag):
+    use_mag = p.use_mag
+    g_acc, g_mag, adaptive, t1, t2, thr = p.gain_acc, p.gain_mag, p.adaptive, p.t1, p.t2, p.threshold
+    bias_on, b_alpha, s_acc, s_rate, s_delta, grav = (p.bias_estimation, p.bias_alpha, p.steady_acc, p.steady_rate,
+                                                      p.steady_delta, p.gravity)
     diag[0], diag[1], diag[2], diag[3] = 0.0, x[B], x[B + 1], x[B + 2]
     if not prepare(x, acc, mag, use_mag):
         return
@@ -92,18 +98,18 @@ def complementary_step(x, p, gyr, acc, mag, dt, diag):
     an = norm3(acc) if finite3(acc) else 0.0
     # steady-state gyro bias estimate (section 5.1)
     if bias_on and gyr_ok and an > 0.0:
-        steady = abs(an - grav) < s_acc and x[B + 6] > 0.0
+        steady = abs(an - grav) < s_acc and x[HP] > 0.0
         if steady:
             for i in range(3):
-                if abs(gyr[i] - x[B + 3 + i]) > s_delta or abs(gyr[i] - x[B + i]) > s_rate:
+                if abs(gyr[i] - x[GP + i]) > s_delta or abs(gyr[i] - x[B + i]) > s_rate:
                     steady = False
         if steady:
             for i in range(3):
                 x[B + i] += b_alpha * (gyr[i] - x[B + i])
     if gyr_ok:
         for i in range(3):
-            x[B + 3 + i] = gyr[i]
-        x[B + 6] = 1.0
+            x[GP + i] = gyr[i]
+        x[HP] = 1.0
     qw, qx, qy, qz = x[0], x[1], x[2], x[3]
     # eq 42: prediction, q_nb + ½ q_nb ⊗ [0, ω − b] Δt
     if gyr_ok:
@@ -144,10 +150,10 @@ def complementary_step(x, p, gyr, acc, mag, dt, diag):
     diag[1], diag[2], diag[3] = x[B], x[B + 1], x[B + 2]
 
 @njit(cache=True)
-def complementary_run(x, p, dt, gyr, acc, mag, q_out, diag_out):
+def complementary_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
-        complementary_step(x, p, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
+        complementary_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
         q_out[k] = x[0:4]
 
 
@@ -157,7 +163,8 @@ class Complementary(Estimator):
 
     name = "complementary"
     Params = ComplementaryParams
-    state_size = BASE + 7
+    Record = Record
+    state_size = S.end
     diag_names = ("alpha", "bias_x", "bias_y", "bias_z")
     step = staticmethod(complementary_step)
     batch = staticmethod(complementary_run)

@@ -16,11 +16,11 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from quadest.filters.base import Estimator
-from quadest.filters.common import BASE, FASTMATH, finite3, omega_matrix, prepare
+from quadest.filters.base import Estimator, params_record
+from quadest.filters.common import FASTMATH, finite3, omega_matrix, prepare
 from quadest.filters.linalg import inv_spd, mm, mm_t, mv
 from quadest.filters.quatmeas import measurement_quaternion
-from quadest.filters.qukf import PB, QukfParams, noise
+from quadest.filters.qukf import PB, S, QukfParams, coefficients, noise
 
 
 @dataclass(frozen=True)
@@ -28,17 +28,20 @@ class EkfParams(QukfParams):
     """The QUKF's parameters; λ, α and β are unused."""
 
 
+Record = params_record(EkfParams)
+
+
 @njit(cache=True, fastmath=FASTMATH)
-def ekf_step(x, p, gyr, acc, mag, dt, diag):
-    use_mag = p[0] > 0.0
+def ekf_step(x, p, c, gyr, acc, mag, dt, diag):
+    use_mag = p.use_mag
     diag[0] = 0.0
     if not prepare(x, acc, mag, use_mag):
         return
-    S, R = noise(p, dt)
+    Q, R = noise(p, c, dt)
     P = x[PB:PB + 16].copy().reshape((4, 4))
     F = omega_matrix(gyr, dt) if finite3(gyr) else np.eye(4)
     X = mv(F, x[0:4])
-    P = mm_t(mm(F, P), F) + np.eye(4) * S
+    P = mm_t(mm(F, P), F) + np.eye(4) * Q
     z, ok = measurement_quaternion(acc, mag, X, use_mag)
     if ok:
         K = mm(P, inv_spd(P + np.eye(4) * R))
@@ -53,10 +56,10 @@ def ekf_step(x, p, gyr, acc, mag, dt, diag):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def ekf_run(x, p, dt, gyr, acc, mag, q_out, diag_out):
+def ekf_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
-        ekf_step(x, p, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
+        ekf_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
         q_out[k] = x[0:4]
 
 
@@ -65,7 +68,9 @@ class Ekf(Estimator):
 
     name = "ekf"
     Params = EkfParams
-    state_size = BASE + 16
+    Record = Record
+    coefficients = staticmethod(coefficients)
+    state_size = S.end
     diag_names = ("updated", "trace_p")
     step = staticmethod(ekf_step)
     batch = staticmethod(ekf_run)

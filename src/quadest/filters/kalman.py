@@ -23,21 +23,24 @@ The paper's numerical noise values are not reproduced here (its text is not amon
 sources); the defaults below are stated per sample for the ``bebop2`` sensors and are
 documented as assumptions.
 """
+from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
-from quadest.filters.base import Estimator, P, Params
-from quadest.filters.common import BASE, FASTMATH, finite3, norm3, prepare
+from quadest.conventions import GRAVITY
+from quadest.filters.base import Estimator, P, Params, params_record
+from quadest.filters.common import BASE, FASTMATH, finite3, layout, norm3, prepare
 from quadest.filters.linalg import inv_spd, mm, mm_t, mv
 
-IB = BASE  # gyro bias (3)
-ID = BASE + 3  # magnetic disturbance, navigation frame, in reference-field units (3)
-IREF = BASE + 6  # unit reference field, navigation frame (3)
-INORM = BASE + 9  # reference field norm in the magnetometer's unit (0: not yet set)
-IP = BASE + 10  # covariance, 81 values
-SIZE = IP + 81
+S = layout(("bias", 3),  # gyro bias, rad/s
+           ("dist", 3),  # magnetic disturbance, navigation frame, in reference-field units
+           ("ref", 3),  # unit reference field, navigation frame
+           ("norm", 1),  # reference field norm in the magnetometer's unit (0: not yet set)
+           ("P", 81),  # error covariance (orientation, bias, disturbance), row-major
+           start=BASE)
+IB, ID, IREF, INORM, IP = S.bias, S.dist, S.ref, S.norm, S.P
 
 
 @dataclass(frozen=True)
@@ -53,9 +56,19 @@ class KalmanParams(Params):
                         "assumption, chosen on simulator seed 11")
     dist_tau_s: float = P(0.2, "s", "correlation time τ_d of the magnetic disturbance",
                           "assumption, chosen on simulator seed 11")
-    gravity: float = P(9.80665, "m/s²", "gravity", "standard gravity")
+    gravity: float = P(GRAVITY, "m/s²", "gravity", "standard gravity")
     p0_att: float = P(0.01, "rad²", "initial orientation error variance", "assumption")
     p0_bias: float = P(1e-4, "(rad/s)²", "initial gyro bias variance", "assumption")
+
+
+Record = params_record(KalmanParams)
+Coefficients = namedtuple("Coefficients", ["r_acc", "r_mag"])
+
+
+def coefficients(p: KalmanParams) -> Coefficients:
+    """Measurement noise variances: accelerometer (white noise plus unmodelled acceleration)
+    and magnetometer."""
+    return Coefficients(r_acc=p.acc_noise * p.acc_noise + p.lin_acc * p.lin_acc, r_mag=p.mag_noise * p.mag_noise)
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -114,9 +127,9 @@ def _update(x, P, r, H, Rm, v_free, constrain):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def kalman_step(x, p, gyr, acc, mag, dt, diag):
-    use_mag = p[0] > 0.0
-    sg, sb, sa, sl, sm, sd, tau, grav = p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8]
+def kalman_step(x, p, c, gyr, acc, mag, dt, diag):
+    use_mag = p.use_mag
+    sg, sb, sd, tau, grav = p.gyro_noise, p.bias_rw, p.dist_std, p.dist_tau_s, p.gravity
     diag[0] = diag[4] = 0.0
     if not prepare(x, acc, mag, use_mag):
         return
@@ -150,7 +163,7 @@ def kalman_step(x, p, gyr, acc, mag, dt, diag):
         # quadest's extension for 6-axis use (docs/estimators.md): without a magnetometer the
         # heading and the bias about the vertical are unobservable, and the accelerometer must
         # not correct them through their correlation with tilt (it drove the heading away)
-        _update(x, P, r, H, np.eye(3) * (sa * sa + sl * sl), v, not use_mag or x[INORM] == 0.0)
+        _update(x, P, r, H, np.eye(3) * c.r_acc, v, not use_mag or x[INORM] == 0.0)
         diag[0] = 1.0
     # -- magnetometer: m/|m_ref| = Rᵀ (m_ref + d) ----------------------------------------------
     if use_mag and finite3(mag) and norm3(mag) > 0.0:
@@ -176,7 +189,7 @@ def kalman_step(x, p, gyr, acc, mag, dt, diag):
             H = np.zeros((3, 9))
             H[:, 0:3] = _skew(h)
             H[:, 6:9] = R.T
-            _update(x, P, r, H, np.eye(3) * sm * sm, h, False)
+            _update(x, P, r, H, np.eye(3) * c.r_mag, h, False)
             diag[4] = 1.0
     x[IP:IP + 81] = (0.5 * (P + P.T)).ravel()
     diag[1], diag[2], diag[3] = x[IB], x[IB + 1], x[IB + 2]
@@ -184,10 +197,10 @@ def kalman_step(x, p, gyr, acc, mag, dt, diag):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def kalman_run(x, p, dt, gyr, acc, mag, q_out, diag_out):
+def kalman_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
-        kalman_step(x, p, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
+        kalman_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
         q_out[k] = x[0:4]
 
 
@@ -197,7 +210,9 @@ class Kalman(Estimator):
 
     name = "kalman"
     Params = KalmanParams
-    state_size = SIZE
+    Record = Record
+    coefficients = staticmethod(coefficients)
+    state_size = S.end
     diag_names = ("acc_update", "bias_x", "bias_y", "bias_z", "mag_update", "disturbance")
     step = staticmethod(kalman_step)
     batch = staticmethod(kalman_run)

@@ -11,12 +11,13 @@ form of the rotation and its 4-D gradient is normalised including its radial par
 rewrite that is equal on the unit sphere takes slightly different steps (0.25° apart after 20 s).
 ahrs's implementation of the paper gives the same attitude in NWU (tested to 1e-9 rad).
 """
+from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
-from quadest.filters.base import Estimator, P, Params
+from quadest.filters.base import Estimator, P, Params, params_record
 from quadest.filters.common import BASE, finite3, norm3, prepare
 
 
@@ -29,13 +30,22 @@ class MadgwickParams(Params):
                         "Madgwick 2010 report / reference implementation")
 
 
+Record = params_record(MadgwickParams)
+Coefficients = namedtuple("Coefficients", ["beta"])
+
+
+def coefficients(params: MadgwickParams) -> Coefficients:
+    """β of the form in use (MARG with the magnetometer, IMU without)."""
+    return Coefficients(float(params.beta_marg if params.use_mag else params.beta_imu))
+
+
 @njit(cache=True)
-def madgwick_step(x, p, gyr, acc, mag, dt, diag):
-    use_mag = p[0] > 0.0
+def madgwick_step(x, p, c, gyr, acc, mag, dt, diag):
+    use_mag = p.use_mag
     diag[0] = 0.0
     if not prepare(x, acc, mag, use_mag):
         return
-    beta = p[1] if use_mag else p[2]
+    beta = c.beta
     # the paper's z-up frame: q' = q_F ⊗ q_nb = [−x, w, −z, y]
     qw, qx, qy, qz = -x[1], x[0], -x[3], x[2]
     # eq 12: q̇_ω = ½ q ⊗ [0, ω]
@@ -91,10 +101,10 @@ def madgwick_step(x, p, gyr, acc, mag, dt, diag):
 
 
 @njit(cache=True)
-def madgwick_run(x, p, dt, gyr, acc, mag, q_out, diag_out):
+def madgwick_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
-        madgwick_step(x, p, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
+        madgwick_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
         q_out[k] = x[0:4]
 
 
@@ -104,6 +114,8 @@ class Madgwick(Estimator):
 
     name = "madgwick"
     Params = MadgwickParams
+    Record = Record
+    coefficients = staticmethod(coefficients)
     state_size = BASE
     diag_names = ("correction",)
     step = staticmethod(madgwick_step)

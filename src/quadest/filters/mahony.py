@@ -16,10 +16,11 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from quadest.filters.base import Estimator, P, Params
-from quadest.filters.common import BASE, finite3, norm3, prepare
+from quadest.filters.base import Estimator, P, Params, params_record
+from quadest.filters.common import BASE, finite3, layout, norm3, prepare
 
-B = BASE  # gyro bias estimate x[B:B+3]
+S = layout(("bias", 3), start=BASE)  # gyro bias estimate
+B = S.bias
 
 
 @dataclass(frozen=True)
@@ -30,10 +31,13 @@ class MahonyParams(Params):
                    "Mahony et al. 2008, experiments (k_I = 0.3)")
 
 
+Record = params_record(MahonyParams)
+
+
 @njit(cache=True)
-def mahony_step(x, p, gyr, acc, mag, dt, diag):
-    use_mag = p[0] > 0.0
-    kp, ki = p[1], p[2]
+def mahony_step(x, p, c, gyr, acc, mag, dt, diag):
+    use_mag = p.use_mag
+    kp, ki = p.k_p, p.k_i
     diag[0], diag[1], diag[2], diag[3] = x[B], x[B + 1], x[B + 2], 0.0
     if not prepare(x, acc, mag, use_mag):
         return
@@ -88,10 +92,10 @@ def mahony_step(x, p, gyr, acc, mag, dt, diag):
 
 
 @njit(cache=True)
-def mahony_run(x, p, dt, gyr, acc, mag, q_out, diag_out):
+def mahony_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
-        mahony_step(x, p, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
+        mahony_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
         q_out[k] = x[0:4]
 
 
@@ -101,7 +105,8 @@ class Mahony(Estimator):
 
     name = "mahony"
     Params = MahonyParams
-    state_size = BASE + 3
+    Record = Record
+    state_size = S.end
     diag_names = ("bias_x", "bias_y", "bias_z", "correction")
     step = staticmethod(mahony_step)
     batch = staticmethod(mahony_run)

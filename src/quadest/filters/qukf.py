@@ -16,17 +16,19 @@ interval ``dt`` quadest uses ``S·dt/T`` and ``R·T/dt`` with ``T = 1/rate_ref_h
 keeps the paper's time constants at any rate (``scale_with_rate=False`` takes them as they are).
 The state is renormalised after each update (section IV).
 """
+from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
-from quadest.filters.base import Estimator, P, Params
-from quadest.filters.common import BASE, FASTMATH, finite3, omega_matrix, prepare
+from quadest.filters.base import Estimator, P, Params, params_record
+from quadest.filters.common import BASE, FASTMATH, finite3, layout, omega_matrix, prepare
 from quadest.filters.linalg import inv_spd_into
 from quadest.filters.quatmeas import measurement_quaternion
 
-PB = BASE  # covariance P, 16 values, row-major
+S = layout(("P", 16), start=BASE)  # covariance P, row-major
+PB = S.P
 
 
 @dataclass(frozen=True)
@@ -42,13 +44,26 @@ class QukfParams(Params):
     scale_with_rate: bool = P(True, "-", "scale s by dt/T and r by T/dt", "quadest (see module doc)")
 
 
+Record = params_record(QukfParams)
+Coefficients = namedtuple("Coefficients", ["wm0", "wc0", "wi", "T"])
+
+
+def coefficients(p: QukfParams) -> Coefficients:
+    """Eq 21, corrected: the unscented weights ``w_m0 = λ/(n+λ)``, ``w_c0 = w_m0 + 1 − α² + β``,
+    ``w_i = 1/(2(n+λ))`` (n = 4); and the reference step ``T = 1/rate_ref_hz``."""
+    n = 4
+    wm0 = p.lam / (n + p.lam)
+    return Coefficients(wm0=wm0, wc0=wm0 + 1.0 - p.alpha * p.alpha + p.beta, wi=1.0 / (2.0 * (n + p.lam)),
+                        T=1.0 / p.rate_ref_hz)
+
+
 @njit(cache=True, fastmath=FASTMATH)
-def noise(p, dt):
-    """Per-step S and R at interval dt (module doc)."""
-    if p[8] > 0.0 and dt > 0.0:
-        T = 1.0 / p[7]
-        return p[4] * dt / T, p[5] * T / dt
-    return p[4], p[5]
+def noise(p, c, dt):
+    """Per-step process and measurement noise (the paper's S and R; Q and R here) at interval
+    dt (module doc)."""
+    if p.scale_with_rate and dt > 0.0:
+        return p.s * dt / c.T, p.r * c.T / dt
+    return p.s, p.r
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -110,14 +125,13 @@ def _ut_cov(A, ma, B, mb, w0, wi, C):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def qukf_step(x, p, gyr, acc, mag, dt, diag):
-    use_mag = p[0] > 0.0
+def qukf_step(x, p, c, gyr, acc, mag, dt, diag):
+    use_mag = p.use_mag
     diag[0] = 0.0
     if not prepare(x, acc, mag, use_mag):
         return
     n = 4
-    lam, alpha, beta = p[1], p[2], p[3]
-    S, R = noise(p, dt)
+    Q, R = noise(p, c, dt)
     P = x[PB:PB + 16].reshape((4, 4))  # a view: updated in place
     W = np.empty(2 * 36 + 7 * 16 + 8)  # one scratch buffer for every intermediate
     chi = W[0:36].reshape((9, 4))
@@ -131,12 +145,9 @@ def qukf_step(x, p, gyr, acc, mag, dt, diag):
     Minv = W[168:184].reshape((4, 4))
     Xp = W[184:188]
     Zh = W[188:192]
-    # eq 21, corrected: w_m0 = λ/(n+λ), w_c0 = w_m0 + 1 − α² + β, w_i = 1/(2(n+λ))
-    wm0 = lam / (n + lam)
-    wc0 = wm0 + 1.0 - alpha * alpha + beta
-    wi = 1.0 / (2.0 * (n + lam))
+    wm0, wc0, wi = c.wm0, c.wc0, c.wi  # eq 21, corrected (coefficients)
     # eq 20: 2n + 1 sigma points; eq 22: through the process model F = I + T/2 Ω(ω)
-    _chol_scaled(P, n + lam, L)
+    _chol_scaled(P, n + p.lam, L)
     _sigma(x[0:4], L, sig)
     if finite3(gyr):
         F = omega_matrix(gyr, dt)
@@ -149,10 +160,10 @@ def qukf_step(x, p, gyr, acc, mag, dt, diag):
     _ut_mean(chi, wm0, wi, Xp)
     _ut_cov(chi, Xp, chi, Xp, wc0, wi, Pp)
     for i in range(4):
-        Pp[i, i] += S
+        Pp[i, i] += Q
     z, ok = measurement_quaternion(acc, mag, Xp, use_mag)
     if ok:
-        _chol_scaled(Pp, n + lam, L)
+        _chol_scaled(Pp, n + p.lam, L)
         _sigma(Xp, L, sig)  # eq 25; eq 26: Z_i = H X̃_i = X̃_i
         _ut_mean(sig, wm0, wi, Zh)  # eq 27
         _ut_cov(sig, Zh, sig, Zh, wc0, wi, Pzz)  # eq 28
@@ -189,10 +200,10 @@ def qukf_step(x, p, gyr, acc, mag, dt, diag):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def qukf_run(x, p, dt, gyr, acc, mag, q_out, diag_out):
+def qukf_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
-        qukf_step(x, p, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
+        qukf_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
         q_out[k] = x[0:4]
 
 
@@ -201,7 +212,9 @@ class Qukf(Estimator):
 
     name = "qukf"
     Params = QukfParams
-    state_size = BASE + 16
+    Record = Record
+    coefficients = staticmethod(coefficients)
+    state_size = S.end
     diag_names = ("updated", "trace_p")
     step = staticmethod(qukf_step)
     batch = staticmethod(qukf_run)
