@@ -144,7 +144,7 @@ def test_centrifugal_refuses_no_spin():
 
 
 def test_aero_is_fit_aero():
-    from quadest.recovery.aero import fit_aero
+    from quadest.models.aero import fit_aero
 
     recs = [simulate("throw", "fma", seed=s, duration=4.0) for s in (1, 2)]
     cal = calibrate("aero", recs)

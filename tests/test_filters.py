@@ -105,7 +105,7 @@ def test_converges_on_noise_free_data(calm, name):
 @pytest.fixture(scope="module")
 def centrifugal():
     """Eq 13's constants from a separate ideal calibration flight (seed 1000)."""
-    from quadest.filters.afckf import fit_centrifugal
+    from quadest.calibration.fit import fit_centrifugal
     cal = simulate("damaged-rotor", "bebop2", seed=1000, ideal=True)
     o1, o2, _ = fit_centrifugal(cal.gyr[cal.t > 7.5], cal.acc[cal.t > 7.5])
     return {"omega1": o1, "omega2": o2}
@@ -141,7 +141,7 @@ def test_kalman_six_axis_heading_does_not_run_away_in_manoeuvres(seed):
     (quadest's 6-axis constraint). What remains is the uncorrected vertical bias: its turn-on
     σ 0.005 rad/s integrates to at most about 11° over 40 s. As published (no constraint) the
     yaw RMS was 38° and 64° on these seeds."""
-    from quadest.evaluation.benchmark import evaluate
+    from quadest.evaluation.runner import score as evaluate
 
     rec = simulate("nominal", "bebop2", seed=seed, duration=40, overrides={"mag.rate_hz": 0.0})
     s = evaluate(rec, make_filter("kalman").run(rec).q, nav="heading")
@@ -218,23 +218,34 @@ def test_gyro_saturation_leaves_filters_finite(name):
 
 # -- Jacobians and corrected equations -------------------------------------------------------------
 def test_madgwick_and_afckf_gravity_jacobian_is_exact():
-    """J_g of eq 22 (AFCKF) / eq 25 (Madgwick) is the derivative of f_g of eq 21."""
+    """J_g of eq 22 (AFCKF) / eq 25 (Madgwick), as both steps compute it
+    (``common.gravity_objective``), is the derivative of the f_g they compute, and f_g is
+    ``R(q)ᵀ [0, 0, 1] − a`` for unit q (checked against scipy)."""
+    from quadest.filters.common import gravity_objective
     rng = np.random.default_rng(0)
     a = np.array([0.1, -0.2, 0.97])
 
     def f(q):
-        w, x, y, z = q
-        return np.array([2 * (x * z - w * y) - a[0], 2 * (w * x + y * z) - a[1], 2 * (0.5 - x * x - y * y) - a[2]])
+        return np.array(gravity_objective(*q, *a)[:3])
     for _ in range(5):
         q = rng.normal(size=4)
-        w, x, y, z = q
-        J = np.array([[-2 * y, 2 * z, -2 * w, 2 * x], [2 * x, 2 * w, 2 * z, 2 * y], [0, -4 * x, -4 * y, 0]])
+        J = np.array(gravity_objective(*q, *a)[3:])
         fd = np.column_stack([(f(q + h) - f(q - h)) / 2e-6 for h in np.eye(4) * 1e-6])
         np.testing.assert_allclose(J, fd, atol=1e-8)
+        qu = q / np.linalg.norm(q)
+        want = Rotation.from_quat(qu, scalar_first=True).inv().apply([0, 0, 1.0]) - a
+        np.testing.assert_allclose(f(qu), want, atol=1e-12)
 
 
 def test_kalman_jacobians_against_finite_differences():
-    from quadest.filters.kalman import _qexp_mul, _rot, _skew
+    """The Jacobians the Kalman step builds from the shared kernels (rot_matrix, skew,
+    qexp_right: tests/test_rotation.py checks them against scipy) against finite differences."""
+    from quadest.rotation.kernels import qexp_right, rot_matrix as _rot, skew as _skew
+
+    def _qexp_mul(q, v):
+        out = np.array(q, float)
+        qexp_right(out, *v)
+        return out
     rng = np.random.default_rng(1)
     eps = 1e-6
     for _ in range(5):
@@ -269,18 +280,22 @@ def test_ekf_transition_is_the_process_jacobian():
 
 
 def test_afckf_process_noise_eq31():
-    """q ⊗ [0, e] = Ξ(q) e, so cov(½ q ⊗ [0, e_ω] Δt) = Δt²/4 Ξ Σ² Ξᵀ (eq 31 corrected)."""
-    from quadest.filters.common import xi
+    """q ⊗ [0, e] = Ξ(q) e, so cov(½ q ⊗ [0, e_ω] Δt) = Δt²/4 Ξ Σ² Ξᵀ (eq 31 corrected): the
+    step's own ``add_process_noise`` against a Monte Carlo covariance of that noise."""
+    from quadest.filters.afckf import add_process_noise, xi_rows
     rng = np.random.default_rng(2)
     q, e = rng.normal(size=4), rng.normal(size=3)
-    np.testing.assert_allclose(xi(q) @ e, quat_mul(q, np.concatenate([[0.0], e])), atol=1e-15)
+    np.testing.assert_allclose(np.array(xi_rows(*q)) @ e, quat_mul(q, np.concatenate([[0.0], e])), atol=1e-15)
     sig, dt = 0.01, 0.002
     n = 20000
     e = sig * rng.normal(size=(n, 3))
     samples = 0.5 * dt * quat_mul(np.broadcast_to(q, (n, 4)), np.column_stack([np.zeros(n), e]))
-    want = dt * dt / 4 * xi(q) @ xi(q).T * sig * sig
+    P0 = np.diag([1.0, 2.0, 3.0, 4.0])
+    P = P0.copy()
+    add_process_noise(P, *q, dt * dt / 4 * sig * sig)
     # Monte Carlo: 5 standard errors of a sample covariance, ~σ²√(2/n)
-    np.testing.assert_allclose(np.cov(samples.T), want, atol=5 * np.abs(want).max() * np.sqrt(2 / n))
+    want = np.cov(samples.T)
+    np.testing.assert_allclose(P - P0, want, atol=5 * np.abs(want).max() * np.sqrt(2 / n))
 
 
 def test_qukf_measurement_quaternion_is_exact_on_clean_samples():
@@ -302,9 +317,12 @@ def test_qukf_measurement_quaternion_is_exact_on_clean_samples():
 
 
 def test_qukf_weights_sum_to_one_and_qukf_equals_ekf():
-    """With the corrected eq 21 weights the UT is exact for the linear model: QUKF = EKF."""
-    lam, n = -1.0, 4
-    assert lam / (n + lam) + 2 * n / (2 * (n + lam)) == pytest.approx(1.0)
+    """With the corrected eq 21 weights (the coefficients the step uses) the mean weights sum to
+    one and the UT is exact for the linear model: QUKF = EKF."""
+    from quadest.filters.qukf import QukfParams, coefficients
+    for lam in (-1.0, 0.5, 2.0):
+        c = coefficients(QukfParams(lam=lam))
+        assert c.wm0 + 2 * 4 * c.wi == pytest.approx(1.0, abs=1e-15)
     rec = simulate("nominal", "lowcost-20hz", seed=3, duration=30)
     a = make_filter("qukf").run(rec).q
     b = make_filter("ekf").run(rec).q
@@ -356,7 +374,7 @@ def test_afckf_tracks_a_spinning_vehicle_eq23(centrifugal):
 
 
 def test_fit_centrifugal_recovers_the_lever_arm():
-    from quadest.filters.afckf import fit_centrifugal
+    from quadest.calibration.fit import fit_centrifugal
     rec = simulate("damaged-rotor", "bebop2", seed=1000, ideal=True, overrides={"damaged.tilt_deg": 0.0})
     o1, o2, res = fit_centrifugal(rec.gyr[rec.t > 7.5], rec.acc[rec.t > 7.5])
     # f = ω × (ω × r): for spin about body z, the x/y specific force is −ω² r_xy
@@ -367,7 +385,7 @@ def test_fit_centrifugal_recovers_the_lever_arm():
 
 # -- small linear algebra --------------------------------------------------------------------------
 def test_linalg_kernels_match_numpy():
-    from quadest.filters.linalg import cholesky, inv_spd, inv_spd_into, mm, mm_t, mv
+    from quadest.filters.linalg import inv_spd, inv_spd_into, mm, mm_t, mv
     rng = np.random.default_rng(4)
     for n in (3, 4, 9):
         A, B = rng.normal(size=(n, n)), rng.normal(size=(n, 5))
@@ -379,4 +397,27 @@ def test_linalg_kernels_match_numpy():
         out = np.empty((n, n))
         inv_spd_into(S.copy(), out)
         np.testing.assert_allclose(out, np.linalg.inv(S), atol=1e-10)
-        np.testing.assert_allclose(cholesky(S), np.linalg.cholesky(S), atol=1e-10)
+
+
+def test_streaming_takes_any_vector_and_refuses_wrong_shapes():
+    """After the first call, update() goes to the compiled entry point directly; inputs of other
+    types or layouts are converted first (a strided view, a list, float32), never passed raw,
+    and a wrong shape is refused. A pickled estimator streams on where it stopped."""
+    import pickle
+
+    rng = np.random.default_rng(5)
+    gyr, acc, mag = rng.normal(size=(3, 20, 3))
+    acc = acc + [0.0, 0.0, -9.8]
+    mag = (mag + [20.0, 0.0, 40.0]).astype(np.float32)  # given as float32 below
+    ref = make_filter("afckf")
+    want = [ref.update(gyr[k], acc[k], mag[k].astype(np.float64), dt=0.01) for k in range(20)]
+    other = make_filter("afckf")
+    wide = np.zeros((20, 6))
+    wide[:, ::2] = gyr
+    for k in range(20):
+        if k == 10:
+            other = pickle.loads(pickle.dumps(other))
+        got = other.update(wide[k, ::2], list(acc[k]), mag[k], dt=np.float64(0.01))
+        np.testing.assert_array_equal(got, want[k])
+    with pytest.raises(ValueError, match="vector of 3"):
+        other.update(gyr[0][:2], acc[0], dt=0.01)

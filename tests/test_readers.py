@@ -50,10 +50,11 @@ def test_generic_csv_with_units_frames_and_order(tmp_path, flight):
     opts = ["--format", "csv", "--map", "t=time_ms", "--map", "gyr=gx,gy,gz", "--map", "acc=ax,ay,az",
             "--map", "mag=mx,my,mz", "--map", "true_q=qx,qy,qz,qw", "--units", "t=ms", "--units", "gyr=deg/s",
             "--units", "acc=g", "--units", "mag=gauss", "--frame", "enu-flu", "--quat-order", "xyzw"]
-    from quadest.cli.main import _read, build_parser
+    from quadest.cli.common import read
+    from quadest.cli.main import build_parser
 
     args = build_parser().parse_args(["info", str(p), *opts])
-    rec = _read(args, p)
+    rec = read(args, p)
     _same(rec, flight, tol=1e-9)
     assert np.allclose(rec.mag, flight.mag, atol=1e-9)
     assert rec.meta["t0_s"] == pytest.approx(100.0)
@@ -394,7 +395,7 @@ def test_real_broad_movement_phases():
 
     with h5py.File(DATA / "broad/05_undisturbed_slow_rotation_with_breaks_B.hdf5") as f:
         move = f["movement"][()]
-    from quadest.evaluation.benchmark import evaluation_mask
+    from quadest.evaluation.runner import evaluation_mask
 
     assert np.array_equal(evaluation_mask(rec), move)
     assert len(rec.meta["evaluate_intervals_s"]) > 1  # breaks split the movement

@@ -3,12 +3,12 @@ import numpy as np
 import pytest
 
 from quadest.recovery import AeroModel, RecoveryParams, fit_aero, min_angle, recover, spread_points
-from quadest.recovery.bank import _aero, bank_step, gravity_body
+from quadest.recovery.bank import BankRecord, _aero, bank_step, gravity_body
 from quadest.recovery.logic import shortest_arc, true_gravity_dir
 from quadest.rotation import quat_conj, quat_from_rotvec, quat_mul, quat_rotate
-from quadest.sim import build_config, simulate
+from quadest.sim import aero_model, build_config, simulate
 
-MODEL = AeroModel.from_config(build_config("fma"))
+MODEL = aero_model(build_config("fma"))
 
 
 # -- hypotheses on the sphere ---------------------------------------------------------------------
@@ -120,7 +120,7 @@ def test_transition_matrix_eqs40_44_against_finite_differences():
     # and the compiled propagation of P agrees with F P Fᵀ + Q (no measurement: infinite noise)
     P0 = np.diag([1.0, 2.0, 3.0, 0.1, 0.2])
     V, Qr, P, L = v[None].copy(), q_ref[None].copy(), P0[None].copy(), np.zeros(1)
-    prm = np.array([9.80665, MODEL.mass_kg, 1e30, 1e30, 1e30, 0.0, 0.0])
+    prm = BankRecord(gravity=9.80665, mass=MODEL.mass_kg, acc_var=1e30, q_vel=0.0, q_att=0.0)
     bank_step(V, Qr, P, L, w.copy(), w, np.zeros(3), dt, prm, MODEL.A, MODEL.B, MODEL.C)
     np.testing.assert_allclose(P[0], F @ P0 @ F.T, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(V[0], _prior(v, q_ref, np.zeros(2), w, dt)[:3], atol=1e-12)
@@ -181,7 +181,7 @@ def test_probabilities_stay_normalised_and_finite_over_a_million_steps():
             acc[2] -= 3.0
             bank_step(V, Qr, P, L, w, gyr, acc, 1e-3, prm, A, B, C)
             if k % 1000 == 0:
-                summarize(Qr, L, prm[0], prob, gd)
+                summarize(Qr, L, prm.gravity, prob, gd)
                 worst = max(worst, abs(prob.sum() - 1.0))
         return worst
 
@@ -191,7 +191,7 @@ def test_probabilities_stay_normalised_and_finite_over_a_million_steps():
     Qr = np.array([shortest_arc(d) for d in dirs])
     P = np.repeat(np.diag([9.0, 9, 9, 1, 1])[None], H, axis=0)
     L = np.zeros(H)
-    worst = run(V, Qr, P, L, np.zeros(3), 1_000_000, RecoveryParams().as_array(0.5), MODEL.A, MODEL.B, MODEL.C, 3)
+    worst = run(V, Qr, P, L, np.zeros(3), 1_000_000, RecoveryParams().bank_record(0.5), MODEL.A, MODEL.B, MODEL.C, 3)
     assert worst < 1e-12
     assert np.isfinite(L).all() and L.max() == 0.0 and np.isfinite(P).all() and np.isfinite(V).all()
 

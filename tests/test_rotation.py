@@ -123,8 +123,28 @@ def test_compiled_kernels_match(quats, rng):
         np.testing.assert_allclose(K.qrotate_inv(quats[i], v[i]),
                                    R.quat_rotate(R.quat_conj(quats[i]), v[i]), atol=1e-14)
         np.testing.assert_allclose(K.qexp(v[i]), R.quat_from_rotvec(v[i]), atol=1e-15)
-    np.testing.assert_allclose(K.qnormalize(np.array([2.0, 0, 0, 0])), [1, 0, 0, 0])
-    np.testing.assert_allclose(K.qnormalize(np.zeros(4)), [1, 0, 0, 0])
+
+
+def test_shared_step_kernels_match(quats, rng):
+    """The scalar kernels every compiled step uses, each against quadest.rotation (which
+    tests/test_rotation.py holds against scipy)."""
+    v, w = rng.normal(size=(N, 3)), rng.normal(size=(N, 3))
+    for i in range(50):
+        q = quats[i]
+        np.testing.assert_allclose(K.rotate_s(*q, *v[i]), R.quat_rotate(q, v[i]), atol=1e-14)
+        np.testing.assert_allclose(K.rotate_inv_s(*q, *v[i]), R.quat_rotate(R.quat_conj(q), v[i]), atol=1e-14)
+        np.testing.assert_allclose(K.rot_matrix(q), R.quat_to_matrix(q), atol=1e-15)
+        np.testing.assert_allclose(K.skew(v[i]) @ w[i], np.cross(v[i], w[i]), atol=1e-14)
+        # q̇ = ½ q ⊗ [0, ω]
+        np.testing.assert_allclose(K.qdot_s(*q, *w[i]), 0.5 * R.quat_mul(q, np.concatenate([[0.0], w[i]])),
+                                   atol=1e-15)
+        np.testing.assert_allclose(K.normalize_s(*(3.0 * q)), q, atol=1e-15)
+        # q ⊗ Exp(rv), small and large angles
+        for rv in (w[i], 1e-8 * w[i]):
+            got = q.copy()
+            K.qexp_right(got, *rv)
+            want = R.quat_mul(q, R.quat_from_rotvec(rv))
+            assert abs(np.dot(got, want)) == pytest.approx(1.0, abs=1e-15)
 
 
 def test_normalize_rejects_zero():

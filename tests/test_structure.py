@@ -3,7 +3,7 @@ name, and the packages import in one direction (docs/developing.md)."""
 import ast
 import json
 import os
-import re
+
 import shutil
 import subprocess
 import sys
@@ -36,15 +36,23 @@ def _copy_package(tmp_path) -> Path:
     return dst
 
 
-def _run_copy(pkg: Path, names: str, cache_home: Path) -> dict:
+def _start_copy(pkg: Path, names: str, cache_home: Path) -> subprocess.Popen:
     env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "QUADEST_NUMBA_CACHE_DIR")}
     env.update(PYTHONPATH=str(pkg.parent), XDG_CACHE_HOME=str(cache_home))
-    out = subprocess.run([sys.executable, "-c", SCRIPT, names], env=env, capture_output=True, text=True,
-                         timeout=600)
-    assert out.returncode == 0, out.stderr
-    res = json.loads(out.stdout.strip().splitlines()[-1])
+    return subprocess.Popen([sys.executable, "-c", SCRIPT, names], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+
+
+def _result(proc: subprocess.Popen, pkg: Path) -> dict:
+    out, err = proc.communicate(timeout=600)
+    assert proc.returncode == 0, err
+    res = json.loads(out.strip().splitlines()[-1])
     assert Path(res["file"]).resolve().is_relative_to(pkg), res["file"]  # the copy, not the repository
     return res
+
+
+def _run_copy(pkg: Path, names: str, cache_home: Path) -> dict:
+    return _result(_start_copy(pkg, names, cache_home), pkg)
 
 
 def _edit(path: Path, old: str, new: str):
@@ -56,19 +64,28 @@ def _edit(path: Path, old: str, new: str):
 NAMED = "madgwick,afckf,complementary,kalman,qukf"
 
 
+PARAMS_CLASSES = (("madgwick", "MadgwickParams"), ("afckf", "AfckfParams"), ("complementary", "ComplementaryParams"),
+                  ("kalman", "KalmanParams"), ("qukf", "QukfParams"))
+
+
 @pytest.fixture(scope="module")
 def copied(tmp_path_factory):
-    """A copy of the package, its cache folder and the unmodified copy's estimates."""
+    """A copy of the package, its cache folder and the unmodified copy's estimates; and a second
+    copy whose parameter records declare their fields in reverse order, with its estimates (both
+    compile from nothing, so they run side by side)."""
     tmp = tmp_path_factory.mktemp("copy")
     pkg = _copy_package(tmp)
-    cache = tmp / "cache"
-    return pkg, cache, _run_copy(pkg, NAMED, cache)
+    rev = _copy_package(tmp / "reversed")
+    for module, cls in PARAMS_CLASSES:
+        _reverse_fields(rev / "filters" / f"{module}.py", cls)
+    procs = [_start_copy(pkg, NAMED, tmp / "cache"), _start_copy(rev, NAMED, tmp / "cache-reversed")]
+    return pkg, tmp / "cache", _result(procs[0], pkg), _result(procs[1], rev)
 
 
 def test_an_edit_of_a_shared_kernel_reaches_every_filter(copied):
     """numba keys its cache on each function's own file: without quadest's cache folder per
     source hash, madgwick would keep its compiled copy of the shared ``prepare``."""
-    pkg, cache, first = copied
+    pkg, cache, first, _ = copied
     again = _run_copy(pkg, "madgwick", cache)
     assert again["cache"] == first["cache"] and again["q"]["madgwick"] == first["q"]["madgwick"]
     # the shared step start never initialises: the attitude must stay at identity
@@ -95,16 +112,83 @@ def _reverse_fields(path: Path, class_name: str):
     path.write_text("".join(lines[:first]) + "".join(reversed(blocks)) + "".join(lines[last:]))
 
 
-def test_parameters_are_read_by_name_not_position(copied, tmp_path):
+def test_parameters_are_read_by_name_not_position(copied):
     """Reversing the declaration order of every parameter record changes nothing: the compiled
     steps read ``p.beta``, not ``p[3]``."""
-    _, _, first = copied
-    pkg = _copy_package(tmp_path)
-    for module, cls in (("madgwick", "MadgwickParams"), ("afckf", "AfckfParams"),
-                        ("complementary", "ComplementaryParams"), ("kalman", "KalmanParams"),
-                        ("qukf", "QukfParams")):
-        _reverse_fields(pkg / "filters" / f"{module}.py", cls)
-    reordered = _run_copy(pkg, NAMED, tmp_path / "cache")
+    _, _, first, reordered = copied
     assert reordered["cache"] != first["cache"]
     for name in NAMED.split(","):
         assert reordered["q"][name] == first["q"][name], name
+
+
+# -- layers --------------------------------------------------------------------------------------------
+LAYERS = [  # the first four are the issue's layer 0, in the order they build on each other
+    {"_cache", "conventions", "records"},
+    {"rotation"},
+    {"data", ""},  # "": the package itself (its __init__ exposes Recording and the version)
+    {"models"},
+    {"filters", "recovery", "sim", "readers", "calibration"},
+    {"evaluation"},
+    {"sweep", "plot"},
+    {"cli"},
+]
+LAYER = {part: k for k, parts in enumerate(LAYERS) for part in parts}
+LAZY_ALLOWED = {("cli", "plot")}  # matplotlib is loaded only when a command draws
+
+
+def _part(module: str) -> str:
+    """``quadest.filters.afckf`` -> ``filters``; the package itself and its top-level modules
+    (``quadest``, ``quadest.conventions``) are parts of their own."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else ""
+
+
+def _quadest_imports(path: Path):
+    """(module imported, inside a function) for every import of a quadest module in a file."""
+    tree = ast.parse(path.read_text())
+    inside = set()
+    for fn in ast.walk(tree):
+        if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            inside.update(id(n) for n in ast.walk(fn))
+    for n in ast.walk(tree):
+        names = []
+        if isinstance(n, ast.ImportFrom) and n.module and n.level == 0:
+            names = [n.module]
+        elif isinstance(n, ast.Import):
+            names = [a.name for a in n.names]
+        for m in names:
+            if m == "quadest" or m.startswith("quadest."):
+                yield m, n.lineno, id(n) in inside
+
+
+def test_packages_import_downwards_only():
+    """conventions, rotation, data, models, then filters/recovery/sim/readers/calibration, then
+    evaluation, then sweep/plot, then cli: a package imports only from lower layers (and from
+    itself), never from a package of its own layer or above; imports of quadest modules are at
+    the top of a file (the one exception: plotting, which loads matplotlib, from the cli)."""
+    problems = []
+    for path in sorted(SRC.rglob("*.py")):
+        rel = path.relative_to(SRC).with_suffix("")
+        me = "" if rel.parts == ("__init__",) else rel.parts[0]
+        assert me in LAYER, f"{rel}: package {me!r} has no layer; add it to LAYERS and docs/developing.md"
+        for module, line, lazy in _quadest_imports(path):
+            other = _part(module)
+            if other == me:
+                continue
+            where = f"{rel}.py:{line} imports {module}"
+            if other not in LAYER:
+                problems.append(f"{where}: unknown package")
+            elif LAYER[other] >= LAYER[me] and not (me == "" and other == "data"):
+                problems.append(f"{where}: layer {LAYER[other]} from layer {LAYER[me]}")
+            if lazy and (me, other) not in LAZY_ALLOWED:
+                problems.append(f"{where}: inside a function")
+    assert not problems, "\n".join(problems)
+
+
+def test_the_layer_test_sees_a_violation(tmp_path):
+    """The check above is not vacuous: an upward import in a copied file is reported."""
+    f = tmp_path / "x.py"
+    f.write_text("import numpy\nfrom quadest.sweep import run_sweep\n\ndef g():\n    from quadest.cli import main\n")
+    found = list(_quadest_imports(f))
+    assert found == [("quadest.sweep", 2, False), ("quadest.cli", 5, True)]
+    assert LAYER[_part("quadest.sweep")] > LAYER[_part("quadest.filters.afckf")]

@@ -21,27 +21,26 @@ def test_afckf_damaged_rotor_targets(afckf):
 # Measured (seeds 1-5, mean roll / pitch RMS): afckf 1.54/1.41, madgwick 2.25/2.11, kalman
 # 1.24/1.15 meet 3°; mahony 3.45/3.54, qukf and ekf 4.62/4.80, complementary 5.11/5.36 do not:
 # with their papers' gains they follow the manoeuvre accelerations (time constants of 0.2-1 s).
-# docs/estimators.md reports this; the test fails loudly if either side changes.
+# docs/estimators.md reports this. The target is one-sided: a filter that improves past 3° is
+# welcome, so only the filters that meet it are held to it.
 MEETS_3DEG = {"afckf", "madgwick", "kalman"}
 
 
 def test_nominal_flight_roll_pitch():
     import numpy as np
 
-    from quadest.evaluation.compare import run_filters
     from quadest.evaluation.metrics import summarize_errors
-    from quadest.filters import FILTERS
+    from quadest.evaluation.runner import estimate_all
     from quadest.sim import simulate
 
-    worst = {n: [] for n in FILTERS}
+    worst = {n: [] for n in MEETS_3DEG}
     for seed in range(1, 6):
         rec = simulate("nominal", "bebop2", seed=seed)
-        for name, res in run_filters(rec, list(FILTERS)).items():
+        for name, res in estimate_all(rec, sorted(MEETS_3DEG)).items():
             r = summarize_errors(res.q, rec.true_q)["rms_deg"]
             worst[name].append((r["roll"], r["pitch"]))
     for name, v in worst.items():
-        mean = np.mean(v, axis=0).max()
-        assert (mean <= 3.0) == (name in MEETS_3DEG), (name, mean)
+        assert np.mean(v, axis=0).max() <= 3.0, (name, np.mean(v, axis=0))
 
 
 def test_recovery_targets():

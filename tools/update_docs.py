@@ -1,8 +1,11 @@
-"""Regenerate the generated tables in docs/ from the code (run after changing parameters).
+"""Regenerate the generated tables in README.md and docs/ from the code and from the measured
+results in docs/results/*.json (run after changing parameters or re-running a benchmark).
 
 Sections between ``<!-- generated:NAME -->`` and ``<!-- /generated -->`` are replaced:
-``simulator-params`` (every simulator parameter of the bebop2 preset) and ``estimator-params``
-(every estimator's parameter record). tests/test_docs.py fails when docs/ is out of date.
+parameter tables (``simulator-params``, ``estimator-params``, ``recovery-params``) from the
+parameter records, and result tables (``results-*``) from the JSON the benchmark commands write
+(docs/developing.md says which command writes which file). tests/test_docs.py fails when a table
+is out of date.
 """
 import json
 import re
@@ -34,15 +37,104 @@ def estimator_params() -> str:
 
 
 def recovery_params() -> str:
-    from quadest.recovery.logic import param_rows
+    from quadest.recovery import RecoveryParams
     rows = ["| parameter | default | unit | meaning | source |", "|---|---|---|---|---|"]
-    for d in param_rows():
+    for d in RecoveryParams.describe():
         rows.append(f"| `{d['name']}` | {d['default']} | {d['unit']} | {d['doc']} | {d['source']} |")
     return "\n".join(rows)
 
 
+RESULTS = ROOT / "docs" / "results"
+SPEED_TARGET_US = {"afckf": 0.5, "qukf": 2.0, "ekf": 2.0, "madgwick": 0.2, "mahony": 0.2, "complementary": 0.2,
+                   "kalman": 5.0}  # batch targets of issue #3 (targets, not measurements)
+BROAD_GROUPS = (("all_trials", "all"), ("undisturbed", "undisturbed"), ("disturbed", "disturbed"))
+
+
+def _load(name):
+    return json.loads((RESULTS / f"{name}.json").read_text())
+
+
+def _table(header, rows):
+    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    out += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+    return "\n".join(out)
+
+
+def _rpy(d, fmt="{:.2f}"):
+    return " / ".join(fmt.format(d[a]) for a in ("roll", "pitch", "yaw"))
+
+
+def results_overview() -> str:
+    """README: BROAD groups, flights and speed per filter."""
+    broad, flights, speed = _load("broad"), _load("flights"), _load("speed")
+    g = broad["groups"]
+    header = ["filter"] + [f"BROAD {label} ({g[k]['_trials']})" for k, label in BROAD_GROUPS] + [
+        "flights: roll / pitch / yaw RMS", "µs/sample batch", "streaming"]
+    rows = []
+    for n in broad["filters"]:
+        sp = speed["filters"].get(n)
+        rows.append([n] + [f"{g[k][n]['total_rmse_deg']:.2f}" for k, _ in BROAD_GROUPS]
+                    + [_rpy(flights["mean"][n]) if n in flights["mean"] else "-",
+                       f"{sp['batch_us']:.2f}" if sp else "-", f"{sp['stream_us']:.2f}" if sp else "-"])
+    return _table(header, rows)
+
+
+def results_broad_summary() -> str:
+    broad, flights = _load("broad"), _load("flights")
+    g = broad["groups"]["all_trials"]
+    header = ["filter", f"all {g['_trials']} trials: total", "heading", "inclination"] + [
+        f"{label} ({broad['groups'][k]['_trials']})" for k, label in BROAD_GROUPS[1:]] + ["flights roll / pitch / yaw"]
+    rows = [[n, f"{g[n]['total_rmse_deg']:.2f}", f"{g[n]['heading_rmse_deg']:.2f}", f"{g[n]['inclination_rmse_deg']:.2f}"]
+            + [f"{broad['groups'][k][n]['total_rmse_deg']:.2f}" for k, _ in BROAD_GROUPS[1:]]
+            + [_rpy(flights["mean"][n]) if n in flights["mean"] else "-"] for n in broad["filters"]]
+    return _table(header, rows)
+
+
+def results_broad_trials() -> str:
+    broad = _load("broad")
+    names = broad["filters"]
+    return _table(["trial"] + names, [[t] + [f"{row[n]['total_rmse_deg']:.2f}" for n in names]
+                                      for t, row in broad["trials"].items()])
+
+
+def results_flights() -> str:
+    flights = _load("flights")
+    names = flights["filters"]
+    return _table(["flight"] + names, [[f"{f} ({row['duration_s']:.0f} s)"] + [_rpy(row[n]["rms_deg"], "{:.1f}")
+                                                                              for n in names]
+                                       for f, row in flights["flights"].items()])
+
+
+def results_speed() -> str:
+    speed = _load("speed")
+    rows = []
+    for n, v in speed["filters"].items():
+        target = SPEED_TARGET_US.get(n)
+        met = "-" if target is None else (f"{target:g}" + ("" if v["batch_us"] <= target else
+                                                              f" (missed by {v['batch_us'] - target:.2f})"))
+        rows.append([n, f"{v['batch_us']:.2f}", met, f"{v['stream_us']:.2f}"])
+    rows.append(["recovery bank, 40 EKFs", f"{speed['recovery_bank_40_us']:.1f}", "20", "-"])
+    return (_table(["filter", "batch", "batch target", "streaming"], rows)
+            + f"\n\n{speed['samples']} simulated samples (docs/results/speed.json).")
+
+
+def results_afckf() -> str:
+    """README: the AFCKF paper's damaged-rotor table, our mean over seeds beside the paper's."""
+    r = _load("afckf")
+    case = r["cases"]["damaged-rotor"]
+    names = ["madgwick", "complementary", "kalman", "afckf"]
+    pub = r["published"]["damaged-rotor"]["rms_deg"]
+    rows = [[a] + [f"{case[n]['rms_deg'][a]:.2f}°" for n in names] + [f"{pub['afckf'][a]:.2f}°"]
+            for a in ("roll", "pitch", "yaw")]
+    seeds = r["seeds"]
+    return (_table([""] + names + ["afckf, paper"], rows)
+            + f"\n\nRMS error from the failure on, mean over seeds {seeds[0]}-{seeds[-1]} (docs/results/afckf.json).")
+
+
 GENERATORS = {"simulator-params": simulator_params, "estimator-params": estimator_params,
-              "recovery-params": recovery_params}
+              "recovery-params": recovery_params, "results-overview": results_overview,
+              "results-broad-summary": results_broad_summary, "results-broad-trials": results_broad_trials,
+              "results-flights": results_flights, "results-speed": results_speed, "results-afckf": results_afckf}
 PATTERN = re.compile(r"(<!-- generated:([a-z-]+) -->\n)(.*?)(<!-- /generated -->)", re.S)
 
 
@@ -52,7 +144,7 @@ def render(text: str) -> str:
 
 def main(check: bool = False) -> int:
     stale = []
-    for path in sorted((ROOT / "docs").glob("*.md")):
+    for path in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
         text = path.read_text()
         new = render(text)
         if new != text:

@@ -9,6 +9,7 @@ import numpy as np
 
 from quadest.calibration.model import Calibration
 from quadest.conventions import GRAVITY
+from quadest.models.aero import fit_aero
 
 
 # -- static segments ------------------------------------------------------------------------------
@@ -227,10 +228,27 @@ def calibrate_mag(recs, *, min_samples: int = 100) -> Calibration:
 
 
 # -- centrifugal constants and aerodynamics ------------------------------------------------------------
+def fit_centrifugal(gyr, acc, *, min_rate: float = 5.0, gyro_range: float = np.inf):
+    """Least-squares ``ω1, ω2`` of eq 13 from a spinning segment: ``a_xy ≈ ω_z² [ω1, ω2] + c``
+    over samples with ``|ω_z| > min_rate`` and the gyroscope below its range. Returns
+    ``(omega1, omega2, rms_residual)``; raises ValueError without enough spinning samples."""
+    gyr, acc = np.asarray(gyr, float), np.asarray(acc, float)
+    ok = (np.abs(gyr[:, 2]) > min_rate) & (np.abs(gyr).max(axis=1) < gyro_range) & np.isfinite(acc).all(axis=1)
+    if ok.sum() < 50:
+        raise ValueError(f"fit_centrifugal: {int(ok.sum())} samples spin faster than {min_rate} rad/s; "
+                         "need a spinning segment of at least 50 samples")
+    A = np.column_stack([gyr[ok, 2] ** 2, np.ones(ok.sum())])
+    out = []
+    res = []
+    for j in (0, 1):
+        coef, *_ = np.linalg.lstsq(A, acc[ok, j], rcond=None)
+        out.append(coef[0])
+        res.append(acc[ok, j] - A @ coef)
+    return out[0], out[1], float(np.sqrt(np.mean(np.square(res))))
+
+
 def calibrate_centrifugal(recs, *, min_rate: float = 5.0) -> Calibration:
     """The AFCKF's ω1, ω2 (eq 13) from spinning segments, gyroscope below its range."""
-    from quadest.filters.afckf import fit_centrifugal
-
     gyr = np.vstack([r.gyr for r in recs])
     acc = np.vstack([r.acc for r in recs])
     rng = np.inf
@@ -250,8 +268,6 @@ def calibrate_centrifugal(recs, *, min_rate: float = 5.0) -> Calibration:
 
 def calibrate_aero(recs, mass_kg: float | None = None) -> Calibration:
     """The recovery paper's aerodynamic model (eq 14): the same fit as ``quadest fit-aero``."""
-    from quadest.recovery.aero import fit_aero
-
     if mass_kg is None:
         mass_kg = recs[0].meta.get("config", {}).get("vehicle", {}).get("mass_kg")
         if mass_kg is None:

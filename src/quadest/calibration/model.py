@@ -21,6 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
+from quadest.data.recording import Recording
+from quadest.data.tagged import read_tagged_json
+from quadest.models.aero import AeroModel
+
 FORMAT_TAG = "quadest calibration v1"
 KINDS = ("gyro", "accel", "mag", "centrifugal", "aero")
 SENSOR = {"gyro": "gyr", "accel": "acc", "mag": "mag", "centrifugal": "acc", "aero": "acc"}
@@ -69,8 +73,6 @@ class Calibration:
 
     def apply(self, rec):
         """A new recording with this calibration applied (gyro, accel, mag kinds)."""
-        from quadest.data.recording import Recording
-
         self.check(rec)
         kw = {k: getattr(rec, k) for k in ("t", "gyr", "acc", "mag", *rec.truth)}
         v = self.values
@@ -86,6 +88,13 @@ class Calibration:
         meta["calibrations"] = list(meta.get("calibrations", [])) + [self.kind]
         return Recording(**kw, meta=meta, check_units=False)
 
+    def aero_model(self) -> AeroModel:
+        """The aerodynamic model of an ``aero`` calibration (recovery paper eq 9)."""
+        if self.kind != "aero":
+            raise ValueError(f"a {self.kind} calibration holds no aerodynamic model")
+        v = self.values
+        return AeroModel(v["A"], v["B"], v["C"], v["mass_kg"])
+
     def filter_params(self) -> dict:
         """Estimator parameters this calibration sets (``{"afckf": {"omega1": ..}}``)."""
         if self.kind == "centrifugal":
@@ -94,8 +103,6 @@ class Calibration:
 
 
 def load_calibration(path) -> Calibration:
-    from quadest.data.tagged import read_tagged_json
-
     d = read_tagged_json(path, FORMAT_TAG, "calibration")
     try:
         return Calibration(d["kind"], d["unit"], d["values"], d.get("uncertainty", {}), d.get("quality", {}),
@@ -104,12 +111,12 @@ def load_calibration(path) -> Calibration:
         raise ValueError(f"{path}: calibration lacks {exc}") from None
 
 
-def apply_calibrations(rec, paths):
-    """Load and apply calibration files in order; returns the recording and the estimator
-    parameters they set."""
+def apply_calibrations(rec, calibrations):
+    """Apply calibrations (files or :class:`Calibration` records) in order; returns the
+    recording and the estimator parameters they set."""
     params: dict = {}
-    for p in paths or []:
-        cal = load_calibration(p)
+    for p in calibrations or []:
+        cal = p if isinstance(p, Calibration) else load_calibration(p)
         rec = cal.apply(rec)
         for name, kv in cal.filter_params().items():
             params.setdefault(name, {}).update(kv)

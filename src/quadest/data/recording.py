@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import io
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -196,6 +197,17 @@ class Recording:
     def truth(self) -> list[str]:
         """Names of the truth fields present."""
         return [k for k in TRUTH_FIELDS if getattr(self, k) is not None]
+
+    @property
+    def declination(self) -> float:
+        """Magnetic declination (rad, east positive) of the recording's field: from a
+        simulation's earth field (``meta['earth_field_ned_ut']``), else
+        ``meta['declination_rad']``, else 0. Estimators reference magnetic north; this turns
+        their heading to true north."""
+        B = self.meta.get("earth_field_ned_ut")
+        if B is not None:
+            return float(math.atan2(B[1], B[0]))
+        return float(self.meta.get("declination_rad", 0.0))
 
     def imu_rate_hz(self) -> float:
         """Nominal IMU rate from the median sample interval, Hz."""

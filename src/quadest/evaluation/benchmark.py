@@ -7,64 +7,15 @@ import json
 from pathlib import Path
 
 import numpy as np
+from tqdm.auto import tqdm
 
-from quadest.evaluation.align import fit_alignment
-from quadest.evaluation.metrics import summarize_errors
+from quadest.evaluation.peers import available_peers
+from quadest.evaluation.runner import estimate, score
 from quadest.filters import FILTERS
-
-
-def evaluation_mask(rec) -> np.ndarray:
-    """Rows to evaluate: ``meta['evaluate_intervals_s']`` (BROAD's movement phases) or all."""
-    iv = rec.meta.get("evaluate_intervals_s")
-    if not iv:
-        return np.ones(len(rec), bool)
-    m = np.zeros(len(rec), bool)
-    for a, b in iv:
-        m |= (rec.t >= a) & (rec.t <= b)
-    return m
-
-
-def estimate_all(rec, names, params: dict | None = None) -> dict:
-    """``{name: q (N, 4)}`` for quadest filters and peers (names from FILTERS or PEERS)."""
-    from quadest.evaluation.compare import declination_of
-    from quadest.evaluation.peers import PEERS, run_peer
-    from quadest.filters import make_filter
-
-    params = params or {}
-    out = {}
-    for n in names:
-        if n in FILTERS:
-            out[n] = make_filter(n, declination=declination_of(rec), **params.get(n, {})).run(rec).q
-        elif n in PEERS:
-            out[n] = run_peer(n, rec, use_mag=rec.has_mag)
-        else:
-            raise ValueError(f"unknown filter {n!r}")
-    return out
-
-
-def align_estimate(rec, q, *, truth: str = "true_q", nav: str = "none", body: bool = False, mask=None):
-    """The estimate in the truth's frames and the :class:`Alignment` removed (None if none asked)."""
-    if nav == "none" and not body:
-        return q, None
-    m = evaluation_mask(rec) if mask is None else mask
-    al = fit_alignment(q, getattr(rec, truth), nav=nav, body=body, mask=m, rate_hz=rec.imu_rate_hz())
-    return al.apply(q), al
-
-
-def evaluate(rec, q, *, truth: str = "true_q", nav: str = "none", body: bool = False, mask=None) -> dict:
-    """Error figures of one estimate after removing the constant rotations asked for; the
-    alignment removed is reported under ``"alignment"``."""
-    m = evaluation_mask(rec) if mask is None else mask
-    qa, al = align_estimate(rec, q, truth=truth, nav=nav, body=body, mask=m)
-    out = summarize_errors(qa, getattr(rec, truth), m)
-    if al is not None:
-        out["alignment"] = al.describe()
-    return out
+from quadest.readers import detect_format, read_recording
 
 
 def default_names(include_peers: bool = True) -> list[str]:
-    from quadest.evaluation.peers import available_peers
-
     return list(FILTERS) + (available_peers() if include_peers else [])
 
 
@@ -81,10 +32,6 @@ METRICS = ("total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg")
 def benchmark_broad(data_dir, names=None, *, trials: str = "*", nav: str = "none", progress: bool = False) -> dict:
     """Every filter on every BROAD trial in ``data_dir`` (HDF5 or MAT): total, heading and
     inclination RMSE over the movement phases, per trial and averaged per group of trials.json."""
-    from tqdm.auto import tqdm
-
-    from quadest.readers import read_recording
-
     names = list(names or default_names())
     files = [f for f in _files(data_dir, trials) if f.suffix.lower() in (".hdf5", ".h5", ".mat")]
     if not files:
@@ -101,8 +48,7 @@ def benchmark_broad(data_dir, names=None, *, trials: str = "*", nav: str = "none
         out["trials"][trial] = {}
         for n in names:
             bar.set_postfix_str(f"{trial[:24]} {n}")
-            q = estimate_all(rec, [n])[n]
-            s = evaluate(rec, q, nav=nav)
+            s = score(rec, estimate(rec, n).q, nav=nav, body=False)
             out["trials"][trial][n] = {k: s[k] for k in METRICS}
             bar.update(1)
     bar.close()
@@ -119,8 +65,6 @@ def benchmark_broad(data_dir, names=None, *, trials: str = "*", nav: str = "none
 
 def find_flights(data_dir) -> list[Path]:
     """DIDO HDF5 files and Blackbird folders anywhere under ``data_dir``."""
-    from quadest.readers import detect_format
-
     d = Path(data_dir)
     if not d.is_dir():
         raise ValueError(f"{data_dir}: no such folder")
@@ -140,10 +84,6 @@ def find_flights(data_dir) -> list[Path]:
 def benchmark_flights(data_dir, names=None, *, nav: str = "heading", progress: bool = False) -> dict:
     """Roll, pitch and yaw RMS on the quadrotor flights (6-axis: no magnetometer, so the
     heading offset between the estimate's and the motion capture's frames is removed)."""
-    from tqdm.auto import tqdm
-
-    from quadest.readers import read_recording
-
     names = list(names or default_names())
     flights = find_flights(data_dir)
     if not flights:
@@ -156,7 +96,7 @@ def benchmark_flights(data_dir, names=None, *, nav: str = "heading", progress: b
         out["flights"][key] = {"samples": len(rec), "duration_s": rec.duration}
         for n in names:
             bar.set_postfix_str(f"{key[:24]} {n}")
-            s = evaluate(rec, estimate_all(rec, [n])[n], nav=nav)
+            s = score(rec, estimate(rec, n).q, nav=nav, body=False)
             out["flights"][key][n] = {"rms_deg": s["rms_deg"], "total_rmse_deg": s["total_rmse_deg"],
                                       "inclination_rmse_deg": s["inclination_rmse_deg"],
                                       "alignment": s.get("alignment")}

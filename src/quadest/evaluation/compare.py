@@ -1,42 +1,14 @@
-"""Run several estimators on one recording and tabulate their errors and speed."""
+"""Run several estimators on one recording and tabulate their errors and speed (``quadest
+compare``), through the one runner (:mod:`quadest.evaluation.runner`)."""
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 
 from quadest.data.recording import Recording
-from quadest.evaluation.metrics import AXES, summarize_errors, time_estimator
+from quadest.evaluation.metrics import AXES
+from quadest.evaluation.runner import alignment_of, estimate_all, evaluation_mask, score, truth_of
+from quadest.evaluation.speed import time_estimator
 from quadest.filters import FILTERS, make_filter
-
-
-def declination_of(rec: Recording) -> float:
-    """Declination (rad, east positive) of a recording's magnetic field: from a simulation's
-    earth field, or ``meta['declination_rad']``, else 0."""
-    B = rec.meta.get("earth_field_ned_ut")
-    if B is not None:
-        return float(math.atan2(B[1], B[0]))
-    return float(rec.meta.get("declination_rad", 0.0))
-
-
-def parse_filters(spec: str, all_includes_peers: bool = False) -> list[str]:
-    """``all`` (quadest's filters, and the installed peers with ``all_includes_peers``),
-    ``quadest``, ``peers`` (the installed peers) or a comma-separated list of filters and peers."""
-    from quadest.evaluation.peers import PEERS, available_peers
-
-    spec = (spec or "all").strip()
-    if spec in ("all", "quadest"):
-        return list(FILTERS) + (available_peers() if spec == "all" and all_includes_peers else [])
-    if spec == "peers":
-        return available_peers()
-    names = [s.strip() for s in spec.split(",") if s.strip()]
-    bad = [n for n in names if n not in FILTERS and n not in PEERS]
-    if bad or not names:
-        raise ValueError(f"unknown filter(s) {', '.join(bad) or spec!r}; filters: {', '.join(FILTERS)}; "
-                         f"peers: {', '.join(PEERS)}")
-    missing = [n for n in names if n in PEERS and n not in available_peers()]
-    if missing:
-        raise ValueError(f"peer(s) {', '.join(missing)} not installed: pip install 'quadest[peers]'")
-    return names
 
 
 def parse_params(items) -> dict:
@@ -58,32 +30,6 @@ def parse_params(items) -> dict:
     return out
 
 
-def run_filters(rec: Recording, names, params: dict | None = None, label: dict | None = None):
-    """Run each estimator (quadest filter or peer) over the recording; ``{label: FilterResult}``."""
-    from quadest.evaluation.peers import run_peer
-    from quadest.filters.base import FilterResult
-
-    params = params or {}
-    decl = declination_of(rec)
-    results = {}
-    for name in names:
-        key = (label or {}).get(name, name)
-        if name in FILTERS:
-            results[key] = make_filter(name, declination=decl, **params.get(name, {})).run(rec)
-        else:
-            results[key] = FilterResult(name, rec.t, run_peer(name, rec, use_mag=rec.has_mag), {}, None)
-    return results
-
-
-def truth_of(rec: Recording) -> str:
-    """``true_q``, or the log's onboard attitude ``ref_q`` when there is no independent truth."""
-    if rec.true_q is not None:
-        return "true_q"
-    if rec.ref_q is not None:
-        return "ref_q"
-    raise ValueError("the recording has no attitude truth (true_q) or onboard reference (ref_q) to compare against")
-
-
 def compare(rec: Recording, names, *, params: dict | None = None, t_from: float | None = None,
             timing: bool = True, source: str = "", align: str | None = None,
             align_body: bool | None = None) -> tuple[dict, dict]:
@@ -92,28 +38,19 @@ def compare(rec: Recording, names, *, params: dict | None = None, t_from: float 
     full) and ``align_body`` remove constant frame rotations before the errors (default: what
     the reader recommends in ``meta['align']``, else none); results then hold the aligned
     estimates."""
-    from quadest.evaluation.benchmark import align_estimate, evaluation_mask
-
     truth = truth_of(rec)
-    rec_align = rec.meta.get("align", {})
-    nav = align if align is not None else rec_align.get("nav", "none")
-    body = align_body if align_body is not None else bool(rec_align.get("body", False))
+    nav, body = alignment_of(rec, align, align_body)
     params = params or {}
-    results = run_filters(rec, names, params)
-    mask = evaluation_mask(rec)
-    if t_from is not None:
-        mask &= rec.t >= t_from
+    results = estimate_all(rec, names, params)
+    mask = evaluation_mask(rec, t_from)
     report = {"recording": source, "from_s": t_from, "against": truth, "alignment": {"nav": nav, "body": body},
               "filters": {}}
-    decl = declination_of(rec)
     for name, res in results.items():
-        q, al = align_estimate(rec, res.q, truth=truth, nav=nav, body=body, mask=mask)
-        results[name] = replace(res, q=q)
-        entry = summarize_errors(q, getattr(rec, truth), mask)
-        if al is not None:
-            entry["alignment"] = al.describe()
+        aligned: list = []
+        entry = score(rec, res.q, truth=truth, nav=nav, body=body, mask=mask, aligned=aligned)
+        results[name] = replace(res, q=aligned[0])
         if timing and name in FILTERS:
-            tm = time_estimator(lambda n=name: make_filter(n, declination=decl, **params.get(n, {})), rec)
+            tm = time_estimator(lambda n=name: make_filter(n, declination=rec.declination, **params.get(n, {})), rec)
             entry["us_per_sample"] = tm["batch_us"]
             entry["us_per_sample_streaming"] = tm["stream_us"]
         report["filters"][name] = entry

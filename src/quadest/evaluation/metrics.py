@@ -9,8 +9,6 @@
 """
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
 from quadest.rotation import quat_conj, quat_mul, quat_to_euler
@@ -61,26 +59,3 @@ def summarize_errors(q_est, q_true, mask=None) -> dict:
         "heading_rmse_deg": _rms(ang["heading"]),
         "inclination_rmse_deg": _rms(ang["inclination"]),
     }
-
-
-def time_estimator(factory, rec, *, repeat: int = 3, streaming_samples: int = 2000) -> dict:
-    """Microseconds per sample in batch (best of ``repeat`` runs after a warm-up) and in
-    streaming use (``update`` called from Python on the first ``streaming_samples`` rows)."""
-    factory().run(rec)  # compile / warm up
-    best = np.inf
-    for _ in range(repeat):
-        f = factory()
-        t0 = time.perf_counter()
-        f.run(rec)
-        best = min(best, time.perf_counter() - t0)
-    n = min(streaming_samples, len(rec))
-    f = factory()
-    dt = np.diff(rec.t[: n + 1], prepend=rec.t[0])
-    dt[0] = dt[1] if n > 1 else 0.0
-    gyr, acc, mag = rec.gyr[:n], rec.acc[:n], rec.mag[:n]
-    f.update(gyr[0], acc[0], mag[0], dt=dt[0])
-    t0 = time.perf_counter()
-    for k in range(n):
-        f.update(gyr[k], acc[k], mag[k], dt=dt[k])
-    stream = (time.perf_counter() - t0) / n
-    return {"batch_us": 1e6 * best / len(rec), "stream_us": 1e6 * stream}

@@ -21,8 +21,11 @@ Python filters that need one every step (ahrs), and given as zero (meaning "none
 """
 from __future__ import annotations
 
+import importlib.util
+
 import numpy as np
 
+from quadest.conventions import GRAVITY
 from quadest.rotation import quat_conj, quat_mul
 from quadest.rotation.frames import quat_enu_flu_to_ned_frd, vec_frd_to_flu
 
@@ -37,8 +40,6 @@ PACKAGE = {"vqf": "vqf", "vqf-offline": "vqf", "imufusion": "imufusion", "ahrs-m
 
 def available_peers() -> list[str]:
     """The peers whose package is installed."""
-    import importlib.util
-
     return [p for p in PEERS if importlib.util.find_spec(PACKAGE[p]) is not None]
 
 
@@ -103,7 +104,7 @@ def run_imufusion(rec, use_mag: bool = True):
     ahrs = imufusion.Ahrs()
     ahrs.set_settings(settings)
     gyr = np.degrees(rec.gyr)
-    acc = rec.acc / 9.80665
+    acc = rec.acc / GRAVITY
     mag = _held_mag(rec) if use_mag else None
     dt = np.diff(rec.t, prepend=rec.t[0] - _dt(rec))
     out = np.empty((len(rec), 4))
@@ -162,14 +163,12 @@ def run_peer(name: str, rec, use_mag: bool = True, declination: float | None = N
     """``q_nb`` of peer ``name`` on ``rec``. With the magnetometer, the peers reference magnetic
     north; the heading is turned by the declination (default: the recording's, as for quadest's
     own filters) so that all estimates reference true north."""
-    from quadest.evaluation.compare import declination_of
-
     if name not in RUNNERS:
         raise ValueError(f"unknown peer {name!r}; peers: {', '.join(PEERS)}")
     try:
         q = np.asarray(RUNNERS[name](rec, use_mag), float)
         if use_mag and rec.has_mag:
-            d = declination_of(rec) if declination is None else declination
+            d = rec.declination if declination is None else declination
             q = quat_mul(np.array([np.cos(d / 2), 0.0, 0.0, np.sin(d / 2)]), q)
         return q
     except ImportError:

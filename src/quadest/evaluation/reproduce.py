@@ -13,10 +13,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from quadest.evaluation.compare import declination_of
-from quadest.evaluation.metrics import AXES, summarize_errors, time_estimator
+from quadest.calibration import calibrate_centrifugal
+from quadest.evaluation.metrics import AXES
+from quadest.evaluation.parallel import execute
+from quadest.evaluation.runner import estimate, estimate_all, score
+from quadest.evaluation.speed import time_estimator
 from quadest.filters import make_filter
-from quadest.sim import build_config, simulate
+from quadest.models.aero import fit_aero
+from quadest.recovery.logic import recover
+from quadest.sim import aero_model, build_config, simulate
 
 # Published figures (degrees; AFCKF Table V in seconds per step).
 PUBLISHED = {
@@ -62,8 +67,6 @@ def afckf_calibration(seed: int = CALIBRATION_SEED) -> dict:
     """ω1, ω2 of eq 13 fitted on a separate simulated damaged-rotor flight, through
     ``quadest calibrate centrifugal`` (:func:`quadest.calibration.calibrate_centrifugal`) on its
     steady spin (from five spin-up time constants after the failure; gyroscope below its range)."""
-    from quadest.calibration import calibrate_centrifugal
-
     rec = simulate("damaged-rotor", "bebop2", seed=seed)
     cfg = build_config("bebop2")
     spin = rec.between(cfg.damaged.failure_s + 5 * cfg.damaged.spin_up_tau_s, np.inf)
@@ -87,7 +90,8 @@ def _aggregate(per_seed: list[dict], names) -> dict:
 
 
 def reproduce_afckf(seeds=range(1, 6), progress: bool = False, workers: int = 0, scheduler=None) -> dict:
-    """AFCKF Tables I-V on the simulator. Seeds run through :func:`quadest.sweep.execute`:
+    """AFCKF Tables I-V on the simulator. Seeds run through
+    :func:`quadest.evaluation.parallel.execute`:
     in this process (``workers=0``), on a local Dask cluster or on ``scheduler``."""
     cal = afckf_calibration()
     cfg = build_config("bebop2")
@@ -101,10 +105,10 @@ def reproduce_afckf(seeds=range(1, 6), progress: bool = False, workers: int = 0,
                                                     cfg.damaged.failure_s if scenario == "damaged-rotor" else 0.0,
                                                     progress, f"AFCKF {scenario}", workers, scheduler)
     rec = simulate("damaged-rotor", "bebop2", seed=seeds[0])
-    decl = declination_of(rec)
     out["time_us"] = {}
     for name, label in zip(names, labels_list):
-        tm = time_estimator(lambda n=name, lb=label: make_filter(n, declination=decl, **params.get(lb, {})), rec)
+        tm = time_estimator(lambda n=name, lb=label: make_filter(n, declination=rec.declination, **params.get(lb, {})),
+                            rec)
         out["time_us"][label] = tm
     return out
 
@@ -113,18 +117,11 @@ def _one_seed(task) -> dict:
     """One seed of a reproduction: simulate, run the filters, their errors (a picklable task)."""
     scenario, preset, seed, duration, names, labels_list, params, t_from = task
     rec = simulate(scenario, preset, seed=seed, duration=duration)
-    mask = rec.t >= t_from
-    decl = declination_of(rec)
-    out = {}
-    for name, label in zip(names, labels_list):
-        res = make_filter(name, declination=decl, **params.get(label, {})).run(rec)
-        out[label] = summarize_errors(res.q, rec.true_q, mask)
-    return out
+    return {label: score(rec, estimate(rec, name, params.get(label)).q, t_from=t_from)
+            for name, label in zip(names, labels_list)}
 
 
 def _map_seeds(tasks, progress, desc, workers, scheduler) -> list:
-    from quadest.sweep.engine import execute
-
     results = execute(_one_seed, tasks, workers=workers,
                       scheduler=scheduler, progress=progress, desc=desc)
     for r in results:
@@ -149,6 +146,23 @@ def reproduce_qukf(seeds=range(1, 6), progress: bool = False, duration: float = 
         out["cases"][scenario] = _run_case_labelled(scenario, "lowcost-20hz", seeds, names, names, {}, 0.0,
                                                     progress, f"QUKF {scenario}", workers, scheduler, duration)
     return out
+
+
+def first_seed_estimates(paper: str, result: dict):
+    """The first seed's flight of a reproduction and every filter's estimate on it, for the
+    error plots: ``(rec, {label: FilterResult}, t_from, title)``."""
+    seed = result["seeds"][0]
+    if paper == "afckf":
+        scen, preset, t_from, duration = "damaged-rotor", "bebop2", build_config("bebop2").damaged.failure_s, None
+        names = ["madgwick", "complementary", "kalman", "afckf"]
+        params = {"afckf": {k: result["calibration"][k] for k in ("omega1", "omega2")}}
+    elif paper == "qukf":
+        scen, preset, t_from, duration = "nominal", "lowcost-20hz", None, 30.0
+        names, params = ["qukf", "ekf", "complementary"], {}
+    else:
+        raise ValueError(f"no error plots for {paper!r}")
+    rec = simulate(scen, preset, seed=seed, duration=duration)
+    return rec, estimate_all(rec, names, params), t_from, f"{scen} / {preset} / seed {seed}"
 
 
 def format_reproduction(paper: str, result: dict) -> str:
@@ -221,10 +235,8 @@ def recovery_stats(summaries: list, horizon_s: float = 1.5) -> dict:
 def recovery_models(preset: str = "fma") -> dict:
     """The three model cases: the simulation's own, one fitted on separate throws, and the
     simulation's with every parameter scaled by a random factor in [0.8, 1.2]."""
-    from quadest.recovery.aero import AeroModel, fit_aero
-
     cfg = build_config(preset)
-    true = AeroModel.from_config(cfg)
+    true = aero_model(cfg)
     fitted = fit_aero([simulate("throw", preset, seed=s) for s in RECOVERY_FIT_SEEDS], cfg.vehicle.mass_kg)
     rng = np.random.default_rng(RECOVERY_PERTURB_SEED)
     perturbed = true.scaled(rng.uniform(0.8, 1.2, size=(3, 16)))
@@ -233,8 +245,6 @@ def recovery_models(preset: str = "fma") -> dict:
 
 def _one_throw(task) -> dict:
     """One simulated throw, recovered with each model case (a picklable task)."""
-    from quadest.recovery.logic import recover
-
     preset, seed, models, params = task
     rec = simulate("throw", preset, seed=seed)
     return {name: recover(rec, model, params).summary for name, model in models.items()}
@@ -243,10 +253,8 @@ def _one_throw(task) -> dict:
 def reproduce_recovery(throws: int = 100, seed: int = 1, progress: bool = False, preset: str = "fma",
                        params=None, keep_runs: bool = False, workers: int = 0, scheduler=None) -> dict:
     """Simulate ``throws`` throws (seeds ``seed``..) and run the recovery with each model case;
-    the throws run through :func:`quadest.sweep.execute` like the other reproductions."""
-
-    from quadest.sweep.engine import execute
-
+    the throws run through :func:`quadest.evaluation.parallel.execute` like the other
+    reproductions."""
     models = recovery_models(preset)
     seeds = list(range(seed, seed + throws))
     per_case = {name: [] for name in models}
@@ -265,6 +273,13 @@ def reproduce_recovery(throws: int = 100, seed: int = 1, progress: bool = False,
         if keep_runs:
             out["cases"][name]["runs"] = summaries
     return out
+
+
+def example_throw(seed: int = 1, preset: str = "fma"):
+    """One simulated throw recovered with the simulation's own model, every hypothesis recorded
+    (for the figure of ``reproduce recovery --plot-dir``): ``(RecoveryResult, recording)``."""
+    rec = simulate("throw", preset, seed=seed)
+    return recover(rec, aero_model(build_config(preset)), record_all=True), rec
 
 
 def format_recovery(result: dict) -> str:

@@ -59,9 +59,10 @@ from numba import njit
 
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, P, Params, params_record
-from quadest.filters.common import (BASE, FASTMATH, YAW_PENDING, finite3, layout, mag_heading, norm3, prepare,
-                                    q_to_euler)
+from quadest.filters.common import (BASE, YAW_PENDING, finite3, gravity_objective, layout, mag_heading, norm3,
+                                    prepare, q_to_euler)
 from quadest.filters.linalg import inv_spd_into
+from quadest.rotation.kernels import FASTMATH, normalize_s, qdot_s
 
 WMAX = 256  # longest averaging window of eq 53, samples
 S = layout(("q_up", 4),  # Kalman-channel quaternion q' (paper's z-up frame)
@@ -78,29 +79,39 @@ IQ, IP, IB, IPSI, IMREF, ISTART, IHEAD, IBUF = S.q_up, S.P, S.bias, S.psi, S.mag
 
 @dataclass(frozen=True)
 class AfckfParams(Params):
-    use_mag: bool = P(True, "-", "use the magnetometer yaw channel", "-")
+    use_mag: bool = P(True, "-", "use the magnetometer yaw channel",
+                      "quadest: 9-axis when samples are present")
     omega1: float = P(0.0, "m", "centrifugal constant ω1 of eq 13 (m/s² per (rad/s)²)",
-                      "calibration (eq 13): fit_centrifugal on a spinning segment")
+                      "calibration (eq 13): quadest calibrate centrifugal on a spinning segment")
     omega2: float = P(0.0, "m", "centrifugal constant ω2 of eq 13", "calibration (eq 13)")
-    beta: float = P(1.5, "-", "step scale β > 1 of eq 24", "assumption (eq 24 requires β > 1)")
+    beta: float = P(1.5, "-", "step scale β > 1 of eq 24", "chosen: eq 24 requires β > 1; the paper gives no value")
     gyro_std: float = P(0.01, "rad/s", "gyro noise σ_ω per sample (eq 27)", "bebop2 gyro noise")
     acc_std: float = P(0.3, "m/s²", "accelerometer noise σ_acc per sample (eq 34)", "bebop2 accelerometer")
-    alpha_a: float = P(3.0, "-", "spread multiple α of eqs 37-38", "assumption (3σ)")
-    omega_d: float = P(0.005, "rad/s²", "bias drift rate ω_d; ρ = √(3/4) ω_d (eq 42)", "assumption")
+    alpha_a: float = P(3.0, "-", "spread multiple α of eqs 37-38", "chosen: 3σ")
+    omega_d: float = P(0.005, "rad/s²", "bias drift rate ω_d; ρ = √(3/4) ω_d (eq 42)",
+                      "chosen: slow MEMS bias drift; the paper gives no value")
     mag_std: float = P(0.5, "mag unit", "magnetometer noise σ_m per sample (eq 49)", "bebop2 magnetometer")
-    alpha_m: float = P(3.0, "-", "spread multiple α of eq 49", "assumption (3σ)")
-    mag_norm: float = P(0.0, "mag unit", "local field norm ‖b_e‖ (0: the first sample's norm)", "-")
+    alpha_m: float = P(3.0, "-", "spread multiple α of eq 49", "chosen: 3σ")
+    mag_norm: float = P(0.0, "mag unit", "local field norm ‖b_e‖ (0: the first sample's norm)",
+                      "quadest: measured on the first sample unless given")
     omega_sat: float = P(np.radians(1000.0), "rad/s", "gyro yaw-rate saturation ω_ψ,sat (eq 48)",
                          "bebop2 gyro range")
-    theta_m: float = P(10.0, "-", "membership curvature ϑ_m of eq 47", "assumption")
-    theta_w: float = P(10.0, "-", "membership curvature ϑ_ω of eq 48", "assumption")
+    theta_m: float = P(10.0, "-", "membership curvature ϑ_m of eq 47",
+                      "chosen: a convex membership; the paper gives no value")
+    theta_w: float = P(10.0, "-", "membership curvature ϑ_ω of eq 48",
+                      "chosen: as ϑ_m")
     kappa_1: float = P(0.01, "-", "κ when the field is clean and the rate low (per magnetometer sample)",
-                       "assumption")
-    kappa_2: float = P(0.2, "-", "κ when the field is clean and the gyro near saturation", "assumption")
-    kappa_3: float = P(0.001, "-", "κ when the field is disturbed and the rate low", "assumption")
-    kappa_4: float = P(0.02, "-", "κ when the field is disturbed and the gyro near saturation", "assumption")
-    iota: float = P(20.0, "samples", "window scale ι of eq 53 (at most 256)", "assumption")
-    p0: float = P(1.0, "-", "initial covariance P0 = p0·I ('large', §III AEKF)", "assumption")
+                       "chosen: trust the gyro's yaw, a slow magnetometer pull")
+    kappa_2: float = P(0.2, "-", "κ when the field is clean and the gyro near saturation",
+                      "chosen: lean on the magnetometer when the gyro clips")
+    kappa_3: float = P(0.001, "-", "κ when the field is disturbed and the rate low",
+                      "chosen: ten times less than κ₁")
+    kappa_4: float = P(0.02, "-", "κ when the field is disturbed and the gyro near saturation",
+                      "chosen: ten times less than κ₂")
+    iota: float = P(20.0, "samples", "window scale ι of eq 53 (at most 256)",
+                     "chosen: 40 ms of averaging at 500 Hz when not rotating")
+    p0: float = P(1.0, "-", "initial covariance P0 = p0·I ('large', §III AEKF)",
+                   "chosen: large against a unit quaternion's components")
     gravity: float = P(GRAVITY, "m/s²", "|g| of eq 15", "standard gravity")
 
 
@@ -129,6 +140,22 @@ def _to_up(q):
     out = np.empty(4)
     out[0], out[1], out[2], out[3] = -q[1], q[0], -q[3], q[2]
     return out
+
+
+@njit(cache=True, inline="always")
+def xi_rows(qw, qx, qy, qz):
+    """The rows of ``Ξ(q)`` (4x3) with ``q ⊗ [0, e] = Ξ(q) e``."""
+    return (-qx, -qy, -qz), (qw, -qz, qy), (qz, qw, -qx), (-qy, qx, qw)
+
+
+@njit(cache=True, inline="always")
+def add_process_noise(P, qw, qx, qy, qz, c):
+    """Eq 31, corrected: ``P += c Ξ(q) Ξ(q)ᵀ`` (``c = Δt²/4 σ_ω²``) in place: the covariance of
+    ``e_q = ½ q ⊗ [0, e_ω] Δt`` (eq 30)."""
+    X = xi_rows(qw, qx, qy, qz)
+    for i in range(4):
+        for j in range(4):
+            P[i, j] += c * (X[i][0] * X[j][0] + X[i][1] * X[j][1] + X[i][2] * X[j][2])
 
 
 @njit(cache=True)
@@ -182,21 +209,11 @@ def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
     else:
         w0, w1, w2 = 0.0, 0.0, 0.0
     # C. eqs 25-26: q̇_ω = ½ q ⊗ [0, ω], q_ω = q + q̇_ω Δt (normalised)
-    d0 = 0.5 * (-qx * w0 - qy * w1 - qz * w2)
-    d1 = 0.5 * (qw * w0 + qy * w2 - qz * w1)
-    d2 = 0.5 * (qw * w1 - qx * w2 + qz * w0)
-    d3 = 0.5 * (qw * w2 + qx * w1 - qy * w0)
+    d0, d1, d2, d3 = qdot_s(qw, qx, qy, qz, w0, w1, w2)
     qdot_norm = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2 + d3 * d3)
-    pw, px, py, pz = qw + d0 * dt, qx + d1 * dt, qy + d2 * dt, qz + d3 * dt
-    nq = np.sqrt(pw * pw + px * px + py * py + pz * pz)
-    pw, px, py, pz = pw / nq, px / nq, py / nq, pz / nq
-    # eq 31, corrected: P⁻ = P + Δt²/4 σ² Ξ(q) Ξ(q)ᵀ (Φ = Λ = I); Ξ rows of q ⊗ [0, e]
-    cq = dt * dt / 4.0 * sg * sg
-    X0, X1, X2, X3 = (-qx, -qy, -qz), (qw, -qz, qy), (qz, qw, -qx), (-qy, qx, qw)
-    Xr = (X0, X1, X2, X3)
-    for i in range(4):
-        for j in range(4):
-            P[i, j] += cq * (Xr[i][0] * Xr[j][0] + Xr[i][1] * Xr[j][1] + Xr[i][2] * Xr[j][2])
+    pw, px, py, pz = normalize_s(qw + d0 * dt, qx + d1 * dt, qy + d2 * dt, qz + d3 * dt)
+    # eq 31, corrected: P⁻ = P + Δt²/4 σ² Ξ(q) Ξ(q)ᵀ (Φ = Λ = I)
+    add_process_noise(P, qw, qx, qy, qz, dt * dt / 4.0 * sg * sg)
     nw, nx, ny, nz = pw, px, py, pz
     r_off = 1.0
     mu = 0.0
@@ -211,12 +228,7 @@ def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
         lam_a = c.lam_a  # eq 38, corrected
         # B. eqs 21-24: one gradient-descent step, from the gyro prediction q_ω,t (eq 23
         # corrected, see the module doc); f_g of eq 21 and J_g of eq 22 at q_ω
-        f0 = 2.0 * (px * pz - pw * py) - a0
-        f1 = 2.0 * (pw * px + py * pz) - a1
-        f2 = 2.0 * (0.5 - px * px - py * py) - a2
-        J0 = (-2.0 * py, 2.0 * pz, -2.0 * pw, 2.0 * px)
-        J1 = (2.0 * px, 2.0 * pw, 2.0 * pz, 2.0 * py)
-        J2 = (0.0, -4.0 * px, -4.0 * py, 0.0)
+        f0, f1, f2, J0, J1, J2 = gravity_objective(pw, px, py, pz, a0, a1, a2)
         g0 = J0[0] * f0 + J1[0] * f1 + J2[0] * f2
         g1 = J0[1] * f0 + J1[1] * f1 + J2[1] * f2
         g2 = J0[2] * f0 + J1[2] * f1 + J2[2] * f2
@@ -318,25 +330,6 @@ def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
     x[0], x[1], x[2], x[3] = ch * bw - sh * bz, ch * bx - sh * by, ch * by + sh * bx, ch * bz + sh * bw
     diag[0], diag[1], diag[2], diag[3] = kappa, mu, r_off, float(win)
     diag[4], diag[5], diag[6] = x[IB], x[IB + 1], x[IB + 2]
-
-
-def fit_centrifugal(gyr, acc, *, min_rate: float = 5.0, gyro_range: float = np.inf):
-    """Least-squares ``ω1, ω2`` of eq 13 from a spinning segment: ``a_xy ≈ ω_z² [ω1, ω2] + c``
-    over samples with ``|ω_z| > min_rate`` and the gyroscope below its range. Returns
-    ``(omega1, omega2, rms_residual)``; raises ValueError without enough spinning samples."""
-    gyr, acc = np.asarray(gyr, float), np.asarray(acc, float)
-    ok = (np.abs(gyr[:, 2]) > min_rate) & (np.abs(gyr).max(axis=1) < gyro_range) & np.isfinite(acc).all(axis=1)
-    if ok.sum() < 50:
-        raise ValueError(f"fit_centrifugal: {int(ok.sum())} samples spin faster than {min_rate} rad/s; "
-                         "need a spinning segment of at least 50 samples")
-    A = np.column_stack([gyr[ok, 2] ** 2, np.ones(ok.sum())])
-    out = []
-    res = []
-    for j in (0, 1):
-        coef, *_ = np.linalg.lstsq(A, acc[ok, j], rcond=None)
-        out.append(coef[0])
-        res.append(acc[ok, j] - A @ coef)
-    return out[0], out[1], float(np.sqrt(np.mean(np.square(res))))
 
 
 @njit(cache=True)

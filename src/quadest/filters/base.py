@@ -25,19 +25,16 @@ from __future__ import annotations
 
 import math
 from collections import namedtuple
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
 from quadest.filters.common import BASE, INIT, T_LAST
+from quadest.records import describe, param
 from quadest.rotation import quat_mul, quat_to_euler
 from quadest.rotation.kernels import qmul
 
-
-def P(default, unit: str, doc: str, source: str):
-    """A parameter: default, unit, meaning and where the default comes from (a publication,
-    or "chosen" and why)."""
-    return field(default=default, metadata={"unit": unit, "doc": doc, "source": source})
+P = param  # a parameter: default, unit, meaning and source (quadest.records)
 
 
 @dataclass(frozen=True)
@@ -46,7 +43,7 @@ class Params:
 
     @classmethod
     def describe(cls) -> list[dict]:
-        return [{"name": f.name, "default": f.default, **f.metadata} for f in fields(cls)]
+        return describe(cls)
 
     def values(self) -> dict:
         """``{name: value}`` with floats as ``float`` and flags as ``bool`` (the types the
@@ -116,7 +113,7 @@ class Estimator:
             params = replace(params, **overrides)
         self.params = params
         self._p = self.Record(**params.values())  # read by name in compiled code
-        self._c = type(self).coefficients(params)  # derived once, not at every step
+        self._c = type(self).coefficients(replace(params, **params.values()))  # derived once, not every step
         self.declination = float(declination)
         self._dq = _declination_quat(self.declination) if self.declination != 0.0 else None
         self._call_step = self._first_step
@@ -169,6 +166,15 @@ class Estimator:
         self._call_step(self._x, self._p, self._c, _vec3(gyr), _vec3(acc), _NAN3 if mag is None else _vec3(mag),
                         float(dt), self._diag)
         return self._out(self._x[:4])
+
+    def __getstate__(self):  # the compiled entry point is found again after unpickling
+        state = dict(self.__dict__)
+        state["_call_step"] = None
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._call_step = self._first_step
 
     def _first_step(self, *args):
         """The first streaming call goes through numba's dispatcher (which compiles or loads the

@@ -11,11 +11,6 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-# Floating-point flags for the compiled steps: LLVM may fuse and reorder arithmetic (contract,
-# reassoc, arcp); NaN and Inf keep their meaning (no nnan/ninf), which bad-input handling needs.
-FASTMATH = {"contract", "reassoc", "arcp"}
-
-
 
 def layout(*slots, start: int = 0):
     """Offsets of the named slots of a state vector, declared once:
@@ -130,16 +125,19 @@ def prepare(x, acc, mag, use_mag):
     return True
 
 
-@njit(cache=True)
-def xi(q):
-    """``Ξ(q)`` (4x3) with ``q ⊗ [0, v] = Ξ(q) v``."""
-    w, a, b, c = q[0], q[1], q[2], q[3]
-    X = np.empty((4, 3))
-    X[0, 0], X[0, 1], X[0, 2] = -a, -b, -c
-    X[1, 0], X[1, 1], X[1, 2] = w, -c, b
-    X[2, 0], X[2, 1], X[2, 2] = c, w, -a
-    X[3, 0], X[3, 1], X[3, 2] = -b, a, w
-    return X
+@njit(cache=True, inline="always")
+def gravity_objective(qw, qx, qy, qz, a0, a1, a2):
+    """The gravity objective of Madgwick's filter in the z-up earth frame (Madgwick 2011 eqs
+    25-26, AFCKF eqs 21-22): ``f_g = R(q)ᵀ [0, 0, 1] − a`` for a unit up-pointing specific force
+    ``a``, and the rows of its Jacobian ``J_g`` (3x4) with respect to ``q = [qw, qx, qy, qz]``.
+    Returns ``(f0, f1, f2, J0, J1, J2)``; the gradient is ``J_gᵀ f_g``."""
+    f0 = 2.0 * (qx * qz - qw * qy) - a0
+    f1 = 2.0 * (qw * qx + qy * qz) - a1
+    f2 = 2.0 * (0.5 - qx * qx - qy * qy) - a2
+    J0 = (-2.0 * qy, 2.0 * qz, -2.0 * qw, 2.0 * qx)
+    J1 = (2.0 * qx, 2.0 * qw, 2.0 * qz, 2.0 * qy)
+    J2 = (0.0, -4.0 * qx, -4.0 * qy, 0.0)
+    return f0, f1, f2, J0, J1, J2
 
 
 @njit(cache=True)

@@ -27,6 +27,7 @@ from numba import njit
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, P, Params, params_record
 from quadest.filters.common import BASE, finite3, layout, norm3, prepare
+from quadest.rotation.kernels import normalize_s, qdot_s, rotate_s
 
 S = layout(("bias", 3), ("gyr_prev", 3), ("have_prev", 1), start=BASE)
 B, GP, HP = S.bias, S.gyr_prev, S.have_prev
@@ -34,7 +35,8 @@ B, GP, HP = S.bias, S.gyr_prev, S.have_prev
 
 @dataclass(frozen=True)
 class ComplementaryParams(Params):
-    use_mag: bool = P(True, "-", "use the magnetometer when samples are present", "-")
+    use_mag: bool = P(True, "-", "use the magnetometer when samples are present",
+                      "quadest: 9-axis when samples are present")
     gain_acc: float = P(0.01, "-", "accelerometer gain α (static)",
                         "Valenti et al. 2015; authors' ROS implementation default")
     gain_mag: float = P(0.01, "-", "magnetometer gain β", "Valenti et al. 2015; ROS default")
@@ -78,14 +80,6 @@ def _conj_mul(d0, d1, d2, d3, q0, q1, q2, q3):
 
 
 @njit(cache=True)
-def _to_nav(w, x, y, z, v0, v1, v2):
-    """``R(q) v``."""
-    return (v0 * (1 - 2 * (y * y + z * z)) + v1 * 2 * (x * y - w * z) + v2 * 2 * (x * z + w * y),
-            v0 * 2 * (x * y + w * z) + v1 * (1 - 2 * (x * x + z * z)) + v2 * 2 * (y * z - w * x),
-            v0 * 2 * (x * z - w * y) + v1 * 2 * (y * z + w * x) + v2 * (1 - 2 * (x * x + y * y)))
-
-
-@njit(cache=True)
 def complementary_step(x, p, c, gyr, acc, mag, dt, diag):
     use_mag = p.use_mag
     g_acc, g_mag, adaptive, t1, t2, thr = p.gain_acc, p.gain_mag, p.adaptive, p.t1, p.t2, p.threshold
@@ -114,14 +108,11 @@ def complementary_step(x, p, c, gyr, acc, mag, dt, diag):
     # eq 42: prediction, q_nb + ½ q_nb ⊗ [0, ω − b] Δt
     if gyr_ok:
         w0, w1, w2 = gyr[0] - x[B], gyr[1] - x[B + 1], gyr[2] - x[B + 2]
-        h = 0.5 * dt
-        qw, qx, qy, qz = (qw + h * (-qx * w0 - qy * w1 - qz * w2), qx + h * (qw * w0 + qy * w2 - qz * w1),
-                          qy + h * (qw * w1 - qx * w2 + qz * w0), qz + h * (qw * w2 + qx * w1 - qy * w0))
-        n = np.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
-        qw, qx, qy, qz = qw / n, qx / n, qy / n, qz / n
+        d0, d1, d2, d3 = qdot_s(qw, qx, qy, qz, w0, w1, w2)
+        qw, qx, qy, qz = normalize_s(qw + dt * d0, qx + dt * d1, qy + dt * d2, qz + dt * d3)
     if an > 0.0:
         # eq 44: predicted gravity direction (down, NED) from the negated accelerometer
-        gx, gy, gz = _to_nav(qw, qx, qy, qz, -acc[0] / an, -acc[1] / an, -acc[2] / an)
+        gx, gy, gz = rotate_s(qw, qx, qy, qz, -acc[0] / an, -acc[1] / an, -acc[2] / an)
         if gz > -1.0 + 1e-12:
             s = np.sqrt(2.0 * (gz + 1.0))
             alpha = g_acc
@@ -135,7 +126,7 @@ def complementary_step(x, p, c, gyr, acc, mag, dt, diag):
             qw, qx, qy, qz = _conj_mul(d0, d1, d2, d3, qw, qx, qy, qz)
         mn = norm3(mag) if (use_mag and finite3(mag)) else 0.0
         if mn > 0.0:
-            lx, ly, _ = _to_nav(qw, qx, qy, qz, mag[0] / mn, mag[1] / mn, mag[2] / mn)  # eq 54
+            lx, ly, _ = rotate_s(qw, qx, qy, qz, mag[0] / mn, mag[1] / mn, mag[2] / mn)  # eq 54
             G = lx * lx + ly * ly  # eq 28
             if G > 0.0:
                 r = np.sqrt(G + lx * np.sqrt(G))
@@ -145,8 +136,7 @@ def complementary_step(x, p, c, gyr, acc, mag, dt, diag):
                     m0, m3 = 0.0, 1.0
                 d0, d1, d2, d3 = _scaled_delta(m0, 0.0, 0.0, m3, g_mag, thr)
                 qw, qx, qy, qz = _conj_mul(d0, d1, d2, d3, qw, qx, qy, qz)
-    n = np.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
-    x[0], x[1], x[2], x[3] = qw / n, qx / n, qy / n, qz / n
+    x[0], x[1], x[2], x[3] = normalize_s(qw, qx, qy, qz)
     diag[1], diag[2], diag[3] = x[B], x[B + 1], x[B + 2]
 
 @njit(cache=True)

@@ -17,10 +17,11 @@ import numpy as np
 from numba import njit
 
 from quadest.filters.base import Estimator, params_record
-from quadest.filters.common import FASTMATH, finite3, omega_matrix, prepare
+from quadest.filters.common import finite3, omega_matrix, prepare
 from quadest.filters.linalg import inv_spd, mm, mm_t, mv
 from quadest.filters.quatmeas import measurement_quaternion
-from quadest.filters.qukf import PB, S, QukfParams, coefficients, noise
+from quadest.filters.qukf import PB, QukfParams, S, coefficients, noise
+from quadest.rotation.kernels import FASTMATH
 
 
 @dataclass(frozen=True)

@@ -31,8 +31,9 @@ from numba import njit
 
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, P, Params, params_record
-from quadest.filters.common import BASE, FASTMATH, finite3, layout, norm3, prepare
+from quadest.filters.common import BASE, finite3, layout, norm3, prepare
 from quadest.filters.linalg import inv_spd, mm, mm_t, mv
+from quadest.rotation.kernels import FASTMATH, qexp, qexp_right, rot_matrix, skew
 
 S = layout(("bias", 3),  # gyro bias, rad/s
            ("dist", 3),  # magnetic disturbance, navigation frame, in reference-field units
@@ -45,20 +46,27 @@ IB, ID, IREF, INORM, IP = S.bias, S.dist, S.ref, S.norm, S.P
 
 @dataclass(frozen=True)
 class KalmanParams(Params):
-    use_mag: bool = P(True, "-", "use the magnetometer when samples are present", "-")
-    gyro_noise: float = P(0.01, "rad/s", "gyroscope white noise std per sample", "assumption (bebop2 gyro)")
-    bias_rw: float = P(2e-4, "rad/s/√s", "gyro bias random walk", "assumption")
-    acc_noise: float = P(0.3, "m/s²", "accelerometer white noise std per sample", "assumption (bebop2)")
+    use_mag: bool = P(True, "-", "use the magnetometer when samples are present",
+                      "quadest: 9-axis when samples are present")
+    gyro_noise: float = P(0.01, "rad/s", "gyroscope white noise std per sample",
+                          "chosen: the bebop2 preset's gyro")
+    bias_rw: float = P(2e-4, "rad/s/√s", "gyro bias random walk", "chosen: the bebop2 preset's gyro")
+    acc_noise: float = P(0.3, "m/s²", "accelerometer white noise std per sample",
+                         "chosen: the bebop2 preset's accelerometer")
     lin_acc: float = P(3.0, "m/s²", "std of the unmodelled acceleration, added to the accelerometer noise",
-                       "assumption, chosen on simulator seed 11 (not a checked seed)")
-    mag_noise: float = P(0.02, "-", "magnetometer noise std, in units of the reference field", "assumption")
+                       "chosen on simulator seed 11 (not a checked seed); Roetenberg's values are not "
+                       "among quadest's sources")
+    mag_noise: float = P(0.02, "-", "magnetometer noise std, in units of the reference field",
+                         "chosen: about 1 µT of a 49 µT field")
     dist_std: float = P(0.02, "-", "steady-state std of the magnetic disturbance (reference-field units)",
-                        "assumption, chosen on simulator seed 11")
+                        "chosen on simulator seed 11")
     dist_tau_s: float = P(0.2, "s", "correlation time τ_d of the magnetic disturbance",
-                          "assumption, chosen on simulator seed 11")
+                          "chosen on simulator seed 11")
     gravity: float = P(GRAVITY, "m/s²", "gravity", "standard gravity")
-    p0_att: float = P(0.01, "rad²", "initial orientation error variance", "assumption")
-    p0_bias: float = P(1e-4, "(rad/s)²", "initial gyro bias variance", "assumption")
+    p0_att: float = P(0.01, "rad²", "initial orientation error variance",
+                     "chosen: about 6° (the first sample's attitude is close)")
+    p0_bias: float = P(1e-4, "(rad/s)²", "initial gyro bias variance",
+                      "chosen: 0.01 rad/s, a turn-on bias of a MEMS gyro")
 
 
 Record = params_record(KalmanParams)
@@ -69,39 +77,6 @@ def coefficients(p: KalmanParams) -> Coefficients:
     """Measurement noise variances: accelerometer (white noise plus unmodelled acceleration)
     and magnetometer."""
     return Coefficients(r_acc=p.acc_noise * p.acc_noise + p.lin_acc * p.lin_acc, r_mag=p.mag_noise * p.mag_noise)
-
-
-@njit(cache=True, fastmath=FASTMATH)
-def _skew(v):
-    S = np.zeros((3, 3))
-    S[0, 1], S[0, 2], S[1, 0], S[1, 2], S[2, 0], S[2, 1] = -v[2], v[1], v[2], -v[0], -v[1], v[0]
-    return S
-
-
-@njit(cache=True, fastmath=FASTMATH)
-def _rot(q):
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    R = np.empty((3, 3))
-    R[0, 0], R[0, 1], R[0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)
-    R[1, 0], R[1, 1], R[1, 2] = 2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)
-    R[2, 0], R[2, 1], R[2, 2] = 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)
-    return R
-
-
-@njit(cache=True, fastmath=FASTMATH)
-def _qexp_mul(q, v):
-    """``q ⊗ Exp(v)``, normalised."""
-    th = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-    c = np.cos(0.5 * th)
-    k = 0.5 - th * th / 48.0 if th < 1e-6 else np.sin(0.5 * th) / th
-    e = np.empty(4)
-    e[0], e[1], e[2], e[3] = c, k * v[0], k * v[1], k * v[2]
-    out = np.empty(4)
-    out[0] = q[0] * e[0] - q[1] * e[1] - q[2] * e[2] - q[3] * e[3]
-    out[1] = q[0] * e[1] + q[1] * e[0] + q[2] * e[3] - q[3] * e[2]
-    out[2] = q[0] * e[2] - q[1] * e[3] + q[2] * e[0] + q[3] * e[1]
-    out[3] = q[0] * e[3] + q[1] * e[2] - q[2] * e[1] + q[3] * e[0]
-    return out / np.sqrt(np.sum(out * out))
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -120,7 +95,7 @@ def _update(x, P, r, H, Rm, v_free, constrain):
     dx = mv(K, r)
     IKH = np.eye(9) - mm(K, H)
     P[:, :] = mm_t(mm(IKH, P), IKH) + mm_t(mm(K, Rm), K)  # Joseph form: keeps P symmetric positive definite
-    x[0:4] = _qexp_mul(x[0:4], dx[0:3])
+    qexp_right(x[0:4], dx[0], dx[1], dx[2])
     x[IB:IB + 3] += dx[3:6]
     x[ID:ID + 3] += dx[6:9]
     return dx
@@ -140,11 +115,11 @@ def kalman_step(x, p, c, gyr, acc, mag, dt, diag):
         w[:] = gyr - x[IB:IB + 3]
     else:
         w[:] = -x[IB:IB + 3]
-    x[0:4] = _qexp_mul(x[0:4], w * dt)
+    qexp_right(x[0:4], w[0] * dt, w[1] * dt, w[2] * dt)
     cd = np.exp(-dt / tau) if tau > 0 else 0.0
     x[ID:ID + 3] *= cd
     F = np.eye(9)
-    F[0:3, 0:3] = _rot(_qexp_mul(np.array([1.0, 0.0, 0.0, 0.0]), w * dt)).T
+    F[0:3, 0:3] = rot_matrix(qexp(w * dt)).T
     F[0:3, 3:6] = -dt * np.eye(3)
     F[6:9, 6:9] = cd * np.eye(3)
     Q = np.zeros((9, 9))
@@ -155,11 +130,11 @@ def kalman_step(x, p, c, gyr, acc, mag, dt, diag):
     P = mm_t(mm(F, P), F) + Q
     # -- accelerometer: f = −g Rᵀ e_z ---------------------------------------------------------
     if finite3(acc) and norm3(acc) > 0.0:
-        R = _rot(x[0:4])
+        R = rot_matrix(x[0:4])
         v = R[2, :].copy()  # Rᵀ e_z
         r = acc + grav * v
         H = np.zeros((3, 9))
-        H[:, 0:3] = -grav * _skew(v)
+        H[:, 0:3] = -grav * skew(v)
         # quadest's extension for 6-axis use (docs/estimators.md): without a magnetometer the
         # heading and the bias about the vertical are unobservable, and the accelerometer must
         # not correct them through their correlation with tilt (it drove the heading away)
@@ -178,16 +153,16 @@ def kalman_step(x, p, c, gyr, acc, mag, dt, diag):
                 s_dip = min(1.0, max(-1.0, s_dip))
                 x[IREF], x[IREF + 1], x[IREF + 2] = np.sqrt(1.0 - s_dip * s_dip), 0.0, s_dip
             else:
-                x[IREF:IREF + 3] = mv(_rot(x[0:4]), mag / mn)
+                x[IREF:IREF + 3] = mv(rot_matrix(x[0:4]), mag / mn)
                 x[IREF + 1] = 0.0  # magnetic frame: no east component
                 x[IREF:IREF + 3] /= norm3(x[IREF:IREF + 3])
         else:
-            R = _rot(x[0:4])
+            R = rot_matrix(x[0:4])
             u = x[IREF:IREF + 3] + x[ID:ID + 3]
             h = mv(R.T.copy(), u)
             r = mag / x[INORM] - h
             H = np.zeros((3, 9))
-            H[:, 0:3] = _skew(h)
+            H[:, 0:3] = skew(h)
             H[:, 6:9] = R.T
             _update(x, P, r, H, np.eye(3) * c.r_mag, h, False)
             diag[4] = 1.0

@@ -7,7 +7,7 @@ instructions. Each function is tested against numpy.
 import numpy as np
 from numba import njit
 
-from quadest.filters.common import FASTMATH
+from quadest.rotation.kernels import FASTMATH
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -94,22 +94,3 @@ def inv_spd_into(M, out):
                 for j in range(n):
                     M[r, j] -= f * M[c, j]
                     out[r, j] -= f * out[c, j]
-
-
-@njit(cache=True, fastmath=FASTMATH)
-def cholesky(A):
-    """Lower Cholesky factor of a symmetric positive (semi)definite matrix (clamped at 0)."""
-    n = A.shape[0]
-    L = np.zeros((n, n))
-    for j in range(n):
-        s = A[j, j]
-        for k in range(j):
-            s -= L[j, k] * L[j, k]
-        d = np.sqrt(s) if s > 0.0 else 0.0
-        L[j, j] = d
-        for i in range(j + 1, n):
-            s = A[i, j]
-            for k in range(j):
-                s -= L[i, k] * L[j, k]
-            L[i, j] = s / d if d > 0.0 else 0.0
-    return L

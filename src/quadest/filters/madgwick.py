@@ -18,12 +18,14 @@ import numpy as np
 from numba import njit
 
 from quadest.filters.base import Estimator, P, Params, params_record
-from quadest.filters.common import BASE, finite3, norm3, prepare
+from quadest.filters.common import BASE, finite3, gravity_objective, norm3, prepare
+from quadest.rotation.kernels import normalize_s, qdot_s, rotate_s
 
 
 @dataclass(frozen=True)
 class MadgwickParams(Params):
-    use_mag: bool = P(True, "-", "use the magnetometer (MARG form) when samples are present", "-")
+    use_mag: bool = P(True, "-", "use the magnetometer (MARG form) when samples are present",
+                      "quadest: 9-axis when samples are present")
     beta_marg: float = P(0.041, "-", "gradient-descent gain β in the MARG form",
                          "Madgwick 2010 report / reference implementation")
     beta_imu: float = P(0.033, "-", "gradient-descent gain β in the IMU (6-axis) form",
@@ -49,31 +51,22 @@ def madgwick_step(x, p, c, gyr, acc, mag, dt, diag):
     # the paper's z-up frame: q' = q_F ⊗ q_nb = [−x, w, −z, y]
     qw, qx, qy, qz = -x[1], x[0], -x[3], x[2]
     # eq 12: q̇_ω = ½ q ⊗ [0, ω]
-    d = np.zeros(4)
+    d0 = d1 = d2 = d3 = 0.0
     if finite3(gyr):
-        gx, gy, gz = gyr[0], gyr[1], gyr[2]
-        d[0] = 0.5 * (-qx * gx - qy * gy - qz * gz)
-        d[1] = 0.5 * (qw * gx + qy * gz - qz * gy)
-        d[2] = 0.5 * (qw * gy - qx * gz + qz * gx)
-        d[3] = 0.5 * (qw * gz + qx * gy - qy * gx)
+        d0, d1, d2, d3 = qdot_s(qw, qx, qy, qz, gyr[0], gyr[1], gyr[2])
     an = norm3(acc) if finite3(acc) else 0.0
     if an > 0.0:
-        ax, ay, az = acc[0] / an, acc[1] / an, acc[2] / an  # up-pointing specific force
-        f0 = 2.0 * (qx * qz - qw * qy) - ax
-        f1 = 2.0 * (qw * qx + qy * qz) - ay
-        f2 = 2.0 * (0.5 - qx * qx - qy * qy) - az
-        # J_gᵀ f_g (eqs 25-26)
-        s0 = -2.0 * qy * f0 + 2.0 * qx * f1
-        s1 = 2.0 * qz * f0 + 2.0 * qw * f1 - 4.0 * qx * f2
-        s2 = -2.0 * qw * f0 + 2.0 * qz * f1 - 4.0 * qy * f2
-        s3 = 2.0 * qx * f0 + 2.0 * qy * f1
+        # up-pointing specific force; J_gᵀ f_g (eqs 25-26)
+        f0, f1, f2, J0, J1, J2 = gravity_objective(qw, qx, qy, qz, acc[0] / an, acc[1] / an, acc[2] / an)
+        s0 = J0[0] * f0 + J1[0] * f1 + J2[0] * f2
+        s1 = J0[1] * f0 + J1[1] * f1 + J2[1] * f2
+        s2 = J0[2] * f0 + J1[2] * f1 + J2[2] * f2
+        s3 = J0[3] * f0 + J1[3] * f1 + J2[3] * f2
         mn = norm3(mag) if (use_mag and finite3(mag)) else 0.0
         if mn > 0.0:
             mx, my, mz = mag[0] / mn, mag[1] / mn, mag[2] / mn
             # eq 45: h = q ⊗ m ⊗ q*, eq 46: b = [√(hx² + hy²), 0, hz]
-            hx = mx * (1 - 2 * (qy * qy + qz * qz)) + my * 2 * (qx * qy - qw * qz) + mz * 2 * (qx * qz + qw * qy)
-            hy = mx * 2 * (qx * qy + qw * qz) + my * (1 - 2 * (qx * qx + qz * qz)) + mz * 2 * (qy * qz - qw * qx)
-            hz = mx * 2 * (qx * qz - qw * qy) + my * 2 * (qy * qz + qw * qx) + mz * (1 - 2 * (qx * qx + qy * qy))
+            hx, hy, hz = rotate_s(qw, qx, qy, qz, mx, my, mz)
             bx = np.sqrt(hx * hx + hy * hy)
             bz = hz
             f3 = 2.0 * bx * (0.5 - qy * qy - qz * qz) + 2.0 * bz * (qx * qz - qw * qy) - mx
@@ -90,14 +83,13 @@ def madgwick_step(x, p, c, gyr, acc, mag, dt, diag):
         sn = np.sqrt(s0 * s0 + s1 * s1 + s2 * s2 + s3 * s3)
         if sn > 0.0:
             # eq 33: q̇ = q̇_ω − β ∇f/|∇f|
-            d[0] -= beta * s0 / sn
-            d[1] -= beta * s1 / sn
-            d[2] -= beta * s2 / sn
-            d[3] -= beta * s3 / sn
+            d0 -= beta * s0 / sn
+            d1 -= beta * s1 / sn
+            d2 -= beta * s2 / sn
+            d3 -= beta * s3 / sn
     # eq 13: q_t = q_{t−1} + q̇ Δt, normalised; back to NED: q_nb = q_F* ⊗ q' = [q'x, −q'w, q'z, −q'y]
-    q0, q1, q2, q3 = qw + d[0] * dt, qx + d[1] * dt, qy + d[2] * dt, qz + d[3] * dt
-    n = np.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
-    x[0], x[1], x[2], x[3] = q1 / n, -q0 / n, q3 / n, -q2 / n
+    q0, q1, q2, q3 = normalize_s(qw + d0 * dt, qx + d1 * dt, qy + d2 * dt, qz + d3 * dt)
+    x[0], x[1], x[2], x[3] = q1, -q0, q3, -q2
 
 
 @njit(cache=True)

@@ -18,6 +18,7 @@ from numba import njit
 
 from quadest.filters.base import Estimator, P, Params, params_record
 from quadest.filters.common import BASE, finite3, layout, norm3, prepare
+from quadest.rotation.kernels import normalize_s, qdot_s, rotate_inv_s, rotate_s
 
 S = layout(("bias", 3), start=BASE)  # gyro bias estimate
 B = S.bias
@@ -25,7 +26,8 @@ B = S.bias
 
 @dataclass(frozen=True)
 class MahonyParams(Params):
-    use_mag: bool = P(True, "-", "use the magnetometer when samples are present", "-")
+    use_mag: bool = P(True, "-", "use the magnetometer when samples are present",
+                      "quadest: 9-axis when samples are present")
     k_p: float = P(1.0, "rad/s", "proportional gain k_P", "Mahony et al. 2008, experiments (k_P = 1)")
     k_i: float = P(0.3, "rad/s²", "integral gain k_I of the bias feedback",
                    "Mahony et al. 2008, experiments (k_I = 0.3)")
@@ -47,9 +49,7 @@ def mahony_step(x, p, c, gyr, acc, mag, dt, diag):
     if an > 0.0:
         ax, ay, az = acc[0] / an, acc[1] / an, acc[2] / an
         # predicted up direction in the body: −Rᵀ e_z
-        vx = -2.0 * (qx * qz - qw * qy)
-        vy = -2.0 * (qy * qz + qw * qx)
-        vz = -(1.0 - 2.0 * (qx * qx + qy * qy))
+        vx, vy, vz = rotate_inv_s(qw, qx, qy, qz, 0.0, 0.0, -1.0)
         e0 += ay * vz - az * vy
         e1 += az * vx - ax * vz
         e2 += ax * vy - ay * vx
@@ -57,14 +57,10 @@ def mahony_step(x, p, c, gyr, acc, mag, dt, diag):
         mn = norm3(mag) if (use_mag and finite3(mag)) else 0.0
         if mn > 0.0:
             mx, my, mz = mag[0] / mn, mag[1] / mn, mag[2] / mn
-            hx = mx * (1 - 2 * (qy * qy + qz * qz)) + my * 2 * (qx * qy - qw * qz) + mz * 2 * (qx * qz + qw * qy)
-            hy = mx * 2 * (qx * qy + qw * qz) + my * (1 - 2 * (qx * qx + qz * qz)) + mz * 2 * (qy * qz - qw * qx)
-            hz = mx * 2 * (qx * qz - qw * qy) + my * 2 * (qy * qz + qw * qx) + mz * (1 - 2 * (qx * qx + qy * qy))
+            hx, hy, hz = rotate_s(qw, qx, qy, qz, mx, my, mz)
             bx = np.sqrt(hx * hx + hy * hy)
             # v̂_m = Rᵀ [bx, 0, hz], normalised
-            wx = bx * (1 - 2 * (qy * qy + qz * qz)) + hz * 2 * (qx * qz - qw * qy)
-            wy = bx * 2 * (qx * qy - qw * qz) + hz * 2 * (qy * qz + qw * qx)
-            wz = bx * 2 * (qx * qz + qw * qy) + hz * (1 - 2 * (qx * qx + qy * qy))
+            wx, wy, wz = rotate_inv_s(qw, qx, qy, qz, bx, 0.0, hz)
             wn = np.sqrt(wx * wx + wy * wy + wz * wz)
             if wn > 0.0:
                 wx, wy, wz = wx / wn, wy / wn, wz / wn
@@ -81,13 +77,8 @@ def mahony_step(x, p, c, gyr, acc, mag, dt, diag):
     w0 = g0 - x[B] + kp * e0
     w1 = g1 - x[B + 1] + kp * e1
     w2 = g2 - x[B + 2] + kp * e2
-    h = 0.5 * dt
-    q0 = qw + h * (-qx * w0 - qy * w1 - qz * w2)
-    q1 = qx + h * (qw * w0 + qy * w2 - qz * w1)
-    q2 = qy + h * (qw * w1 - qx * w2 + qz * w0)
-    q3 = qz + h * (qw * w2 + qx * w1 - qy * w0)
-    n = np.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
-    x[0], x[1], x[2], x[3] = q0 / n, q1 / n, q2 / n, q3 / n
+    d0, d1, d2, d3 = qdot_s(qw, qx, qy, qz, w0, w1, w2)
+    x[0], x[1], x[2], x[3] = normalize_s(qw + dt * d0, qx + dt * d1, qy + dt * d2, qz + dt * d3)
     diag[0], diag[1], diag[2] = x[B], x[B + 1], x[B + 2]
 
 

@@ -23,9 +23,10 @@ import numpy as np
 from numba import njit
 
 from quadest.filters.base import Estimator, P, Params, params_record
-from quadest.filters.common import BASE, FASTMATH, finite3, layout, omega_matrix, prepare
+from quadest.filters.common import BASE, finite3, layout, omega_matrix, prepare
 from quadest.filters.linalg import inv_spd_into
 from quadest.filters.quatmeas import measurement_quaternion
+from quadest.rotation.kernels import FASTMATH
 
 S = layout(("P", 16), start=BASE)  # covariance P, row-major
 PB = S.P
@@ -33,15 +34,18 @@ PB = S.P
 
 @dataclass(frozen=True)
 class QukfParams(Params):
-    use_mag: bool = P(True, "-", "use the magnetometer heading in the measurement", "-")
+    use_mag: bool = P(True, "-", "use the magnetometer heading in the measurement",
+                      "quadest: 9-axis when samples are present")
     lam: float = P(-1.0, "-", "sigma-point scaling λ", "Liang et al. 2023, section IV")
     alpha: float = P(1.0, "-", "spread α", "Liang et al. 2023, section IV")
     beta: float = P(2.0, "-", "prior-distribution parameter β", "Liang et al. 2023, section IV")
     s: float = P(0.001, "-", "process noise S = s·I per reference step", "Liang et al. 2023, section IV")
     r: float = P(0.05, "-", "measurement noise R = r·I per reference step", "Liang et al. 2023, section IV")
-    p0: float = P(1.0, "-", "initial covariance P0 = p0·I (not given in the paper)", "assumption")
+    p0: float = P(1.0, "-", "initial covariance P0 = p0·I",
+               "chosen: large against a unit quaternion's components (the paper gives none)")
     rate_ref_hz: float = P(20.0, "Hz", "rate at which s and r are given", "Liang et al. 2023 (20 Hz)")
-    scale_with_rate: bool = P(True, "-", "scale s by dt/T and r by T/dt", "quadest (see module doc)")
+    scale_with_rate: bool = P(True, "-", "scale s by dt/T and r by T/dt",
+                              "quadest: keeps the paper's time constants at any rate (module doc)")
 
 
 Record = params_record(QukfParams)

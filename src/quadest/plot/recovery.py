@@ -3,6 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from quadest.recovery.logic import angle_deg, true_gravity_dir
+from quadest.rotation import quat_conj, quat_rotate
+
 
 def plot_recovery(res, rec, path, title: str = ""):
     """Angle error of every hypothesis and of the most likely one (Fig 3, top), the hypothesis
@@ -12,9 +15,6 @@ def plot_recovery(res, rec, path, title: str = ""):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from quadest.recovery.logic import _angle, true_gravity_dir
-    from quadest.rotation import quat_conj, quat_rotate
-
     t = res.t - res.t[0]
     k0 = res.detect_index if res.detect_index is not None else 0
     fig, axes = plt.subplots(3, 1, figsize=(10, 9), sharex=True, constrained_layout=True)
@@ -23,9 +23,9 @@ def plot_recovery(res, rec, path, title: str = ""):
         g_true = true_gravity_dir(rec.true_q)
         H = res.hypothesis_dirs.shape[1]
         for i in range(H):
-            ax.plot(t, _angle(res.hypothesis_dirs[:, i], g_true), color="0.75", lw=0.5)
+            ax.plot(t, angle_deg(res.hypothesis_dirs[:, i], g_true), color="0.75", lw=0.5)
     if rec.true_q is not None:
-        ax.plot(t, _angle(res.gravity_dir, true_gravity_dir(rec.true_q)), color="tab:blue", lw=1.5,
+        ax.plot(t, angle_deg(res.gravity_dir, true_gravity_dir(rec.true_q)), color="tab:blue", lw=1.5,
                 label="most likely / nominal")
         ax.set_ylabel("gravity direction error [deg]")
         ax.legend(loc="upper right", fontsize=8)

@@ -22,18 +22,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from quadest.data.recording import load_recording
+from quadest.readers import datasets, generic, logs, ros
 from quadest.readers.common import ReaderError
 
 FORMATS = ("quadest", "csv", "ulog", "dataflash", "rosbag", "broad", "dido", "blackbird", "repoimu")
 
 
 def _reader(fmt):
-    from quadest.readers import benchmarks as B
-    from quadest.readers import generic, logs, ros
-
     return {"csv": generic.read_csv_mapped, "ulog": logs.read_ulog, "dataflash": logs.read_dataflash,
-            "rosbag": ros.read_rosbag, "dido": B.read_dido, "blackbird": B.read_blackbird,
-            "repoimu": B.read_repoimu}[fmt]
+            "rosbag": ros.read_rosbag, "dido": datasets.read_dido, "blackbird": datasets.read_blackbird,
+            "repoimu": datasets.read_repoimu}[fmt]
 
 
 def _first_bytes(p: Path, n=256) -> bytes:
@@ -104,13 +103,10 @@ def read_recording(path, format: str | None = None, **options):
     if fmt not in FORMATS:
         raise ReaderError(f"unknown format {fmt!r}; formats: {', '.join(FORMATS)}")
     if fmt == "quadest":
-        from quadest.data import load_recording
-
         return load_recording(path)
     if fmt == "broad":
-        from quadest.readers.benchmarks import read_broad_hdf5, read_broad_mat
-
-        return (read_broad_mat if Path(path).suffix.lower() == ".mat" else read_broad_hdf5)(path, **options)
+        read = datasets.read_broad_mat if Path(path).suffix.lower() == ".mat" else datasets.read_broad_hdf5
+        return read(path, **options)
     if not Path(path).exists():
         raise ReaderError(f"{path}: no such file or folder")
     return _reader(fmt)(path, **options)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from quadest.conventions import GRAVITY
 from quadest.data.recording import Recording
 from quadest.rotation import quat_continuous, quat_normalize
 from quadest.rotation.quaternion import quat_mul
@@ -12,7 +13,7 @@ from quadest.rotation.quaternion import quat_mul
 # factors to quadest's units (SI; magnetometer µT)
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 GYR_UNITS = {"rad/s": 1.0, "deg/s": np.pi / 180.0}
-ACC_UNITS = {"m/s^2": 1.0, "g": 9.80665, "mg": 9.80665e-3}
+ACC_UNITS = {"m/s^2": 1.0, "g": GRAVITY, "mg": 1e-3 * GRAVITY}
 MAG_UNITS = {"uT": 1.0, "nT": 1e-3, "T": 1e6, "gauss": 100.0, "mgauss": 0.1, "mG": 0.1, "G": 100.0}
 
 _S = np.sqrt(0.5)

@@ -32,10 +32,17 @@ Corrections of the printed appendix (pinned by finite-difference tests):
 """
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 from numba import njit
 
-from quadest.filters.common import FASTMATH
+from quadest.rotation.kernels import FASTMATH, qexp_right
+
+BankRecord = namedtuple("BankRecord", ["gravity", "mass", "acc_var", "q_vel", "q_att"])
+"""The bank's parameters in compiled code: gravity (m/s²), mass (kg), accelerometer noise
+variance per axis ((m/s²)², eq 27), process noise intensities of velocity ((m/s²)²·s) and of
+the error rotation (rad²/s). Built by :meth:`quadest.recovery.RecoveryParams.bank_record`."""
 
 LOG_2PI = np.log(2.0 * np.pi)
 
@@ -63,22 +70,6 @@ def _aero(v, w, A, B, C, m, f, U):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def _qexp_right(q, a, b, c):
-    """q ← q ⊗ Exp([a, b, c]) in place, normalised."""
-    th = np.sqrt(a * a + b * b + c * c)
-    cw = np.cos(0.5 * th)
-    k = 0.5 - th * th / 48.0 if th < 1e-6 else np.sin(0.5 * th) / th
-    ex, ey, ez = k * a, k * b, k * c
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    q0 = w * cw - x * ex - y * ey - z * ez
-    q1 = w * ex + x * cw + y * ez - z * ey
-    q2 = w * ey - x * ez + y * cw + z * ex
-    q3 = w * ez + x * ey - y * ex + z * cw
-    n = np.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
-    q[0], q[1], q[2], q[3] = q0 / n, q1 / n, q2 / n, q3 / n
-
-
-@njit(cache=True, fastmath=FASTMATH)
 def gravity_body(q, g, out):
     """g_b = R_bn g_n = g · (row 2 of R_nb)."""
     w, x, y, z = q[0], q[1], q[2], q[3]
@@ -89,10 +80,8 @@ def gravity_body(q, g, out):
 
 @njit(cache=True, fastmath=FASTMATH)
 def bank_step(V, Qr, P, L, w_prev, gyr, acc, dt, prm, A, B, C):
-    """Advance every hypothesis by one IMU sample (in place). ``prm`` = [g, m, σ²_acc (3),
-    q_v, q_δ]: gravity, mass, accelerometer noise variances, and the process noise intensities
-    of velocity ((m/s²)²·s) and error rotation (rad²/s)."""
-    g, m = prm[0], prm[1]
+    """Advance every hypothesis by one IMU sample (in place). ``prm``: a :data:`BankRecord`."""
+    g, m = prm.gravity, prm.mass
     n = V.shape[0]
     f = np.empty(3)
     U = np.empty((3, 3))
@@ -114,7 +103,7 @@ def bank_step(V, Qr, P, L, w_prev, gyr, acc, dt, prm, A, B, C):
         vbar[0] = v[0] + dt * (-(w[1] * v[2] - w[2] * v[1]) + f[0] + gb[0])
         vbar[1] = v[1] + dt * (-(w[2] * v[0] - w[0] * v[2]) + f[1] + gb[1])
         vbar[2] = v[2] + dt * (-(w[0] * v[1] - w[1] * v[0]) + f[2] + gb[2])
-        _qexp_right(Qr[i], w[0] * dt, w[1] * dt, w[2] * dt)  # eq 23
+        qexp_right(Qr[i], w[0] * dt, w[1] * dt, w[2] * dt)  # eq 23
         # F = I + ΔT [[−[ω]× + Υ/m, Γ2], [0, Γ4]] (eqs 40-45)
         for r in range(5):
             for c in range(5):
@@ -151,9 +140,9 @@ def bank_step(V, Qr, P, L, w_prev, gyr, acc, dt, prm, A, B, C):
                 Pi[r, c] = s
                 Pi[c, r] = s
         for r in range(3):
-            Pi[r, r] += prm[5] * dt
-        Pi[3, 3] += prm[6] * dt
-        Pi[4, 4] += prm[6] * dt
+            Pi[r, r] += prm.q_vel * dt
+        Pi[3, 3] += prm.q_att * dt
+        Pi[4, 4] += prm.q_att * dt
         # -- posterior (eqs 26-29) -------------------------------------------------------------
         _aero(vbar, gyr, A, B, C, m, f, U)
         r0, r1, r2 = acc[0] - f[0], acc[1] - f[1], acc[2] - f[2]
@@ -164,7 +153,7 @@ def bank_step(V, Qr, P, L, w_prev, gyr, acc, dt, prm, A, B, C):
         for r in range(3):
             for c in range(3):
                 Wm[r, c] = U[r, 0] * PH[0, c] + U[r, 1] * PH[1, c] + U[r, 2] * PH[2, c]
-            Wm[r, r] += prm[2 + r]
+            Wm[r, r] += prm.acc_var
         # 3x3 inverse and determinant by cofactors
         c00 = Wm[1, 1] * Wm[2, 2] - Wm[1, 2] * Wm[2, 1]
         c01 = Wm[1, 2] * Wm[2, 0] - Wm[1, 0] * Wm[2, 2]
@@ -191,7 +180,7 @@ def bank_step(V, Qr, P, L, w_prev, gyr, acc, dt, prm, A, B, C):
         for r in range(5):
             for c in range(5):
                 Pi[r, c] = 0.5 * (T[r, c] + T[c, r])
-        _qexp_right(Qr[i], dx[3], dx[4], 0.0)  # eq 30; δ back to zero
+        qexp_right(Qr[i], dx[3], dx[4], 0.0)  # eq 30; δ back to zero
         # eq 33 in the log domain
         maha = (r0 * (Wi[0, 0] * r0 + Wi[0, 1] * r1 + Wi[0, 2] * r2)
                 + r1 * (Wi[1, 0] * r0 + Wi[1, 1] * r1 + Wi[1, 2] * r2)

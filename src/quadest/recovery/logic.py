@@ -10,20 +10,20 @@ velocity kept). The paper's detection is per sample; requiring a few consecutive
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numba import njit
 
 from quadest.conventions import GRAVITY
-from quadest.filters.common import FASTMATH
-from quadest.recovery.aero import AeroModel
-from quadest.recovery.bank import bank_step, gravity_body, summarize
+from quadest.models.aero import AeroModel
+from quadest.records import describe, param
+from quadest.rotation import quat_conj, quat_rotate
+from quadest.recovery.bank import BankRecord, bank_step, gravity_body, summarize
 from quadest.recovery.sphere import spread_points
+from quadest.rotation.kernels import FASTMATH
 
-
-def _P(default, unit, doc, source="assumption"):
-    return field(default=default, metadata={"unit": unit, "doc": doc, "source": source})
+_P = param
 
 
 @dataclass(frozen=True)
@@ -31,20 +31,28 @@ class RecoveryParams:
     n_hypotheses: int = _P(40, "-", "hypotheses of the bank (spread on the sphere)", "recovery paper, §V (N = 40)")
     beta1: float = _P(7.0, "m/s²", "throw detection: ‖z_acc‖ below this (eq 37)", "recovery paper, §V.A")
     beta2: float = _P(0.06, "-", "convergence: spherical variance S_g below this (eq 38)", "recovery paper, §V.A")
-    detect_samples: int = _P(3, "samples", "consecutive samples below β1 to detect a throw")
-    sigma_v0: float = _P(3.0, "m/s", "initial velocity std per axis (eq 20)")
+    detect_samples: int = _P(3, "samples", "consecutive samples below β1 to detect a throw",
+                           "chosen: 3 ms at 1 kHz keeps one vibration spike from starting a recovery")
+    sigma_v0: float = _P(3.0, "m/s", "initial velocity std per axis (eq 20)",
+                           "chosen: the speeds of a hand throw")
     sigma_delta0: float = _P(1.0, "rad", "initial error-rotation std (eq 20)",
-                             "assumption, chosen on simulated throws 5000-5079 (not evaluated ones)")
+                             "chosen on simulated throws 5000-5079 (not evaluated ones)")
     acc_std: float = _P(2.0, "m/s²", "accelerometer noise std in Σ_acc, model error included (eq 27)",
-                        "assumption, chosen on simulated throws 5000-5079")
+                        "chosen on simulated throws 5000-5079")
     q_vel: float = _P(0.5, "(m/s²)² s", "velocity process noise intensity (aerodynamic model error)",
-                      "assumption, chosen on simulated throws 5000-5079")
-    q_att: float = _P(1e-4, "rad²/s", "error-rotation process noise intensity (gyro noise)")
+                      "chosen on simulated throws 5000-5079")
+    q_att: float = _P(1e-4, "rad²/s", "error-rotation process noise intensity (gyro noise)",
+                         "chosen: a MEMS gyro's white noise")
     gravity: float = _P(GRAVITY, "m/s²", "gravity", "standard gravity")
 
-    def as_array(self, mass):
-        v = self.acc_std ** 2
-        return np.array([self.gravity, mass, v, v, v, self.q_vel, self.q_att])
+    def bank_record(self, mass: float) -> BankRecord:
+        """What the compiled bank reads, by name."""
+        return BankRecord(gravity=float(self.gravity), mass=float(mass), acc_var=float(self.acc_std ** 2),
+                          q_vel=float(self.q_vel), q_att=float(self.q_att))
+
+    @classmethod
+    def describe(cls) -> list[dict]:
+        return describe(cls)
 
 
 def shortest_arc(d) -> np.ndarray:
@@ -69,7 +77,7 @@ def _run_bank(V, Qr, P, L, w_prev, t, gyr, acc, k0, prm, A, B, C, beta2, best_ou
     for k in range(k0, len(t)):
         dt = t[k] - t[k - 1] if k > 0 else t[1] - t[0]
         bank_step(V, Qr, P, L, w_prev, gyr[k], acc[k], dt, prm, A, B, C)
-        best, sg = summarize(Qr, L, prm[0], prob, gd)
+        best, sg = summarize(Qr, L, prm.gravity, prob, gd)
         best_out[k] = best
         sg_out[k] = sg
         for j in range(3):
@@ -161,7 +169,7 @@ def recover(rec, model: AeroModel, params: RecoveryParams | None = None, *, reco
     events = [("waiting", float(t[0]))]
     k_det = detect_throw(acc, p.beta1, p.detect_samples)
     k_conv = None
-    prm = p.as_array(model.mass_kg)
+    prm = p.bank_record(model.mass_kg)
     if k_det is not None and n > 1:
         events.append(("thrown", float(t[k_det])))
         events.append(("converging", float(t[k_det])))
@@ -201,7 +209,8 @@ def true_gravity_dir(q):
     return np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=-1)
 
 
-def _angle(a, b):
+def angle_deg(a, b):
+    """Angle between vectors (degrees), along the last axis."""
     c = np.sum(a * b, axis=-1) / (np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1))
     return np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
 
@@ -225,42 +234,8 @@ def _summarize(res: RecoveryResult, rec, t_release, p) -> dict:
         out["velocity_body_mps"] = res.velocity[k].tolist()
         if rec.true_q is not None:
             g_true = true_gravity_dir(rec.true_q[k])
-            out["gravity_err_deg"] = float(_angle(res.gravity_dir[k], g_true))
+            out["gravity_err_deg"] = float(angle_deg(res.gravity_dir[k], g_true))
             if rec.true_vel is not None:
-                from quadest.rotation import quat_conj, quat_rotate
                 v_true = quat_rotate(quat_conj(rec.true_q[k]), rec.true_vel[k])
                 out["vel_err_mps"] = float(np.linalg.norm(res.velocity[k] - v_true))
     return out
-
-
-def param_rows():
-    return [{"name": f.name, "default": f.default, **f.metadata} for f in fields(RecoveryParams)]
-
-
-def time_bank(n_hypotheses: int = 40, duration: float = 20.0, seed: int = 1) -> float:
-    """µs per IMU sample of the whole bank advancing together (compiled loop over a simulated
-    throw's free flight, after a warm-up)."""
-    import time
-
-    from quadest.sim import build_config, simulate
-
-    rec = simulate("throw", "fma", seed=seed, duration=duration)
-    model = AeroModel.from_config(build_config("fma"))
-    p = RecoveryParams(n_hypotheses=n_hypotheses, beta2=-1.0)  # never converges: the bank runs on
-    n = len(rec)
-    bufs = dict(best_out=np.zeros(n, np.int64), sg_out=np.zeros(n), prob_out=np.empty((1, 1)),
-                gd_out=np.zeros((n, 1, 3)), v_out=np.zeros((n, 3)))
-
-    def once():
-        dirs = spread_points(n_hypotheses)
-        V = np.zeros((n_hypotheses, 3))
-        Qr = np.array([shortest_arc(d) for d in dirs])
-        P = np.repeat(np.diag([9.0, 9, 9, 1, 1])[None], n_hypotheses, axis=0)
-        t0 = time.perf_counter()
-        _run_bank(V, Qr, P, np.zeros(n_hypotheses), rec.gyr[0].copy(), rec.t, rec.gyr, rec.acc, 1,
-                  p.as_array(model.mass_kg), model.A, model.B, model.C, p.beta2, bufs["best_out"],
-                  bufs["sg_out"], bufs["prob_out"], bufs["gd_out"], bufs["v_out"], False)
-        return time.perf_counter() - t0
-
-    once()
-    return 1e6 * min(once() for _ in range(3)) / (n - 1)

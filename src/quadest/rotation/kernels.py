@@ -1,10 +1,18 @@
-"""Single-sample quaternion kernels compiled with numba, for use inside compiled filters.
+"""Single-sample quaternion kernels compiled with numba: the one vocabulary of quadest's
+compiled code (filters, recovery bank, simulator).
 
 Same convention as :mod:`quadest.conventions`; each kernel mirrors a vectorised function of
-:mod:`quadest.rotation.quaternion` and is tested against it.
+:mod:`quadest.rotation.quaternion` and is tested against it (tests/test_rotation.py). The
+``*_s`` kernels take and return scalars: they allocate nothing, which matters in steps that
+run millions of times.
 """
 import numpy as np
 from numba import njit
+
+# Floating-point flags for quadest's compiled steps: LLVM may fuse and reorder arithmetic
+# (contract, reassoc, arcp); NaN and Inf keep their meaning (no nnan/ninf), which bad-input
+# handling needs.
+FASTMATH = {"contract", "reassoc", "arcp"}
 
 
 @njit(cache=True, inline="always")
@@ -16,18 +24,6 @@ def qmul(p, q):
     out[2] = p[0] * q[2] - p[1] * q[3] + p[2] * q[0] + p[3] * q[1]
     out[3] = p[0] * q[3] + p[1] * q[2] - p[2] * q[1] + p[3] * q[0]
     return out
-
-
-@njit(cache=True, inline="always")
-def qnormalize(q):
-    """Unit quaternion (in place); a zero quaternion becomes identity."""
-    n = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    if n > 0.0:
-        for i in range(4):
-            q[i] /= n
-    else:
-        q[0], q[1], q[2], q[3] = 1.0, 0.0, 0.0, 0.0
-    return q
 
 
 @njit(cache=True, inline="always")
@@ -61,3 +57,65 @@ def qexp(rv):
     k = 0.5 - th * th / 48.0 if th < 1e-6 else np.sin(0.5 * th) / th
     out[1], out[2], out[3] = k * rv[0], k * rv[1], k * rv[2]
     return out
+
+
+@njit(cache=True, inline="always")
+def rotate_s(w, x, y, z, v0, v1, v2):
+    """``R(q) v`` for ``q = [w, x, y, z]`` (unit), scalars in and out."""
+    return (v0 * (1 - 2 * (y * y + z * z)) + v1 * 2 * (x * y - w * z) + v2 * 2 * (x * z + w * y),
+            v0 * 2 * (x * y + w * z) + v1 * (1 - 2 * (x * x + z * z)) + v2 * 2 * (y * z - w * x),
+            v0 * 2 * (x * z - w * y) + v1 * 2 * (y * z + w * x) + v2 * (1 - 2 * (x * x + y * y)))
+
+
+@njit(cache=True, inline="always")
+def rotate_inv_s(w, x, y, z, v0, v1, v2):
+    """``R(q)ᵀ v``: a navigation-frame vector in the body frame, scalars in and out."""
+    return (v0 * (1 - 2 * (y * y + z * z)) + v1 * 2 * (x * y + w * z) + v2 * 2 * (x * z - w * y),
+            v0 * 2 * (x * y - w * z) + v1 * (1 - 2 * (x * x + z * z)) + v2 * 2 * (y * z + w * x),
+            v0 * 2 * (x * z + w * y) + v1 * 2 * (y * z - w * x) + v2 * (1 - 2 * (x * x + y * y)))
+
+
+@njit(cache=True, inline="always")
+def qdot_s(w, x, y, z, g0, g1, g2):
+    """``½ q ⊗ [0, ω]``: the rate of change of ``q_nb`` for a body rate ω (first-order
+    quaternion integration is ``q + Δt · qdot``)."""
+    return (0.5 * (-x * g0 - y * g1 - z * g2), 0.5 * (w * g0 + y * g2 - z * g1),
+            0.5 * (w * g1 - x * g2 + z * g0), 0.5 * (w * g2 + x * g1 - y * g0))
+
+
+@njit(cache=True, inline="always")
+def normalize_s(w, x, y, z):
+    """The unit quaternion of ``[w, x, y, z]`` (nonzero)."""
+    n = np.sqrt(w * w + x * x + y * y + z * z)
+    return w / n, x / n, y / n, z / n
+
+
+@njit(cache=True, inline="always")
+def qexp_right(q, a, b, c):
+    """``q ← q ⊗ Exp([a, b, c])`` in place, normalised (rotation vector in the body frame)."""
+    th = np.sqrt(a * a + b * b + c * c)
+    cw = np.cos(0.5 * th)
+    k = 0.5 - th * th / 48.0 if th < 1e-6 else np.sin(0.5 * th) / th
+    ex, ey, ez = k * a, k * b, k * c
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    q[0], q[1], q[2], q[3] = normalize_s(w * cw - x * ex - y * ey - z * ez, w * ex + x * cw + y * ez - z * ey,
+                                         w * ey - x * ez + y * cw + z * ex, w * ez + x * ey - y * ex + z * cw)
+
+
+@njit(cache=True, inline="always")
+def rot_matrix(q):
+    """``R(q)`` (3x3) of a unit quaternion."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    R = np.empty((3, 3))
+    R[0, 0], R[0, 1], R[0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)
+    R[1, 0], R[1, 1], R[1, 2] = 2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)
+    R[2, 0], R[2, 1], R[2, 2] = 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)
+    return R
+
+
+@njit(cache=True, inline="always")
+def skew(v):
+    """``[v]×`` with ``[v]× u = v × u``."""
+    S = np.zeros((3, 3))
+    S[0, 1], S[0, 2], S[1, 0], S[1, 2], S[2, 0], S[2, 1] = -v[2], v[1], v[2], -v[0], -v[1], v[0]
+    return S

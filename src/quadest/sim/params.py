@@ -13,17 +13,13 @@ import tomllib
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
-ASSUMED = "assumption (no published value)"
-
-
-def P(default, unit: str, doc: str, source: str = ASSUMED):
-    """A parameter field: default, unit, one-line meaning and where the value comes from."""
-    return field(default=default, metadata={"unit": unit, "doc": doc, "source": source})
+from quadest.conventions import GRAVITY
+from quadest.records import param as P
 
 
 @dataclass(frozen=True)
 class Environment:
-    gravity: float = P(9.80665, "m/s²", "gravitational acceleration along +z (down)", "standard gravity")
+    gravity: float = P(GRAVITY, "m/s²", "gravitational acceleration along +z (down)", "standard gravity")
     field_ut: float = P(49.0, "µT", "earth magnetic field intensity", "WMM, Delft (52.0°N 4.4°E), 2022")
     inclination_deg: float = P(67.0, "deg", "field inclination, positive down", "WMM, Delft, 2022")
     declination_deg: float = P(2.0, "deg", "field declination, positive east", "WMM, Delft, 2022")
@@ -69,7 +65,7 @@ class Accelerometer:
     scale: tuple | None = P(None, "-", "fixed scale-factor errors (overrides the draw)")
     misalignment_std: float = P(0.002, "rad", "std of each off-diagonal misalignment term")
     misalignment: tuple | None = P(None, "-", "fixed 3x3 misalignment matrix, zero diagonal")
-    range: float = P(8 * 9.80665, "m/s²", "saturation limit per axis")
+    range: float = P(8 * GRAVITY, "m/s²", "saturation limit per axis")
     lever_arm: tuple = P((0.0, 0.0, 0.0), "m", "IMU position from the centre of mass, body frame")
     vibration_amp: tuple = P((0.0, 0.0, 0.0), "m/s²",
                              "rotor vibration tone amplitude per axis at hover (grows with rotor load)")
@@ -89,7 +85,8 @@ class Magnetometer:
 @dataclass(frozen=True)
 class Hover:
     duration_s: float = P(30.0, "s", "default duration of the hover scenario")
-    gust_acc_rms: float = P(0.3, "m/s²", "RMS horizontal acceleration from gusts", "issue #2")
+    gust_acc_rms: float = P(0.3, "m/s²", "RMS horizontal acceleration from gusts",
+                            "chosen: light air; a few tenths of m/s² of position-hold residual")
     gust_band_hz: tuple = P((0.1, 1.5), "Hz", "frequency band of the gust motion")
     vertical_ratio: float = P(0.5, "-", "vertical over horizontal gust amplitude")
     yaw_amp_deg: float = P(5.0, "deg", "peak slow yaw change")
@@ -100,11 +97,12 @@ class Hover:
 @dataclass(frozen=True)
 class Nominal:
     duration_s: float = P(60.0, "s", "default duration of the nominal scenario")
-    acc_max: float = P(3.0, "m/s²", "peak acceleration of the path", "issue #2")
+    acc_max: float = P(3.0, "m/s²", "peak acceleration of the path",
+                     "chosen: brisk manual flight (the AFCKF paper's normal flight is not published)")
     band_hz: tuple = P((0.1, 0.5), "Hz", "frequency band of the path's accelerations (periods 2-10 s)")
     ramp_s: float = P(1.0, "s", "time constant with which the manoeuvres start from hover")
     vertical_ratio: float = P(0.3, "-", "vertical over horizontal path amplitude")
-    yaw_rate_max: float = P(1.0, "rad/s", "peak yaw rate", "issue #2")
+    yaw_rate_max: float = P(1.0, "rad/s", "peak yaw rate", "chosen: moderate manual yaw")
     yaw_band_hz: tuple = P((0.02, 0.15), "Hz", "frequency band of the yaw motion")
     components: int = P(5, "-", "sinusoids per axis")
 
@@ -112,19 +110,22 @@ class Nominal:
 @dataclass(frozen=True)
 class DamagedRotor:
     duration_s: float = P(30.0, "s", "default duration of the damaged-rotor scenario")
-    failure_s: float = P(5.0, "s", "time of the rotor loss (hover before it)", "issue #2")
+    failure_s: float = P(5.0, "s", "time of the rotor loss (hover before it)",
+                        "chosen: the filters have converged in hover by then")
     spin_rate_mean: float = P(15.5, "rad/s", "mean spin rate after the failure",
                               "AFCKF paper, section IV.B.1")
-    spin_rate_var: float = P(3.0, "rad/s", "peak slow deviation of the spin rate", "issue #2")
+    spin_rate_var: float = P(3.0, "rad/s", "peak slow deviation of the spin rate",
+                            "chosen, not from the paper: a wandering spin; with the ±1000 °/s gyro it makes the gyro clip")
     spin_band_hz: tuple = P((0.03, 0.15), "Hz", "frequency band of the spin-rate variation")
-    spin_up_tau_s: float = P(0.5, "s", "time constant of the spin-up", "issue #2")
+    spin_up_tau_s: float = P(0.5, "s", "time constant of the spin-up",
+                            "chosen: the spin settles within about 2 s of the loss")
     spin_sign: float = P(1.0, "-", "+1: positive yaw rate (clockwise seen from above), -1: negative")
     tilt_deg: float = P(4.0, "deg",
                         "angle between body z and the spin axis at the mean spin rate (grows with rate²)",
                         "relaxed hover, Mueller & D'Andrea 2014; value assumed")
     tilt_azimuth_deg: float = P(45.0, "deg", "direction in the body x-y plane the spin axis leans to")
     manoeuvre_acc_max: float = P(1.0, "m/s²", "peak acceleration of the spin centre after the failure",
-                                 "issue #2")
+                                 "chosen: a damaged vehicle drifting slowly around its position")
     manoeuvre_band_hz: tuple = P((0.02, 0.2), "Hz", "frequency band of the spin-centre manoeuvres")
     active_rotors: int = P(3, "-", "rotors producing thrust after the failure (vibration, motor current)")
 
@@ -134,11 +135,13 @@ class Throw:
     duration_s: float = P(3.0, "s", "default duration of the throw scenario")
     hold_s: float = P(0.75, "s", "time held still in the hand before the throwing motion")
     throw_s: float = P(0.25, "s", "duration of the throwing motion before release")
-    speed_max: float = P(5.0, "m/s", "release speed drawn uniformly in [0, speed_max]", "issue #2")
+    speed_max: float = P(5.0, "m/s", "release speed drawn uniformly in [0, speed_max]",
+                         "chosen: a gentle hand throw")
     any_direction: bool = P(False, "-",
                             "release velocity of any direction (default: upward or horizontal only; a "
                             "downward throw makes the hand's own acceleration trigger eq 37 before release)")
-    rate_max: float = P(10.0, "rad/s", "release body-rate magnitude drawn in [0, rate_max]", "issue #2")
+    rate_max: float = P(10.0, "rad/s", "release body-rate magnitude drawn in [0, rate_max]",
+                         "chosen: a throw with some tumble")
     tremor_acc: float = P(0.2, "m/s²", "hand tremor acceleration amplitude while held")
     release_height_m: float = P(1.5, "m", "height of the release point above the origin")
     max_step_s: float = P(2.5e-4, "s", "largest RK4 step of the free flight (>= 4 kHz)")
@@ -296,12 +299,14 @@ PRESETS = {
             "mag.motor_coef": (0.8, -0.4, 1.5),
         },
         "sources": {
-            "imu.rate_hz": "issue #2 (Bebop 2 logging rate)", "mag.rate_hz": "issue #2",
-            "gyro.noise_std": "issue #2 (vibration-dominated, per sample)",
-            "gyro.range": "issue #2 (±1000 °/s)",
-            "acc.noise_std": "issue #2: total per-sample σ 0.3 m/s² = √(0.25² + 0.25²/2) with the tone",
-            "acc.vibration_amp": "issue #2: rotor vibration, share of the 0.3 m/s² per-sample σ",
-            "acc.lever_arm": "issue #2", "mag.noise_std": "issue #2",
+            "imu.rate_hz": "chosen: Bebop 2 IMU logging rate (the AFCKF paper gives none)",
+            "mag.rate_hz": "chosen: a typical magnetometer rate (the AFCKF paper gives none)",
+            "gyro.noise_std": "chosen: vibration-dominated per-sample noise of a small quadrotor",
+            "gyro.range": "chosen: ±1000 °/s, a common MEMS gyro range; the AFCKF's ω_ψ,sat (eq 48) needs one",
+            "acc.noise_std": "chosen: total per-sample σ 0.3 m/s² = √(0.25² + 0.25²/2) with the tone",
+            "acc.vibration_amp": "chosen: rotor vibration, share of the 0.3 m/s² per-sample σ",
+            "acc.lever_arm": "chosen: an IMU a centimetre or two off the centre of mass",
+            "mag.noise_std": "chosen: a low-cost magnetometer's per-sample noise",
             "mag.hard_iron": "assumption: residual after the paper's calibration",
             "mag.soft_iron": "assumption: residual after the paper's calibration",
             "vehicle.mass_kg": "Parrot Bebop 2 specification (500 g)",
@@ -314,7 +319,7 @@ PRESETS = {
             "vehicle.rotor_hz_hover": 90.0,
             "imu.rate_hz": 20.0, "mag.rate_hz": 20.0,
             "gyro.noise_std": 0.005, "gyro.bias_std": 0.002, "gyro.range": math.radians(2000.0),
-            "acc.noise_std": 0.1, "acc.bias_std": 0.05, "acc.range": 2 * 9.80665,
+            "acc.noise_std": 0.1, "acc.bias_std": 0.05, "acc.range": 2 * GRAVITY,
             "acc.vibration_amp": (0.0, 0.0, 0.0),
             "mag.noise_std": 0.2, "mag.range": 130.0, "mag.motor_coef": (0.5, 0.3, 1.0),
         },
@@ -335,21 +340,22 @@ PRESETS = {
             "vehicle.rotor_hz_hover": 150.0,
             "imu.rate_hz": 1000.0, "mag.rate_hz": 0.0,
             "gyro.noise_std": 0.005, "gyro.bias_std": 0.001, "gyro.range": math.radians(2000.0),
-            "acc.noise_std": 0.1, "acc.bias_std": 0.02, "acc.range": 16 * 9.80665,
+            "acc.noise_std": 0.1, "acc.bias_std": 0.02, "acc.range": 16 * GRAVITY,
             "acc.vibration_amp": (0.05, 0.05, 0.05),
         },
         "sources": {
             "imu.rate_hz": "recovery paper, section III.C (1000 Hz)",
             "mag.rate_hz": "recovery paper: IMU only",
-            "vehicle.mass_kg": "issue #2 (recovery paper's vehicle)",
-            "vehicle.inertia": "issue #2 (recovery paper's vehicle)",
-            "vehicle.arm_m": "issue #2 (recovery paper's vehicle)",
+            "vehicle.mass_kg": "recovery paper, experimental setup (m = 0.5 kg)",
+            "vehicle.inertia": "recovery paper, experimental setup (J = diag(0.0023, 0.0023, 0.0046))",
+            "vehicle.arm_m": "recovery paper, experimental setup (L = 0.17 m)",
             "gyro.bias_std": "assumption: the paper assumes calibrated, unbiased sensors (section II.B)",
         },
     },
 }
 DEFAULT_SOURCES = {
-    "environment.field_ut": "issue #2 (about 49 µT)", "environment.inclination_deg": "issue #2 (67°)",
+    "environment.field_ut": "chosen: about 49 µT, a mid-latitude field (Netherlands)",
+    "environment.inclination_deg": "chosen: 67°, a mid-latitude dip (Netherlands)",
 }
 
 

@@ -6,13 +6,13 @@ quadest's conventions, with Euler's equation written with the inertia as it shou
     ṗ = v,   v̇ = R(q) f_c(Rᵀ v, ω)/m + g,   q̇ = ½ q ⊗ [0, ω],
     J ω̇ = −ω × (J ω) − D ω
 
-with the aerodynamic force ``f_c`` of eq 9 (:mod:`quadest.recovery.aero`) and a body-rate
+with the aerodynamic force ``f_c`` of eq 9 (:mod:`quadest.models.aero`) and a body-rate
 damping torque ``−D ω``. The quaternion is renormalised after every step.
 """
 import numpy as np
 from numba import njit
 
-from quadest.recovery.aero import aero_force
+from quadest.models.aero import aero_force
 from quadest.rotation.kernels import qmul, qrotate, qrotate_inv
 
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from quadest.rotation import quat_rotate, quat_conj
+from quadest.rotation import quat_conj, quat_rotate
 from quadest.sim.params import Accelerometer, Environment, Gyroscope, Magnetometer
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from quadest.data.recording import Recording
+from quadest.models.aero import AeroModel
 from quadest.rotation import quat_continuous
 from quadest.sim import sensors as S
 from quadest.sim.params import SimConfig, load_toml_overrides, preset_config
@@ -25,6 +26,21 @@ def build_config(preset: str = "bebop2", overrides: dict | None = None, toml=Non
     if overrides:
         cfg = cfg.with_overrides(overrides)
     return cfg
+
+
+def aero_model(cfg: SimConfig) -> AeroModel:
+    """The aerodynamic model (recovery paper eq 9) a configuration simulates: ``cfg.aero`` and
+    the vehicle mass."""
+    return AeroModel(cfg.aero.A, cfg.aero.B, cfg.aero.C, cfg.vehicle.mass_kg)
+
+
+def aero_model_of(rec: Recording) -> AeroModel:
+    """The aerodynamic model a simulated recording was made with (from its metadata)."""
+    cfg = rec.meta.get("config") if isinstance(rec.meta, dict) else None
+    if not cfg or "aero" not in cfg:
+        raise ValueError("this recording does not carry a simulation's aerodynamic model: give one "
+                         "(quadest fit-aero, or an aero calibration)")
+    return aero_model(SimConfig().with_overrides({"aero": cfg["aero"], "vehicle.mass_kg": cfg["vehicle"]["mass_kg"]}))
 
 
 def simulate(scenario: str, preset: str = "bebop2", seed: int = 0, duration: float | None = None,

@@ -12,10 +12,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from quadest.rotation import matrix_to_quat, quat_continuous
+from quadest.rotation import (euler_to_quat, matrix_to_quat, quat_conj, quat_continuous, quat_from_rotvec, quat_mul,
+                              quat_to_matrix, quat_to_rotvec)
 from quadest.sim import jets as J
 from quadest.sim.jets import Jet
 from quadest.sim.params import SimConfig
+from quadest.sim.rigid_body import integrate
 from quadest.sim.signals import RampedSinusoids, Sinusoids
 
 SCENARIOS = ("hover", "nominal", "damaged-rotor", "throw", "rest", "six-position", "figure-eight")
@@ -300,8 +302,6 @@ class ThrowMotion:
         return x
 
     def _hand(self, t) -> Truth:
-        from quadest.rotation import quat_to_matrix
-
         T = self.cfg.throw.throw_s
         x = (t - (self.t_release - T)) / T
         I, S, S1, S2 = _smoothstep(x)
@@ -325,8 +325,6 @@ class ThrowMotion:
         return np.full(n, self.idle / self.cfg.environment.gravity)
 
     def _flight(self, t) -> Truth:
-        from quadest.sim.rigid_body import integrate
-
         if self.state is None:
             self.state = (self.t_release, self.release_state())
         t0, x0 = self.state
@@ -369,7 +367,6 @@ class CalibrationMotion:
         self.pos = np.array([0.0, 0.0, -1.0])
         self.meta = {"motors": "off"}
         if scenario == "six-position":
-            from quadest.rotation import euler_to_quat, quat_mul, quat_from_rotvec
             base = [(0.0, 0.0), (np.pi, 0.0), (0.0, np.pi / 2), (0.0, -np.pi / 2), (-np.pi / 2, 0.0), (np.pi / 2, 0.0)]
             qs = []
             for roll, pitch in base:
@@ -386,7 +383,6 @@ class CalibrationMotion:
                                        for k in range(6)]
 
     def evaluate(self, t) -> Truth:
-        from quadest.rotation import quat_conj, quat_mul, quat_to_matrix, quat_to_rotvec
         n = len(t)
         if self.kind == "rest":
             R = Jet.const(np.broadcast_to(quat_to_matrix(euler_q(0.0, 0.0, self.yaw0)), (n, 3, 3)))
@@ -436,7 +432,6 @@ class CalibrationMotion:
 
 
 def euler_q(roll, pitch, yaw):
-    from quadest.rotation import euler_to_quat
     return euler_to_quat([roll, pitch, yaw])
 
 

@@ -1,9 +1,10 @@
 """Monte Carlo sweeps and parameter tuning on Dask (docs/sweeps.md): a grid of filters and
 parameters over simulated flights or recordings, executed in this process, on a local cluster or
 on an existing Dask cluster, with results in one resumable Parquet file."""
-from quadest.sweep.engine import ResultStore, execute, run_sweep
+from quadest.evaluation.parallel import execute
+from quadest.sweep.engine import ResultStore, run_sweep
 from quadest.sweep.runs import build_runs, file_sources, parse_grid, run_id, run_one, sim_sources
-from quadest.sweep.tune import format_selection, select
+from quadest.sweep.tune import format_selection, select, tune
 
 __all__ = ["ResultStore", "build_runs", "execute", "file_sources", "format_selection", "parse_grid", "run_id",
-           "run_one", "run_sweep", "select", "sim_sources"]
+           "run_one", "run_sweep", "select", "sim_sources", "tune"]

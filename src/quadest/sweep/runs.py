@@ -18,6 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
+from quadest.evaluation.runner import check_params, estimate, estimator_names, score
+from quadest.readers import read_recording
+from quadest.sim import simulate
+
 METRICS = ("total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg", "roll_rms_deg", "pitch_rms_deg",
            "yaw_rms_deg")
 
@@ -86,9 +90,7 @@ def file_sources(paths, fmt=None) -> list[dict]:
 
 def build_runs(filters, grid: dict, sources, align: str | None = None) -> list[dict]:
     """Every (filter, parameter set, source) as a run spec."""
-    from quadest.evaluation.compare import parse_filters
-
-    names = parse_filters(filters if isinstance(filters, str) else ",".join(filters), all_includes_peers=True)
+    names = estimator_names(filters if isinstance(filters, str) else ",".join(filters), all_includes_peers=True)
     unknown = [n for n in grid if n not in names]
     if unknown:
         raise ValueError(f"--grid names filter(s) {', '.join(unknown)} that the sweep does not run")
@@ -111,15 +113,11 @@ def source_label(src: dict) -> str:
 # -- executing one run --------------------------------------------------------------------------------
 @lru_cache(maxsize=8)
 def _sim(scenario, preset, seed, duration, overrides_json):
-    from quadest.sim import simulate
-
     return simulate(scenario, preset, seed=seed, duration=duration, overrides=json.loads(overrides_json) or None)
 
 
 @lru_cache(maxsize=16)
 def _file(path, fmt):
-    from quadest.readers import read_recording
-
     return read_recording(path, fmt)
 
 
@@ -128,18 +126,6 @@ def load_source(src: dict):
         return _sim(src["scenario"], src["preset"], src["seed"], src.get("duration"),
                     json.dumps(src.get("set") or {}, sort_keys=True))
     return _file(src["path"], src.get("format"))
-
-
-def _check_params(name, params):
-    from quadest.filters import FILTERS
-
-    if name in FILTERS:
-        known = {f["name"] for f in FILTERS[name].Params.describe()}
-        bad = [k for k in params if k not in known]
-        if bad:
-            raise ValueError(f"{name} has no parameter {', '.join(bad)}; parameters: {', '.join(sorted(known))}")
-    elif params:
-        raise ValueError(f"peer {name} runs with its own defaults; it takes no --grid parameters")
 
 
 def run_group(specs: list) -> list:
@@ -161,8 +147,6 @@ def group_runs(runs: list, max_runs: int = 32) -> list:
 
 def run_one(spec: dict) -> dict:
     """Evaluate one run; never raises: a failure becomes a row with ``status='failed'``."""
-    from quadest.evaluation.benchmark import estimate_all, evaluate, evaluation_mask
-
     t0 = time.perf_counter()
     row = {"run_id": run_id(spec), "filter": spec["filter"], "params": json.dumps(spec["params"], sort_keys=True),
            "source": source_label(spec["source"]), "seed": spec["source"].get("seed", -1),
@@ -171,16 +155,10 @@ def run_one(spec: dict) -> dict:
         row[k] = math.nan
     row["samples"] = 0
     try:
-        _check_params(spec["filter"], spec["params"])
+        check_params(spec["filter"], spec["params"])
         rec = load_source(spec["source"])
-        q = estimate_all(rec, [spec["filter"]], {spec["filter"]: spec["params"]})[spec["filter"]]
-        mask = evaluation_mask(rec)
-        t_from = spec["source"].get("from_s")
-        if t_from is not None:
-            mask &= rec.t >= t_from
-        nav = spec.get("align") or rec.meta.get("align", {}).get("nav", "none")
-        body = bool(rec.meta.get("align", {}).get("body", False)) if spec.get("align") is None else False
-        s = evaluate(rec, q, nav=nav, body=body, mask=mask)
+        q = estimate(rec, spec["filter"], spec["params"]).q
+        s = score(rec, q, nav=spec.get("align"), t_from=spec["source"].get("from_s"))
         row.update({"total_rmse_deg": s["total_rmse_deg"], "heading_rmse_deg": s["heading_rmse_deg"],
                     "inclination_rmse_deg": s["inclination_rmse_deg"], "roll_rms_deg": s["rms_deg"]["roll"],
                     "pitch_rms_deg": s["rms_deg"]["pitch"], "yaw_rms_deg": s["rms_deg"]["yaw"],

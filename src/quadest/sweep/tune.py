@@ -6,6 +6,11 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+
+from quadest.sweep.engine import ResultStore, run_sweep
+from quadest.sweep.runs import run_id
 
 
 def select(table, filter_name: str, metric: str = "total_rmse_deg") -> dict:
@@ -35,6 +40,17 @@ def select(table, filter_name: str, metric: str = "total_rmse_deg") -> dict:
                                "per_trial": by_params[best]},
             "per_trial": per_trial,
             "per_trial_mean": float(np.mean([v[metric] for v in per_trial.values()]))}
+
+
+def tune(runs, out, filter_name: str, metric: str = "total_rmse_deg", **engine) -> tuple[dict, dict]:
+    """Run (or resume) a tuning sweep and choose parameters over exactly these runs (the results
+    file may hold others). Returns ``(selection, sweep summary)``; ``engine``: the keyword
+    arguments of :func:`quadest.sweep.engine.run_sweep`."""
+    res = run_sweep(runs, out, **engine)
+    table = ResultStore(out).read()
+    wanted = pa.array(sorted({run_id(r) for r in runs}))
+    table = table.filter(pc.is_in(table.column("run_id"), value_set=wanted))
+    return select(table, filter_name, metric), res
 
 
 def format_selection(sel: dict) -> str:

@@ -17,6 +17,9 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
+from quadest.data.tagged import read_tagged_json
+from quadest.rotation import quat_conj, quat_rotate
+
 FORMAT_TAG = "quadest aero model v1"
 
 
@@ -74,11 +77,6 @@ class AeroModel:
         if not self.mass_kg > 0:
             raise ValueError(f"aero model: mass must be positive, got {self.mass_kg}")
 
-    @classmethod
-    def from_config(cls, cfg) -> "AeroModel":
-        """The model a simulation used (``SimConfig.aero`` and the vehicle mass)."""
-        return cls(cfg.aero.A, cfg.aero.B, cfg.aero.C, cfg.vehicle.mass_kg)
-
     def specific_force(self, v, w):
         """Eq 7 without noise: ``f_c / m`` (m/s², body frame)."""
         return self.force(v, w) / self.mass_kg
@@ -100,8 +98,6 @@ class AeroModel:
 
     @classmethod
     def load(cls, path) -> "AeroModel":
-        from quadest.data.tagged import read_tagged_json
-
         d = read_tagged_json(path, FORMAT_TAG, "aero model")
         try:
             return cls(d["A"], d["B"], d["C"], float(d["mass_kg"]), d.get("info", {}))
@@ -142,8 +138,6 @@ def fit_aero(recordings, mass_kg: float, masks=None) -> AeroModel:
     ``masks`` selects samples per recording (default: :func:`free_flight_mask`).
 
     The fit's RMS residual (m/s², per axis) and sample count are in ``model.info``."""
-    from quadest.rotation import quat_conj, quat_rotate
-
     rows, targets, names = [], [], []
     for k, rec in enumerate(recordings):
         if rec.true_vel is None or rec.true_q is None:

@@ -1,0 +1,103 @@
+"""What the commands share: one-line errors, output, and the options several commands take."""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from quadest.readers import FORMATS, read_recording
+from quadest.readers.generic import parse_columns, parse_units
+
+
+class CliError(Exception):
+    """An error to report as one line, without a traceback."""
+
+
+def say(msg):
+    print(msg, flush=True)
+
+
+def write_json(path, obj):
+    """Write ``obj`` as indented JSON and say so."""
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    Path(path).write_text(json.dumps(obj, indent=2))
+    say(f"wrote {path}")
+
+
+def parse_sets(items) -> dict:
+    """``["gyro.noise_std=0.02", ...]`` -> ``{"gyro.noise_std": "0.02"}`` (simulator overrides)."""
+    out = {}
+    for item in items or []:
+        key, eq, value = item.partition("=")
+        if not eq or not key.strip():
+            raise CliError(f"--set expects key=value (for example gyro.noise_std=0.02), got {item!r}")
+        out[key.strip()] = value
+    return out
+
+
+def parse_seeds(text) -> list[int]:
+    a, dash, b = text.partition("-")
+    try:
+        seeds = list(range(int(a), int(b) + 1)) if dash else [int(v) for v in text.split(",")]
+    except ValueError:
+        raise CliError(f"--seeds expects a range like 1-5 or a list like 1,2,3, got {text!r}") from None
+    if not seeds:
+        raise CliError("--seeds selects no seed")
+    return seeds
+
+
+# -- options -------------------------------------------------------------------------------------
+def add_input_args(p):
+    """The options every recording-taking command shares (docs/readers.md)."""
+    g = p.add_argument_group("input format (chosen from the file unless --format is given)")
+    g.add_argument("--format", choices=FORMATS, default=None,
+                   help="reader: " + ", ".join(FORMATS))
+    g.add_argument("--map", action="append", metavar="FIELD=COL[,COL..]",
+                   help="--format csv: which columns are t, gyr, acc, mag, true_q, true_pos, true_vel "
+                        "(e.g. --map gyr=gx,gy,gz; repeatable)")
+    g.add_argument("--units", action="append", metavar="FIELD=UNIT",
+                   help="--format csv: t=s|ms|us|ns, gyr=rad/s|deg/s, acc=m/s^2|g|mg, mag=uT|nT|T|gauss|mgauss")
+    g.add_argument("--frame", choices=["ned-frd", "enu-flu"], default="ned-frd",
+                   help="--format csv: the file's navigation/body frames (default: ned-frd)")
+    g.add_argument("--quat-order", choices=["wxyz", "xyzw"], default="wxyz", help="--format csv: true_q order")
+    g.add_argument("--topic", action="append", metavar="KIND=TOPIC",
+                   help="ROS bags: imu=/imu/data, mag=/imu/mag, truth=/vicon/pose when several are present")
+
+
+def add_calibration_arg(p):
+    p.add_argument("--calibration", action="append", metavar="CALIB.json",
+                   help="apply a calibration from quadest calibrate before any filter (repeatable)")
+
+
+def add_engine_args(p, default_workers=None):
+    g = p.add_argument_group("execution (Dask)")
+    g.add_argument("--workers", type=int, default=default_workers, metavar="N",
+                   help="worker processes of a local Dask cluster; 0 runs in this process "
+                        + ("(default: 0)" if default_workers == 0 else "(default: one per core)"))
+    g.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="run on an existing Dask cluster instead")
+
+
+def add_align_args(p, *, body: bool = True, default_text: str = "what the reader recommends, e.g. heading "
+                                                                  "for DIDO/Blackbird"):
+    p.add_argument("--align", choices=["none", "heading", "full"], default=None,
+                   help="remove a constant rotation between the estimate's and the truth's navigation "
+                        f"frames (default: {default_text})")
+    if body:
+        p.add_argument("--align-body", action=argparse.BooleanOptionalAction, default=None,
+                       help="also remove a constant rotation between IMU and truth body (default: on for RepoIMU)")
+
+
+def read(args, path):
+    """A recording in any supported format, with the reader options of :func:`add_input_args`."""
+    opts = {}
+    fmt = getattr(args, "format", None)
+    if fmt == "csv" or getattr(args, "map", None):
+        fmt = fmt or "csv"
+        opts = {"columns": parse_columns(args.map), "units": parse_units(args.units), "frame": args.frame,
+                "quat_order": args.quat_order}
+    for item in getattr(args, "topic", None) or []:
+        kind, sep, topic = item.partition("=")
+        if not sep or kind not in ("imu", "mag", "truth"):
+            raise CliError(f"--topic {item!r}: expected imu=TOPIC, mag=TOPIC or truth=TOPIC")
+        opts[f"{kind}_topic"] = topic
+    return read_recording(path, fmt, **opts)

@@ -1,0 +1,202 @@
+"""``quadest compare``, ``quadest reproduce`` and ``quadest benchmark``: estimators side by side."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from quadest.calibration import apply_calibrations
+from quadest.cli.common import (
+    CliError,
+    add_align_args,
+    add_calibration_arg,
+    add_engine_args,
+    add_input_args,
+    parse_seeds,
+    parse_sets,
+    read,
+    say,
+    write_json,
+)
+from quadest.evaluation import benchmark as B
+from quadest.evaluation import reproduce as R
+from quadest.evaluation.compare import compare, format_tables, parse_params
+from quadest.evaluation.runner import estimator_names
+from quadest.evaluation.speed import benchmark_speed
+from quadest.filters import FILTERS
+from quadest.sim import PRESETS, SCENARIOS, build_config, simulate
+
+
+def _recording_from_args(args):
+    if args.recording:
+        return read(args, args.recording), str(args.recording)
+    cfg = build_config(args.preset, parse_sets(args.set))
+    rec = simulate(args.scenario, args.preset, seed=args.seed, duration=args.duration, config=cfg,
+                   progress=True)
+    return rec, f"simulated {args.scenario} / {args.preset} / seed {args.seed}"
+
+
+def cmd_compare(args):
+    names = estimator_names(args.filters)
+    params = parse_params(args.param)
+    rec, source = _recording_from_args(args)
+    rec, cal_params = apply_calibrations(rec, args.calibration)
+    for name, kv in cal_params.items():
+        params[name] = {**kv, **params.get(name, {})}
+    say(f"comparing {', '.join(names)} on {source} ({len(rec)} samples"
+        + (f", errors from t = {args.t_from:g} s)" if args.t_from is not None else ")"))
+    report, results = compare(rec, names, params=params, t_from=args.t_from, timing=not args.no_timing,
+                              source=source, align=args.align, align_body=args.align_body)
+    if report["against"] == "ref_q":
+        say("no independent truth in this recording: errors are against the log's onboard attitude (ref_q)")
+    for name, entry in report["filters"].items():
+        if "alignment" in entry:
+            a = entry["alignment"]
+            parts = [f"heading {a['heading_offset_deg']:+.2f}°" if "heading_offset_deg" in a else "",
+                     f"navigation rotation {a['nav_rotation_deg']:.2f}°" if "nav_rotation_deg" in a else "",
+                     f"body rotation {a['body_rotation_deg']:.2f}°" if "body_rotation_deg" in a else ""]
+            say(f"alignment removed for {name}: " + ", ".join(p for p in parts if p))
+    say(format_tables(report))
+    if args.json:
+        write_json(args.json, report)
+    if args.plot_dir:
+        from quadest.plot import plot_errors  # matplotlib: only when a plot is asked for
+
+        for p in plot_errors(rec.t, rec.true_q, results, args.plot_dir, title=f"({source})", t_from=args.t_from):
+            say(f"wrote {p}")
+    return 0
+
+
+def cmd_reproduce(args):
+    if args.paper == "recovery":
+        return _reproduce_recovery(args)
+    seeds = parse_seeds(args.seeds)
+    if args.paper == "afckf":
+        say("Reproducing Solanki & de Visser 2022 (AFCKF), Tables I-V, on the simulator: a Bebop 2 "
+            f"that loses a rotor (errors from the failure on) and in normal flight, seeds {args.seeds}.")
+        say("(first use compiles the estimators: about a minute)")
+        result = R.reproduce_afckf(seeds, progress=True, workers=args.workers, scheduler=args.scheduler)
+    else:
+        say("Reproducing Liang et al. 2023 (QUKF), Table 1, on the simulator: MPU6050 + HMC5883L at "
+            f"20 Hz, 30 s of hover and of motion, seeds {args.seeds}.")
+        result = R.reproduce_qukf(seeds, progress=True, workers=args.workers, scheduler=args.scheduler)
+    say(R.format_reproduction(args.paper, result))
+    if args.json:
+        write_json(args.json, result)
+    if args.plot_dir:
+        from quadest.plot import plot_errors, plot_recording
+
+        rec, results, t_from, title = R.first_seed_estimates(args.paper, result)
+        out = Path(args.plot_dir) / args.paper
+        for p in plot_errors(rec.t, rec.true_q, results, out, title=f"({title})", t_from=t_from):
+            say(f"wrote {p}")
+        say(f"wrote {plot_recording(rec, out / 'flight.png', title=title)}")
+    return 0
+
+
+def _reproduce_recovery(args):
+    say(f"Reproducing Beffa, Ledergerber & D'Andrea (state estimate recovery) on {args.throws} simulated "
+        f"throws (fma preset, seeds {args.seed}..{args.seed + args.throws - 1}), with the simulation's "
+        "aerodynamic model, one fitted on 20 separate throws, and one perturbed by ±20 %.")
+    result = R.reproduce_recovery(args.throws, args.seed, progress=True, keep_runs=bool(args.json or args.plot_dir),
+                                  workers=args.workers, scheduler=args.scheduler)
+    say(R.format_recovery(result))
+    if args.plot_dir:
+        from quadest.plot import plot_recovery, plot_recovery_histograms
+
+        out = Path(args.plot_dir) / "recovery"
+        out.mkdir(parents=True, exist_ok=True)
+        runs = {n: c["runs"] for n, c in result["cases"].items()}
+        say(f"wrote {plot_recovery_histograms(runs, out / 'errors_histogram.png')}")
+        res, rec = R.example_throw(args.seed)
+        say(f"wrote {plot_recovery(res, rec, out / 'throw.png', title=f'throw seed {args.seed}, true model')}")
+    if args.json:
+        write_json(args.json, result)
+    return 0
+
+
+def cmd_benchmark(args):
+    names = estimator_names(args.filters, all_includes_peers=True)
+    if args.what == "speed":
+        say(f"µs per sample on {args.duration:g} s of a simulated damaged-rotor flight (bebop2), one core; "
+            "batch: best of 3 after a warm-up; streaming: update() called from Python. Peers: their "
+            "whole-recording call (the same Python loop per sample for imufusion and ahrs)")
+        say(f"{'filter':<15}{'batch':>10}{'streaming':>12}")
+        res = benchmark_speed(names, args.duration,
+                              on_result=lambda n, r: say(f"{n:<15}{r['batch_us']:>10.3f}{r['stream_us']:>12.2f}"))
+        say(f"{'recovery bank of 40 EKFs':<27}{res['recovery_bank_40_us']:>8.2f} µs per IMU sample (whole bank, batch)")
+    elif not args.data:
+        raise CliError(f"benchmark {args.what} needs --data DIR")
+    elif args.what == "broad":
+        say(f"BROAD on {args.data}: {', '.join(names)}; BROAD's metric over the movement phases")
+        res = B.benchmark_broad(args.data, names, trials=args.trials, nav=args.align or "none", progress=True)
+        say(B.format_broad(res))
+    else:
+        say(f"quadrotor flights under {args.data}: {', '.join(names)}; 6-axis, roll/pitch/yaw RMS")
+        res = B.benchmark_flights(args.data, names, nav=args.align or "heading", progress=True)
+        say(B.format_flights(res))
+    if args.json:
+        write_json(args.json, res)
+    return 0
+
+
+def add_parsers(sub):
+    c = sub.add_parser("compare", help="run estimators on one recording and tabulate their errors",
+                       description="Run attitude estimators on a simulated flight or a recording with "
+                                   "truth; print RMS error, variance and mean absolute error per axis "
+                                   "(filters as columns) and the execution time, like the papers' "
+                                   "tables. Filters: " + ", ".join(FILTERS) + "; with quadest[peers] "
+                                   "also vqf, vqf-offline, imufusion, ahrs-madgwick, ahrs-mahony, ahrs-ekf, "
+                                   "ahrs-aqua (--filters peers).")
+    src = c.add_mutually_exclusive_group()
+    src.add_argument("--recording", type=Path, metavar="FILE", help="recording with true_q, any supported format")
+    src.add_argument("--scenario", choices=SCENARIOS, default="damaged-rotor",
+                     help="simulate this scenario (default: damaged-rotor)")
+    c.add_argument("--preset", choices=list(PRESETS), default="bebop2", help="with --scenario (default: bebop2)")
+    c.add_argument("--seed", type=int, default=1, help="with --scenario (default: 1)")
+    c.add_argument("--duration", type=float, default=None, help="with --scenario: seconds")
+    c.add_argument("--set", action="append", metavar="KEY=VALUE", help="with --scenario: simulator parameter")
+    c.add_argument("--filters", default="all", help="all (quadest's seven), peers (installed peers), or a comma-separated list of filters and peers (default: all)")
+    c.add_argument("--param", action="append", metavar="FILTER.NAME=VALUE",
+                   help="estimator parameter, e.g. --param afckf.omega1=-0.0145 (repeatable)")
+    c.add_argument("--from", dest="t_from", type=float, default=None, metavar="SECONDS",
+                   help="count errors from this time on (e.g. 5 for the failure in damaged-rotor)")
+    c.add_argument("--json", metavar="OUT", help="write the figures as JSON")
+    c.add_argument("--plot-dir", metavar="DIR", help="draw the error of every filter over time per axis")
+    c.add_argument("--no-timing", action="store_true", help="skip the execution-time measurement")
+    add_calibration_arg(c)
+    add_align_args(c)
+    add_input_args(c)
+    c.set_defaults(func=cmd_compare)
+
+    r = sub.add_parser("reproduce", help="reproduce a paper's experiments on the simulator",
+                       description="Run a paper's experiment on simulated flights over several seeds and "
+                                   "print our figures next to the published ones. afckf: Tables I-V of "
+                                   "Solanki & de Visser 2022; qukf: Table 1 of Liang et al. 2023; "
+                                   "recovery: throws and the bank of EKFs of Beffa et al.")
+    r.add_argument("paper", choices=["afckf", "qukf", "recovery"])
+    r.add_argument("--seeds", default="1-5", help="afckf, qukf: seed range or list (default: 1-5)")
+    r.add_argument("--throws", type=int, default=100, help="recovery: number of throws (default: 100)")
+    r.add_argument("--seed", type=int, default=1, help="recovery: first seed (default: 1)")
+    r.add_argument("--json", metavar="OUT", help="write all figures (per seed too) as JSON")
+    r.add_argument("--plot-dir", metavar="DIR", help="draw the errors over time for the first seed")
+    add_engine_args(r, default_workers=0)
+    r.set_defaults(func=cmd_reproduce)
+
+    b = sub.add_parser("benchmark", help="benchmarks: BROAD, quadrotor flights, speed",
+                       description="broad: every filter on every BROAD trial in --data with the benchmark's "
+                                   "metric (total, heading, inclination RMSE over the movement phases), per "
+                                   "trial and per group of trials.json. flights: roll/pitch/yaw RMS on the "
+                                   "DIDO and Blackbird flights under --data (6-axis; heading offset removed). "
+                                   "speed: microseconds per sample of every filter, batch and streaming. "
+                                   "quadest's filters and the installed peers (pip install 'quadest[peers]': "
+                                   "vqf, imufusion, ahrs) run side by side.")
+    b.add_argument("what", choices=["broad", "flights", "speed"], help="what to benchmark")
+    b.add_argument("--data", type=Path, metavar="DIR", help="broad, flights: folder with the data")
+    b.add_argument("--filters", default="all",
+                   help="all (quadest and installed peers), quadest, peers, or a comma-separated list")
+    b.add_argument("--trials", default="*", metavar="GLOB", help="broad: trial files to run (default: all)")
+    b.add_argument("--align", choices=["none", "heading", "full"], default=None,
+                   help="constant navigation-frame rotation removed before the errors (default: none "
+                        "for broad, heading for flights)")
+    b.add_argument("--duration", type=float, default=60.0, help="speed: seconds of simulated data (default: 60)")
+    b.add_argument("--json", metavar="OUT", help="write the figures as JSON")
+    b.set_defaults(func=cmd_benchmark)

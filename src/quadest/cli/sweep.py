@@ -1,0 +1,108 @@
+"""``quadest sweep`` and ``quadest tune``: grids of filters and parameters over many flights."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from quadest.cli.common import add_engine_args, parse_seeds, parse_sets, say, write_json
+from quadest.sim import PRESETS, SCENARIOS
+from quadest.sweep import build_runs, file_sources, format_selection, parse_grid, run_sweep, sim_sources, tune
+
+
+def _sweep_runs(args, filters):
+    grid = parse_grid(args.grid)
+    if args.data:
+        sources = file_sources(args.data, args.format)
+    else:
+        sources = sim_sources(args.scenario, args.preset, parse_seeds(args.seeds), args.duration,
+                              parse_sets(args.set), args.t_from)
+    return build_runs(filters, grid, sources, args.align)
+
+
+def _announce(args, runs):
+    where = (f"on the Dask cluster at {args.scheduler}" if args.scheduler else
+             "in this process" if args.workers == 0 else
+             f"on a local Dask cluster of {args.workers} worker(s)" if args.workers else
+             "on a local Dask cluster (one worker per core)")
+    say(f"{len(runs)} runs {where}; results in {args.out}")
+
+
+def _report(args, res):
+    say(f"executed {res['executed']} (skipped {res['skipped']} already in {args.out}) in {res['wall_s']:.1f} s"
+        + (f"; {res['runs_per_s']:.2f} runs/s over {res['compute_s']:.1f} s of computing (cluster start-up "
+           "excluded)" if res["executed"] else "")
+        + f"; results hold {res['ok']} ok, {res['failed']} failed")
+    if res["failed"]:
+        say("failed runs keep their error in the 'error' column; --retry-failed runs them again")
+
+
+def _engine(args) -> dict:
+    return {"workers": args.workers, "scheduler": args.scheduler, "retry_failed": args.retry_failed,
+            "progress": True}
+
+
+def cmd_sweep(args):
+    runs = _sweep_runs(args, args.filters)
+    _announce(args, runs)
+    res = run_sweep(runs, args.out, **_engine(args))
+    _report(args, res)
+    if args.json:
+        write_json(args.json, res)
+    return 0
+
+
+def cmd_tune(args):
+    runs = _sweep_runs(args, args.filter)
+    _announce(args, runs)
+    sel, res = tune(runs, args.out, args.filter, args.metric, **_engine(args))
+    _report(args, res)
+    say(format_selection(sel))
+    if args.json:
+        write_json(args.json, {**sel, "sweep": res})
+    return 0
+
+
+def _add_sweep_args(p):
+    p.add_argument("--grid", action="append", metavar="FILTER.PARAM=VALUES",
+                   help="parameter values: a list 0.01,0.1, lin:A:B:N or log:A:B:N (repeatable; several "
+                        "parameters of one filter make their Cartesian product)")
+    src = p.add_argument_group("data: simulated flights (default) or recordings")
+    src.add_argument("--data", nargs="+", type=Path, metavar="PATH",
+                     help="recordings or folders of them (e.g. ../shared/data/broad), any supported format")
+    src.add_argument("--format", default=None, help="with --data: reader (default: chosen from each file)")
+    src.add_argument("--scenario", choices=SCENARIOS, default="nominal", help="simulated scenario (default: nominal)")
+    src.add_argument("--preset", choices=list(PRESETS), default="bebop2", help="simulator preset (default: bebop2)")
+    src.add_argument("--seeds", default="1-10", help="seed range or list (default: 1-10)")
+    src.add_argument("--duration", type=float, default=None, help="seconds per simulated flight")
+    src.add_argument("--set", action="append", metavar="KEY=VALUE", help="simulator parameter")
+    src.add_argument("--from", dest="t_from", type=float, default=None, metavar="SECONDS",
+                     help="count errors from this time on")
+    p.add_argument("--align", choices=["none", "heading", "full"], default=None,
+                   help="constant navigation-frame rotation removed (default: the reader's recommendation)")
+    p.add_argument("-o", "--out", required=True, type=Path, metavar="RESULTS.parquet",
+                   help="results file, one row per run (parts go to RESULTS.parquet.parts/ while it runs); "
+                        "an existing one is resumed")
+    p.add_argument("--retry-failed", action="store_true", help="run again the runs recorded as failed")
+    p.add_argument("--json", metavar="OUT", help="write the summary as JSON")
+    add_engine_args(p)
+
+
+def add_parsers(sub):
+    sw = sub.add_parser("sweep", help="run a grid of filters and parameters over many flights, on Dask",
+                        description="Run every (filter x parameter set x flight) and write one row per run "
+                                    "(parameters, metrics, status, error) to a Parquet file as runs finish. "
+                                    "Runs carry their seeds, so results do not depend on the number of workers; "
+                                    "an interrupted sweep resumes. docs/sweeps.md")
+    sw.add_argument("--filters", default="quadest", help="quadest (default), all, peers, or a comma-separated list")
+    _add_sweep_args(sw)
+    sw.set_defaults(func=cmd_sweep)
+
+    tu = sub.add_parser("tune", help="choose a filter's parameters that minimise a metric over a set",
+                        description="Sweep one filter's parameter grid over flights or recordings and report "
+                                    "the best set for all trials together (the lowest mean: BROAD's "
+                                    "trial-agnostic choice) and per trial. docs/sweeps.md")
+    tu.add_argument("filter", help="the filter to tune (quadest's or a peer's name)")
+    tu.add_argument("--metric", default="total_rmse_deg",
+                    choices=["total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg", "roll_rms_deg",
+                             "pitch_rms_deg", "yaw_rms_deg"], help="metric to minimise (default: total_rmse_deg)")
+    _add_sweep_args(tu)
+    tu.set_defaults(func=cmd_tune)

@@ -1,0 +1,25 @@
+"""Writing a table of named columns (an estimate's attitude, for example) to CSV or Parquet."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pyarrow as pa
+import pyarrow.csv as pcsv
+import pyarrow.parquet as pq
+
+
+def write_table(cols: dict, path) -> Path:
+    """``{name: 1-D array}`` to ``.csv`` (a plain header line, then the values) or ``.parquet``."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in (".csv", ".parquet", ".pq"):
+        raise ValueError(f"{path}: use .csv or .parquet")
+    table = pa.table(cols)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if suffix == ".csv":
+        with open(path, "wb") as fh:  # pyarrow quotes header names; write a plain header ourselves
+            fh.write((",".join(cols) + "\n").encode())
+            pcsv.write_csv(table, fh, pcsv.WriteOptions(include_header=False, quoting_style="none"))
+    else:
+        pq.write_table(table, path)
+    return path

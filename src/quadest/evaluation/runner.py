@@ -1,0 +1,129 @@
+"""The one way quadest runs an estimator on a recording and scores it: every command that
+compares estimators (compare, benchmark, sweep, reproduce) goes through :func:`estimate` and
+:func:`score`.
+
+- :func:`estimate`: a quadest filter (compiled batch run) or a peer (``quadest[peers]``), with
+  the recording's declination, so every estimate references true north.
+- :func:`score`: the rows to evaluate (BROAD's movement phases, ``t_from``), the constant frame
+  rotations removed (by default what the reader recommends in ``meta['align']``), then the
+  error figures of :func:`quadest.evaluation.metrics.summarize_errors`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from quadest.data.recording import Recording
+from quadest.evaluation.align import Alignment, fit_alignment
+from quadest.evaluation.metrics import summarize_errors
+from quadest.evaluation.peers import PEERS, available_peers, run_peer
+from quadest.filters import FILTERS, FilterResult, make_filter
+
+
+def estimator_names(spec: str, all_includes_peers: bool = False) -> list[str]:
+    """``all`` (quadest's filters, and the installed peers with ``all_includes_peers``),
+    ``quadest``, ``peers`` (the installed peers) or a comma-separated list of filters and peers."""
+    spec = (spec or "all").strip()
+    if spec in ("all", "quadest"):
+        return list(FILTERS) + (available_peers() if spec == "all" and all_includes_peers else [])
+    if spec == "peers":
+        return available_peers()
+    names = [s.strip() for s in spec.split(",") if s.strip()]
+    bad = [n for n in names if n not in FILTERS and n not in PEERS]
+    if bad or not names:
+        raise ValueError(f"unknown filter(s) {', '.join(bad) or spec!r}; filters: {', '.join(FILTERS)}; "
+                         f"peers: {', '.join(PEERS)}")
+    missing = [n for n in names if n in PEERS and n not in available_peers()]
+    if missing:
+        raise ValueError(f"peer(s) {', '.join(missing)} not installed: pip install 'quadest[peers]'")
+    return names
+
+
+def check_params(name: str, params: dict) -> None:
+    """Refuse parameters a filter does not have, and any parameter for a peer."""
+    if name in FILTERS:
+        known = {d["name"] for d in FILTERS[name].Params.describe()}
+        bad = [k for k in params if k not in known]
+        if bad:
+            raise ValueError(f"{name} has no parameter {', '.join(bad)}; parameters: {', '.join(sorted(known))}")
+    elif params:
+        raise ValueError(f"peer {name} runs with its own defaults; it takes no parameters")
+
+
+def estimate(rec: Recording, name: str, params: dict | None = None, *,
+             declination: float | None = None) -> FilterResult:
+    """Run one estimator over ``rec``: a quadest filter with ``params``, or a peer at its own
+    defaults. ``declination`` (rad) defaults to the recording's."""
+    params = params or {}
+    decl = rec.declination if declination is None else declination
+    if name in FILTERS:
+        check_params(name, params)
+        return make_filter(name, declination=decl, **params).run(rec)
+    if name in PEERS:
+        check_params(name, params)
+        return FilterResult(name, rec.t, run_peer(name, rec, use_mag=rec.has_mag, declination=decl), {}, None)
+    raise ValueError(f"unknown filter {name!r}; filters: {', '.join(FILTERS)}; peers: {', '.join(PEERS)}")
+
+
+def estimate_all(rec: Recording, names, params: dict | None = None, labels: dict | None = None) -> dict:
+    """``{label: FilterResult}`` of several estimators; ``params`` and ``labels`` by name."""
+    params = params or {}
+    return {(labels or {}).get(n, n): estimate(rec, n, params.get(n)) for n in names}
+
+
+def truth_of(rec: Recording) -> str:
+    """``true_q``, or the log's onboard attitude ``ref_q`` when there is no independent truth."""
+    if rec.true_q is not None:
+        return "true_q"
+    if rec.ref_q is not None:
+        return "ref_q"
+    raise ValueError("the recording has no attitude truth (true_q) or onboard reference (ref_q) to compare against")
+
+
+def evaluation_mask(rec: Recording, t_from: float | None = None) -> np.ndarray:
+    """Rows to evaluate: ``meta['evaluate_intervals_s']`` (BROAD's movement phases) or all,
+    from ``t_from`` on."""
+    iv = rec.meta.get("evaluate_intervals_s")
+    if iv:
+        m = np.zeros(len(rec), bool)
+        for a, b in iv:
+            m |= (rec.t >= a) & (rec.t <= b)
+    else:
+        m = np.ones(len(rec), bool)
+    if t_from is not None:
+        m &= rec.t >= t_from
+    return m
+
+
+def alignment_of(rec: Recording, nav: str | None = None, body: bool | None = None) -> tuple[str, bool]:
+    """The constant rotations to remove: as asked, else what the reader recommends
+    (``meta['align']``), else none."""
+    rec_align = rec.meta.get("align", {})
+    return (nav if nav is not None else rec_align.get("nav", "none"),
+            body if body is not None else bool(rec_align.get("body", False)))
+
+
+def align_estimate(rec: Recording, q, *, truth: str = "true_q", nav: str = "none", body: bool = False,
+                   mask=None) -> tuple[np.ndarray, Alignment | None]:
+    """The estimate in the truth's frames and the :class:`Alignment` removed (None if none asked)."""
+    if nav == "none" and not body:
+        return q, None
+    m = evaluation_mask(rec) if mask is None else mask
+    al = fit_alignment(q, getattr(rec, truth), nav=nav, body=body, mask=m, rate_hz=rec.imu_rate_hz())
+    return al.apply(q), al
+
+
+def score(rec: Recording, q, *, truth: str | None = None, nav: str | None = None, body: bool | None = None,
+          mask=None, t_from: float | None = None, aligned: list | None = None) -> dict:
+    """Error figures of one estimate (:func:`summarize_errors`) over the evaluated rows, after
+    removing the constant rotations (:func:`alignment_of`); the alignment removed is under
+    ``"alignment"``. ``aligned``, a list, receives the aligned estimate."""
+    truth = truth or truth_of(rec)
+    nav, body = alignment_of(rec, nav, body)
+    m = evaluation_mask(rec, t_from) if mask is None else mask
+    qa, al = align_estimate(rec, q, truth=truth, nav=nav, body=body, mask=m)
+    out = summarize_errors(qa, getattr(rec, truth), m)
+    if al is not None:
+        out["alignment"] = al.describe()
+    if aligned is not None:
+        aligned.append(qa)
+    return out
