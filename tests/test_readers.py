@@ -74,9 +74,9 @@ def test_generic_csv_errors(tmp_path, capsys):
         read_recording(p, "csv", columns={"t": "a", "gyr": ["gx", "gy", "gz"], "acc": ["a", "b", "a"]})
     code = main(["info", str(p), "--format", "csv", "--map", "gyr=a,b", "--map", "t=a"])
     err = capsys.readouterr().err
-    assert code == 1 and "gyr needs 3 column(s)" in err and len(err.strip().splitlines()) == 1
+    assert code == 2 and "gyr needs 3 column(s)" in err and len(err.strip().splitlines()) == 1
     code = main(["info", str(p), "--format", "csv", "--map", "t=a", "--units", "gyr=rpm"])
-    assert code == 1 and "unknown gyr unit 'rpm'" in capsys.readouterr().err
+    assert code == 2 and "unknown gyr unit 'rpm'" in capsys.readouterr().err
 
 
 # -- benchmark formats --------------------------------------------------------------------------------------

@@ -87,7 +87,8 @@ def test_round_trip_without_truth_or_mag(tmp_path):
 def test_csv_header_is_fixed(tmp_path):
     path = save_recording(make(), tmp_path / "r.csv")
     lines = path.read_text().splitlines()
-    assert lines[0] == "# quadest recording v1"
+    assert lines[0] == "# quadest recording v2"
+    assert lines[1] == "# rows: 200" and lines[-1] == "# end: 200 rows"  # a file cut short is refused
     header = next(line for line in lines if not line.startswith("#"))
     want = ["t"] + [c for f in ("gyr", "acc", "mag", "true_q", "true_gyr", "true_pos", "true_vel",
                                 "true_acc") for c in columns_of(f)]
@@ -159,3 +160,28 @@ def test_csv_round_trip_property(rows, with_mag):
         back = load_recording(save_recording(rec, Path(d) / "r.csv"))
     for name in ("t", "gyr", "acc", "mag"):
         np.testing.assert_array_equal(getattr(back, name), getattr(rec, name))
+
+
+def test_a_recording_cut_short_is_refused_and_v1_files_still_read(tmp_path):
+    """v2 CSV states its rows and ends with an end line: a file cut at a row boundary or inside
+    its last number is refused, never read as a shorter recording; v1 files (no count) read."""
+    rec = make()
+    data = save_recording(rec, tmp_path / "r.csv").read_bytes()
+    body_end = data.rfind(b"# end:")
+    last_row = data.rfind(b"\n", 0, body_end - 1) + 1
+    for cut in (len(data) - 1, body_end, body_end - 3, last_row, len(data) // 2):
+        p = tmp_path / f"cut{cut}.csv"
+        p.write_bytes(data[:cut])
+        with pytest.raises(ValueError, match="cut short"):
+            load_recording(p)
+    # a row removed from the middle: the count disagrees
+    lines = data.split(b"\n")
+    p = tmp_path / "missing_row.csv"
+    p.write_bytes(b"\n".join(lines[:-6] + lines[-5:]))
+    with pytest.raises(ValueError, match="states 200"):
+        load_recording(p)
+    # the format before row counts
+    v1 = data.replace(b"# quadest recording v2", b"# quadest recording v1").replace(b"# rows: 200\n", b"")
+    p = tmp_path / "v1.csv"
+    p.write_bytes(v1[:v1.rfind(b"# end:")])
+    assert np.array_equal(load_recording(p).t, rec.t)

@@ -58,13 +58,19 @@ def test_grid_values_and_run_ids():
         build_runs("madgwick", parse_grid(["mahony.k_p=1"]), sim_sources("hover", "bebop2", [1]))
 
 
+def test_a_misspelt_grid_parameter_is_refused_before_any_run():
+    with pytest.raises(ValueError, match="no parameter no_such_gain"):
+        build_runs("madgwick", parse_grid(["madgwick.no_such_gain=1,2"]), sim_sources("hover", "bebop2", [1], 3.0))
+
+
 def test_a_failing_run_is_recorded_and_the_sweep_goes_on(tmp_path):
-    runs = build_runs("madgwick", parse_grid(["madgwick.no_such_gain=1,2"]), sim_sources("hover", "bebop2", [1], 3.0))
+    gone = {"kind": "file", "path": str(tmp_path / "deleted.csv"), "format": None}  # removed after planning
+    runs = [{"filter": f, "params": {}, "source": gone, "align": None} for f in ("madgwick", "mahony")]
     runs += _runs(seeds=[1], duration=3.0)
     res = run_sweep(runs, tmp_path / "r", workers=0, progress=False)
     assert res["failed"] == 2 and res["ok"] == len(runs) - 2
     bad = [r for r in ResultStore(tmp_path / "r").read().to_pylist() if r["status"] == "failed"]
-    assert all("no parameter no_such_gain" in r["error"] for r in bad)
+    assert all("deleted.csv" in r["error"] for r in bad)
     again = run_sweep(runs, tmp_path / "r", workers=0, progress=False)
     assert again["executed"] == 0  # failed runs are finished runs, unless --retry-failed
     again = run_sweep(runs, tmp_path / "r", workers=0, progress=False, retry_failed=True)

@@ -15,12 +15,12 @@ A, B, C in N s/m, N s²/m², N.
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from quadest.data.files import write_json
 from quadest.data.recording import Recording
 from quadest.data.tagged import read_tagged_json
 from quadest.models.aero import AeroModel
@@ -56,10 +56,8 @@ class Calibration:
                 "source": self.source}
 
     def save(self, path) -> Path:
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(self.to_dict(), indent=2))
-        return path
+        """Write the JSON file, atomically (nothing half-written is left on a failure)."""
+        return write_json(path, self.to_dict())
 
     def check(self, rec) -> None:
         """Refuse a recording whose sensor unit differs from the calibration's."""

@@ -2,15 +2,16 @@
 from __future__ import annotations
 
 import argparse
-import json
-from pathlib import Path
 
+from quadest.data import files
+from quadest.errors import UsageError
 from quadest.readers import FORMATS, read_recording
 from quadest.readers.generic import parse_columns, parse_units
+from quadest.sim import build_config
 
 
-class CliError(Exception):
-    """An error to report as one line, without a traceback."""
+class CliError(UsageError):
+    """A wrong or missing option, reported as one line (exit code 2)."""
 
 
 def say(msg):
@@ -18,9 +19,8 @@ def say(msg):
 
 
 def write_json(path, obj):
-    """Write ``obj`` as indented JSON and say so."""
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    Path(path).write_text(json.dumps(obj, indent=2))
+    """Write ``obj`` as indented JSON (atomically) and say so."""
+    files.write_json(path, obj)
     say(f"wrote {path}")
 
 
@@ -33,6 +33,19 @@ def parse_sets(items) -> dict:
             raise CliError(f"--set expects key=value (for example gyro.noise_std=0.02), got {item!r}")
         out[key.strip()] = value
     return out
+
+
+def sim_config(preset, sets, toml=None, ideal: bool = False):
+    """A simulator configuration: a preset, a TOML file's overrides (errors there are the file's),
+    then ``--set`` overrides (errors there are usage errors)."""
+    cfg = build_config(preset, None, toml, ideal)
+    overrides = parse_sets(sets)
+    if not overrides:
+        return cfg
+    try:
+        return cfg.with_overrides(overrides)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
 
 
 def parse_seeds(text) -> list[int]:
@@ -93,8 +106,11 @@ def read(args, path):
     fmt = getattr(args, "format", None)
     if fmt == "csv" or getattr(args, "map", None):
         fmt = fmt or "csv"
-        opts = {"columns": parse_columns(args.map), "units": parse_units(args.units), "frame": args.frame,
-                "quat_order": args.quat_order}
+        try:
+            opts = {"columns": parse_columns(args.map), "units": parse_units(args.units), "frame": args.frame,
+                    "quat_order": args.quat_order}
+        except ValueError as exc:  # --map and --units are options: a usage error
+            raise CliError(str(exc)) from None
     for item in getattr(args, "topic", None) or []:
         kind, sep, topic = item.partition("=")
         if not sep or kind not in ("imu", "mag", "truth"):

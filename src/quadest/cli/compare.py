@@ -11,9 +11,9 @@ from quadest.cli.common import (
     add_engine_args,
     add_input_args,
     parse_seeds,
-    parse_sets,
     read,
     say,
+    sim_config,
     write_json,
 )
 from quadest.evaluation import benchmark as B
@@ -22,13 +22,13 @@ from quadest.evaluation.compare import compare, format_tables, parse_params
 from quadest.evaluation.runner import estimator_names
 from quadest.evaluation.speed import benchmark_speed
 from quadest.filters import FILTERS
-from quadest.sim import PRESETS, SCENARIOS, build_config, simulate
+from quadest.sim import PRESETS, SCENARIOS, simulate
 
 
 def _recording_from_args(args):
     if args.recording:
         return read(args, args.recording), str(args.recording)
-    cfg = build_config(args.preset, parse_sets(args.set))
+    cfg = sim_config(args.preset, args.set)
     rec = simulate(args.scenario, args.preset, seed=args.seed, duration=args.duration, config=cfg,
                    progress=True)
     return rec, f"simulated {args.scenario} / {args.preset} / seed {args.seed}"

@@ -7,10 +7,14 @@ from __future__ import annotations
 
 import argparse
 import sys
+import traceback
+from pathlib import Path
 
 from quadest import __version__
 from quadest.cli import compare, recordings, recovery, sim, sweep
 from quadest.cli.common import CliError
+from quadest.data.files import refuse_overwriting_inputs
+from quadest.errors import UsageError
 
 GROUPS = (sim, recordings, compare, recovery, sweep)
 ORDER = ("simulate", "info", "compare", "reproduce", "fit-aero", "recover", "calibrate", "estimate", "benchmark",
@@ -23,6 +27,8 @@ def build_parser():
         description="Quadcopter attitude and state estimation that keeps working when things go "
                     "wrong. Conventions: NED/FRD, q_nb = [w, x, y, z], SI units (docs/conventions.md).")
     p.add_argument("--version", action="version", version=f"quadest {__version__}")
+    p.add_argument("--debug", action="store_true",
+                   help="on an error, show the full traceback (also accepted after the command)")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     for group in GROUPS:
         group.add_parsers(sub)
@@ -31,22 +37,56 @@ def build_parser():
     return p
 
 
+# options that name files a command reads, and the options of files it writes
+INPUT_OPTIONS = ("file", "recording", "recordings", "data", "calibration", "aero", "config")
+OUTPUT_OPTIONS = {"output": "-o", "out": "-o", "json": "--json", "plot": "--plot"}
+
+
+def _paths(value):
+    if isinstance(value, (list, tuple)):
+        return [v for x in value for v in _paths(x)]
+    return [value] if isinstance(value, (str, Path)) else []
+
+
+def check_outputs(args) -> None:
+    """Refuse an output that names an input file: writing it would destroy the input."""
+    inputs = [p for name in INPUT_OPTIONS for p in _paths(getattr(args, name, None))]
+    outputs = {opt: getattr(args, name) for name, opt in OUTPUT_OPTIONS.items()
+               if isinstance(getattr(args, name, None), (str, Path))}
+    try:
+        refuse_overwriting_inputs(outputs, inputs)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+
+
 def main(argv=None):
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv
+    argv = [a for a in argv if a != "--debug"]
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(argv)  # a usage error exits here with code 2
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
     try:
+        check_outputs(args)
         return args.func(args)
     except BrokenPipeError:  # output piped into a command that stopped reading (head)
         return 0
-    except (CliError, ValueError, OSError) as exc:
-        print(f"quadest {args.command}: error: {exc}", file=sys.stderr)
-        return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:  # noqa: BLE001 (every error ends in one line; --debug shows the traceback)
+        if debug:
+            traceback.print_exc()
+        usage = isinstance(exc, (CliError, UsageError))
+        if usage or isinstance(exc, (ValueError, OSError)):
+            msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        else:
+            msg = (f"internal error ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}); "
+                   "please report it with the output of --debug")
+        print(f"quadest {args.command}: error: {msg}", file=sys.stderr)
+        return 2 if usage else 1
 
 
 if __name__ == "__main__":

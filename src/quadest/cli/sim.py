@@ -4,13 +4,13 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from quadest.cli.common import CliError, parse_sets, say
+from quadest.cli.common import CliError, say, sim_config
 from quadest.data import format_summary, save_recording, summarize
-from quadest.sim import PRESETS, SCENARIOS, build_config, param_table, simulate
+from quadest.sim import PRESETS, SCENARIOS, param_table, simulate
 
 
 def cmd_simulate(args):
-    cfg = build_config(args.preset, parse_sets(args.set), args.config, args.ideal)
+    cfg = sim_config(args.preset, args.set, args.config, args.ideal)
     if args.list_params:
         rows = param_table(cfg, args.preset)
         w = max(len(r["key"]) for r in rows)

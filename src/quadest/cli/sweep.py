@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from quadest.cli.common import add_engine_args, parse_seeds, parse_sets, say, write_json
+from quadest.cli.common import add_engine_args, parse_seeds, parse_sets, say, sim_config, write_json
 from quadest.sim import PRESETS, SCENARIOS
 from quadest.sweep import build_runs, file_sources, format_selection, parse_grid, run_sweep, sim_sources, tune
 
@@ -13,6 +13,7 @@ def _sweep_runs(args, filters):
     if args.data:
         sources = file_sources(args.data, args.format)
     else:
+        sim_config(args.preset, args.set)  # refuse a wrong --set before any run starts
         sources = sim_sources(args.scenario, args.preset, parse_seeds(args.seeds), args.duration,
                               parse_sets(args.set), args.t_from)
     return build_runs(filters, grid, sources, args.align)

@@ -21,7 +21,13 @@ from pathlib import Path
 
 import numpy as np
 
-FORMAT_TAG = "quadest recording v1"
+from quadest.data.files import atomic_output
+
+FORMAT_TAG = "quadest recording v2"
+"""v2 states its row count (``# rows: N``) and ends with ``# end: N rows``, so a file cut short
+is refused instead of read as a shorter recording. v1 files (no count) are still read."""
+LEGACY_TAGS = ("quadest recording v1",)
+END_MARK = "# end: "
 
 # name -> (columns suffixes, width, description)
 TRUTH_FIELDS = {
@@ -257,25 +263,27 @@ def save_recording(rec: Recording, path) -> Path:
 
     path = Path(path)
     kind = _kind(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     table = pa.table(rec.columns())
     if kind == "parquet":
         import pyarrow.parquet as pq
 
         table = table.replace_schema_metadata({b"quadest": json.dumps(
-            {"format": FORMAT_TAG, "meta": rec.meta}).encode()})
-        pq.write_table(table, path)
+            {"format": FORMAT_TAG, "meta": rec.meta, "rows": len(rec)}).encode()})
+        with atomic_output(path) as tmp:
+            pq.write_table(table, tmp)
         return path
     import pyarrow.csv as pcsv
 
     buf = io.BytesIO()
     pcsv.write_csv(table, buf, pcsv.WriteOptions(include_header=False, quoting_style="none"))
-    with open(path, "wb") as f:
+    with atomic_output(path) as tmp, open(tmp, "wb") as f:
         f.write(f"# {FORMAT_TAG}\n".encode())
+        f.write(f"# rows: {len(rec)}\n".encode())
         for k, v in rec.meta.items():
             f.write(f"# {k}: {json.dumps(v)}\n".encode())
         f.write((",".join(table.column_names) + "\n").encode())
         f.write(buf.getvalue())
+        f.write(f"{END_MARK}{len(rec)} rows\n".encode())
     return path
 
 
@@ -323,18 +331,30 @@ def load_recording(path) -> Recording:
         except (pa.ArrowException, OSError) as exc:
             raise ValueError(f"{path}: not a readable Parquet file ({exc})") from None
         raw = (table.schema.metadata or {}).get(b"quadest")
-        meta = json.loads(raw)["meta"] if raw else {}
+        try:
+            head = json.loads(raw) if raw else {}
+            meta = head.get("meta", {}) if isinstance(head, dict) else None
+        except (ValueError, UnicodeDecodeError):
+            meta = None
+        if not isinstance(meta, dict):
+            raise ValueError(f"{path}: the quadest metadata of this Parquet file is damaged")
+        rows = head.get("rows")
+        if rows is not None and rows != table.num_rows:
+            raise ValueError(f"{path}: holds {table.num_rows} rows but states {rows}: the file is damaged")
         return _from_columns(table.column_names, lambda c: table.column(c).to_numpy(), meta, path)
     import pyarrow.csv as pcsv
 
     data = path.read_bytes()
-    meta, pos = {}, 0
+    meta, pos, tag = {}, 0, None
     while data.startswith(b"#", pos):
         end = data.find(b"\n", pos)
         end = len(data) if end < 0 else end
         line = data[pos + 1:end].decode("utf-8", "replace").strip()
         pos = end + 1
-        if line == FORMAT_TAG or ":" not in line:
+        if line.startswith("quadest recording"):
+            tag = line
+            continue
+        if ":" not in line:
             continue
         key, _, value = line.partition(":")
         try:
@@ -343,12 +363,26 @@ def load_recording(path) -> Recording:
             meta[key.strip()] = value.strip()
     if pos >= len(data):
         raise ValueError(f"{path}: no CSV header after the metadata lines")
+    rows = meta.pop("rows", None)
+    body = data[pos:]
+    if tag is not None and tag not in LEGACY_TAGS:
+        # v2: the file must end with its end line; a file cut anywhere lacks it
+        end_at = body.rfind(b"\n" + END_MARK.encode())
+        if end_at < 0 or not body.endswith(b" rows\n"):
+            raise ValueError(f"{path}: the file is cut short (its end line is missing"
+                             + (f"; it states {rows} rows)" if rows is not None else ")"))
+        body = body[:end_at + 1]
     try:
-        table = pcsv.read_csv(io.BytesIO(data[pos:]), convert_options=pcsv.ConvertOptions(
+        table = pcsv.read_csv(io.BytesIO(body), convert_options=pcsv.ConvertOptions(
             column_types={}, strings_can_be_null=True))
     except pa.ArrowException as exc:
         raise ValueError(f"{path}: malformed CSV ({str(exc).splitlines()[0]})") from None
+    if rows is not None and rows != table.num_rows:
+        raise ValueError(f"{path}: holds {table.num_rows} rows but states {rows}: the file is cut short or damaged")
     names = [c.strip() for c in table.column_names]
+    if len(set(names)) != len(names):
+        dup = sorted({c for c in names if names.count(c) > 1})
+        raise ValueError(f"{path}: column(s) {', '.join(dup)} appear more than once")
     table = table.rename_columns(names)
 
     def get(c):

@@ -7,19 +7,22 @@ import pyarrow as pa
 import pyarrow.csv as pcsv
 import pyarrow.parquet as pq
 
+from quadest.data.files import atomic_output
+
 
 def write_table(cols: dict, path) -> Path:
-    """``{name: 1-D array}`` to ``.csv`` (a plain header line, then the values) or ``.parquet``."""
+    """``{name: 1-D array}`` to ``.csv`` (a plain header line, then the values) or ``.parquet``,
+    atomically (:func:`quadest.data.files.atomic_output`)."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in (".csv", ".parquet", ".pq"):
         raise ValueError(f"{path}: use .csv or .parquet")
     table = pa.table(cols)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if suffix == ".csv":
-        with open(path, "wb") as fh:  # pyarrow quotes header names; write a plain header ourselves
-            fh.write((",".join(cols) + "\n").encode())
-            pcsv.write_csv(table, fh, pcsv.WriteOptions(include_header=False, quoting_style="none"))
-    else:
-        pq.write_table(table, path)
+    with atomic_output(path) as tmp:
+        if suffix == ".csv":
+            with open(tmp, "wb") as fh:  # pyarrow quotes header names; write a plain header ourselves
+                fh.write((",".join(cols) + "\n").encode())
+                pcsv.write_csv(table, fh, pcsv.WriteOptions(include_header=False, quoting_style="none"))
+        else:
+            pq.write_table(table, tmp)
     return path

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 from quadest.data.recording import Recording
+from quadest.errors import UsageError
 from quadest.evaluation.metrics import AXES
 from quadest.evaluation.runner import alignment_of, estimate_all, evaluation_mask, score, truth_of
 from quadest.evaluation.speed import time_estimator
@@ -18,14 +19,14 @@ def parse_params(items) -> dict:
         key, eq, value = item.partition("=")
         name, dot, field = key.strip().partition(".")
         if not eq or not dot or name not in FILTERS:
-            raise ValueError(f"--param expects FILTER.NAME=VALUE with a known filter, got {item!r}")
+            raise UsageError(f"--param expects FILTER.NAME=VALUE with a known filter, got {item!r}")
         v = value.strip()
         parsed = {"true": True, "false": False}.get(v.lower())
         if parsed is None:
             try:
                 parsed = float(v)
             except ValueError:
-                raise ValueError(f"--param {key}: {v!r} is not a number or true/false") from None
+                raise UsageError(f"--param {key}: {v!r} is not a number or true/false") from None
         out.setdefault(name, {})[field] = parsed
     return out
 

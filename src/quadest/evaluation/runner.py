@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from quadest.data.recording import Recording
+from quadest.errors import UsageError
 from quadest.evaluation.align import Alignment, fit_alignment
 from quadest.evaluation.metrics import summarize_errors
 from quadest.evaluation.peers import PEERS, available_peers, run_peer
@@ -30,11 +31,11 @@ def estimator_names(spec: str, all_includes_peers: bool = False) -> list[str]:
     names = [s.strip() for s in spec.split(",") if s.strip()]
     bad = [n for n in names if n not in FILTERS and n not in PEERS]
     if bad or not names:
-        raise ValueError(f"unknown filter(s) {', '.join(bad) or spec!r}; filters: {', '.join(FILTERS)}; "
+        raise UsageError(f"unknown filter(s) {', '.join(bad) or spec!r}; filters: {', '.join(FILTERS)}; "
                          f"peers: {', '.join(PEERS)}")
     missing = [n for n in names if n in PEERS and n not in available_peers()]
     if missing:
-        raise ValueError(f"peer(s) {', '.join(missing)} not installed: pip install 'quadest[peers]'")
+        raise UsageError(f"peer(s) {', '.join(missing)} not installed: pip install 'quadest[peers]'")
     return names
 
 
@@ -44,9 +45,9 @@ def check_params(name: str, params: dict) -> None:
         known = {d["name"] for d in FILTERS[name].Params.describe()}
         bad = [k for k in params if k not in known]
         if bad:
-            raise ValueError(f"{name} has no parameter {', '.join(bad)}; parameters: {', '.join(sorted(known))}")
+            raise UsageError(f"{name} has no parameter {', '.join(bad)}; parameters: {', '.join(sorted(known))}")
     elif params:
-        raise ValueError(f"peer {name} runs with its own defaults; it takes no parameters")
+        raise UsageError(f"peer {name} runs with its own defaults; it takes no parameters")
 
 
 def estimate(rec: Recording, name: str, params: dict | None = None, *,
@@ -61,7 +62,7 @@ def estimate(rec: Recording, name: str, params: dict | None = None, *,
     if name in PEERS:
         check_params(name, params)
         return FilterResult(name, rec.t, run_peer(name, rec, use_mag=rec.has_mag, declination=decl), {}, None)
-    raise ValueError(f"unknown filter {name!r}; filters: {', '.join(FILTERS)}; peers: {', '.join(PEERS)}")
+    raise UsageError(f"unknown filter {name!r}; filters: {', '.join(FILTERS)}; peers: {', '.join(PEERS)}")
 
 
 def estimate_all(rec: Recording, names, params: dict | None = None, labels: dict | None = None) -> dict:

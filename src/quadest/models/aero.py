@@ -10,13 +10,13 @@ Q(P)`` where ``Q`` maps ``ψ`` of the FRD rate to ``ψ`` of the paper's rate (se
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from numba import njit
 
+from quadest.data.files import write_json
 from quadest.data.tagged import read_tagged_json
 from quadest.rotation import quat_conj, quat_rotate
 
@@ -91,10 +91,8 @@ class AeroModel:
                 "A": self.A.tolist(), "B": self.B.tolist(), "C": self.C.tolist(), "info": self.info}
 
     def save(self, path) -> Path:
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(self.to_dict(), indent=2))
-        return path
+        """Write the JSON file, atomically (nothing half-written is left on a failure)."""
+        return write_json(path, self.to_dict())
 
     @classmethod
     def load(cls, path) -> "AeroModel":

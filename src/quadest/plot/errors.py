@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 
 from quadest.evaluation.metrics import AXES, euler_errors
+from quadest.plot.save import save_figure
 
 
 def plot_errors(t, q_true, results: dict, out_dir, *, title: str = "", t_from: float | None = None):
@@ -32,7 +33,6 @@ def plot_errors(t, q_true, results: dict, out_dir, *, title: str = "", t_from: f
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, ncol=min(4, len(errs)), loc="upper right")
         path = out_dir / f"error_{axis}.png"
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
+        save_figure(fig, path)
         paths.append(path)
     return paths

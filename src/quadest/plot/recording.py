@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from quadest.data.recording import Recording
+from quadest.plot.save import save_figure
 from quadest.rotation import quat_to_euler
 
 
@@ -44,6 +45,5 @@ def plot_recording(rec: Recording, path, title: str | None = None):
     axes[-1].set_xlabel("time [s]")
     if title:
         axes[0].set_title(title + ("   (dashed: truth)" if rec.true_gyr is not None else ""))
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
     return path

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from quadest.plot.save import save_figure
 from quadest.recovery.logic import angle_deg, true_gravity_dir
 from quadest.rotation import quat_conj, quat_rotate
 
@@ -52,8 +53,7 @@ def plot_recovery(res, rec, path, title: str = ""):
     if res.detect_index is not None:
         axes[0].set_xlim(max(0.0, t[k0] - 0.3), t[-1])
     axes[0].set_title(title or "state estimate recovery (dotted: throw detected, converged)")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
     return path
 
 
@@ -76,6 +76,5 @@ def plot_recovery_histograms(runs: dict, path):
         ax.set_ylabel("throws")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
     return path

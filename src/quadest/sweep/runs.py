@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from quadest.errors import UsageError
 from quadest.evaluation.runner import check_params, estimate, estimator_names, score
 from quadest.readers import read_recording
 from quadest.sim import simulate
@@ -44,7 +45,7 @@ def parse_values(text: str) -> list[float]:
             return [float(f"{v:.6g}") for v in vals]
         return [float(v) for v in text.split(",") if v.strip()]
     except ValueError:
-        raise ValueError(f"grid values {text!r}: give a list (0.1,0.2) or lin:A:B:N or log:A:B:N") from None
+        raise UsageError(f"grid values {text!r}: give a list (0.1,0.2) or lin:A:B:N or log:A:B:N") from None
 
 
 def parse_grid(items) -> dict:
@@ -55,7 +56,7 @@ def parse_grid(items) -> dict:
         key, eq, vals = item.partition("=")
         name, dot, field = key.strip().partition(".")
         if not eq or not dot:
-            raise ValueError(f"--grid expects FILTER.PARAM=VALUES, got {item!r}")
+            raise UsageError(f"--grid expects FILTER.PARAM=VALUES, got {item!r}")
         out.setdefault(name, {})[field] = parse_values(vals)
     return out
 
@@ -93,7 +94,9 @@ def build_runs(filters, grid: dict, sources, align: str | None = None) -> list[d
     names = estimator_names(filters if isinstance(filters, str) else ",".join(filters), all_includes_peers=True)
     unknown = [n for n in grid if n not in names]
     if unknown:
-        raise ValueError(f"--grid names filter(s) {', '.join(unknown)} that the sweep does not run")
+        raise UsageError(f"--grid names filter(s) {', '.join(unknown)} that the sweep does not run")
+    for name, fields in grid.items():  # a misspelt parameter is refused before any run starts
+        check_params(name, fields)
     # source-major order: the runs on one flight follow each other, so a worker's cache of
     # recent flights (simulated or read) serves them without simulating or reading again
     runs = []
