@@ -28,10 +28,11 @@ def estimator_params() -> str:
     from quadest.filters import FILTERS
     out = []
     for name, cls in FILTERS.items():
-        out.append(f"**`{name}`**\n\n| parameter | default | unit | meaning | source |\n|---|---|---|---|---|")
+        out.append(f"**`{name}`**\n\n| parameter | default | unit | bounds | meaning | source |\n"
+                   "|---|---|---|---|---|---|")
         for d in cls.Params.describe():
             out.append(f"| `{d['name']}` | {json.dumps(d['default'], default=float)} | {d['unit']} | "
-                       f"{d['doc']} | {d['source']} |")
+                       f"{d.get('bounds', '-')} | {d['doc']} | {d['source']} |")
         out.append("")
     return "\n".join(out).rstrip()
 

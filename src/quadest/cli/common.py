@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from quadest.data import files
 from quadest.errors import UsageError
@@ -116,4 +117,9 @@ def read(args, path):
         if not sep or kind not in ("imu", "mag", "truth"):
             raise CliError(f"--topic {item!r}: expected imu=TOPIC, mag=TOPIC or truth=TOPIC")
         opts[f"{kind}_topic"] = topic
-    return read_recording(path, fmt, **opts)
+    rec = read_recording(path, fmt, **opts)
+    dropped = rec.meta.get("dropped_rows")
+    if dropped:  # said on stderr, so that JSON on stdout stays clean
+        print(f"note: {path}: dropped {dropped} row(s) with a repeated or decreasing time or a non-finite IMU "
+              "value", file=sys.stderr, flush=True)
+    return rec

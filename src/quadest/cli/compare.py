@@ -19,7 +19,7 @@ from quadest.cli.common import (
 from quadest.evaluation import benchmark as B
 from quadest.evaluation import reproduce as R
 from quadest.evaluation.compare import compare, format_tables, parse_params
-from quadest.evaluation.runner import estimator_names
+from quadest.evaluation.runner import estimator_names, filter_notes
 from quadest.evaluation.speed import benchmark_speed
 from quadest.filters import FILTERS
 from quadest.sim import PRESETS, SCENARIOS, simulate
@@ -47,6 +47,9 @@ def cmd_compare(args):
                               source=source, align=args.align, align_body=args.align_body)
     if report["against"] == "ref_q":
         say("no independent truth in this recording: errors are against the log's onboard attitude (ref_q)")
+    for res in results.values():
+        for line in filter_notes(res):
+            say(line)
     for name, entry in report["filters"].items():
         if "alignment" in entry:
             a = entry["alignment"]

@@ -12,7 +12,7 @@ from quadest.cli.common import add_calibration_arg, add_input_args, read, say
 from quadest.data import format_summary, summarize, write_table
 from quadest.evaluation.compare import parse_params
 from quadest.evaluation.peers import PEERS
-from quadest.evaluation.runner import estimate
+from quadest.evaluation.runner import estimate, filter_notes
 from quadest.filters import FILTERS
 from quadest.rotation import quat_to_euler
 
@@ -52,7 +52,10 @@ def cmd_estimate(args):
     params = parse_params(args.param)
     kw = {**cal_params.get(args.filter, {}), **params.get(args.filter, {})}
     decl = np.radians(args.declination_deg) if args.declination_deg is not None else None
-    q = estimate(rec, args.filter, kw, declination=decl).q
+    res = estimate(rec, args.filter, kw, declination=decl)
+    q = res.q
+    for line in filter_notes(res):
+        say(line)
     e = quat_to_euler(q)
     cols = {"t": rec.t, "q_w": q[:, 0], "q_x": q[:, 1], "q_y": q[:, 2], "q_z": q[:, 3],
             "roll": e[:, 0], "pitch": e[:, 1], "yaw": e[:, 2]}

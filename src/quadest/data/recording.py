@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from quadest.conventions import GRAVITY
 from quadest.data.files import atomic_output
 
 FORMAT_TAG = "quadest recording v2"
@@ -41,6 +42,8 @@ TRUTH_FIELDS = {
 }
 SENSOR_FIELDS = ("gyr", "acc", "mag")
 
+REST_RATE = 0.2  # rad/s: the gyroscope below this on every axis counts as rest
+MIN_REST_SAMPLES = 20
 GYR_LIMIT = 70.0  # rad/s: ±4000 °/s, beyond any MEMS gyroscope's range
 ACC_LIMIT = 1600.0  # m/s²: about 160 g, beyond the range of a flight IMU
 
@@ -104,7 +107,7 @@ class Recording:
         if step.any():
             i = _first_row(step) + 1
             raise ValueError(f"t: not strictly increasing at row {i} "
-                             f"(t[{i}] = {t[i]!r} <= t[{i - 1}] = {t[i - 1]!r})")
+                             f"(t[{i}] = {float(t[i])!r} <= t[{i - 1}] = {float(t[i - 1])!r})")
         object.__setattr__(self, "t", t)
         for name in ("gyr", "acc"):
             a = self._array(name, getattr(self, name), width=3, n=n)
@@ -184,6 +187,25 @@ class Recording:
         if len(norm) >= 10 and 0.5 < med < 1.5 and p95 < 3.0:
             raise ValueError(f"acc: norms look like g, not m/s² (median {med:.3f}, row 0 reads "
                              f"{norm[0]:.3f}); quadest takes m/s² (multiply g by 9.80665)")
+        # not rotating (gyroscope quiet), the accelerometer reads gravity (about 9.8 m/s²) or,
+        # falling without rotation, less: never much more
+        rest = np.abs(self.gyr).max(axis=1) < REST_RATE
+        if rest.sum() >= MIN_REST_SAMPLES:
+            g_rest = float(np.median(norm[rest]))
+            if 500.0 < g_rest < 2000.0:  # 1 g = 1000 mg
+                raise ValueError(f"acc: at rest the accelerometer reads {g_rest:.0f} (median norm): that is gravity "
+                                 "in mg (or cm/s²), not m/s²; quadest takes m/s² (multiply mg by 0.00980665)")
+            if g_rest > 2.0 * GRAVITY:
+                raise ValueError(f"acc: at rest (gyroscope below {REST_RATE} rad/s, {int(rest.sum())} samples) the "
+                                 f"accelerometer reads {g_rest:.3g} (median norm), not gravity (9.81 m/s²): is "
+                                 "it in another unit (ft/s²?) or scaled? quadest takes m/s²")
+        # the time: an IMU samples faster than once a second
+        if len(self.t) >= 10:
+            med_dt = float(np.median(np.diff(self.t)))
+            if med_dt > 1.0:
+                unit = "µs" if med_dt > 200.0 else "ms"
+                raise ValueError(f"t: the median interval is {med_dt:g} s ({1 / med_dt:.3g} Hz), slower than any "
+                                 f"IMU: is the time in {unit}? quadest takes seconds")
 
     # -- properties ---------------------------------------------------------------------
     def __len__(self):
@@ -287,7 +309,7 @@ def save_recording(rec: Recording, path) -> Path:
     return path
 
 
-def _from_columns(names, get, meta, source) -> Recording:
+def _from_columns(names, get, meta, source, check_units=True) -> Recording:
     names = list(names)
     base = ["t"] + [c for f in SENSOR_FIELDS for c in columns_of(f)]
     missing = [c for c in base if c not in names]
@@ -310,13 +332,15 @@ def _from_columns(names, get, meta, source) -> Recording:
         raise ValueError(f"{source}: unexpected column(s) {', '.join(extra)} "
                          "(the recording header is documented in docs/recordings.md)")
     try:
-        return Recording(**kw, meta=meta, check_units=False)
+        return Recording(**kw, meta=meta, check_units=check_units)  # checked like any other file
     except ValueError as exc:
         raise ValueError(f"{source}: {exc}") from None
 
 
-def load_recording(path) -> Recording:
-    """Read a recording written by :func:`save_recording` (CSV or Parquet, by extension)."""
+def load_recording(path, *, check_units: bool = True) -> Recording:
+    """Read a recording written by :func:`save_recording` (CSV or Parquet, by extension). Its
+    values are checked for unit mistakes like any other file's (``check_units=False`` reads
+    what was written, whatever it holds)."""
     import pyarrow as pa
 
     path = Path(path)
@@ -341,7 +365,7 @@ def load_recording(path) -> Recording:
         rows = head.get("rows")
         if rows is not None and rows != table.num_rows:
             raise ValueError(f"{path}: holds {table.num_rows} rows but states {rows}: the file is damaged")
-        return _from_columns(table.column_names, lambda c: table.column(c).to_numpy(), meta, path)
+        return _from_columns(table.column_names, lambda c: table.column(c).to_numpy(), meta, path, check_units)
     import pyarrow.csv as pcsv
 
     data = path.read_bytes()
@@ -393,4 +417,4 @@ def load_recording(path) -> Recording:
             raise ValueError(f"{path}: column {c} is not numeric")
         return col.to_numpy(zero_copy_only=False).astype(np.float64)
 
-    return _from_columns(names, get, meta, path)
+    return _from_columns(names, get, meta, path, check_units)

@@ -28,6 +28,7 @@ def summarize(rec: Recording) -> dict:
         "ranges": {},
         "truth": {k: TRUTH_FIELDS[k][1] for k in rec.truth},
         "units": rec.meta.get("units", {}),
+        "dropped_rows": int(rec.meta.get("dropped_rows", 0)),
     }
     for name in ("gyr", "acc", "mag"):
         a = getattr(rec, name)
@@ -56,6 +57,9 @@ def format_summary(s: dict, name: str = "") -> str:
         f"mag         {s['mag_samples']} samples, {s['mag_rate_hz']:.2f} Hz" if s["mag_samples"]
         else "mag         none",
     ]
+    if s.get("dropped_rows"):
+        lines.append(f"dropped     {s['dropped_rows']} row(s) of the file (repeated or decreasing time, or a "
+                     "non-finite IMU value)")
     g = s["gaps"]
     lines.append(f"gaps        {g['count']} (intervals > {GAP_FACTOR:g}x median), longest "
                  f"{g['longest_s'] * 1e3:.1f} ms, first at t = {g['first_at_s']:.3f} s"

@@ -50,6 +50,8 @@ def compare(rec: Recording, names, *, params: dict | None = None, t_from: float 
         aligned: list = []
         entry = score(rec, res.q, truth=truth, nav=nav, body=body, mask=mask, aligned=aligned)
         results[name] = replace(res, q=aligned[0])
+        entry["skipped_samples"] = res.skipped
+        entry["restarts_s"] = list(res.restarts)
         if timing and name in FILTERS:
             tm = time_estimator(lambda n=name: make_filter(n, declination=rec.declination, **params.get(n, {})), rec)
             entry["us_per_sample"] = tm["batch_us"]

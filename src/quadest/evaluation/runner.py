@@ -65,6 +65,18 @@ def estimate(rec: Recording, name: str, params: dict | None = None, *,
     raise UsageError(f"unknown filter {name!r}; filters: {', '.join(FILTERS)}; peers: {', '.join(PEERS)}")
 
 
+def filter_notes(res: FilterResult) -> list[str]:
+    """What a user must be told about a run: samples skipped, restarts after gaps."""
+    out = []
+    if res.skipped:
+        out.append(f"{res.name}: skipped {res.skipped} unusable sample(s) (an interval that is not positive, "
+                   "or a value that is not finite or beyond any sensor); the attitude was held there")
+    if res.restarts:
+        times = ", ".join(f"{t:.3f}" for t in res.restarts[:5]) + (" ..." if len(res.restarts) > 5 else "")
+        out.append(f"{res.name}: started again from the sensors after {len(res.restarts)} gap(s), at t = {times} s")
+    return out
+
+
 def estimate_all(rec: Recording, names, params: dict | None = None, labels: dict | None = None) -> dict:
     """``{label: FilterResult}`` of several estimators; ``params`` and ``labels`` by name."""
     params = params or {}

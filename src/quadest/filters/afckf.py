@@ -59,8 +59,18 @@ from numba import njit
 
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, P, Params, params_record
-from quadest.filters.common import (BASE, YAW_PENDING, finite3, gravity_objective, layout, mag_heading, norm3,
-                                    prepare, q_to_euler)
+from quadest.filters.common import (
+    BASE,
+    YAW_PENDING,
+    admit,
+    finite3,
+    gravity_objective,
+    layout,
+    mag_heading,
+    norm3,
+    prepare,
+    q_to_euler,
+)
 from quadest.filters.linalg import inv_spd_into
 from quadest.rotation.kernels import FASTMATH, normalize_s, qdot_s
 
@@ -84,35 +94,35 @@ class AfckfParams(Params):
     omega1: float = P(0.0, "m", "centrifugal constant ω1 of eq 13 (m/s² per (rad/s)²)",
                       "calibration (eq 13): quadest calibrate centrifugal on a spinning segment")
     omega2: float = P(0.0, "m", "centrifugal constant ω2 of eq 13", "calibration (eq 13)")
-    beta: float = P(1.5, "-", "step scale β > 1 of eq 24", "chosen: eq 24 requires β > 1; the paper gives no value")
-    gyro_std: float = P(0.01, "rad/s", "gyro noise σ_ω per sample (eq 27)", "bebop2 gyro noise")
-    acc_std: float = P(0.3, "m/s²", "accelerometer noise σ_acc per sample (eq 34)", "bebop2 accelerometer")
-    alpha_a: float = P(3.0, "-", "spread multiple α of eqs 37-38", "chosen: 3σ")
+    beta: float = P(1.5, "-", "step scale β > 1 of eq 24", "chosen: eq 24 requires β > 1; the paper gives no value", bounds="(0, 100]")
+    gyro_std: float = P(0.01, "rad/s", "gyro noise σ_ω per sample (eq 27)", "bebop2 gyro noise", bounds="(0, 10]")
+    acc_std: float = P(0.3, "m/s²", "accelerometer noise σ_acc per sample (eq 34)", "bebop2 accelerometer", bounds="(0, 100]")
+    alpha_a: float = P(3.0, "-", "spread multiple α of eqs 37-38", "chosen: 3σ", bounds="(0, 100]")
     omega_d: float = P(0.005, "rad/s²", "bias drift rate ω_d; ρ = √(3/4) ω_d (eq 42)",
-                      "chosen: slow MEMS bias drift; the paper gives no value")
-    mag_std: float = P(0.5, "mag unit", "magnetometer noise σ_m per sample (eq 49)", "bebop2 magnetometer")
-    alpha_m: float = P(3.0, "-", "spread multiple α of eq 49", "chosen: 3σ")
+                      "chosen: slow MEMS bias drift; the paper gives no value", bounds="[0, 10]")
+    mag_std: float = P(0.5, "mag unit", "magnetometer noise σ_m per sample (eq 49)", "bebop2 magnetometer", bounds="(0, 1e9]")
+    alpha_m: float = P(3.0, "-", "spread multiple α of eq 49", "chosen: 3σ", bounds="(0, 100]")
     mag_norm: float = P(0.0, "mag unit", "local field norm ‖b_e‖ (0: the first sample's norm)",
-                      "quadest: measured on the first sample unless given")
+                      "quadest: measured on the first sample unless given", bounds="[0, 1e9]")
     omega_sat: float = P(np.radians(1000.0), "rad/s", "gyro yaw-rate saturation ω_ψ,sat (eq 48)",
-                         "bebop2 gyro range")
+                         "bebop2 gyro range", bounds="(0, 1e3]")
     theta_m: float = P(10.0, "-", "membership curvature ϑ_m of eq 47",
-                      "chosen: a convex membership; the paper gives no value")
+                      "chosen: a convex membership; the paper gives no value", bounds="(1, 1e6]")
     theta_w: float = P(10.0, "-", "membership curvature ϑ_ω of eq 48",
-                      "chosen: as ϑ_m")
+                      "chosen: as ϑ_m", bounds="(1, 1e6]")
     kappa_1: float = P(0.01, "-", "κ when the field is clean and the rate low (per magnetometer sample)",
-                       "chosen: trust the gyro's yaw, a slow magnetometer pull")
+                       "chosen: trust the gyro's yaw, a slow magnetometer pull", bounds="[0, 1]")
     kappa_2: float = P(0.2, "-", "κ when the field is clean and the gyro near saturation",
-                      "chosen: lean on the magnetometer when the gyro clips")
+                      "chosen: lean on the magnetometer when the gyro clips", bounds="[0, 1]")
     kappa_3: float = P(0.001, "-", "κ when the field is disturbed and the rate low",
-                      "chosen: ten times less than κ₁")
+                      "chosen: ten times less than κ₁", bounds="[0, 1]")
     kappa_4: float = P(0.02, "-", "κ when the field is disturbed and the gyro near saturation",
-                      "chosen: ten times less than κ₂")
+                      "chosen: ten times less than κ₂", bounds="[0, 1]")
     iota: float = P(20.0, "samples", "window scale ι of eq 53 (at most 256)",
-                     "chosen: 40 ms of averaging at 500 Hz when not rotating")
+                     "chosen: 40 ms of averaging at 500 Hz when not rotating", bounds="[1, 256]")
     p0: float = P(1.0, "-", "initial covariance P0 = p0·I ('large', §III AEKF)",
-                   "chosen: large against a unit quaternion's components")
-    gravity: float = P(GRAVITY, "m/s²", "|g| of eq 15", "standard gravity")
+                   "chosen: large against a unit quaternion's components", bounds="(0, 1e6]")
+    gravity: float = P(GRAVITY, "m/s²", "|g| of eq 15", "standard gravity", bounds="(0, 100]")
 
 
 Record = params_record(AfckfParams)
@@ -182,6 +192,8 @@ def fuzzy_gain(rho, lam_m, w_abs, w_sat, th_m, th_w, k1, k2, k3, k4):
 
 @njit(cache=True, fastmath=FASTMATH)
 def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
+    if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
+        return
     use_mag = p.use_mag
     om1, om2, beta, sg, grav = p.omega1, p.omega2, p.beta, p.gyro_std, p.gravity
     for i in range(7):

@@ -29,8 +29,9 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
-from quadest.filters.common import BASE, INIT, T_LAST
-from quadest.records import describe, param
+from quadest.errors import UsageError
+from quadest.filters.common import BASE, INIT, RESTARTS, SKIPPED, T_LAST
+from quadest.records import check, describe, param
 from quadest.rotation import quat_mul, quat_to_euler
 from quadest.rotation.kernels import qmul
 
@@ -76,6 +77,10 @@ class FilterResult:
     q: np.ndarray
     diag: dict
     params: Params
+    skipped: int = 0
+    """Samples skipped in this run (an unusable interval or value: docs/reliability.md)."""
+    restarts: tuple = ()
+    """Times (s) at which the estimator started again from the sensors after a gap."""
 
     @property
     def euler(self) -> np.ndarray:
@@ -102,7 +107,7 @@ class Estimator:
     batch = None
 
     def __init__(self, params: Params | None = None, *, q0=None, declination: float = 0.0,
-                 **overrides):
+                 max_gap_s: float | None = None, **overrides):
         params = params if params is not None else self.Params()
         if overrides:
             names = {f.name for f in fields(params)}
@@ -111,6 +116,13 @@ class Estimator:
                 raise TypeError(f"{self.name}: unknown parameter(s) {', '.join(bad)}; "
                                 f"parameters: {', '.join(sorted(names))}")
             params = replace(params, **overrides)
+        check(params, self.name)
+        if not math.isfinite(declination):
+            raise UsageError(f"{self.name}: declination must be a finite angle in rad, got {float(declination)!r}")
+        if max_gap_s is not None and not (math.isfinite(max_gap_s) and max_gap_s > 0):
+            raise UsageError(f"{self.name}: max_gap_s must be a positive number of seconds, got {max_gap_s!r}")
+        self.max_gap_s = max_gap_s
+        self._dt_prev = 0.01
         self.params = params
         self._p = self.Record(**params.values())  # read by name in compiled code
         self._c = type(self).coefficients(replace(params, **params.values()))  # derived once, not every step
@@ -139,6 +151,25 @@ class Estimator:
         self._init_state(x)
         self._x = x
 
+    def _restart(self):
+        """Start again from the next samples (after a gap): the attitude is initialised from the
+        accelerometer and magnetometer as at the start; the counters are kept."""
+        x = np.zeros(self.state_size)
+        x[0] = 1.0
+        self._init_state(x)
+        x[SKIPPED], x[RESTARTS], x[T_LAST] = self._x[SKIPPED], self._x[RESTARTS] + 1.0, self._x[T_LAST]
+        self._x[:] = x
+
+    @property
+    def skipped(self) -> int:
+        """Samples skipped since the start (unusable interval or value)."""
+        return int(self._x[SKIPPED])
+
+    @property
+    def restarts(self) -> int:
+        """How often the estimator started again from the sensors after a gap."""
+        return int(self._x[RESTARTS])
+
     def get_state(self) -> np.ndarray:
         """A copy of the whole state (attitude, flags and estimator-specific parts)."""
         return self._x.copy()
@@ -162,9 +193,18 @@ class Estimator:
     # -- use ------------------------------------------------------------------------------
     def update(self, gyr, acc, mag=None, *, dt: float) -> np.ndarray:
         """One sample: gyroscope (rad/s), accelerometer (m/s²), magnetometer (any unit or None),
-        time since the previous sample (s). Returns the attitude ``q_nb``."""
+        time since the previous sample (s). Returns the attitude ``q_nb``. An unusable sample
+        (non-finite or absurd value, ``dt`` not positive) is skipped and counted
+        (:attr:`skipped`); after a gap longer than ``max_gap_s`` (default
+        ``STREAM_GAP_S``) the estimator starts again from the sensors (:attr:`restarts`)."""
+        dt = float(dt)
+        if dt > (self.max_gap_s or STREAM_GAP_S):
+            self._restart()
+            dt = self._dt_prev  # the first sample after a gap spans a nominal interval
+        elif dt > 0.0:
+            self._dt_prev = dt
         self._call_step(self._x, self._p, self._c, _vec3(gyr), _vec3(acc), _NAN3 if mag is None else _vec3(mag),
-                        float(dt), self._diag)
+                        dt, self._diag)
         return self._out(self._x[:4])
 
     def __getstate__(self):  # the compiled entry point is found again after unpickling
@@ -208,15 +248,32 @@ class Estimator:
         dt = sample_intervals(t)
         if n and np.isfinite(self._x[T_LAST]):  # resuming: the real interval to the last sample
             dt[0] = t[0] - self._x[T_LAST]
+        # gaps: the estimator starts again from the sensors after each (docs/reliability.md)
+        nominal = dt[0] if n and not np.isfinite(self._x[T_LAST]) else _nominal_interval(dt)
+        gap = self.max_gap_s or max(GAP_FACTOR * nominal, GAP_MIN_S)
+        starts = np.flatnonzero(dt > gap)
         q = np.empty((n, 4))
         diag = np.zeros((n, max(1, len(self.diag_names))))
-        type(self).batch(self._x, self._p, self._c, dt, gyr, acc, mag, q, diag)
-        if n:
-            self._x[T_LAST] = t[-1]
+        skipped0 = self._x[SKIPPED]
+        restarts = []
+        bounds = [0, *[int(k) for k in starts if k > 0], n]
+        if len(starts) and starts[0] == 0:  # resuming after a gap
+            self._restart()
+            restarts.append(float(t[0]))
+            dt[0] = nominal
+        for a, b in zip(bounds[:-1], bounds[1:]):
+            if a > 0:
+                self._restart()
+                restarts.append(float(t[a]))
+                dt[a] = nominal  # the first sample after a gap spans a nominal interval
+            type(self).batch(self._x, self._p, self._c, dt[a:b], gyr[a:b], acc[a:b], mag[a:b], q[a:b], diag[a:b])
+        finite_t = t[np.isfinite(t)]
+        if len(finite_t):
+            self._x[T_LAST] = finite_t[-1]
         if self.declination != 0.0:
             q = quat_mul(_declination_quat(self.declination), q)
         return FilterResult(self.name, t, q, {nm: diag[:, i] for i, nm in enumerate(self.diag_names)},
-                            self.params)
+                            self.params, int(self._x[SKIPPED] - skipped0), tuple(restarts))
 
 
 _NAN3 = np.full(3, np.nan)
@@ -234,10 +291,32 @@ def _vec3(v):
     return a
 
 
+GAP_FACTOR = 10.0
+"""Batch: an interval longer than this many nominal intervals is a gap..."""
+GAP_MIN_S = 0.1
+"""...and longer than this many seconds (a brief hiccup of a fast sensor is integrated over)."""
+STREAM_GAP_S = 0.5
+"""Streaming: an interval longer than this is a gap (no median is known there); set
+``max_gap_s`` to choose."""
+
+
+def _nominal_interval(dt) -> float:
+    """The median of the usable (positive, finite) intervals; 0 when there is none."""
+    ok = dt[np.isfinite(dt) & (dt > 0)]
+    return float(np.median(ok)) if len(ok) else 0.0
+
+
 def sample_intervals(t) -> np.ndarray:
-    """``dt[k] = t[k] − t[k−1]``; the first interval is the median one (0 for one sample)."""
+    """``dt[k] = t[k] − t[j]`` with ``t[j]`` the latest earlier time that was usable (finite, and
+    later than every time before it); the first interval is the median of the usable ones (0 for
+    one sample). A NaN time or one that goes backwards gives an unusable interval (NaN or ≤ 0):
+    the filters skip that sample, and the next one is measured from the last good time."""
     t = np.asarray(t, dtype=np.float64)
     if len(t) < 2:
         return np.zeros(len(t))
-    d = np.diff(t)
-    return np.concatenate([[np.median(d)], d])
+    latest = np.maximum.accumulate(np.where(np.isfinite(t), t, -np.inf))
+    prev = np.concatenate([[-np.inf], latest[:-1]])
+    dt = t - prev
+    nominal = _nominal_interval(np.diff(t))
+    dt[~np.isfinite(prev) & np.isfinite(t)] = nominal  # the first usable sample
+    return dt

@@ -28,8 +28,36 @@ def layout(*slots, start: int = 0):
     return namedtuple("Layout", names + ["end"])(*offsets, at)
 
 
-COMMON = layout(("q", 4), ("init", 1), ("yaw_pending", 1), ("t_last", 1))
+COMMON = layout(("q", 4), ("init", 1), ("yaw_pending", 1), ("t_last", 1), ("skipped", 1), ("restarts", 1))
 INIT, YAW_PENDING, T_LAST, BASE = COMMON.init, COMMON.yaw_pending, COMMON.t_last, COMMON.end
+SKIPPED, RESTARTS = COMMON.skipped, COMMON.restarts
+
+# Beyond these a value is not a measurement (docs/reliability.md): the sample is skipped.
+RATE_LIMIT = 1e3  # rad/s, gyroscope (MEMS gyroscopes end near 35 rad/s)
+ACC_LIMIT = 1e4  # m/s², accelerometer (about 1000 g)
+MAG_LIMIT = 1e9  # magnetometer, any unit (the earth's field is 5e4 nT)
+DT_LIMIT = 1e3  # s, one interval
+
+
+@njit(cache=True, inline="always")
+def within3(v, limit):
+    """Every component finite and within ±limit."""
+    return abs(v[0]) <= limit and abs(v[1]) <= limit and abs(v[2]) <= limit
+
+
+@njit(cache=True)
+def admit(x, gyr, acc, mag, dt):
+    """Whether a sample can be used; a sample that cannot is skipped and counted in
+    ``x[SKIPPED]`` (the state is left as it was, so it never becomes NaN). Refused: an interval
+    that is not a positive finite number up to ``DT_LIMIT``; a gyroscope or accelerometer value
+    that is not finite or beyond any sensor; a magnetometer value that is infinite or beyond any
+    sensor (a NaN magnetometer row means "no new sample" and is fine)."""
+    ok = dt > 0.0 and dt <= DT_LIMIT and within3(gyr, RATE_LIMIT) and within3(acc, ACC_LIMIT)
+    if ok and not (np.isnan(mag[0]) and np.isnan(mag[1]) and np.isnan(mag[2])):
+        ok = within3(mag, MAG_LIMIT)
+    if not ok:
+        x[SKIPPED] += 1.0
+    return ok
 
 
 @njit(cache=True)

@@ -26,7 +26,7 @@ from numba import njit
 
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, P, Params, params_record
-from quadest.filters.common import BASE, finite3, layout, norm3, prepare
+from quadest.filters.common import BASE, admit, finite3, layout, norm3, prepare
 from quadest.rotation.kernels import normalize_s, qdot_s, rotate_s
 
 S = layout(("bias", 3), ("gyr_prev", 3), ("have_prev", 1), start=BASE)
@@ -38,20 +38,20 @@ class ComplementaryParams(Params):
     use_mag: bool = P(True, "-", "use the magnetometer when samples are present",
                       "quadest: 9-axis when samples are present")
     gain_acc: float = P(0.01, "-", "accelerometer gain α (static)",
-                        "Valenti et al. 2015; authors' ROS implementation default")
-    gain_mag: float = P(0.01, "-", "magnetometer gain β", "Valenti et al. 2015; ROS default")
+                        "Valenti et al. 2015; authors' ROS implementation default", bounds="[0, 1]")
+    gain_mag: float = P(0.01, "-", "magnetometer gain β", "Valenti et al. 2015; ROS default", bounds="[0, 1]")
     adaptive: bool = P(True, "-", "adapt α to the acceleration magnitude error (eq 60)", "ROS default")
-    t1: float = P(0.1, "-", "magnitude error below which α is unchanged", "Valenti et al. 2015, section 5.2")
-    t2: float = P(0.2, "-", "magnitude error at which α reaches zero", "Valenti et al. 2015, section 5.2")
+    t1: float = P(0.1, "-", "magnitude error below which α is unchanged", "Valenti et al. 2015, section 5.2", bounds="[0, 10]")
+    t2: float = P(0.2, "-", "magnitude error at which α reaches zero", "Valenti et al. 2015, section 5.2", bounds="(0, 10]")
     threshold: float = P(0.9, "-", "LERP above this scalar part, SLERP below (eq 50-52)",
-                         "Valenti et al. 2015")
+                         "Valenti et al. 2015", bounds="[0, 1]")
     bias_estimation: bool = P(True, "-", "estimate the gyro bias in steady state", "ROS default")
-    bias_alpha: float = P(0.01, "-", "low-pass gain of the bias estimate", "ROS default")
-    steady_acc: float = P(0.1, "m/s²", "steady state: |‖a‖ − g| below this", "ROS implementation")
-    steady_rate: float = P(0.2, "rad/s", "steady state: |ω − b| below this per axis", "ROS implementation")
+    bias_alpha: float = P(0.01, "-", "low-pass gain of the bias estimate", "ROS default", bounds="[0, 1]")
+    steady_acc: float = P(0.1, "m/s²", "steady state: |‖a‖ − g| below this", "ROS implementation", bounds="[0, 100]")
+    steady_rate: float = P(0.2, "rad/s", "steady state: |ω − b| below this per axis", "ROS implementation", bounds="[0, 100]")
     steady_delta: float = P(0.01, "rad/s", "steady state: change of ω below this per axis",
-                            "ROS implementation")
-    gravity: float = P(GRAVITY, "m/s²", "gravity used for the magnitude error", "standard gravity")
+                            "ROS implementation", bounds="[0, 100]")
+    gravity: float = P(GRAVITY, "m/s²", "gravity used for the magnitude error", "standard gravity", bounds="(0, 100]")
 
 
 Record = params_record(ComplementaryParams)
@@ -81,6 +81,8 @@ def _conj_mul(d0, d1, d2, d3, q0, q1, q2, q3):
 
 @njit(cache=True)
 def complementary_step(x, p, c, gyr, acc, mag, dt, diag):
+    if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
+        return
     use_mag = p.use_mag
     g_acc, g_mag, adaptive, t1, t2, thr = p.gain_acc, p.gain_mag, p.adaptive, p.t1, p.t2, p.threshold
     bias_on, b_alpha, s_acc, s_rate, s_delta, grav = (p.bias_estimation, p.bias_alpha, p.steady_acc, p.steady_rate,

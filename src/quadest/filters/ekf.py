@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit
 
 from quadest.filters.base import Estimator, params_record
-from quadest.filters.common import finite3, omega_matrix, prepare
+from quadest.filters.common import admit, finite3, omega_matrix, prepare
 from quadest.filters.linalg import inv_spd, mm, mm_t, mv
 from quadest.filters.quatmeas import measurement_quaternion
 from quadest.filters.qukf import PB, QukfParams, S, coefficients, noise
@@ -34,6 +34,8 @@ Record = params_record(EkfParams)
 
 @njit(cache=True, fastmath=FASTMATH)
 def ekf_step(x, p, c, gyr, acc, mag, dt, diag):
+    if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
+        return
     use_mag = p.use_mag
     diag[0] = 0.0
     if not prepare(x, acc, mag, use_mag):

@@ -31,7 +31,7 @@ from numba import njit
 
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, P, Params, params_record
-from quadest.filters.common import BASE, finite3, layout, norm3, prepare
+from quadest.filters.common import BASE, admit, finite3, layout, norm3, prepare
 from quadest.filters.linalg import inv_spd, mm, mm_t, mv
 from quadest.rotation.kernels import FASTMATH, qexp, qexp_right, rot_matrix, skew
 
@@ -49,24 +49,24 @@ class KalmanParams(Params):
     use_mag: bool = P(True, "-", "use the magnetometer when samples are present",
                       "quadest: 9-axis when samples are present")
     gyro_noise: float = P(0.01, "rad/s", "gyroscope white noise std per sample",
-                          "chosen: the bebop2 preset's gyro")
-    bias_rw: float = P(2e-4, "rad/s/√s", "gyro bias random walk", "chosen: the bebop2 preset's gyro")
+                          "chosen: the bebop2 preset's gyro", bounds="(0, 10]")
+    bias_rw: float = P(2e-4, "rad/s/√s", "gyro bias random walk", "chosen: the bebop2 preset's gyro", bounds="[0, 1]")
     acc_noise: float = P(0.3, "m/s²", "accelerometer white noise std per sample",
-                         "chosen: the bebop2 preset's accelerometer")
+                         "chosen: the bebop2 preset's accelerometer", bounds="(0, 100]")
     lin_acc: float = P(3.0, "m/s²", "std of the unmodelled acceleration, added to the accelerometer noise",
                        "chosen on simulator seed 11 (not a checked seed); Roetenberg's values are not "
-                       "among quadest's sources")
+                       "among quadest's sources", bounds="[0, 100]")
     mag_noise: float = P(0.02, "-", "magnetometer noise std, in units of the reference field",
-                         "chosen: about 1 µT of a 49 µT field")
+                         "chosen: about 1 µT of a 49 µT field", bounds="(0, 10]")
     dist_std: float = P(0.02, "-", "steady-state std of the magnetic disturbance (reference-field units)",
-                        "chosen on simulator seed 11")
+                        "chosen on simulator seed 11", bounds="[0, 10]")
     dist_tau_s: float = P(0.2, "s", "correlation time τ_d of the magnetic disturbance",
-                          "chosen on simulator seed 11")
-    gravity: float = P(GRAVITY, "m/s²", "gravity", "standard gravity")
+                          "chosen on simulator seed 11", bounds="[0, 1e6]")
+    gravity: float = P(GRAVITY, "m/s²", "gravity", "standard gravity", bounds="(0, 100]")
     p0_att: float = P(0.01, "rad²", "initial orientation error variance",
-                     "chosen: about 6° (the first sample's attitude is close)")
+                     "chosen: about 6° (the first sample's attitude is close)", bounds="(0, 10]")
     p0_bias: float = P(1e-4, "(rad/s)²", "initial gyro bias variance",
-                      "chosen: 0.01 rad/s, a turn-on bias of a MEMS gyro")
+                      "chosen: 0.01 rad/s, a turn-on bias of a MEMS gyro", bounds="[0, 1]")
 
 
 Record = params_record(KalmanParams)
@@ -103,6 +103,8 @@ def _update(x, P, r, H, Rm, v_free, constrain):
 
 @njit(cache=True, fastmath=FASTMATH)
 def kalman_step(x, p, c, gyr, acc, mag, dt, diag):
+    if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
+        return
     use_mag = p.use_mag
     sg, sb, sd, tau, grav = p.gyro_noise, p.bias_rw, p.dist_std, p.dist_tau_s, p.gravity
     diag[0] = diag[4] = 0.0

@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit
 
 from quadest.filters.base import Estimator, P, Params, params_record
-from quadest.filters.common import BASE, finite3, gravity_objective, norm3, prepare
+from quadest.filters.common import BASE, admit, finite3, gravity_objective, norm3, prepare
 from quadest.rotation.kernels import normalize_s, qdot_s, rotate_s
 
 
@@ -27,9 +27,9 @@ class MadgwickParams(Params):
     use_mag: bool = P(True, "-", "use the magnetometer (MARG form) when samples are present",
                       "quadest: 9-axis when samples are present")
     beta_marg: float = P(0.041, "-", "gradient-descent gain β in the MARG form",
-                         "Madgwick 2010 report / reference implementation")
+                         "Madgwick 2010 report / reference implementation", bounds="[0, 10]")
     beta_imu: float = P(0.033, "-", "gradient-descent gain β in the IMU (6-axis) form",
-                        "Madgwick 2010 report / reference implementation")
+                        "Madgwick 2010 report / reference implementation", bounds="[0, 10]")
 
 
 Record = params_record(MadgwickParams)
@@ -43,6 +43,8 @@ def coefficients(params: MadgwickParams) -> Coefficients:
 
 @njit(cache=True)
 def madgwick_step(x, p, c, gyr, acc, mag, dt, diag):
+    if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
+        return
     use_mag = p.use_mag
     diag[0] = 0.0
     if not prepare(x, acc, mag, use_mag):

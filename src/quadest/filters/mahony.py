@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit
 
 from quadest.filters.base import Estimator, P, Params, params_record
-from quadest.filters.common import BASE, finite3, layout, norm3, prepare
+from quadest.filters.common import BASE, admit, finite3, layout, norm3, prepare
 from quadest.rotation.kernels import normalize_s, qdot_s, rotate_inv_s, rotate_s
 
 S = layout(("bias", 3), start=BASE)  # gyro bias estimate
@@ -28,9 +28,9 @@ B = S.bias
 class MahonyParams(Params):
     use_mag: bool = P(True, "-", "use the magnetometer when samples are present",
                       "quadest: 9-axis when samples are present")
-    k_p: float = P(1.0, "rad/s", "proportional gain k_P", "Mahony et al. 2008, experiments (k_P = 1)")
+    k_p: float = P(1.0, "rad/s", "proportional gain k_P", "Mahony et al. 2008, experiments (k_P = 1)", bounds="[0, 1e3]")
     k_i: float = P(0.3, "rad/s²", "integral gain k_I of the bias feedback",
-                   "Mahony et al. 2008, experiments (k_I = 0.3)")
+                   "Mahony et al. 2008, experiments (k_I = 0.3)", bounds="[0, 1e3]")
 
 
 Record = params_record(MahonyParams)
@@ -38,6 +38,8 @@ Record = params_record(MahonyParams)
 
 @njit(cache=True)
 def mahony_step(x, p, c, gyr, acc, mag, dt, diag):
+    if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
+        return
     use_mag = p.use_mag
     kp, ki = p.k_p, p.k_i
     diag[0], diag[1], diag[2], diag[3] = x[B], x[B + 1], x[B + 2], 0.0

@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 
 from quadest.filters.base import Estimator, P, Params, params_record
-from quadest.filters.common import BASE, finite3, layout, omega_matrix, prepare
+from quadest.filters.common import BASE, admit, finite3, layout, omega_matrix, prepare
 from quadest.filters.linalg import inv_spd_into
 from quadest.filters.quatmeas import measurement_quaternion
 from quadest.rotation.kernels import FASTMATH
@@ -36,14 +36,14 @@ PB = S.P
 class QukfParams(Params):
     use_mag: bool = P(True, "-", "use the magnetometer heading in the measurement",
                       "quadest: 9-axis when samples are present")
-    lam: float = P(-1.0, "-", "sigma-point scaling λ", "Liang et al. 2023, section IV")
-    alpha: float = P(1.0, "-", "spread α", "Liang et al. 2023, section IV")
-    beta: float = P(2.0, "-", "prior-distribution parameter β", "Liang et al. 2023, section IV")
-    s: float = P(0.001, "-", "process noise S = s·I per reference step", "Liang et al. 2023, section IV")
-    r: float = P(0.05, "-", "measurement noise R = r·I per reference step", "Liang et al. 2023, section IV")
+    lam: float = P(-1.0, "-", "sigma-point scaling λ", "Liang et al. 2023, section IV", bounds="(-4, 1e3]")
+    alpha: float = P(1.0, "-", "spread α", "Liang et al. 2023, section IV", bounds="(0, 10]")
+    beta: float = P(2.0, "-", "prior-distribution parameter β", "Liang et al. 2023, section IV", bounds="[0, 100]")
+    s: float = P(0.001, "-", "process noise S = s·I per reference step", "Liang et al. 2023, section IV", bounds="(0, 1e6]")
+    r: float = P(0.05, "-", "measurement noise R = r·I per reference step", "Liang et al. 2023, section IV", bounds="(0, 1e6]")
     p0: float = P(1.0, "-", "initial covariance P0 = p0·I",
-               "chosen: large against a unit quaternion's components (the paper gives none)")
-    rate_ref_hz: float = P(20.0, "Hz", "rate at which s and r are given", "Liang et al. 2023 (20 Hz)")
+               "chosen: large against a unit quaternion's components (the paper gives none)", bounds="(0, 1e6]")
+    rate_ref_hz: float = P(20.0, "Hz", "rate at which s and r are given", "Liang et al. 2023 (20 Hz)", bounds="(0, 1e6]")
     scale_with_rate: bool = P(True, "-", "scale s by dt/T and r by T/dt",
                               "quadest: keeps the paper's time constants at any rate (module doc)")
 
@@ -130,6 +130,8 @@ def _ut_cov(A, ma, B, mb, w0, wi, C):
 
 @njit(cache=True, fastmath=FASTMATH)
 def qukf_step(x, p, c, gyr, acc, mag, dt, diag):
+    if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
+        return
     use_mag = p.use_mag
     diag[0] = 0.0
     if not prepare(x, acc, mag, use_mag):

@@ -75,10 +75,16 @@ def resample_quat(t_src, q_src, t, max_gap: float = 0.1):
     return out
 
 
+MAX_DROPPED_SHARE = 0.05
+"""A reader refuses a file in which more than this share of the rows must be dropped."""
+
+
 def make_recording(path, fmt: str, t, gyr, acc, mag=None, meta=None, **truth) -> Recording:
     """A Recording from a reader's converted arrays: time starts at 0 (the file's first time is
-    kept in ``meta['t0_s']``), rows with repeated or decreasing timestamps are dropped (and
-    counted in ``meta['dropped_rows']``), and any validation error names the file."""
+    kept in ``meta['t0_s']``), rows with repeated or decreasing timestamps or non-finite IMU
+    values are dropped (and counted in ``meta['dropped_rows']``; every command reports them),
+    more than ``MAX_DROPPED_SHARE`` of them is refused, and any validation error names the
+    file."""
     t = np.asarray(t, float)
     if len(t) == 0:
         raise ReaderError(f"{path}: no IMU samples")
@@ -93,6 +99,10 @@ def make_recording(path, fmt: str, t, gyr, acc, mag=None, meta=None, **truth) ->
         meta["dropped_rows"] = int((~good).sum())
     if not good.any():
         raise ReaderError(f"{path}: no valid IMU sample")
+    if (~good).sum() > MAX_DROPPED_SHARE * len(t):
+        raise ReaderError(f"{path}: {int((~good).sum())} of {len(t)} rows have a repeated or decreasing time or a "
+                          "non-finite IMU value (more than {:.0f} %): is the file sorted by time, and are the "
+                          "columns the right ones?".format(100 * MAX_DROPPED_SHARE))
     kw = {k: (np.asarray(v, float)[good] if v is not None else None) for k, v in truth.items()}
     try:
         return Recording(t=t[good] - t[good][0], gyr=np.asarray(gyr, float)[good], acc=np.asarray(acc, float)[good],

@@ -67,6 +67,9 @@ def read_csv_mapped(path, *, columns=None, units=None, frame: str = "ned-frd", q
     except (pa.ArrowException, OSError) as exc:
         raise ReaderError(f"{path}: malformed CSV ({str(exc).splitlines()[0]})") from None
     names = [c.strip() for c in table.column_names]
+    dup = sorted({c for c in names if names.count(c) > 1})
+    if dup:
+        raise ReaderError(f"{path}: column(s) {', '.join(map(repr, dup))} appear more than once; name each column once")
     table = table.rename_columns(names)
 
     def col(name):

@@ -1,0 +1,149 @@
+"""Bad input, tried as a careless user and a hostile file would (issue #12, docs/reliability.md).
+
+Runs every case in a temporary folder through the command line (in this process) and prints a
+Markdown table: the case, what quadest did (exit code and the first line of stderr) and whether
+that is what docs/reliability.md promises. Exit code 0 when every case behaves.
+
+    python tools/hostile_cases.py            # the table
+    python tools/hostile_cases.py --json out.json
+"""
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import shutil
+import sys
+import tempfile
+import traceback
+from pathlib import Path
+
+import numpy as np
+
+from quadest.cli.main import main
+from quadest.data import save_recording
+from quadest.sim import simulate
+
+
+def run(*argv) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main([str(a) for a in argv])
+        except SystemExit as exc:  # argparse's usage errors
+            code = exc.code
+    return code, out.getvalue(), err.getvalue()
+
+
+def _rows(path: Path):
+    """Header lines, column names and the numbers of a quadest CSV."""
+    lines = path.read_text().splitlines()
+    h = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+    body = [line.split(",") for line in lines[h + 1:] if not line.startswith("#")]
+    return lines[:h], lines[h].split(","), np.array([[float(x) if x else np.nan for x in r] for r in body])
+
+
+def _write(path: Path, head, cols, A, end=True):
+    with open(path, "w") as f:
+        f.write("\n".join(head) + "\n" + ",".join(cols) + "\n")
+        for r in A:
+            f.write(",".join("" if np.isnan(v) else format(float(v), ".17g") for v in r) + "\n")
+        if end:
+            f.write(f"# end: {len(A)} rows\n")
+    return path
+
+
+def cases(d: Path):
+    """``(name, argv or callable, expectation)``; an expectation is a function of
+    ``(code, stdout, stderr)`` returning True when quadest behaved."""
+    h = d / "h.csv"
+    save_recording(simulate("hover", "bebop2", seed=1, duration=3.0), h)
+    head, cols, A = _rows(h)
+    acc = [cols.index(c) for c in ("acc_x", "acc_y", "acc_z")]
+    B = A.copy()
+    B[:, acc] *= 1000 / 9.80665
+    mg = _write(d / "mg.csv", head, cols, B)
+    B = A.copy()
+    B[:, 0] *= 1000
+    ms = _write(d / "ms.csv", head, cols, B)
+    rev = _write(d / "reversed.csv", head, cols, A[::-1])
+    data = h.read_bytes()
+    cut = d / "cut.csv"
+    cut.write_bytes(data[: len(data) // 2])
+    cut_row = d / "cut_row.csv"
+    cut_row.write_bytes(data[: data.rfind(b"\n", 0, data.rfind(b"# end")) + 1])
+    dup = d / "dup.csv"
+    dup.write_text("t,gx,gx,gz,ax,ay,az\n0,0,0,0,0,0,-9.8\n")
+    copy = d / "f.csv"
+    shutil.copy(h, copy)
+
+    def one_line(code_wanted):
+        return lambda c, o, e: (c == code_wanted and e.count("\n") == 1 and "Traceback" not in e
+                                and "internal error" not in e)
+
+    def intact(c, o, e):
+        return c == 2 and copy.read_bytes() == data and "is the input file" in e
+
+    yield "estimate -o onto its input", ["estimate", copy, "--filter", "madgwick", "-o", copy], intact
+    yield "compare --json onto its input", ["compare", "--recording", copy, "--json", copy, "--no-timing"], intact
+    yield "calibrate -o onto its input", ["calibrate", "gyro", copy, "-o", copy], intact
+    yield "fit-aero -o onto its input", ["fit-aero", copy, "-o", copy, "--mass", "1"], intact
+    yield "recover --json onto its input", ["recover", copy, "--json", copy], intact
+    yield "quadest CSV cut in half", ["info", cut], lambda c, o, e: c == 1 and "cut short" in e
+    yield "quadest CSV cut at a row boundary", ["info", cut_row], lambda c, o, e: c == 1 and "cut short" in e
+    yield "acceleration in mg", ["info", mg], lambda c, o, e: c == 1 and "mg" in e
+    yield "time in ms", ["info", ms], lambda c, o, e: c == 1 and "in ms" in e
+    yield "reversed rows", ["info", rev], lambda c, o, e: c == 1 and "not strictly increasing" in e
+    yield "a duplicated column", ["info", dup, "--format", "csv", "--map", "t=t", "--map", "gyr=gx,gx,gz",
+                                  "--map", "acc=ax,ay,az"], one_line(1)
+    yield "--param for a parameter that does not exist", \
+        ["estimate", h, "--filter", "madgwick", "--param", "madgwick.beta=0.1", "-o", d / "e.csv"], one_line(2)
+    yield "--param with a negative noise", \
+        ["estimate", h, "--filter", "kalman", "--param", "kalman.gyro_noise=-1", "-o", d / "e.csv"], one_line(2)
+    yield "--param k_p=1e300", ["estimate", h, "--filter", "mahony", "--param", "mahony.k_p=1e300", "-o",
+                                d / "e.csv"], one_line(2)
+    yield "--declination-deg nan", ["estimate", h, "--filter", "madgwick", "--declination-deg", "nan", "-o",
+                                    d / "e.csv"], one_line(2)
+    yield "--set of an unknown parameter", ["simulate", "--set", "gyro.nope=1", "-o", d / "x.csv"], one_line(2)
+    yield "--set without a value", ["simulate", "--set", "novalue", "-o", d / "x.csv"], one_line(2)
+    yield "an unknown filter", ["compare", "--filters", "nope", "--duration", "2"], one_line(2)
+    yield "a grid parameter typo", ["sweep", "--filters", "madgwick", "--grid", "madgwick.bta=0.1",
+                                    "--seeds", "1", "--duration", "2", "--workers", "0", "-o", d / "s.parquet"], \
+        one_line(2)
+    yield "a missing file", ["info", d / "missing.csv"], one_line(1)
+    yield "an output with an unknown extension", ["estimate", h, "--filter", "madgwick", "-o", d / "e.txt"], \
+        one_line(1)
+
+
+def main_(argv=None) -> int:
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--json", help="also write the outcomes as JSON")
+    args = ap.parse_args(argv)
+    d = Path(tempfile.mkdtemp(prefix="quadest-hostile-"))
+    results = []
+    try:
+        for name, argv_, ok in cases(d):
+            try:
+                code, out, err = run(*argv_)
+                good = bool(ok(code, out, err))
+            except Exception:  # noqa: BLE001 (a case that crashes the harness is a failed case)
+                code, err, good = "crash", traceback.format_exc().splitlines()[-1], False
+            first = (err.strip().splitlines() or [""])[0]
+            results.append({"case": name, "exit": code, "stderr": first, "as promised": good})
+    finally:
+        shutil.rmtree(d, ignore_errors=True)
+    print("| case | exit | what quadest said | as promised |\n|---|---|---|---|")
+    for r in results:
+        msg = r["stderr"].replace("|", "\\|").replace(str(d), "DIR")
+        print(f"| {r['case']} | {r['exit']} | {msg[:140]} | {'yes' if r['as promised'] else '**no**'} |")
+    bad = sum(not r["as promised"] for r in results)
+    print(f"\n{len(results) - bad} of {len(results)} cases as promised")
+    if args.json:
+        Path(args.json).write_text(json.dumps(results, indent=2))
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main_())
