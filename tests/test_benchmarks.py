@@ -206,5 +206,6 @@ def test_estimate_with_a_peer(tmp_path, marg):
     q = np.column_stack([t.column(c).to_numpy() for c in ("q_w", "q_x", "q_y", "q_z")])
     late = marg.t > 10
     assert np.degrees(angle_between(q[late], marg.true_q[late])).mean() < 3.0
-    assert main(["estimate", str(src), "--filter", "vqf", "--param", "madgwick.beta_marg=1", "-o", str(out)]) == 0
+    # a parameter for a filter that is not run is refused, not silently ignored (issue #12)
+    assert main(["estimate", str(src), "--filter", "vqf", "--param", "madgwick.beta_marg=1", "-o", str(out)]) == 2
     assert main(["estimate", str(src), "--filter", "vqf", "--param", "vqf.x=1", "-o", str(out)]) == 2

@@ -117,3 +117,25 @@ def test_the_hostile_cases_behave_as_promised(capsys):
     table = capsys.readouterr().out
     assert code == 0, table
     assert "**no**" not in table
+
+
+def test_a_server_that_is_not_a_dask_scheduler_does_not_hang_a_sweep():
+    """A listener that accepts the connection and never answers (Dask's own timeout covers only
+    TCP): the handshake times out as a whole and says what answered."""
+    import socket
+    import threading
+    import time
+
+    from quadest.evaluation.parallel import dask_client
+
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen(4)
+    held = []
+    threading.Thread(target=lambda: [held.append(srv.accept()) for _ in range(4)], daemon=True).start()
+    t0 = time.monotonic()
+    with pytest.raises(ValueError, match="did not answer as a Dask scheduler"):
+        with dask_client(scheduler=f"tcp://127.0.0.1:{srv.getsockname()[1]}", timeout_s=1.0):
+            pass
+    assert time.monotonic() - t0 < 30.0
+    srv.close()

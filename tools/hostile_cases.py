@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from quadest.cli.main import main
-from quadest.data import save_recording
+from quadest.data import Recording, save_recording
 from quadest.sim import simulate
 
 
@@ -76,6 +76,19 @@ def cases(d: Path):
     dup.write_text("t,gx,gx,gz,ax,ay,az\n0,0,0,0,0,0,-9.8\n")
     copy = d / "f.csv"
     shutil.copy(h, copy)
+    rec = simulate("hover", "bebop2", seed=2, duration=3.0)
+    notruth = save_recording(Recording(t=rec.t, gyr=rec.gyr, acc=rec.acc, mag=rec.mag, meta=rec.meta), d / "nt.csv")
+    other = d / "other.parquet"
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    pq.write_table(pa.table({"run_id": ["x"], "seed": ["a"]}), other)
+    zero_si = d / "zero_soft_iron.json"
+    zero_si.write_text(json.dumps({"format": "quadest calibration v1", "kind": "mag", "unit": "uT", "values": {
+        "hard_iron": [0, 0, 0], "soft_iron_correction": [[0, 0, 0], [0, 0, 0], [0, 0, 0]]}}))
+    empty_values = d / "empty_values.json"
+    empty_values.write_text(json.dumps({"format": "quadest calibration v1", "kind": "gyro", "unit": "rad/s",
+                                        "values": {}}))
 
     def one_line(code_wanted):
         return lambda c, o, e: (c == code_wanted and e.count("\n") == 1 and "Traceback" not in e
@@ -111,6 +124,26 @@ def cases(d: Path):
                                     "--seeds", "1", "--duration", "2", "--workers", "0", "-o", d / "s.parquet"], \
         one_line(2)
     yield "a missing file", ["info", d / "missing.csv"], one_line(1)
+    yield "--param for a filter that is not run", ["compare", "--recording", h, "--filters", "madgwick",
+                                                   "--param", "kalman.lin_acc=1", "--no-timing"], one_line(2)
+    yield "--workers -1", ["sweep", "--filters", "madgwick", "--seeds", "1", "--workers", "-1", "-o",
+                           d / "w.parquet"], lambda c, o, e: c == 2 and "Traceback" not in e
+    yield "reproduce recovery --throws 0", ["reproduce", "recovery", "--throws", "0"], \
+        lambda c, o, e: c == 2 and "Traceback" not in e
+    yield "simulate --duration inf", ["simulate", "--duration", "inf", "-o", d / "x.csv"], one_line(1)
+    yield "simulate --duration 1e5", ["simulate", "--duration", "1e5", "-o", d / "x.csv"], one_line(1)
+    yield "--set imu.rate_hz=1e12", ["simulate", "--set", "imu.rate_hz=1e12", "-o", d / "x.csv"], one_line(2)
+    yield "--set a negative noise", ["simulate", "--set", "gyro.noise_std=-0.1", "-o", d / "x.csv"], one_line(2)
+    yield "an all-zero soft-iron correction", ["estimate", h, "--filter", "madgwick", "--calibration", zero_si,
+                                               "-o", d / "e.csv"], one_line(1)
+    yield "a calibration with no values", ["estimate", h, "--filter", "madgwick", "--calibration", empty_values,
+                                           "-o", d / "e.csv"], one_line(1)
+    yield "a sweep in which every run fails", ["sweep", "--filters", "madgwick", "--data", notruth, "--workers", "0",
+                                               "-o", d / "s2.parquet"], \
+        lambda c, o, e: c == 1 and "none of the 1 runs succeeded" in e and "Traceback" not in e
+    yield "a sweep resumed onto another program's Parquet file", \
+        ["sweep", "--filters", "madgwick", "--seeds", "1", "--duration", "2", "--workers", "0", "-o", other], \
+        lambda c, o, e: c == 1 and "not a results file" in e and not (d / "other.parquet.parts").exists()
     yield "an output with an unknown extension", ["estimate", h, "--filter", "madgwick", "-o", d / "e.txt"], \
         one_line(1)
 
@@ -130,7 +163,8 @@ def main_(argv=None) -> int:
                 good = bool(ok(code, out, err))
             except Exception:  # noqa: BLE001 (a case that crashes the harness is a failed case)
                 code, err, good = "crash", traceback.format_exc().splitlines()[-1], False
-            first = (err.strip().splitlines() or [""])[0]
+            lines = err.strip().splitlines() or [""]
+            first = next((line for line in reversed(lines) if "error" in line), lines[0])
             results.append({"case": name, "exit": code, "stderr": first, "as promised": good})
     finally:
         shutil.rmtree(d, ignore_errors=True)

@@ -27,6 +27,11 @@ from quadest.models.aero import AeroModel
 
 FORMAT_TAG = "quadest calibration v1"
 KINDS = ("gyro", "accel", "mag", "centrifugal", "aero")
+VALUE_SHAPES = {"gyro": {"bias": (3,)}, "accel": {"bias": (3,), "matrix": (3, 3)},
+                "mag": {"hard_iron": (3,), "soft_iron_correction": (3, 3)},
+                "centrifugal": {"omega1": (), "omega2": ()},
+                "aero": {"A": (3, 3), "B": (3, 3), "C": (3, 10), "mass_kg": ()}}
+"""The values each kind of calibration must hold, and their shapes."""
 SENSOR = {"gyro": "gyr", "accel": "acc", "mag": "mag", "centrifugal": "acc", "aero": "acc"}
 
 
@@ -45,6 +50,21 @@ class Calibration:
     def __post_init__(self):
         if self.kind not in KINDS:
             raise ValueError(f"unknown calibration kind {self.kind!r}; kinds: {', '.join(KINDS)}")
+        if not isinstance(self.values, dict):
+            raise ValueError(f"calibration {self.kind}: values must be a mapping of names to numbers")
+        for key, shape in VALUE_SHAPES[self.kind].items():
+            if key not in self.values:
+                raise ValueError(f"calibration {self.kind} lacks the value {key!r}")
+            try:
+                a = np.asarray(self.values[key], dtype=float)
+            except (TypeError, ValueError):
+                raise ValueError(f"calibration {self.kind}: {key} is not numeric") from None
+            if a.shape != shape or not np.isfinite(a).all():
+                raise ValueError(f"calibration {self.kind}: {key} must be {shape or 'a number'} of finite numbers, "
+                                 f"got {self.values[key]!r}")
+            if key in ("matrix", "soft_iron_correction") and abs(np.linalg.det(a)) < 1e-6:
+                raise ValueError(f"calibration {self.kind}: the matrix {key} is singular; applying it would "
+                                 "erase the sensor's signal")
 
     @property
     def sensor(self) -> str:

@@ -44,7 +44,7 @@ def sim_config(preset, sets, toml=None, ideal: bool = False):
     if not overrides:
         return cfg
     try:
-        return cfg.with_overrides(overrides)
+        return cfg.with_overrides(overrides).validate()
     except ValueError as exc:
         raise CliError(str(exc)) from None
 
@@ -83,9 +83,28 @@ def add_calibration_arg(p):
                    help="apply a calibration from quadest calibrate before any filter (repeatable)")
 
 
+def count(text) -> int:
+    """An argparse type: a whole number, 0 or more."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"expected 0 or more, got {n}")
+    return n
+
+
+def positive(text) -> int:
+    """An argparse type: a whole number, 1 or more."""
+    n = count(text)
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected 1 or more, got {n}")
+    return n
+
+
 def add_engine_args(p, default_workers=None):
     g = p.add_argument_group("execution (Dask)")
-    g.add_argument("--workers", type=int, default=default_workers, metavar="N",
+    g.add_argument("--workers", type=count, default=default_workers, metavar="N",
                    help="worker processes of a local Dask cluster; 0 runs in this process "
                         + ("(default: 0)" if default_workers == 0 else "(default: one per core)"))
     g.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="run on an existing Dask cluster instead")

@@ -9,6 +9,7 @@ from quadest.cli.common import (
     add_align_args,
     add_calibration_arg,
     add_engine_args,
+    positive,
     add_input_args,
     parse_seeds,
     read,
@@ -37,6 +38,9 @@ def _recording_from_args(args):
 def cmd_compare(args):
     names = estimator_names(args.filters)
     params = parse_params(args.param)
+    not_run = sorted(set(params) - set(names))
+    if not_run:
+        raise CliError(f"--param names {', '.join(not_run)}, which this comparison does not run (--filters)")
     rec, source = _recording_from_args(args)
     rec, cal_params = apply_calibrations(rec, args.calibration)
     for name, kv in cal_params.items():
@@ -177,7 +181,7 @@ def add_parsers(sub):
                                    "recovery: throws and the bank of EKFs of Beffa et al.")
     r.add_argument("paper", choices=["afckf", "qukf", "recovery"])
     r.add_argument("--seeds", default="1-5", help="afckf, qukf: seed range or list (default: 1-5)")
-    r.add_argument("--throws", type=int, default=100, help="recovery: number of throws (default: 100)")
+    r.add_argument("--throws", type=positive, default=100, help="recovery: number of throws (default: 100)")
     r.add_argument("--seed", type=int, default=1, help="recovery: first seed (default: 1)")
     r.add_argument("--json", metavar="OUT", help="write all figures (per seed too) as JSON")
     r.add_argument("--plot-dir", metavar="DIR", help="draw the errors over time for the first seed")

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from quadest.calibration import apply_calibrations, calibrate
-from quadest.cli.common import add_calibration_arg, add_input_args, read, say
+from quadest.cli.common import CliError, add_calibration_arg, add_input_args, read, say
 from quadest.data import format_summary, summarize, write_table
 from quadest.evaluation.compare import parse_params
 from quadest.evaluation.peers import PEERS
@@ -50,6 +50,9 @@ def cmd_estimate(args):
     rec = read(args, args.file)
     rec, cal_params = apply_calibrations(rec, args.calibration)
     params = parse_params(args.param)
+    other = sorted(set(params) - {args.filter})
+    if other:
+        raise CliError(f"--param names {', '.join(other)}, but this runs {args.filter} (--filter)")
     kw = {**cal_params.get(args.filter, {}), **params.get(args.filter, {})}
     decl = np.radians(args.declination_deg) if args.declination_deg is not None else None
     res = estimate(rec, args.filter, kw, declination=decl)

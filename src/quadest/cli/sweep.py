@@ -1,6 +1,7 @@
 """``quadest sweep`` and ``quadest tune``: grids of filters and parameters over many flights."""
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from quadest.cli.common import add_engine_args, parse_seeds, parse_sets, say, sim_config, write_json
@@ -48,6 +49,10 @@ def cmd_sweep(args):
     _report(args, res)
     if args.json:
         write_json(args.json, res)
+    if res["executed"] and not res["executed_ok"]:
+        print(f"quadest sweep: error: none of the {res['executed']} runs succeeded; their errors are in "
+              f"{args.out} (column 'error')", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -8,17 +8,47 @@ import time
 from contextlib import contextmanager
 
 
+def _connect(scheduler: str, timeout_s: float):
+    """A client on ``scheduler``, within ``timeout_s`` for the whole handshake: Dask's own
+    connect timeout covers only the TCP connection, and a server that accepts it but is not a
+    Dask scheduler (a web server, a listener that never answers) would hang the client for good.
+    The client is made in a daemon thread, so a hung handshake cannot keep the process alive."""
+    import threading
+
+    from dask.distributed import Client
+
+    box: dict = {}
+
+    def make():
+        try:
+            box["client"] = Client(scheduler, timeout=f"{timeout_s}s")
+        except BaseException as exc:  # noqa: BLE001 (passed to the caller)
+            box["error"] = exc
+
+    th = threading.Thread(target=make, name="quadest-dask-connect", daemon=True)
+    th.start()
+    th.join(timeout_s + 5.0)
+    if th.is_alive():
+        raise ValueError(f"{scheduler} accepted the connection but did not answer as a Dask scheduler within "
+                         f"{timeout_s:g} s: is that the scheduler's address (tcp://HOST:8786)?")
+    if "error" in box:
+        exc = box["error"]
+        raise ValueError(f"cannot reach the Dask scheduler at {scheduler} ({type(exc).__name__}: "
+                         f"{str(exc).splitlines()[0] if str(exc) else ''})") from None
+    return box["client"]
+
+
 @contextmanager
-def dask_client(workers: int | None = None, scheduler: str | None = None):
-    """A client on ``scheduler`` (tcp://host:port), or on a local cluster of ``workers``
-    single-threaded worker processes (default: one per core)."""
+def dask_client(workers: int | None = None, scheduler: str | None = None, timeout_s: float = 20.0):
+    """A client on ``scheduler`` (tcp://host:port; the handshake must finish within
+    ``timeout_s``), or on a local cluster of ``workers`` single-threaded worker processes
+    (default: one per core)."""
     from dask.distributed import Client, LocalCluster
 
+    if workers is not None and workers < 0:
+        raise ValueError(f"workers must be 0 or more, got {workers}")
     if scheduler:
-        try:
-            client = Client(scheduler, timeout="20s")
-        except OSError as exc:
-            raise ValueError(f"cannot reach the Dask scheduler at {scheduler} ({exc})") from None
+        client = _connect(scheduler, timeout_s)
         try:
             yield client
         finally:

@@ -10,6 +10,8 @@ from __future__ import annotations
 import json
 import math
 import tomllib
+
+import numpy as np
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
@@ -231,8 +233,39 @@ class SimConfig:
     def to_dict(self) -> dict:
         return json.loads(json.dumps(asdict(self), default=_jsonable))
 
+    def validate(self) -> "SimConfig":
+        """Refuse values no sensor or flight has (docs/reliability.md): every number finite
+        (a range may be inf: no saturation); noise, standard deviations, amplitudes, times and
+        probabilities not negative; probabilities at most 1; rates at most 100 kHz; the
+        magnetometer's soft-iron matrix invertible. Returns the configuration."""
+        for section in SECTIONS:
+            rec = getattr(self, section)
+            for f in fields(rec):
+                key, v = f"{section}.{f.name}", getattr(rec, f.name)
+                values = np.ravel(np.asarray(v, dtype=float)) if v is not None and not isinstance(v, bool) else []
+                if len(values) and not np.isfinite(values).all() and not (f.name == "range" and values[0] == math.inf):
+                    raise ValueError(f"{key} must be finite, got {v!r}")
+                negative_forbidden = (f.name.endswith(("_std", "_s", "_prob", "_amp", "_hz", "_max", "_rms"))
+                                      or f.name in NOT_NEGATIVE)
+                if negative_forbidden and len(values) and (values < 0).any():
+                    raise ValueError(f"{key} must not be negative, got {v!r}")
+                if f.name.endswith("_prob") and len(values) and (values > 1).any():
+                    raise ValueError(f"{key} is a probability: at most 1, got {v!r}")
+                if f.name.endswith("rate_hz") and len(values) and (values > MAX_RATE_HZ).any():
+                    raise ValueError(f"{key} = {v!r} Hz: beyond any sensor (at most {MAX_RATE_HZ:.0e} Hz)")
+        if abs(np.linalg.det(np.asarray(self.mag.soft_iron, float))) < 1e-6:
+            raise ValueError(f"mag.soft_iron {self.mag.soft_iron!r} is singular: a soft-iron distortion is close "
+                             "to the identity")
+        if not self.imu.rate_hz > 0:
+            raise ValueError("imu.rate_hz must be positive")
+        return self
+
 
 SECTIONS = [f.name for f in fields(SimConfig)]
+MAX_RATE_HZ = 1e5
+NOT_NEGATIVE = {"range", "mass_kg", "inertia", "arm_m", "field_ut", "gravity", "thrust_to_weight", "rotor_drag",
+                "vibration_amp", "tremor_acc", "spin_rate_var", "components", "active_rotors", "rate_damping",
+                "tilt_deg", "six_tilt_deg", "tilt_amp_deg", "yaw_amp_deg", "vertical_ratio", "release_height_m"}
 
 
 def _jsonable(x):

@@ -1,6 +1,8 @@
 """``simulate``: a scenario, a preset and a seed in, a :class:`~quadest.data.Recording` out."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from quadest.data.recording import Recording
@@ -10,6 +12,8 @@ from quadest.sim import sensors as S
 from quadest.sim.params import SimConfig, load_toml_overrides, preset_config
 from quadest.sim.truth import SCENARIOS, Truth, default_duration, make_motion
 
+MAX_SAMPLES = 2e7
+"""The most IMU samples one simulation makes (about 11 h at 500 Hz; several GB in memory)."""
 CHUNK_S = 10.0  # simulated seconds per chunk (memory and progress granularity)
 
 
@@ -66,13 +70,15 @@ def simulate(scenario: str, preset: str = "bebop2", seed: int = 0, duration: flo
     cfg = config if config is not None else build_config(preset, overrides, toml, ideal)
     if config is not None and ideal:
         cfg = cfg.idealized()
+    cfg.validate()
     if duration is None:
         duration = default_duration(scenario, cfg)
-    if not duration > 0:
-        raise ValueError(f"duration must be positive, got {duration}")
+    if not (math.isfinite(duration) and duration > 0):
+        raise ValueError(f"duration must be a positive number of seconds, got {duration}")
     rate = cfg.imu.rate_hz
-    if not rate > 0:
-        raise ValueError("imu.rate_hz must be positive")
+    if duration * rate > MAX_SAMPLES:
+        raise ValueError(f"{duration:g} s at {rate:g} Hz is {duration * rate:.3g} samples, more than the "
+                         f"{MAX_SAMPLES:.0e} one simulation holds; simulate shorter flights")
     ss = np.random.SeedSequence(int(seed))
     rng_motion, rng_gyro, rng_acc, rng_mag, rng_time, rng_vib = (np.random.default_rng(s) for s in ss.spawn(6))
 

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from quadest.evaluation.parallel import execute
-from quadest.sweep.runs import METRICS, group_runs, run_group, run_id, source_label
+from quadest.sweep.runs import METRICS, ROW_TYPES, group_runs, run_group, run_id, source_label
 
 
 # -- the result store ---------------------------------------------------------------------------------
@@ -40,6 +40,27 @@ class ResultStore:
         self._last = time.monotonic()
         self._session = uuid.uuid4().hex[:8]
         self._n = 0
+
+    def check_layout(self, row_types: dict) -> None:
+        """Refuse, before anything is written, a results file (or a killed sweep's parts) whose
+        columns are not a sweep's (another program's Parquet file, or an older layout): appending
+        to it would fail half-way and leave parts behind."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        files = ([self.path] if self.path.is_file() else []) + sorted(self.parts.glob("part-*.parquet"))
+        for p in files:
+            try:
+                schema = pq.read_schema(p)
+            except (pa.ArrowException, OSError) as exc:
+                if p == self.path:
+                    raise ValueError(f"{p}: not a readable results file ({exc}); give another -o") from None
+                continue
+            have = {f.name: str(f.type) for f in schema}
+            wrong = [f"{c} ({have.get(c, 'missing')}, not {t})" for c, t in row_types.items() if have.get(c) != t]
+            if wrong:
+                raise ValueError(f"{p}: not a results file of this quadest's sweeps (columns {', '.join(wrong[:4])}"
+                                 f"{' ...' if len(wrong) > 4 else ''}); give another -o, or move it away")
 
     def _tables(self):
         import pyarrow as pa
@@ -130,6 +151,7 @@ def run_sweep(runs, out, *, workers: int | None = 0, scheduler: str | None = Non
     Runs on the same flight go to one task (up to 32 runs), so each flight is simulated or
     read once; rows are still written one per run as the tasks finish."""
     store = ResultStore(out)
+    store.check_layout(ROW_TYPES)
     done_before = store.done_ids(retry_failed)
     todo = [r for r in runs if run_id(r) not in done_before]
     ids = [run_id(r) for r in todo]
@@ -149,7 +171,9 @@ def run_sweep(runs, out, *, workers: int | None = 0, scheduler: str | None = Non
                      **{k: np.nan for k in METRICS}, "samples": 0, "seconds": np.nan} for spec in groups[i]]
         for row in rows:
             store.add(row)
+            new_ok[0] += row.get("status") == "ok"
 
+    new_ok = [0]
     t0 = time.perf_counter()
     stats: dict = {}
     try:
@@ -163,7 +187,7 @@ def run_sweep(runs, out, *, workers: int | None = 0, scheduler: str | None = Non
     status = table.column("status").to_pylist() if table is not None else []
     return {"runs": len(runs), "skipped": len(runs) - len(todo), "executed": len(todo), "wall_s": wall,
             "compute_s": compute, "runs_per_s": len(todo) / compute if compute > 0 and todo else float("nan"),
-            "ok": status.count("ok"), "failed": status.count("failed")}
+            "ok": status.count("ok"), "failed": status.count("failed"), "executed_ok": new_ok[0]}
 
 
 def _json(x):

@@ -27,6 +27,12 @@ METRICS = ("total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg", "roll_r
            "yaw_rms_deg")
 
 
+ROW_TYPES = {"run_id": "string", "filter": "string", "params": "string", "source": "string", "seed": "int64",
+             "spec": "string", "status": "string", "error": "string", **{k: "double" for k in METRICS},
+             "samples": "int64", "seconds": "double"}
+"""The columns of a results row and their Arrow types (a results file must hold these)."""
+
+
 def run_id(spec: dict) -> str:
     return hashlib.sha1(json.dumps(spec, sort_keys=True).encode()).hexdigest()[:16]
 
