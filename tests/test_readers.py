@@ -305,6 +305,21 @@ def test_dataflash_round_trip(tmp_path, flight):
     assert np.allclose(rec.gyr, flight.gyr, rtol=FLOAT32, atol=1e-6)
     assert np.allclose(rec.mag, flight.mag, rtol=FLOAT32, atol=1e-4)  # milligauss -> µT
     assert angle_between(rec.ref_q, flight.true_q).max() < 1e-5
+    assert "warnings" not in rec.meta
+
+
+def test_a_damaged_dataflash_log_is_reported(tmp_path, flight):
+    """Bytes overwritten in the middle of a log: pymavlink skips them (printing a line per
+    byte); quadest reads the rest, prints nothing of pymavlink's, and says the log is damaged."""
+    p = tmp_path / "00000002.BIN"
+    write_dataflash(p, flight)
+    data = bytearray(p.read_bytes())
+    mid = len(data) // 2
+    data[mid:mid + 300] = b"\x00" * 300
+    p.write_bytes(bytes(data))
+    rec = read_recording(p)
+    assert 0 < len(rec) < len(flight)
+    assert "the log is damaged" in rec.meta["warnings"][0]
 
 
 # -- broken files ---------------------------------------------------------------------------------------------
@@ -341,12 +356,17 @@ def test_broken_files_give_one_line(tmp_path, flight, capsys):
 
 def test_truncated_ulog_keeps_what_was_written(tmp_path, flight):
     """A log cut mid-message (power lost in flight): pyulog reads up to the cut without an
-    error, and quadest keeps the complete samples before it (docs/readers.md)."""
+    error, and quadest keeps the complete samples before it (docs/readers.md) and says that the
+    log was cut (pyulog does not: quadest walks the message framing itself)."""
     p = tmp_path / "cut.ulg"
     write_ulog(p, flight, truncate_at=20_000)
     rec = read_recording(p)
     assert 0 < len(rec) < len(flight)
     assert np.allclose(rec.gyr, flight.gyr[:len(rec)], rtol=FLOAT32, atol=1e-6)
+    assert rec.meta["ulog_corrupt"] and "cut short" in rec.meta["warnings"][0]
+    whole = tmp_path / "whole.ulg"
+    write_ulog(whole, flight)
+    assert "warnings" not in read_recording(whole).meta
 
 
 # -- the real samples ----------------------------------------------------------------------------------------

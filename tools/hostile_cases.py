@@ -86,6 +86,25 @@ def cases(d: Path):
     zero_si = d / "zero_soft_iron.json"
     zero_si.write_text(json.dumps({"format": "quadest calibration v1", "kind": "mag", "unit": "uT", "values": {
         "hard_iron": [0, 0, 0], "soft_iron_correction": [[0, 0, 0], [0, 0, 0], [0, 0, 0]]}}))
+    import h5py
+
+    huge = d / "huge.hdf5"
+    with h5py.File(huge, "w") as f:  # declares 10⁸ rows, stores none
+        f.attrs["sampling_rate"] = 100.0
+        for k, w in (("imu_gyr", 3), ("imu_acc", 3), ("imu_mag", 3), ("opt_quat", 4), ("movement", 1)):
+            f.create_dataset(k, shape=(100_000_000, w), dtype="f8", chunks=(1000, w))
+    logs = Path(__file__).resolve().parents[1] / "tests"
+    sys.path.insert(0, str(logs))
+    from test_readers import write_dataflash, write_ulog  # byte-exact writers of both formats
+
+    short = simulate("hover", "bebop2", seed=4, duration=2.0, overrides={"imu.rate_hz": 100.0, "mag.rate_hz": 100.0})
+    ulg, df = d / "cut.ulg", d / "damaged.bin"
+    write_ulog(ulg, short)
+    ulg.write_bytes(ulg.read_bytes()[: len(ulg.read_bytes()) // 2 + 5])
+    write_dataflash(df, short)
+    raw = bytearray(df.read_bytes())
+    raw[len(raw) // 2: len(raw) // 2 + 300] = b"\x00" * 300
+    df.write_bytes(bytes(raw))
     empty_values = d / "empty_values.json"
     empty_values.write_text(json.dumps({"format": "quadest calibration v1", "kind": "gyro", "unit": "rad/s",
                                         "values": {}}))
@@ -124,6 +143,10 @@ def cases(d: Path):
                                     "--seeds", "1", "--duration", "2", "--workers", "0", "-o", d / "s.parquet"], \
         one_line(2)
     yield "a missing file", ["info", d / "missing.csv"], one_line(1)
+    yield "an HDF5 file that declares 1e8 rows", ["info", huge, "--format", "broad"], one_line(1)
+    yield "a ULog cut in half", ["info", ulg], lambda c, o, e: c == 0 and "warning:" in e and "cut short" in e
+    yield "a DataFlash log damaged mid-file", ["info", df], \
+        lambda c, o, e: c == 0 and "warning:" in e and "damaged" in e and "bad header" not in e
     yield "--param for a filter that is not run", ["compare", "--recording", h, "--filters", "madgwick",
                                                    "--param", "kalman.lin_acc=1", "--no-timing"], one_line(2)
     yield "--workers -1", ["sweep", "--filters", "madgwick", "--seeds", "1", "--workers", "-1", "-o",
@@ -164,7 +187,7 @@ def main_(argv=None) -> int:
             except Exception:  # noqa: BLE001 (a case that crashes the harness is a failed case)
                 code, err, good = "crash", traceback.format_exc().splitlines()[-1], False
             lines = err.strip().splitlines() or [""]
-            first = next((line for line in reversed(lines) if "error" in line), lines[0])
+            first = next((line for line in reversed(lines) if "error" in line or "warning" in line), lines[0])
             results.append({"case": name, "exit": code, "stderr": first, "as promised": good})
     finally:
         shutil.rmtree(d, ignore_errors=True)

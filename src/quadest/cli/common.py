@@ -141,4 +141,6 @@ def read(args, path):
     if dropped:  # said on stderr, so that JSON on stdout stays clean
         print(f"note: {path}: dropped {dropped} row(s) with a repeated or decreasing time or a non-finite IMU "
               "value", file=sys.stderr, flush=True)
+    for warning in rec.meta.get("warnings", []):
+        print(f"warning: {path}: {warning}", file=sys.stderr, flush=True)
     return rec

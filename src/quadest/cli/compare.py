@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from quadest.calibration import apply_calibrations
 from quadest.cli.common import (
     CliError,
@@ -51,6 +53,13 @@ def cmd_compare(args):
                               source=source, align=args.align, align_body=args.align_body)
     if report["against"] == "ref_q":
         say("no independent truth in this recording: errors are against the log's onboard attitude (ref_q)")
+    used = min((e["samples"] for e in report["filters"].values()), default=0)
+    if used < 0.5 * len(rec):
+        truth = getattr(rec, report["against"])
+        ok = np.isfinite(truth[:, 0])
+        span = float(rec.t[ok][-1] - rec.t[ok][0]) if ok.any() else 0.0
+        say(f"note: the errors rest on {used} of {len(rec)} samples: the truth covers {span:.2f} s of the "
+            f"{rec.duration:.2f} s recording" + (" (and --from cuts more)" if args.t_from is not None else ""))
     for res in results.values():
         for line in filter_notes(res):
             say(line)

@@ -139,6 +139,8 @@ class Recording:
         except (TypeError, ValueError) as exc:
             raise ValueError(f"meta: must be JSON-serialisable ({exc})") from None
         meta.setdefault("units", {})
+        if not isinstance(meta["units"], dict):
+            raise ValueError(f"meta: units must be a mapping like {{\"mag\": \"uT\"}}, got {meta['units']!r}")
         meta["units"] = {"gyr": "rad/s", "acc": "m/s^2", "mag": "unknown", **meta["units"]}
         object.__setattr__(self, "meta", meta)
         if self.check_units:
@@ -353,7 +355,7 @@ def load_recording(path, *, check_units: bool = True) -> Recording:
         try:
             table = pq.read_table(path)
         except (pa.ArrowException, OSError) as exc:
-            raise ValueError(f"{path}: not a readable Parquet file ({exc})") from None
+            raise ValueError(f"{path}: not a readable Parquet file ({str(exc).strip().splitlines()[0]})") from None
         raw = (table.schema.metadata or {}).get(b"quadest")
         try:
             head = json.loads(raw) if raw else {}

@@ -29,6 +29,7 @@ def summarize(rec: Recording) -> dict:
         "truth": {k: TRUTH_FIELDS[k][1] for k in rec.truth},
         "units": rec.meta.get("units", {}),
         "dropped_rows": int(rec.meta.get("dropped_rows", 0)),
+        "warnings": list(rec.meta.get("warnings", [])),
     }
     for name in ("gyr", "acc", "mag"):
         a = getattr(rec, name)
@@ -57,6 +58,8 @@ def format_summary(s: dict, name: str = "") -> str:
         f"mag         {s['mag_samples']} samples, {s['mag_rate_hz']:.2f} Hz" if s["mag_samples"]
         else "mag         none",
     ]
+    for w in s.get("warnings", []):
+        lines.append(f"warning     {w}")
     if s.get("dropped_rows"):
         lines.append(f"dropped     {s['dropped_rows']} row(s) of the file (repeated or decreasing time, or a "
                      "non-finite IMU value)")

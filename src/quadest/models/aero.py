@@ -10,6 +10,7 @@ Q(P)`` where ``Q`` maps ``ψ`` of the FRD rate to ``ψ`` of the paper's rate (se
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -68,14 +69,20 @@ class AeroModel:
 
     def __post_init__(self):
         for name, shape in (("A", (3, 3)), ("B", (3, 3)), ("C", (3, 10))):
-            a = np.array(getattr(self, name), dtype=float)
+            try:
+                a = np.array(getattr(self, name), dtype=float)
+            except (TypeError, ValueError):
+                raise ValueError(f"aero model {name}: not a numeric matrix") from None
             if a.shape != shape:
                 raise ValueError(f"aero model {name}: expected shape {shape}, got {a.shape}")
             if not np.isfinite(a).all():
                 raise ValueError(f"aero model {name}: non-finite value")
             object.__setattr__(self, name, a)
-        if not self.mass_kg > 0:
-            raise ValueError(f"aero model: mass must be positive, got {self.mass_kg}")
+        if isinstance(self.mass_kg, bool) or not isinstance(self.mass_kg, (int, float)) \
+                or not (math.isfinite(self.mass_kg) and self.mass_kg > 0):
+            raise ValueError(f"aero model: mass must be a positive number of kg, got {self.mass_kg!r}")
+        if not isinstance(self.info, dict):
+            raise ValueError("aero model: info must be a mapping")
 
     def specific_force(self, v, w):
         """Eq 7 without noise: ``f_c / m`` (m/s², body frame)."""
@@ -98,9 +105,11 @@ class AeroModel:
     def load(cls, path) -> "AeroModel":
         d = read_tagged_json(path, FORMAT_TAG, "aero model")
         try:
-            return cls(d["A"], d["B"], d["C"], float(d["mass_kg"]), d.get("info", {}))
+            return cls(d["A"], d["B"], d["C"], d["mass_kg"], d.get("info", {}))
         except KeyError as exc:
             raise ValueError(f"{path}: aero model lacks {exc}") from None
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}") from None
 
     @property
     def Lambda(self):

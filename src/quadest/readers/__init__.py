@@ -73,8 +73,8 @@ def detect_format(path) -> str:
         try:
             with h5py.File(p, "r") as f:
                 keys = set(f.keys())
-        except OSError as exc:
-            raise ReaderError(f"{path}: not a readable HDF5 file ({exc})") from None
+        except (OSError, RuntimeError, KeyError, ValueError, TypeError) as exc:
+            raise ReaderError(f"{path}: not a readable HDF5 file ({str(exc).strip().splitlines()[0]})") from None
         if {"imu_gyr", "imu_acc", "opt_quat"} <= keys:
             return "broad"
         if {"ts", "gyr", "acc", "gt_q"} <= keys:

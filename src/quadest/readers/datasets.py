@@ -4,6 +4,7 @@ docs/readers.md; each was checked on the real files by rotating the measured spe
 into the truth's navigation frame (it must average to +g up)."""
 from __future__ import annotations
 
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -12,13 +13,50 @@ from quadest.readers.common import ReaderError, make_recording, resample_quat, z
 from quadest.rotation.frames import quat_enu_flu_to_ned_frd, vec_enu_to_ned, vec_flu_to_frd
 
 
+DAMAGE = (OSError, RuntimeError, KeyError, TypeError, IndexError, AttributeError, OverflowError)
+"""What h5py raises from a damaged file, anywhere in reading it."""
+
+
+@contextmanager
 def _h5(path):
+    """An open HDF5 file; any failure of h5py inside the block (a damaged file) becomes one
+    ReaderError naming the file."""
     import h5py
 
     try:
-        return h5py.File(path, "r")
-    except OSError as exc:
-        raise ReaderError(f"{path}: not a readable HDF5 file ({exc})") from None
+        f = h5py.File(path, "r")
+    except (OSError, ValueError) as exc:
+        raise ReaderError(f"{path}: not a readable HDF5 file ({str(exc).strip().splitlines()[0]})") from None
+    try:
+        with f:
+            yield f
+    except DAMAGE as exc:
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+        raise ReaderError(f"{path}: the HDF5 file is damaged ({type(exc).__name__}: {msg})") from None
+
+
+MAX_DECLARED_BYTES = 4e9
+"""An HDF5 dataset declaring more than this is refused before it is read."""
+
+
+def _h5_read(f, name, path):
+    """A dataset of an open HDF5 file as an array, after checking what it declares against what
+    the file stores: a damaged or crafted file can declare 10⁸ rows in a few kilobytes, and
+    reading it would allocate gigabytes of fill values."""
+    import h5py
+
+    ds = f[name]
+    if not isinstance(ds, h5py.Dataset):
+        raise ReaderError(f"{path}: {name!r} is a group, not a dataset")
+    declared = ds.size * ds.dtype.itemsize
+    stored = ds.id.get_storage_size()
+    if declared > MAX_DECLARED_BYTES or (declared > 64e6 and stored * 1000 < declared):
+        raise ReaderError(f"{path}: {name!r} declares {ds.shape} values ({declared / 1e6:.0f} MB) but the file "
+                          f"stores {stored / 1e6:.3g} MB of it: the file is damaged or not what it claims")
+    try:
+        return ds[()]
+    except (OSError, ValueError, TypeError) as exc:
+        raise ReaderError(f"{path}: cannot read {name!r} ({str(exc).splitlines()[0]})") from None
 
 
 def _need(d, keys, path, what):
@@ -60,7 +98,7 @@ def read_broad_hdf5(path, **_):
     with _h5(path) as f:
         if "sampling_rate" not in f.attrs:
             raise ReaderError(f"{path}: not a BROAD file (no sampling_rate attribute)")
-        d = {k: f[k][()] for k in f.keys()}
+        d = {k: _h5_read(f, k, path) for k in f.keys()}
         return _broad(path, d, float(f.attrs["sampling_rate"]), str(f.attrs.get("info", "")))
 
 
@@ -82,7 +120,7 @@ def read_broad_mat(path, **_):
 def read_dido(path, **_):
     with _h5(path) as f:
         _need(f, ("ts", "acc", "gyr", "gt_q"), path, "DIDO")
-        d = {k: f[k][()] for k in f.keys()}
+        d = {k: _h5_read(f, k, path) for k in f.keys()}
     t = np.asarray(d["ts"], float)
     truth = {"true_q": quat_enu_flu_to_ned_frd(d["gt_q"])}
     if "gt_p" in d:
@@ -110,9 +148,9 @@ def read_blackbird(path, *, calibrated: bool = False, **_):
             raise ReaderError(f"{path}: a Blackbird folder needs {f_.name}")
     with _h5(h5) as f:
         _need(f, ("ts", "gyro_raw", "accel_raw"), h5, "Blackbird")
-        t = f["ts"][()]
-        gyr = f["gyro_calib" if calibrated else "gyro_raw"][()]
-        acc = f["accel_calib" if calibrated else "accel_raw"][()]
+        t = _h5_read(f, "ts", h5)
+        gyr = _h5_read(f, "gyro_calib" if calibrated else "gyro_raw", h5)
+        acc = _h5_read(f, "accel_calib" if calibrated else "accel_raw", h5)
     try:
         gt = np.loadtxt(gt_path, comments="#", ndmin=2)
     except ValueError as exc:

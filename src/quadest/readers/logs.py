@@ -2,6 +2,9 @@
 autopilots already use NED / FRD, so only units change (docs/readers.md)."""
 from __future__ import annotations
 
+import struct
+from contextlib import contextmanager
+
 import numpy as np
 
 from quadest.readers.common import ReaderError, make_recording, mag_on_imu_rows, resample_quat
@@ -9,7 +12,29 @@ from quadest.rotation import euler_to_quat
 
 
 # -- PX4 ----------------------------------------------------------------------------------------------
+LOG_DAMAGE = (KeyError, IndexError, TypeError, AttributeError, OverflowError, struct.error, UnicodeDecodeError)
+"""What a damaged log makes the readers' field access raise."""
+
+
 def read_ulog(path, *, instance: int = 0, **_):
+    """See :func:`_read_ulog`; a log whose topics lack the fields they should have is refused
+    naming the file."""
+    try:
+        return _read_ulog(path, instance=instance)
+    except LOG_DAMAGE as exc:
+        raise ReaderError(f"{path}: the ULog is damaged or not from PX4 ({type(exc).__name__}: {exc})") from None
+
+
+def read_dataflash(path, *, instance: int = 0, **_):
+    """See :func:`_read_dataflash`; a log whose messages lack the fields they should have is
+    refused naming the file."""
+    try:
+        return _read_dataflash(path, instance=instance)
+    except LOG_DAMAGE as exc:
+        raise ReaderError(f"{path}: the DataFlash log is damaged ({type(exc).__name__}: {exc})") from None
+
+
+def _read_ulog(path, *, instance: int = 0):
     """Raw IMU from ``sensor_combined`` (or ``vehicle_imu``-less logs' ``sensor_accel`` /
     ``sensor_gyro``), magnetometer from ``vehicle_magnetometer``, ``sensor_mag`` or the
     ``magnetometer_ga`` fields of old ``sensor_combined`` (gauss -> µT), and the onboard EKF2
@@ -60,39 +85,49 @@ def read_ulog(path, *, instance: int = 0, **_):
     if "vehicle_attitude" in data:
         va = data["vehicle_attitude"]
         truth["ref_q"] = resample_quat(va["timestamp"] * 1e-6, np.column_stack([va[f"q[{i}]"] for i in range(4)]), t)
+    corrupt = bool(getattr(ulog, "file_corruption", False)) or _ulog_cut(path)
     meta = {"source_format": "PX4 ULog", "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT"},
             "frames": "NED/FRD (PX4's own)", "reference": "vehicle_attitude (EKF2) as ref_q",
-            "ulog_corrupt": bool(getattr(ulog, "file_corruption", False))}
+            "ulog_corrupt": corrupt}
+    if corrupt:
+        meta["warnings"] = [f"the log is damaged or cut short inside a message: what could be read ends at "
+                            f"t = {t[-1] - t[0]:.3f} s (a log cut exactly between two messages cannot be told "
+                            "from a complete one)"]
     return make_recording(path, "ulog", t, gyr, acc, mag, meta, **truth)
 
 
+def _ulog_cut(path) -> bool:
+    """Whether a ULog file ends inside a message: the file is a 16-byte header and then messages
+    of (uint16 size, uint8 type, size bytes); pyulog reads a file cut inside its last message
+    without saying so."""
+    import struct
+
+    data = open(path, "rb").read()
+    pos, n = 16, len(data)
+    while pos + 3 <= n:
+        (size,) = struct.unpack_from("<H", data, pos)
+        pos += 3 + size
+    return pos != n
+
+
 # -- ArduPilot ------------------------------------------------------------------------------------------
-def read_dataflash(path, *, instance: int = 0, **_):
+def _read_dataflash(path, *, instance: int = 0):
     """IMU (GyrX.. rad/s, AccX.. m/s²), MAG (MagX.. milligauss -> µT) and ATT (Roll, Pitch, Yaw
     in degrees, the EKF's attitude) as ``ref_q``; instance ``I`` 0 unless chosen."""
     from pymavlink import DFReader
 
-    try:
-        log = DFReader.DFReader_binary(str(path), zero_time_base=True)
-    except Exception as exc:  # pymavlink raises many kinds on bad files
-        raise ReaderError(f"{path}: not a readable DataFlash log ({type(exc).__name__}: {exc})") from None
     imu, mag, att = [], [], []
-    try:
-        while True:
-            m = log.recv_match(type=["IMU", "MAG", "ATT"])
-            if m is None:
-                break
-            kind = m.get_type()
-            inst = getattr(m, "I", getattr(m, "Instance", 0))
-            if kind == "IMU" and inst == instance:
-                imu.append((m.TimeUS, m.GyrX, m.GyrY, m.GyrZ, m.AccX, m.AccY, m.AccZ))
-            elif kind == "MAG" and inst == instance:
-                mag.append((m.TimeUS, m.MagX, m.MagY, m.MagZ))
-            elif kind == "ATT":
-                att.append((m.TimeUS, m.Roll, m.Pitch, m.Yaw))
-    except Exception as exc:
-        raise ReaderError(f"{path}: DataFlash log broken after {len(imu)} IMU messages "
-                          f"({type(exc).__name__}: {exc})") from None
+    with _printed() as said:  # pymavlink prints what it skips; quadest counts it and says it once
+        try:
+            log = DFReader.DFReader_binary(str(path), zero_time_base=True)
+        except Exception as exc:  # pymavlink raises many kinds on bad files
+            raise ReaderError(f"{path}: not a readable DataFlash log ({type(exc).__name__}: {exc})") from None
+        try:
+            _read_dataflash_messages(log, instance, imu, mag, att)
+        except Exception as exc:
+            raise ReaderError(f"{path}: DataFlash log broken after {len(imu)} IMU messages "
+                              f"({type(exc).__name__}: {exc})") from None
+    warnings = _dataflash_damage(said)
     if not imu:
         raise ReaderError(f"{path}: no IMU messages (instance {instance}) in the DataFlash log")
     imu = np.array(imu, float)
@@ -107,4 +142,60 @@ def read_dataflash(path, *, instance: int = 0, **_):
         truth["ref_q"] = resample_quat(att[:, 0] * 1e-6, euler_to_quat(np.radians(att[:, 1:4])), t, max_gap=0.5)
     meta = {"source_format": "ArduPilot DataFlash", "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT"},
             "frames": "NED/FRD (ArduPilot's own)", "reference": "ATT (EKF attitude) as ref_q"}
+    if warnings:
+        meta["warnings"] = warnings
     return make_recording(path, "dataflash", t, imu[:, 1:4], imu[:, 4:7], magv, meta, **truth)
+
+
+def _read_dataflash_messages(log, instance, imu, mag, att):
+    while True:
+        m = log.recv_match(type=["IMU", "MAG", "ATT"])
+        if m is None:
+            return
+        kind = m.get_type()
+        inst = getattr(m, "I", getattr(m, "Instance", 0))
+        if kind == "IMU" and inst == instance:
+            imu.append((m.TimeUS, m.GyrX, m.GyrY, m.GyrZ, m.AccX, m.AccY, m.AccZ))
+        elif kind == "MAG" and inst == instance:
+            mag.append((m.TimeUS, m.MagX, m.MagY, m.MagZ))
+        elif kind == "ATT":
+            att.append((m.TimeUS, m.Roll, m.Pitch, m.Yaw))
+
+
+@contextmanager
+def _printed():
+    """Capture what is written to the process's stdout and stderr (file descriptors 1 and 2:
+    pymavlink writes there directly) into a list of lines, filled when the block ends."""
+    import os
+    import sys
+    import tempfile
+
+    lines: list[str] = []
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = os.dup(1), os.dup(2)
+    with tempfile.TemporaryFile(mode="w+b") as tmp:
+        os.dup2(tmp.fileno(), 1)
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield lines
+        finally:
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os.dup2(saved[0], 1)
+            os.dup2(saved[1], 2)
+            os.close(saved[0])
+            os.close(saved[1])
+            tmp.seek(0)
+            lines.extend(tmp.read().decode("utf-8", "replace").splitlines())
+
+
+def _dataflash_damage(printed: list[str]) -> list[str]:
+    """What pymavlink skipped: it prints a "bad header" line per damaged byte. (A DataFlash log
+    has no end marker, and ArduPilot logs usually end inside a message, so a log cut short
+    cannot be told from a complete one.)"""
+    bad = sum(1 for line in printed if line.startswith(("bad header", "Skipped", "Failed to parse")))
+    if bad:
+        return [f"the log is damaged: pymavlink skipped {bad} byte(s) or message(s) it could not read; what "
+                "lies there is missing"]
+    return []

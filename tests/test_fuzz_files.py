@@ -1,0 +1,163 @@
+"""Generated and damaged files (issue #12): every reader and configuration loader either reads a
+file or refuses it with a ValueError (ReaderError is one) naming it; never another exception, a
+hang, or a recording with NaN where a value must be. Through the command line: one line, no
+internal error."""
+import json
+
+import h5py
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from quadest.calibration import load_calibration
+from quadest.data import save_recording
+from quadest.models.aero import AeroModel
+from quadest.readers import read_recording
+from quadest.sim import build_config, simulate
+
+FUZZ = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
+                                                                        HealthCheck.too_slow])
+
+
+_ORIGINALS: dict = {}
+
+
+def _originals():
+    """Valid files to damage (made once; a module-level cache, so that hypothesis does not print
+    them with every failing example)."""
+    if _ORIGINALS:
+        return _ORIGINALS
+    import tempfile
+    from pathlib import Path
+
+    d = Path(tempfile.mkdtemp(prefix="quadest-fuzz-"))
+    rec = simulate("hover", "bebop2", seed=3, duration=0.5)
+    out = {"csv": save_recording(rec, d / "r.csv").read_bytes(),
+           "parquet": save_recording(rec, d / "r.parquet").read_bytes()}
+    with h5py.File(d / "b.hdf5", "w") as f:  # a small BROAD-like file
+        f.attrs["sampling_rate"] = 100.0
+        n = 200
+        f["imu_gyr"] = np.zeros((n, 3))
+        f["imu_acc"] = np.tile([0.0, 0.0, 9.81], (n, 1))
+        f["imu_mag"] = np.tile([20.0, 0.0, -40.0], (n, 1))
+        f["opt_quat"] = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+        f["movement"] = np.ones(n)
+    out["hdf5"] = (d / "b.hdf5").read_bytes()
+    # autopilot logs, written byte by byte as tests/test_readers.py does
+    from test_readers import write_dataflash, write_ulog
+
+    short = simulate("hover", "bebop2", seed=4, duration=1.0, overrides={"imu.rate_hz": 100.0, "mag.rate_hz": 100.0})
+    write_ulog(d / "l.ulg", short)
+    write_dataflash(d / "l.bin", short)
+    out["ulg"], out["bin"] = (d / "l.ulg").read_bytes(), (d / "l.bin").read_bytes()
+    _ORIGINALS.update(out)
+    return out
+
+
+def _mutate(data: bytes, edits) -> bytes:
+    b = bytearray(data)
+    for kind, where, value in edits:
+        if not b:
+            break
+        i = where % len(b)
+        if kind == "flip":
+            b[i] ^= value or 1
+        elif kind == "cut":
+            del b[i:]
+        elif kind == "insert":
+            b[i:i] = bytes([value]) * (1 + value % 7)
+        elif kind == "delete":
+            del b[i:i + 1 + value % 50]
+    return bytes(b)
+
+
+EDITS = st.lists(st.tuples(st.sampled_from(["flip", "cut", "insert", "delete"]), st.integers(0, 10**9),
+                           st.integers(0, 255)), min_size=1, max_size=4)
+
+
+def _read_or_refuse(path, fmt=None):
+    try:
+        rec = read_recording(path, fmt)
+    except ValueError as exc:
+        assert str(exc).strip() and "\n" not in str(exc).strip(), repr(exc)
+        return None
+    assert np.isfinite(rec.t).all() and np.isfinite(rec.gyr).all() and np.isfinite(rec.acc).all()
+    return rec
+
+
+@pytest.mark.parametrize("kind", ["csv", "parquet", "hdf5", "ulg", "bin"])
+@FUZZ
+@given(edits=EDITS)
+def test_damaged_recordings_are_read_or_refused(kind, edits, tmp_path):
+    p = tmp_path / f"x.{kind}"
+    p.write_bytes(_mutate(_originals()[kind], edits))
+    _read_or_refuse(p, {"hdf5": "broad", "ulg": "ulog", "bin": "dataflash"}.get(kind))
+
+
+@FUZZ
+@given(text=st.text(st.characters(codec="utf-8"), max_size=400))
+def test_generated_csv_text_is_read_or_refused(text, tmp_path):
+    p = tmp_path / "g.csv"
+    p.write_text("# quadest recording v2\n" + text)
+    _read_or_refuse(p)
+    q = tmp_path / "h.csv"
+    q.write_text(text)
+    try:
+        read_recording(q, "csv", columns={"t": "t", "gyr": ["a", "b", "c"], "acc": ["d", "e", "f"]})
+    except ValueError:
+        pass
+
+
+JSON = st.recursive(st.none() | st.booleans() | st.floats() | st.integers() | st.text(max_size=10),
+                    lambda c: st.lists(c, max_size=4) | st.dictionaries(st.text(max_size=12), c, max_size=5),
+                    max_leaves=25)
+
+
+@FUZZ
+@given(values=JSON, kind=st.sampled_from(["gyro", "accel", "mag", "centrifugal", "aero", "nope", 3]),
+       unit=JSON)
+def test_calibration_files_are_read_or_refused(values, kind, unit, tmp_path):
+    p = tmp_path / "c.json"
+    p.write_text(json.dumps({"format": "quadest calibration v1", "kind": kind, "unit": unit, "values": values}))
+    try:
+        load_calibration(p)
+    except ValueError:
+        pass
+    p.write_text(json.dumps(values))
+    with pytest.raises(ValueError):
+        load_calibration(p)
+
+
+@FUZZ
+@given(doc=JSON)
+def test_aero_model_files_are_read_or_refused(doc, tmp_path):
+    p = tmp_path / "a.json"
+    good = {"format": "quadest aero model v1", "A": np.eye(3).tolist(), "B": np.zeros((3, 3)).tolist(),
+            "C": np.zeros((3, 10)).tolist(), "mass_kg": 0.5}
+    for d in (doc, {**good, "A": doc}, {**good, "mass_kg": doc}):
+        p.write_text(json.dumps(d))
+        try:
+            AeroModel.load(p)
+        except ValueError:
+            pass
+
+
+TOML_VALUE = st.one_of(st.integers(-10**6, 10**6), st.floats(allow_nan=False), st.booleans(),
+                       st.text(st.characters(codec="ascii", exclude_characters='"\\\n'), max_size=8).map(json.dumps),
+                       st.lists(st.floats(-10, 10), max_size=4).map(lambda v: json.dumps(v)))
+
+
+@FUZZ
+@given(section=st.sampled_from(["gyro", "acc", "mag", "imu", "vehicle", "nope", "hover"]),
+       key=st.sampled_from(["noise_std", "rate_hz", "range", "bias", "soft_iron", "mass_kg", "nope"]),
+       value=TOML_VALUE, junk=st.text(max_size=30))
+def test_simulator_toml_is_read_or_refused(section, key, value, junk, tmp_path):
+    p = tmp_path / "c.toml"
+    v = value if isinstance(value, str) else json.dumps(value)
+    for text in (f"[{section}]\n{key} = {v}\n", f"[{section}]\n{key} = {v}\n{junk}"):
+        p.write_text(text)
+        try:
+            build_config("bebop2", toml=p).validate()
+        except ValueError:
+            pass
