@@ -44,6 +44,13 @@ def _originals():
         f["opt_quat"] = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
         f["movement"] = np.ones(n)
     out["hdf5"] = (d / "b.hdf5").read_bytes()
+    from scipy.io import savemat
+
+    n = 200
+    savemat(d / "b.mat", {"sampling_rate": 100.0, "imu_gyr": np.zeros((n, 3)), "imu_acc": np.tile([0.0, 0.0, 9.81], (n, 1)),
+                          "imu_mag": np.tile([20.0, 0.0, -40.0], (n, 1)), "opt_quat": np.tile([1.0, 0, 0, 0], (n, 1)),
+                          "movement": np.ones((n, 1))})
+    out["mat"] = (d / "b.mat").read_bytes()
     # autopilot logs, written byte by byte as tests/test_readers.py does
     from test_readers import write_dataflash, write_ulog
 
@@ -92,7 +99,17 @@ def _read_or_refuse(path, fmt=None):
 def test_damaged_recordings_are_read_or_refused(kind, edits, tmp_path):
     p = tmp_path / f"x.{kind}"
     p.write_bytes(_mutate(_originals()[kind], edits))
-    _read_or_refuse(p, {"hdf5": "broad", "ulg": "ulog", "bin": "dataflash"}.get(kind))
+    _read_or_refuse(p, {"hdf5": "broad", "mat": "broad", "ulg": "ulog", "bin": "dataflash"}.get(kind))
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(edits=EDITS)
+def test_damaged_mat_files_are_read_or_refused(edits, tmp_path):
+    """MAT files are read in a child process: scipy's loadmat crashes the process on some
+    damaged ones (a segmentation fault); quadest refuses them instead."""
+    p = tmp_path / "x.mat"
+    p.write_bytes(_mutate(_originals()["mat"], edits))
+    _read_or_refuse(p, "broad")
 
 
 @FUZZ

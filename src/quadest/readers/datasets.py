@@ -102,15 +102,48 @@ def read_broad_hdf5(path, **_):
         return _broad(path, d, float(f.attrs["sampling_rate"]), str(f.attrs.get("info", "")))
 
 
-def read_broad_mat(path, **_):
-    from scipy.io import loadmat
+_LOADMAT = """
+import sys
+import numpy as np
+from scipy.io import loadmat
+try:
+    d = loadmat(sys.argv[1], squeeze_me=False)
+except NotImplementedError:
+    sys.exit(3)
+except Exception as exc:
+    msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    sys.stderr.write(msg)
+    sys.exit(2)
+np.savez(sys.argv[2], **{k: np.asarray(v) for k, v in d.items() if not k.startswith("__")})
+"""
 
-    try:
-        d = loadmat(path, squeeze_me=False)
-    except NotImplementedError:  # MATLAB v7.3 is HDF5
+
+def _loadmat_isolated(path):
+    """scipy's ``loadmat`` in a child process: on some damaged MAT files it crashes the whole
+    process (a segmentation fault, found by tests/test_fuzz_files.py), which no exception
+    handler can catch. Returns the variables, or None for a MATLAB v7.3 (HDF5) file."""
+    import subprocess
+    import sys
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as d:
+        out = Path(d) / "vars.npz"
+        r = subprocess.run([sys.executable, "-c", _LOADMAT, str(path), str(out)], capture_output=True, text=True,
+                           timeout=600)
+        if r.returncode == 3:
+            return None
+        if r.returncode != 0:
+            why = r.stderr.strip().splitlines()[-1] if r.returncode == 2 and r.stderr.strip() else \
+                f"the reader crashed on it (exit {r.returncode})"
+            raise ReaderError(f"{path}: not a readable MAT file ({why})")
+        with np.load(out, allow_pickle=False) as z:
+            return {k: z[k] for k in z.files}
+
+
+def read_broad_mat(path, **_):
+    d = _loadmat_isolated(path)
+    if d is None:  # MATLAB v7.3 is HDF5
         return read_broad_hdf5(path)
-    except (ValueError, OSError, TypeError) as exc:
-        raise ReaderError(f"{path}: not a readable MAT file ({exc})") from None
     if "sampling_rate" not in d:
         raise ReaderError(f"{path}: not a BROAD MAT file (no sampling_rate)")
     return _broad(path, d, float(np.asarray(d["sampling_rate"]).ravel()[0]))
