@@ -139,3 +139,56 @@ def test_a_server_that_is_not_a_dask_scheduler_does_not_hang_a_sweep():
             pass
     assert time.monotonic() - t0 < 30.0
     srv.close()
+
+
+def test_an_interrupted_or_failed_write_leaves_the_old_file(tmp_path):
+    """Outputs are written beside the target and renamed: Ctrl-C or a failing write leaves the
+    file that was there, and no temporary file."""
+    from quadest.data.files import atomic_output
+
+    p = tmp_path / "out.csv"
+    p.write_text("old")
+    for exc in (KeyboardInterrupt(), OSError(27, "File too large")):
+        with pytest.raises(type(exc)):
+            with atomic_output(p) as tmp:
+                tmp.write_text("partial")
+                raise exc
+        assert p.read_text() == "old" and sorted(tmp_path.iterdir()) == [p]
+
+
+def test_a_file_size_limit_fails_the_command_and_keeps_the_old_output(tmp_path):
+    """``ulimit -f`` (the write fails with EFBIG): one line, exit 1, the old output intact."""
+    import resource
+    import subprocess
+    import sys
+
+    from quadest.data import save_recording
+    from quadest.sim import simulate
+
+    src = save_recording(simulate("hover", "bebop2", seed=1, duration=20.0), tmp_path / "big.csv")
+    keep = tmp_path / "keep.csv"
+    keep.write_text("old output")
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (200_000, 200_000))
+
+    r = subprocess.run([sys.executable, "-m", "quadest.cli.main", "estimate", str(src), "--filter", "madgwick",
+                        "-o", str(keep)], capture_output=True, text=True, preexec_fn=limit, timeout=600)
+    assert r.returncode == 1 and r.stderr.count("\n") == 1 and "File too large" in r.stderr, r.stderr
+    assert keep.read_text() == "old output"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["big.csv", "keep.csv"]
+
+
+def test_an_hdf5_group_where_a_dataset_belongs_is_refused(tmp_path):
+    import h5py
+
+    from quadest.readers import read_recording
+
+    p = tmp_path / "g.hdf5"
+    with h5py.File(p, "w") as f:
+        f.attrs["sampling_rate"] = 100.0
+        for k in ("imu_gyr", "imu_mag", "opt_quat", "movement"):
+            f[k] = np.zeros((10, 4 if k == "opt_quat" else 3))
+        f.create_group("imu_acc")
+    with pytest.raises(ValueError, match="'imu_acc' is a group, not a dataset"):
+        read_recording(p, "broad")
