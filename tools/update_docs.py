@@ -45,6 +45,15 @@ def recovery_params() -> str:
     return "\n".join(rows)
 
 
+def vehicle_params() -> str:
+    from quadest.models.multirotor import MultirotorParams
+    rows = ["| parameter | default | unit | bounds | meaning | source |", "|---|---|---|---|---|---|"]
+    for d in MultirotorParams.describe():
+        rows.append(f"| `{d['name']}` | {json.dumps(d['default'], default=float)} | {d['unit']} | "
+                    f"{d.get('bounds', '-')} | {d['doc']} | {d['source']} |")
+    return "\n".join(rows)
+
+
 RESULTS = ROOT / "docs" / "results"
 SPEED_TARGET_US = {"afckf": 0.5, "qukf": 2.0, "ekf": 2.0, "madgwick": 0.2, "mahony": 0.2, "complementary": 0.2,
                    "kalman": 5.0}  # batch targets of issue #3 (targets, not measurements)
@@ -133,7 +142,8 @@ def results_afckf() -> str:
 
 
 GENERATORS = {"simulator-params": simulator_params, "estimator-params": estimator_params,
-              "recovery-params": recovery_params, "results-overview": results_overview,
+              "recovery-params": recovery_params, "vehicle-params": vehicle_params,
+              "results-overview": results_overview,
               "results-broad-summary": results_broad_summary, "results-broad-trials": results_broad_trials,
               "results-flights": results_flights, "results-speed": results_speed, "results-afckf": results_afckf}
 PATTERN = re.compile(r"(<!-- generated:([a-z-]+) -->\n)(.*?)(<!-- /generated -->)", re.S)

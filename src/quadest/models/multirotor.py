@@ -1,0 +1,209 @@
+"""A multirotor at rotor level: rigid body, N rotors with first-order motors, per-rotor
+aerodynamics (issue #13, part 1: the vehicle model; controllers and the closed loop follow).
+
+Conventions (:mod:`quadest.conventions`): navigation frame NED, body frame FRD, ``q_nb``, SI.
+State ``x = [p_n (3), v_n (3), q_nb (4), ω_b (3), Ω (N)]`` with Ω the rotor speeds (rad/s, ≥ 0).
+
+Rotor i sits at ``r_i`` (body, from the centre of mass) and turns about the body's ``z`` axis in
+the sense ``s_i`` (+1: about +z, i.e. clockwise seen from above; −1: counter-clockwise). With
+its hub's velocity relative to still air ``u_i = Rᵀ v + ω × r_i`` (body) split into an axial
+part ``u_z`` (positive: the hub moves down, air enters the disc from below) and an in-plane
+part ``u_⊥``:
+
+- thrust along −z: ``T_i = η_i max(0, k_f Ω² + k_z Ω u_z)``: a rotor that climbs
+  (``u_z < 0``) makes less thrust, one that descends more (a linear inflow model; idle thrust
+  during a fall is not a constant);
+- rotor drag (H-force) in the disc plane: ``H_i = −η_i k_h Ω u_⊥``;
+- reaction torque about z: ``−s_i η_i k_m Ω²``; the forces act at ``r_i`` (moment ``r_i × F_i``);
+- body drag ``−c_d |u| u`` with ``u = Rᵀ v``, and rotational damping ``−D ω``.
+
+``η_i`` is rotor i's efficiency: 1 intact, between 0 and 1 a damaged rotor, 0 a lost one.
+Motors: ``Ω̇ = clip((clip(Ω_cmd, Ω_min, Ω_max) − Ω)/τ, ±Ω̇_max)``.
+
+Equations of motion: ``ṗ = v``, ``v̇ = g e_z + R F/m``, ``q̇ = ½ q ⊗ [0, ω]``,
+``J ω̇ = M − ω × J ω`` (J diagonal). Integrated by :func:`rk4` (classical Runge-Kutta, the
+quaternion renormalised after each step) in compiled code.
+
+The recovery paper's reduced aerodynamic model (:mod:`quadest.models.aero`) stays the
+estimator's model: it is fitted from this model's flights, never used as its truth.
+"""
+from __future__ import annotations
+
+from collections import namedtuple
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from quadest.conventions import GRAVITY
+from quadest.records import check, describe, param
+from quadest.rotation.kernels import qdot_s, rotate_inv_s, rotate_s
+
+Vehicle = namedtuple("Vehicle", ["mass", "inertia", "rotor_pos", "spin", "k_f", "k_m", "k_z", "k_h", "tau",
+                                 "omega_min", "omega_max", "omega_dot_max", "c_d", "damping", "gravity"])
+"""What the compiled dynamics read (built by :meth:`MultirotorParams.vehicle`)."""
+
+
+def quad_x(arm_m: float) -> tuple:
+    """Rotor positions of a quadrotor in X configuration (body FRD): front-right, rear-left,
+    front-left, rear-right, at ``arm_m`` from the centre."""
+    a = arm_m / np.sqrt(2.0)
+    return ((a, a, 0.0), (-a, -a, 0.0), (a, -a, 0.0), (-a, a, 0.0))
+
+
+@dataclass(frozen=True)
+class MultirotorParams:
+    """A vehicle at rotor level. Rotor order and spins: :func:`quad_x` (diagonal pairs turn the
+    same way, so the yaw torques cancel in hover)."""
+
+    mass_kg: float = param(0.5, "kg", "mass", "recovery paper, experimental setup (m = 0.5 kg)", bounds="(0, 1e3]")
+    inertia: tuple = param((0.0023, 0.0023, 0.0046), "kg m²", "principal moments of inertia (body axes)",
+                           "recovery paper, experimental setup")
+    rotor_pos: tuple = param(quad_x(0.17), "m", "rotor positions from the centre of mass (body FRD)",
+                             "recovery paper, experimental setup (arm L = 0.17 m), X layout chosen")
+    spin: tuple = param((1.0, 1.0, -1.0, -1.0), "-", "rotor sense: +1 about +z (clockwise seen from above)",
+                        "chosen: diagonal pairs alike")
+    k_f: float = param(6.5e-6, "N s²", "thrust per squared rotor speed",
+                       "chosen: hover near 430 rad/s for 0.5 kg (a 5-inch propeller)", bounds="(0, 1]")
+    k_m: float = param(1.1e-7, "N m s²", "reaction torque per squared rotor speed",
+                       "chosen: k_m/k_f = 0.017 m, typical of small propellers", bounds="[0, 1]")
+    k_z: float = param(7e-5, "N s²/m", "thrust change per rotor speed and axial hub speed (inflow)",
+                       "chosen: 10 % less thrust when climbing at 4 m/s in hover", bounds="[0, 1]")
+    k_h: float = param(1.0e-4, "N s²/m", "rotor (H-force) drag per rotor speed and in-plane hub speed",
+                       "chosen: 0.17 N per rotor at 4 m/s in hover", bounds="[0, 1]")
+    motor_tau_s: float = param(0.02, "s", "motor time constant", "chosen: small brushless motors, 15-40 ms",
+                               bounds="(0, 10]")
+    omega_min: float = param(0.0, "rad/s", "lowest rotor speed (idle)", "chosen", bounds="[0, 1e4]")
+    omega_max: float = param(900.0, "rad/s", "highest rotor speed", "chosen: thrust-to-weight about 4.4",
+                             bounds="(0, 1e4]")
+    omega_dot_max: float = param(5e4, "rad/s²", "rotor acceleration limit",
+                                 "Sun et al. 2021 (their Bebop 2 simulation)", bounds="(0, 1e12]")
+    body_drag: float = param(0.01, "N s²/m²", "quadratic body drag c_d", "chosen: 0.16 N at 4 m/s",
+                             bounds="[0, 10]")
+    damping: tuple = param((5e-5, 5e-5, 1e-4), "N m s", "rotational damping per axis",
+                           "Sun et al. 2021 (their Bebop 2 simulation)")
+    gravity: float = param(GRAVITY, "m/s²", "gravity", "standard gravity", bounds="(0, 100]")
+
+    def __post_init__(self):
+        check(self, "vehicle")
+        pos = np.asarray(self.rotor_pos, float)
+        if pos.ndim != 2 or pos.shape[1] != 3 or len(pos) < 1:
+            raise ValueError(f"vehicle: rotor_pos must be N rows of 3 coordinates, got shape {pos.shape}")
+        if np.asarray(self.spin, float).shape != (len(pos),) or not np.isin(self.spin, (-1.0, 1.0)).all():
+            raise ValueError(f"vehicle: spin must hold +1 or -1 for each of the {len(pos)} rotors")
+        for name in ("inertia", "damping"):
+            v = np.asarray(getattr(self, name), float)
+            if v.shape != (3,) or not np.isfinite(v).all() or (v < 0).any() or (name == "inertia" and (v <= 0).any()):
+                raise ValueError(f"vehicle: {name} must be three {'positive' if name == 'inertia' else 'non-negative'} "
+                                 f"numbers, got {getattr(self, name)!r}")
+        if self.omega_min > self.omega_max:
+            raise ValueError("vehicle: omega_min must not exceed omega_max")
+
+    @property
+    def rotors(self) -> int:
+        return len(self.rotor_pos)
+
+    def vehicle(self) -> Vehicle:
+        return Vehicle(float(self.mass_kg), np.asarray(self.inertia, float), np.ascontiguousarray(self.rotor_pos, float),
+                       np.asarray(self.spin, float), float(self.k_f), float(self.k_m), float(self.k_z), float(self.k_h),
+                       float(self.motor_tau_s), float(self.omega_min), float(self.omega_max),
+                       float(self.omega_dot_max), float(self.body_drag), np.asarray(self.damping, float),
+                       float(self.gravity))
+
+    def hover_speed(self) -> float:
+        """Rotor speed at which N equal rotors at rest carry the weight: ``√(m g / (N k_f))``."""
+        return float(np.sqrt(self.mass_kg * self.gravity / (self.rotors * self.k_f)))
+
+    def hover_state(self) -> np.ndarray:
+        """Level, at rest at the origin, rotors at the hover speed."""
+        x = np.zeros(13 + self.rotors)
+        x[6] = 1.0
+        x[13:] = self.hover_speed()
+        return x
+
+    @classmethod
+    def describe(cls) -> list[dict]:
+        return describe(cls)
+
+
+@njit(cache=True)
+def rotor_forces(x, eta, V, F, M):
+    """Total rotor and body force ``F`` and moment ``M`` (body frame) at state ``x``, in place."""
+    qw, qx, qy, qz = x[6], x[7], x[8], x[9]
+    w0, w1, w2 = x[10], x[11], x[12]
+    ub0, ub1, ub2 = rotate_inv_s(qw, qx, qy, qz, x[3], x[4], x[5])
+    sp = np.sqrt(ub0 * ub0 + ub1 * ub1 + ub2 * ub2)
+    F[0], F[1], F[2] = -V.c_d * sp * ub0, -V.c_d * sp * ub1, -V.c_d * sp * ub2
+    M[0], M[1], M[2] = -V.damping[0] * w0, -V.damping[1] * w1, -V.damping[2] * w2
+    for i in range(V.rotor_pos.shape[0]):
+        r0, r1, r2 = V.rotor_pos[i, 0], V.rotor_pos[i, 1], V.rotor_pos[i, 2]
+        om = x[13 + i]
+        # hub velocity: u = Rᵀ v + ω × r
+        u0 = ub0 + (w1 * r2 - w2 * r1)
+        u1 = ub1 + (w2 * r0 - w0 * r2)
+        u2 = ub2 + (w0 * r1 - w1 * r0)
+        thrust = eta[i] * max(0.0, V.k_f * om * om + V.k_z * om * u2)
+        f0, f1, f2 = -eta[i] * V.k_h * om * u0, -eta[i] * V.k_h * om * u1, -thrust
+        F[0] += f0
+        F[1] += f1
+        F[2] += f2
+        M[0] += r1 * f2 - r2 * f1
+        M[1] += r2 * f0 - r0 * f2
+        M[2] += r0 * f1 - r1 * f0 - V.spin[i] * eta[i] * V.k_m * om * om
+
+
+@njit(cache=True)
+def derivative(x, cmd, eta, V, dx):
+    """``ẋ`` at ``x`` with rotor speed commands ``cmd`` (rad/s) and efficiencies ``eta``."""
+    F = np.empty(3)
+    M = np.empty(3)
+    rotor_forces(x, eta, V, F, M)
+    qw, qx, qy, qz = x[6], x[7], x[8], x[9]
+    w0, w1, w2 = x[10], x[11], x[12]
+    a0, a1, a2 = rotate_s(qw, qx, qy, qz, F[0] / V.mass, F[1] / V.mass, F[2] / V.mass)
+    dx[0], dx[1], dx[2] = x[3], x[4], x[5]
+    dx[3], dx[4], dx[5] = a0, a1, a2 + V.gravity
+    dx[6], dx[7], dx[8], dx[9] = qdot_s(qw, qx, qy, qz, w0, w1, w2)
+    J0, J1, J2 = V.inertia[0], V.inertia[1], V.inertia[2]
+    # Euler: J ω̇ = M − ω × (J ω)
+    dx[10] = (M[0] - (w1 * J2 * w2 - w2 * J1 * w1)) / J0
+    dx[11] = (M[1] - (w2 * J0 * w0 - w0 * J2 * w2)) / J1
+    dx[12] = (M[2] - (w0 * J1 * w1 - w1 * J0 * w0)) / J2
+    for i in range(V.rotor_pos.shape[0]):
+        target = min(max(cmd[i], V.omega_min), V.omega_max)
+        rate = (target - x[13 + i]) / V.tau
+        dx[13 + i] = min(max(rate, -V.omega_dot_max), V.omega_dot_max)
+
+
+@njit(cache=True)
+def rk4(x, cmd, eta, V, h):
+    """One classical Runge-Kutta step of ``h`` seconds, in place; the quaternion is renormalised
+    and rotor speeds kept non-negative."""
+    n = x.shape[0]
+    k1, k2, k3, k4, y = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    derivative(x, cmd, eta, V, k1)
+    for j in range(n):
+        y[j] = x[j] + 0.5 * h * k1[j]
+    derivative(y, cmd, eta, V, k2)
+    for j in range(n):
+        y[j] = x[j] + 0.5 * h * k2[j]
+    derivative(y, cmd, eta, V, k3)
+    for j in range(n):
+        y[j] = x[j] + h * k3[j]
+    derivative(y, cmd, eta, V, k4)
+    for j in range(n):
+        x[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+    nq = np.sqrt(x[6] * x[6] + x[7] * x[7] + x[8] * x[8] + x[9] * x[9])
+    for j in range(6, 10):
+        x[j] /= nq
+    for i in range(13, n):
+        x[i] = max(x[i], 0.0)
+
+
+@njit(cache=True)
+def fly_open_loop(x, cmd, eta, V, h, steps, out):
+    """``steps`` RK4 steps with constant commands; ``out[k]`` the state after step k."""
+    for k in range(steps):
+        rk4(x, cmd, eta, V, h)
+        for j in range(x.shape[0]):
+            out[k, j] = x[j]
