@@ -1,0 +1,120 @@
+"""The geometric tracking controller on SE(3) of Lee, Leok & McClamroch, "Geometric tracking
+control of a quadrotor UAV on SE(3)", IEEE CDC 2010 (issue #13: the nominal controller), on
+quadest's conventions (NED, FRD, ``q_nb``), with rotor-speed allocation for a quadrotor.
+
+With ``e_p = p − p_d``, ``e_v = v − v_d`` and gains per unit mass (as RotorPy's ``SE3Control``):
+
+- desired force (navigation frame): ``F_d = m (−k_p e_p − k_v e_v + a_d − g e_z)`` (eq 12; the
+  rotors push against gravity, which is ``+g e_z`` in NED);
+- collective thrust ``T = −F_d · (R e_z)``: the projection onto the current thrust axis, which is
+  ``−R e_z`` (the rotors push along body −z);
+- desired attitude: body z down along ``−F_d/‖F_d‖``; ``y_d = z_d × x_c/‖·‖`` with the heading
+  ``x_c = [cos ψ_d, sin ψ_d, 0]``; ``x_d = y_d × z_d`` (eq 13-14);
+- attitude error ``e_R = ½ (R_dᵀ R − Rᵀ R_d)^∨`` and rate error ``e_ω = ω`` (a hover or slow
+  trajectory: the desired rate is taken as zero, which the paper's feed-forward would refine);
+- moment ``M = J (−k_R e_R − k_ω e_ω) + ω × J ω`` (eq 16 with gains per unit inertia, as RotorPy).
+
+Allocation: rotor thrusts ``t = A⁻¹ [T, M_x, M_y, M_z]`` with, for rotor i at ``r_i`` turning
+in sense ``s_i``, ``T = Σ t_i``, ``M_x = −Σ r_i,y t_i``, ``M_y = Σ r_i,x t_i``,
+``M_z = −Σ s_i (k_m/k_f) t_i`` (the moments of thrusts along −z, and the reaction torques);
+then ``Ω_i = √(max(t_i, 0)/k_f)``. ``A⁻¹`` is computed once (:func:`allocation`).
+"""
+from __future__ import annotations
+
+from collections import namedtuple
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from quadest.models.multirotor import MultirotorParams
+from quadest.records import check, describe, param
+from quadest.rotation.kernels import rot_matrix
+
+Gains = namedtuple("Gains", ["k_p", "k_v", "k_R", "k_w", "alloc_inv", "k_f"])
+"""What the compiled controller reads (built by :meth:`SE3Params.gains`)."""
+
+
+@dataclass(frozen=True)
+class SE3Params:
+    k_p: tuple = param((6.5, 6.5, 15.0), "1/s²", "position gain per unit mass (north, east, down)",
+                       "RotorPy SE3Control, Hummingbird gains (as quoted in shared/docs/anchors.md)")
+    k_v: tuple = param((4.0, 4.0, 9.0), "1/s", "velocity gain per unit mass",
+                       "RotorPy SE3Control, Hummingbird gains (as quoted in shared/docs/anchors.md)")
+    k_R: float = param(544.0, "1/s²", "attitude gain per unit inertia",
+                       "RotorPy SE3Control, Hummingbird gains (as quoted in shared/docs/anchors.md)", bounds="[0, 1e6]")
+    k_w: float = param(46.64, "1/s", "rate gain per unit inertia",
+                       "RotorPy SE3Control, Hummingbird gains (as quoted in shared/docs/anchors.md)", bounds="[0, 1e5]")
+
+    def __post_init__(self):
+        check(self, "se3")
+        for name in ("k_p", "k_v"):
+            v = np.asarray(getattr(self, name), float)
+            if v.shape != (3,) or not np.isfinite(v).all() or (v < 0).any():
+                raise ValueError(f"se3: {name} must be three non-negative numbers, got {getattr(self, name)!r}")
+
+    def gains(self, vehicle: MultirotorParams) -> Gains:
+        return Gains(np.asarray(self.k_p, float), np.asarray(self.k_v, float), float(self.k_R), float(self.k_w),
+                     allocation(vehicle), float(vehicle.k_f))
+
+    @classmethod
+    def describe(cls) -> list[dict]:
+        return describe(cls)
+
+
+def allocation(vehicle: MultirotorParams) -> np.ndarray:
+    """``A⁻¹`` mapping ``[T, M_x, M_y, M_z]`` to rotor thrusts (module doc); quadrotors only."""
+    pos = np.asarray(vehicle.rotor_pos, float)
+    if len(pos) != 4:
+        raise ValueError(f"the SE(3) allocation needs 4 rotors, the vehicle has {len(pos)}")
+    A = np.vstack([np.ones(4), -pos[:, 1], pos[:, 0], -np.asarray(vehicle.spin, float) * vehicle.k_m / vehicle.k_f])
+    if abs(np.linalg.det(A)) < 1e-12:
+        raise ValueError("the rotor layout cannot produce independent roll, pitch and yaw moments")
+    return np.linalg.inv(A)
+
+
+@njit(cache=True)
+def se3_command(x, p_d, v_d, a_d, yaw_d, G, V, cmd):
+    """Rotor speed commands (rad/s) into ``cmd`` for state ``x`` (true or estimated) and the
+    reference position, velocity, acceleration (NED) and heading."""
+    R = rot_matrix(x[6:10])
+    Fd = np.empty(3)
+    for i in range(3):
+        Fd[i] = V.mass * (-G.k_p[i] * (x[i] - p_d[i]) - G.k_v[i] * (x[3 + i] - v_d[i]) + a_d[i])
+    Fd[2] -= V.mass * V.gravity
+    thrust = -(Fd[0] * R[0, 2] + Fd[1] * R[1, 2] + Fd[2] * R[2, 2])
+    # desired attitude: body z down along −F_d
+    nF = np.sqrt(Fd[0] * Fd[0] + Fd[1] * Fd[1] + Fd[2] * Fd[2])
+    zd = np.empty(3)
+    if nF > 1e-9:
+        for i in range(3):
+            zd[i] = -Fd[i] / nF
+    else:
+        zd[0], zd[1], zd[2] = 0.0, 0.0, 1.0
+    xc0, xc1 = np.cos(yaw_d), np.sin(yaw_d)
+    y0, y1, y2 = zd[1] * 0.0 - zd[2] * xc1, zd[2] * xc0 - zd[0] * 0.0, zd[0] * xc1 - zd[1] * xc0
+    ny = np.sqrt(y0 * y0 + y1 * y1 + y2 * y2)
+    if ny < 1e-9:  # thrust axis horizontal along the heading: keep the current body y
+        y0, y1, y2, ny = R[0, 1], R[1, 1], R[2, 1], 1.0
+    y0, y1, y2 = y0 / ny, y1 / ny, y2 / ny
+    Rd = np.empty((3, 3))
+    Rd[0, 0], Rd[1, 0], Rd[2, 0] = y1 * zd[2] - y2 * zd[1], y2 * zd[0] - y0 * zd[2], y0 * zd[1] - y1 * zd[0]
+    Rd[0, 1], Rd[1, 1], Rd[2, 1] = y0, y1, y2
+    Rd[0, 2], Rd[1, 2], Rd[2, 2] = zd[0], zd[1], zd[2]
+    # e_R = ½ (R_dᵀ R − Rᵀ R_d)^∨
+    E = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            s = 0.0
+            for k in range(3):
+                s += Rd[k, i] * R[k, j] - R[k, i] * Rd[k, j]
+            E[i, j] = 0.5 * s
+    eR0, eR1, eR2 = E[2, 1], E[0, 2], E[1, 0]
+    w0, w1, w2 = x[10], x[11], x[12]
+    J0, J1, J2 = V.inertia[0], V.inertia[1], V.inertia[2]
+    M0 = J0 * (-G.k_R * eR0 - G.k_w * w0) + (w1 * J2 * w2 - w2 * J1 * w1)
+    M1 = J1 * (-G.k_R * eR1 - G.k_w * w1) + (w2 * J0 * w0 - w0 * J2 * w2)
+    M2 = J2 * (-G.k_R * eR2 - G.k_w * w2) + (w0 * J1 * w1 - w1 * J0 * w0)
+    for i in range(4):
+        t = G.alloc_inv[i, 0] * thrust + G.alloc_inv[i, 1] * M0 + G.alloc_inv[i, 2] * M1 + G.alloc_inv[i, 3] * M2
+        cmd[i] = np.sqrt(max(t, 0.0) / G.k_f)
