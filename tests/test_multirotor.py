@@ -59,25 +59,25 @@ def test_a_lost_rotor_removes_exactly_its_force_and_moment():
     x[10:13] = [0.4, -0.3, 2.0]
     x[3:6] = [1.0, -0.5, 0.3]
     F, M = np.empty(3), np.empty(3)
-    rotor_forces(x, np.ones(4), V, F, M)
+    rotor_forces(x, np.ones(4), V, F, M, np.empty(4))
     for k in range(4):
         eta = np.ones(4)
         eta[k] = 0.0
         Fk, Mk = np.empty(3), np.empty(3)
-        rotor_forces(x, eta, V, Fk, Mk)
+        rotor_forces(x, eta, V, Fk, Mk, np.empty(4))
         only = np.zeros(4)
         only[k] = 1.0
         F1, M1 = np.empty(3), np.empty(3)
-        rotor_forces(x, only, V, F1, M1)
+        rotor_forces(x, only, V, F1, M1, np.empty(4))
         body = np.empty(3), np.empty(3)
-        rotor_forces(x, np.zeros(4), V, *body)
+        rotor_forces(x, np.zeros(4), V, *body, np.empty(4))
         np.testing.assert_allclose(F - Fk, F1 - body[0], atol=1e-12)
         np.testing.assert_allclose(M - Mk, M1 - body[1], atol=1e-12)
     # losing the front-right rotor (clockwise) drops the front-right corner: the body rolls
     # right (+x) and pitches nose down (−y); the three others' reactions yaw it clockwise (+z)
     eta = np.array([0.0, 1.0, 1.0, 1.0])
     x = P.hover_state()
-    rotor_forces(x, eta, V, F, M)
+    rotor_forces(x, eta, V, F, M, np.empty(4))
     assert M[0] > 0 and M[1] < 0 and M[2] > 0
 
 
@@ -85,13 +85,13 @@ def test_thrust_depends_on_inflow_and_motors_are_first_order():
     V = P.vehicle()
     F, M = np.empty(3), np.empty(3)
     x = P.hover_state()
-    rotor_forces(x, np.ones(4), V, F, M)
+    rotor_forces(x, np.ones(4), V, F, M, np.empty(4))
     hover = -F[2]
     x[5] = 3.0  # falling at 3 m/s: the air comes from below, more thrust
-    rotor_forces(x, np.ones(4), V, F, M)
+    rotor_forces(x, np.ones(4), V, F, M, np.empty(4))
     assert -F[2] > hover
     x[5] = -3.0  # climbing: less
-    rotor_forces(x, np.ones(4), V, F, M)
+    rotor_forces(x, np.ones(4), V, F, M, np.empty(4))
     assert -F[2] < hover
     # a small speed step follows exp(−t/τ); a large one is limited by the rate
     p = replace(P, omega_dot_max=1e9)

@@ -179,7 +179,8 @@ class Recording:
                 f"gyr: {np.abs(self.gyr[i]).max():.1f} at row {i} exceeds {GYR_LIMIT:.0f} rad/s, "
                 "more than any MEMS gyroscope measures: is the gyroscope in deg/s? "
                 "quadest takes rad/s (multiply deg/s by pi/180)")
-        norm = np.linalg.norm(self.acc, axis=1)
+        with np.errstate(over="ignore"):  # a damaged file may hold 1e300: its norm is inf, refused below
+            norm = np.linalg.norm(self.acc, axis=1)
         big = norm > ACC_LIMIT
         if big.any():
             i = _first_row(big)

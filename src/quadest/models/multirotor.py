@@ -127,8 +127,9 @@ class MultirotorParams:
 
 
 @njit(cache=True)
-def rotor_forces(x, eta, V, F, M):
-    """Total rotor and body force ``F`` and moment ``M`` (body frame) at state ``x``, in place."""
+def rotor_forces(x, eta, V, F, M, T):
+    """Total rotor and body force ``F`` and moment ``M`` (body frame) at state ``x``, and each
+    rotor's thrust ``T`` (N), in place."""
     qw, qx, qy, qz = x[6], x[7], x[8], x[9]
     w0, w1, w2 = x[10], x[11], x[12]
     ub0, ub1, ub2 = rotate_inv_s(qw, qx, qy, qz, x[3], x[4], x[5])
@@ -143,6 +144,7 @@ def rotor_forces(x, eta, V, F, M):
         u1 = ub1 + (w2 * r0 - w0 * r2)
         u2 = ub2 + (w0 * r1 - w1 * r0)
         thrust = eta[i] * max(0.0, V.k_f * om * om + V.k_z * om * u2)
+        T[i] = thrust
         f0, f1, f2 = -eta[i] * V.k_h * om * u0, -eta[i] * V.k_h * om * u1, -thrust
         F[0] += f0
         F[1] += f1
@@ -157,7 +159,8 @@ def derivative(x, cmd, eta, V, dx):
     """``ẋ`` at ``x`` with rotor speed commands ``cmd`` (rad/s) and efficiencies ``eta``."""
     F = np.empty(3)
     M = np.empty(3)
-    rotor_forces(x, eta, V, F, M)
+    T = np.empty(V.rotor_pos.shape[0])
+    rotor_forces(x, eta, V, F, M, T)
     qw, qx, qy, qz = x[6], x[7], x[8], x[9]
     w0, w1, w2 = x[10], x[11], x[12]
     a0, a1, a2 = rotate_s(qw, qx, qy, qz, F[0] / V.mass, F[1] / V.mass, F[2] / V.mass)
@@ -207,3 +210,13 @@ def fly_open_loop(x, cmd, eta, V, h, steps, out):
         rk4(x, cmd, eta, V, h)
         for j in range(x.shape[0]):
             out[k, j] = x[j]
+
+
+@njit(cache=True)
+def derivatives(states, cmds, eta, V, dx, thrusts):
+    """``ẋ`` and the rotor thrusts along a flight (one row per step), in place."""
+    F = np.empty(3)
+    M = np.empty(3)
+    for k in range(states.shape[0]):
+        derivative(states[k], cmds[k], eta, V, dx[k])
+        rotor_forces(states[k], eta, V, F, M, thrusts[k])

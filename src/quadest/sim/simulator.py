@@ -104,6 +104,24 @@ def simulate(scenario: str, preset: str = "bebop2", seed: int = 0, duration: flo
     truth.meta = motion.meta
     truth.q = quat_continuous(truth.q)
 
+    meta = {"source": "quadest simulate", "scenario": scenario, "preset": preset, "seed": int(seed),
+            "ideal_sensors": bool(ideal)}
+    rec, gyr_bias, acc_bias = sample_sensors(truth, cfg, keep, has_mag, (rng_gyro, rng_acc, rng_mag, rng_vib), meta)
+    if return_truth:
+        sel = {n: getattr(truth, n)[keep] for n in ("t", "q", "gyr", "gyr_dot", "pos", "vel", "acc_n",
+                                                    "current", "rotor_load")}
+        return rec, Truth(**sel, meta=truth.meta, gyr_bias=gyr_bias[keep], acc_bias=acc_bias[keep])
+    return rec
+
+
+def sample_sensors(truth: Truth, cfg: SimConfig, keep, has_mag, rngs, meta: dict):
+    """The sensors of ``cfg`` sampled from a true motion (prescribed or flown) at its instants:
+    IMU with lever arm, errors, vibration and saturation, magnetometer on the rows ``has_mag``;
+    rows ``keep`` are recorded (the others were dropped). Returns the recording and the true
+    gyro and accelerometer biases over time (all rows)."""
+    rng_gyro, rng_acc, rng_mag, rng_vib = rngs
+    t = truth.t
+    rate = cfg.imu.rate_hz
     g_err = S.draw_errors(cfg.gyro, rng_gyro)
     a_err = S.draw_errors(cfg.acc, rng_acc)
     f_imu = S.specific_force_at_imu(truth.q, truth.acc_n, truth.gyr, truth.gyr_dot, cfg.acc.lever_arm,
@@ -118,14 +136,11 @@ def simulate(scenario: str, preset: str = "bebop2", seed: int = 0, duration: flo
 
     sat = np.abs(truth.gyr @ g_err["matrix"].T) > cfg.gyro.range
     meta = {
-        "source": "quadest simulate",
-        "scenario": scenario,
-        "preset": preset,
-        "seed": int(seed),
+        **{k: v for k, v in meta.items() if k != "ideal_sensors"},
         "imu_rate_hz": rate,
         "mag_rate_hz": cfg.mag.rate_hz,
         "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT"},
-        "ideal_sensors": bool(ideal),
+        **({"ideal_sensors": meta["ideal_sensors"]} if "ideal_sensors" in meta else {}),
         "earth_field_ned_ut": S.earth_field(cfg.environment).tolist(),
         "gyro_saturated_share": float(sat.any(axis=1)[keep].mean()),
         "sensor_errors": {
@@ -138,8 +153,5 @@ def simulate(scenario: str, preset: str = "bebop2", seed: int = 0, duration: flo
     rec = Recording(t=t[keep], gyr=gyr[keep], acc=acc[keep], mag=mag[keep], true_q=truth.q[keep],
                     true_gyr=truth.gyr[keep], true_pos=truth.pos[keep], true_vel=truth.vel[keep],
                     true_acc=f_imu[keep], meta=meta, check_units=False)
-    if return_truth:
-        sel = {n: getattr(truth, n)[keep] for n in ("t", "q", "gyr", "gyr_dot", "pos", "vel", "acc_n",
-                                                    "current", "rotor_load")}
-        return rec, Truth(**sel, meta=truth.meta, gyr_bias=gyr_bias[keep], acc_bias=acc_bias[keep])
-    return rec
+    return rec, gyr_bias, acc_bias
+

@@ -1,0 +1,42 @@
+"""Sensors sampled from a flown vehicle (issue #13): the states of the rotor-level model
+(:mod:`quadest.models.multirotor`) become a :class:`~quadest.data.Recording` with the same
+sensor models as the prescribed scenarios (:func:`quadest.sim.simulator.sample_sensors`), so
+every command (estimate, compare, recover, calibrate) reads a flown flight."""
+from __future__ import annotations
+
+import numpy as np
+
+from quadest.data.recording import Recording
+from quadest.models.multirotor import MultirotorParams
+from quadest.sim import sensors as S
+from quadest.sim.params import SimConfig
+from quadest.sim.simulator import build_config, sample_sensors
+from quadest.sim.truth import Truth, motor_current
+
+
+def flown_recording(t, states, derivs, thrusts, vehicle: MultirotorParams, *, cfg: SimConfig | None = None,
+                    seed: int = 0, eta=None, meta: dict | None = None) -> Recording:
+    """A recording of a flight: ``states``, their derivatives and the rotor thrusts at the IMU
+    instants ``t`` (one row each, at ``cfg.imu.rate_hz``). ``cfg`` gives the sensors (default:
+    the bebop2 preset's); the vehicle's own mass, thrust and rotors set the vibration load and
+    the motor current that disturbs the magnetometer."""
+    cfg = (cfg or build_config("bebop2")).validate()
+    t = np.asarray(t, float)
+    states, derivs, thrusts = (np.asarray(a, float) for a in (states, derivs, thrusts))
+    n = len(t)
+    if states.shape[0] != n or derivs.shape != states.shape or thrusts.shape != (n, vehicle.rotors):
+        raise ValueError("flown_recording: t, states, derivs and thrusts must have one row per IMU sample")
+    eta = np.ones(vehicle.rotors) if eta is None else np.asarray(eta, float)
+    active = max(1, int((eta > 0).sum()))
+    hover_thrust = vehicle.mass_kg * vehicle.gravity / vehicle.rotors
+    load = thrusts.sum(axis=1) / active / hover_thrust
+    thrust_to_weight = vehicle.rotors * vehicle.k_f * vehicle.omega_max ** 2 / (vehicle.mass_kg * vehicle.gravity)
+    truth = Truth(t=t, q=states[:, 6:10], gyr=states[:, 10:13], gyr_dot=derivs[:, 10:13], pos=states[:, 0:3],
+                  vel=states[:, 3:6], acc_n=derivs[:, 3:6], current=motor_current(load, active, thrust_to_weight),
+                  rotor_load=load, meta={"flown": True, "rotor_efficiency": eta.tolist()})
+    rng = [np.random.default_rng(s) for s in np.random.SeedSequence(int(seed)).spawn(4)]
+    k = np.round((t - t[0]) * cfg.imu.rate_hz).astype(np.int64)
+    has_mag = S.mag_rows(k, cfg.imu.rate_hz, cfg.mag.rate_hz)
+    info = {"source": "quadest fly", "seed": int(seed), **(meta or {})}
+    rec, _, _ = sample_sensors(truth, cfg, np.ones(n, bool), has_mag, rng, info)
+    return rec
