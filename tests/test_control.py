@@ -86,3 +86,50 @@ def test_a_flown_recording_is_read_by_every_estimator(tmp_path):
         r = summarize_errors(make_filter(name, declination=rec.declination).run(rec).q, rec.true_q,
                              rec.t > 5.0)["rms_deg"]
         assert r["roll"] < 3.0 and r["pitch"] < 3.0, (name, r)
+
+
+def test_rotor_failures_are_events_whose_outcome_is_physics():
+    """A damaged rotor (70 % efficiency) at t = 2 s: the nominal controller makes up for it and
+    holds the vehicle near the setpoint, with the steady offset a controller without integral
+    action keeps (within twice the offset its gains give for the missing thrust and moment). A
+    lost rotor: its motor spins down, and the nominal controller, which
+    allocates to four rotors, loses the vehicle (it tumbles and falls): the outcome is
+    a consequence of thrust, torque and control, not an input. (The fault-tolerant controller
+    that keeps it up comes next.)"""
+    from quadest.control import Failure
+
+    x0 = P.hover_state()
+    states, _, eta = fly_se3(x0, hover_reference(6000), failure=Failure(rotor=0, time_s=2.0, efficiency=0.7),
+                             return_eta=True)
+    assert eta[1999, 0] == 1.0 and eta[2000, 0] == 0.7
+    g = SE3Params()
+    dT = 0.3 * P.mass_kg * P.gravity / 4  # the thrust the damaged rotor no longer gives
+    arm = np.abs(np.asarray(P.rotor_pos)[0, 0])
+    lateral = P.gravity * (dT * arm / (P.inertia[0] * g.k_R)) / g.k_p[0]  # tilt needed for the moment
+    offset = np.sqrt(2 * lateral ** 2 + (dT / (P.mass_kg * g.k_p[2])) ** 2)
+    assert np.linalg.norm(states[-1, 0:3]) < 2 * offset
+    assert np.degrees(angle_between(states[-1, 6:10], np.array([1.0, 0, 0, 0]))) < 5.0
+    states, cmd = fly_se3(x0, hover_reference(4000), failure=Failure(rotor=0, time_s=1.0))
+    assert cmd[-1, 0] == 0.0 and states[-1, 13] < 0.01 * P.hover_speed()  # spun down
+    assert np.abs(states[2000:, 10:13]).max() > 10.0 and states[-1, 2] > 2.0  # tumbling, fallen over 2 m
+
+
+@pytest.mark.parametrize("failure, match", [
+    (dict(rotor=4, time_s=1.0), "rotor 4 does not exist"),
+    (dict(rotor=0, time_s=9.0), "outside the run"),
+    (dict(rotor=0, time_s=0.5, efficiency=1.5), "efficiency must be in"),
+])
+def test_impossible_failures_are_refused(failure, match):
+    from quadest.control import Failure
+
+    with pytest.raises(ValueError, match=match):
+        fly_se3(P.hover_state(), hover_reference(1000), failure=Failure(**failure))
+
+
+def test_a_flight_with_a_damaged_rotor_is_recorded():
+    from quadest.control import Failure
+    from quadest.flight import fly
+
+    rec, _ = fly("hover", duration=4.0, seed=1, failure=Failure(rotor=2, time_s=2.0, efficiency=0.6))
+    assert rec.meta["failure"] == {"rotor": 2, "time_s": 2.0, "efficiency": 0.6}
+    assert np.isfinite(rec.acc).all() and len(rec) == 2000

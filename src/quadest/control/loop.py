@@ -3,6 +3,8 @@ into the loop next), commands the rotors, the vehicle model integrates (RK4), ev
 compiled code."""
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from numba import njit
 
@@ -11,11 +13,17 @@ from quadest.models.multirotor import MultirotorParams, rk4
 
 
 @njit(cache=True)
-def _fly(x, eta, V, G, h, p_d, v_d, a_d, yaw_d, out_x, out_cmd):
+def _fly(x, eta, V, G, h, p_d, v_d, a_d, yaw_d, fail_rotor, fail_step, fail_eta, out_x, out_cmd, out_eta):
     cmd = np.empty(V.rotor_pos.shape[0])
     for k in range(yaw_d.shape[0]):
+        if k == fail_step and fail_rotor >= 0:
+            eta[fail_rotor] = fail_eta
         se3_command(x, p_d[k], v_d[k], a_d[k], yaw_d[k], G, V, cmd)
+        if fail_rotor >= 0 and k >= fail_step and fail_eta == 0.0:
+            cmd[fail_rotor] = 0.0  # a lost rotor: no thrust or torque, and its motor spins down
         rk4(x, cmd, eta, V, h)
+        for j in range(eta.shape[0]):
+            out_eta[k, j] = eta[j]
         for j in range(x.shape[0]):
             out_x[k, j] = x[j]
         for j in range(cmd.shape[0]):
@@ -40,11 +48,32 @@ def circle_reference(t, radius: float = 1.0, freq_hz: float = 0.2, height: float
     return p, v, a, np.zeros(len(t))
 
 
+@dataclass(frozen=True)
+class Failure:
+    """A rotor failure as an event: rotor ``rotor`` (0-based, the vehicle's order) keeps
+    ``efficiency`` of its thrust and torque from ``time_s`` on. Efficiency 0 is a complete loss:
+    no thrust or torque, and its motor spins down; between 0 and 1 a damaged rotor."""
+
+    rotor: int
+    time_s: float
+    efficiency: float = 0.0
+
+    def check(self, vehicle: MultirotorParams, duration_s: float) -> None:
+        if not 0 <= self.rotor < vehicle.rotors:
+            raise ValueError(f"failure: rotor {self.rotor} does not exist (the vehicle has rotors 0 to "
+                             f"{vehicle.rotors - 1})")
+        if not 0.0 <= self.time_s < duration_s:
+            raise ValueError(f"failure: time {self.time_s} s lies outside the run (0 to {duration_s:g} s)")
+        if not 0.0 <= self.efficiency < 1.0:
+            raise ValueError(f"failure: efficiency must be in [0, 1), got {self.efficiency}")
+
+
 def fly_se3(x0, reference, *, vehicle: MultirotorParams | None = None, gains: SE3Params | None = None,
-            rate_hz: float = 1000.0, eta=None):
+            rate_hz: float = 1000.0, eta=None, failure: Failure | None = None, return_eta: bool = False):
     """Fly the vehicle from state ``x0`` along ``reference`` (``(p_d, v_d, a_d, yaw_d)``, one row
-    per step at ``rate_hz``) with the SE(3) controller on the true state. Returns the states
-    after each step (steps, 13 + N) and the rotor commands (steps, N)."""
+    per step at ``rate_hz``) with the SE(3) controller on the true state, a ``failure`` striking
+    when it is due. Returns the states after each step (steps, 13 + N) and the rotor commands
+    (steps, N); with ``return_eta`` also the rotor efficiencies per step."""
     vehicle = vehicle or MultirotorParams()
     gains = gains or SE3Params()
     p_d, v_d, a_d, yaw_d = (np.ascontiguousarray(a, dtype=float) for a in reference)
@@ -52,7 +81,13 @@ def fly_se3(x0, reference, *, vehicle: MultirotorParams | None = None, gains: SE
     x = np.array(x0, dtype=float)
     if x.shape != (13 + vehicle.rotors,):
         raise ValueError(f"x0 must have {13 + vehicle.rotors} values, got {x.shape}")
-    eta = np.ones(vehicle.rotors) if eta is None else np.asarray(eta, float)
-    out_x, out_cmd = np.empty((steps, len(x))), np.empty((steps, vehicle.rotors))
-    _fly(x, eta, vehicle.vehicle(), gains.gains(vehicle), 1.0 / rate_hz, p_d, v_d, a_d, yaw_d, out_x, out_cmd)
-    return out_x, out_cmd
+    eta = np.ones(vehicle.rotors) if eta is None else np.array(eta, float)
+    fail_rotor, fail_step, fail_eta = -1, -1, 1.0
+    if failure is not None:
+        failure.check(vehicle, steps / rate_hz)
+        fail_rotor, fail_step, fail_eta = failure.rotor, int(round(failure.time_s * rate_hz)), failure.efficiency
+    out_x, out_cmd, out_eta = (np.empty((steps, len(x))), np.empty((steps, vehicle.rotors)),
+                               np.empty((steps, vehicle.rotors)))
+    _fly(x, eta, vehicle.vehicle(), gains.gains(vehicle), 1.0 / rate_hz, p_d, v_d, a_d, yaw_d, fail_rotor, fail_step,
+         float(fail_eta), out_x, out_cmd, out_eta)
+    return (out_x, out_cmd, out_eta) if return_eta else (out_x, out_cmd)

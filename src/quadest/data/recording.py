@@ -126,7 +126,8 @@ class Recording:
             a = self._array(name, value, width=len(axes), n=n)
             self._check_nan_rows(name, a)
             if name in ("true_q", "ref_q"):
-                norm = np.linalg.norm(a, axis=1)
+                with np.errstate(over="ignore"):  # a damaged file's 1e300 gives inf: refused below
+                    norm = np.linalg.norm(a, axis=1)
                 bad = np.isfinite(norm) & (np.abs(norm - 1.0) > 1e-6)
                 if bad.any():
                     i = _first_row(bad)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from quadest.control import circle_reference, fly_se3, hover_reference
+from quadest.control import Failure, circle_reference, fly_se3, hover_reference
 from quadest.data.recording import Recording
 from quadest.models.multirotor import MultirotorParams, derivatives
 from quadest.rotation import euler_to_quat
@@ -17,10 +17,11 @@ REFERENCES = ("hover", "circle")
 
 
 def fly(reference: str = "circle", *, duration: float = 20.0, seed: int = 0, preset: str = "bebop2",
-        vehicle: MultirotorParams | None = None) -> tuple[Recording, np.ndarray]:
+        vehicle: MultirotorParams | None = None, failure: Failure | None = None) -> tuple[Recording, np.ndarray]:
     """Fly ``reference`` (``hover``: hold the origin from a disturbed start; ``circle``: a 1 m
-    circle at 0.2 Hz) with the SE(3) controller on the true state at 1 kHz, and sample the
-    ``preset``'s sensors from the flight. Returns the recording and the states at its rows."""
+    circle at 0.2 Hz) with the SE(3) controller on the true state at 1 kHz, a rotor ``failure``
+    striking when due, and sample the ``preset``'s sensors from the flight. Returns the
+    recording and the states at its rows."""
     if reference not in REFERENCES:
         raise ValueError(f"unknown reference {reference!r}; references: {', '.join(REFERENCES)}")
     if not (np.isfinite(duration) and 0 < duration <= 3600):
@@ -41,13 +42,15 @@ def fly(reference: str = "circle", *, duration: float = 20.0, seed: int = 0, pre
     else:
         ref = circle_reference(t)
         x0[0], x0[4] = 1.0, 2 * np.pi * 0.2
-    states, cmds = fly_se3(x0, ref, vehicle=vehicle, rate_hz=SIM_RATE_HZ)
+    states, cmds, etas = fly_se3(x0, ref, vehicle=vehicle, rate_hz=SIM_RATE_HZ, failure=failure, return_eta=True)
     rows = np.arange(int(round(step)) - 1, steps, int(round(step)))
-    eta = np.ones(vehicle.rotors)
+    eta = np.ascontiguousarray(etas[rows])
     dx, thrust = np.empty_like(states[rows]), np.empty((len(rows), vehicle.rotors))
     derivatives(np.ascontiguousarray(states[rows]), np.ascontiguousarray(cmds[rows]), eta, vehicle.vehicle(), dx,
                 thrust)
     meta = {"scenario": f"flown {reference}", "preset": preset, "controller": "se3 (true state)"}
+    if failure is not None:
+        meta["failure"] = {"rotor": failure.rotor, "time_s": failure.time_s, "efficiency": failure.efficiency}
     rec = flown_recording(t[rows] - t[rows][0], states[rows], dx, thrust, vehicle, cfg=cfg, seed=seed, eta=eta,
                           meta=meta)
     return rec, states[rows]

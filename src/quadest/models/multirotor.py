@@ -213,10 +213,11 @@ def fly_open_loop(x, cmd, eta, V, h, steps, out):
 
 
 @njit(cache=True)
-def derivatives(states, cmds, eta, V, dx, thrusts):
-    """``ẋ`` and the rotor thrusts along a flight (one row per step), in place."""
+def derivatives(states, cmds, etas, V, dx, thrusts):
+    """``ẋ`` and the rotor thrusts along a flight (one row per step, with that step's rotor
+    efficiencies), in place."""
     F = np.empty(3)
     M = np.empty(3)
     for k in range(states.shape[0]):
-        derivative(states[k], cmds[k], eta, V, dx[k])
-        rotor_forces(states[k], eta, V, F, M, thrusts[k])
+        derivative(states[k], cmds[k], etas[k], V, dx[k])
+        rotor_forces(states[k], etas[k], V, F, M, thrusts[k])

@@ -57,7 +57,8 @@ def resample_quat(t_src, q_src, t, max_gap: float = 0.1):
 
     t_src = np.asarray(t_src, float)
     q_src = np.asarray(q_src, float)
-    ok = np.isfinite(q_src).all(axis=1) & (np.linalg.norm(q_src, axis=1) > 0.5)
+    with np.errstate(over="ignore", invalid="ignore"):  # damaged values: inf norms are not > 0.5 usable rows
+        ok = np.isfinite(q_src).all(axis=1) & (np.linalg.norm(q_src, axis=1) > 0.5)
     t_src, q_src = t_src[ok], quat_normalize(q_src[ok])
     keep = np.concatenate([[True], np.diff(t_src) > 0])
     t_src, q_src = t_src[keep], q_src[keep]

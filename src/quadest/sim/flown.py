@@ -19,7 +19,8 @@ def flown_recording(t, states, derivs, thrusts, vehicle: MultirotorParams, *, cf
     """A recording of a flight: ``states``, their derivatives and the rotor thrusts at the IMU
     instants ``t`` (one row each, at ``cfg.imu.rate_hz``). ``cfg`` gives the sensors (default:
     the bebop2 preset's); the vehicle's own mass, thrust and rotors set the vibration load and
-    the motor current that disturbs the magnetometer."""
+    the motor current that disturbs the magnetometer. ``eta``: the rotor efficiencies, one row
+    per sample or one for all (default: all rotors intact)."""
     cfg = (cfg or build_config("bebop2")).validate()
     t = np.asarray(t, float)
     states, derivs, thrusts = (np.asarray(a, float) for a in (states, derivs, thrusts))
@@ -27,13 +28,14 @@ def flown_recording(t, states, derivs, thrusts, vehicle: MultirotorParams, *, cf
     if states.shape[0] != n or derivs.shape != states.shape or thrusts.shape != (n, vehicle.rotors):
         raise ValueError("flown_recording: t, states, derivs and thrusts must have one row per IMU sample")
     eta = np.ones(vehicle.rotors) if eta is None else np.asarray(eta, float)
-    active = max(1, int((eta > 0).sum()))
+    eta = np.broadcast_to(eta, (n, vehicle.rotors))
+    active = np.maximum(1, (eta > 0).sum(axis=1))
     hover_thrust = vehicle.mass_kg * vehicle.gravity / vehicle.rotors
     load = thrusts.sum(axis=1) / active / hover_thrust
     thrust_to_weight = vehicle.rotors * vehicle.k_f * vehicle.omega_max ** 2 / (vehicle.mass_kg * vehicle.gravity)
     truth = Truth(t=t, q=states[:, 6:10], gyr=states[:, 10:13], gyr_dot=derivs[:, 10:13], pos=states[:, 0:3],
                   vel=states[:, 3:6], acc_n=derivs[:, 3:6], current=motor_current(load, active, thrust_to_weight),
-                  rotor_load=load, meta={"flown": True, "rotor_efficiency": eta.tolist()})
+                  rotor_load=load, meta={"flown": True, "rotor_efficiency_end": eta[-1].tolist()})
     rng = [np.random.default_rng(s) for s in np.random.SeedSequence(int(seed)).spawn(4)]
     k = np.round((t - t[0]) * cfg.imu.rate_hz).astype(np.int64)
     has_mag = S.mag_rows(k, cfg.imu.rate_hz, cfg.mag.rate_hz)
