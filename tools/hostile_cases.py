@@ -22,6 +22,7 @@ import numpy as np
 
 from quadest.cli.main import main
 from quadest.data import Recording, save_recording
+from quadest.data.files import write_json
 from quadest.sim import simulate
 
 
@@ -198,7 +199,7 @@ def main_(argv=None) -> int:
     bad = sum(not r["as promised"] for r in results)
     print(f"\n{len(results) - bad} of {len(results)} cases as promised")
     if args.json:
-        Path(args.json).write_text(json.dumps(results, indent=2))
+        write_json(args.json, results)
     return 1 if bad else 0
 
 
