@@ -77,7 +77,8 @@ def test_a_flown_recording_is_read_by_every_estimator(tmp_path):
     from quadest.filters import make_filter
     from quadest.flight import fly
 
-    rec, states = fly("circle", duration=20.0, seed=3)
+    flight = fly("trajectory", duration=20.0, seed=3)
+    rec, states = flight.recording, flight.states
     assert rec.meta["source"] == "quadest fly" and rec.imu_rate_hz() == pytest.approx(500.0)
     np.testing.assert_allclose(rec.true_q, states[:, 6:10])
     back = load_recording(save_recording(rec, tmp_path / "flown.csv"))  # with the unit checks
@@ -130,6 +131,6 @@ def test_a_flight_with_a_damaged_rotor_is_recorded():
     from quadest.control import Failure
     from quadest.flight import fly
 
-    rec, _ = fly("hover", duration=4.0, seed=1, failure=Failure(rotor=2, time_s=2.0, efficiency=0.6))
+    rec = fly("hover", duration=4.0, seed=1, failure=Failure(rotor=2, time_s=2.0, efficiency=0.6)).recording
     assert rec.meta["failure"] == {"rotor": 2, "time_s": 2.0, "efficiency": 0.6}
     assert np.isfinite(rec.acc).all() and len(rec) == 2000

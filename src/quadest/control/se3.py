@@ -17,7 +17,9 @@ With ``e_p = p − p_d``, ``e_v = v − v_d`` and gains per unit mass (as RotorP
 Allocation: rotor thrusts ``t = A⁻¹ [T, M_x, M_y, M_z]`` with, for rotor i at ``r_i`` turning
 in sense ``s_i``, ``T = Σ t_i``, ``M_x = −Σ r_i,y t_i``, ``M_y = Σ r_i,x t_i``,
 ``M_z = −Σ s_i (k_m/k_f) t_i`` (the moments of thrusts along −z, and the reaction torques);
-then ``Ω_i = √(max(t_i, 0)/k_f)``. ``A⁻¹`` is computed once (:func:`allocation`).
+then ``Ω_i = √(max(t_i, 0)/k_f)``. ``A⁻¹`` is computed once (:func:`allocation`). When the
+rotors cannot give all of it, the yaw moment yields first: ``M_z`` is scaled down (to zero if
+need be) until every rotor's thrust lies within ``[0, k_f Ω_max²]``.
 """
 from __future__ import annotations
 
@@ -31,7 +33,7 @@ from quadest.models.multirotor import MultirotorParams
 from quadest.records import check, describe, param
 from quadest.rotation.kernels import rot_matrix
 
-Gains = namedtuple("Gains", ["k_p", "k_v", "k_R", "k_w", "alloc_inv", "k_f"])
+Gains = namedtuple("Gains", ["k_p", "k_v", "k_R", "k_w", "alloc_inv", "k_f", "t_max"])
 """What the compiled controller reads (built by :meth:`SE3Params.gains`)."""
 
 
@@ -55,7 +57,7 @@ class SE3Params:
 
     def gains(self, vehicle: MultirotorParams) -> Gains:
         return Gains(np.asarray(self.k_p, float), np.asarray(self.k_v, float), float(self.k_R), float(self.k_w),
-                     allocation(vehicle), float(vehicle.k_f))
+                     allocation(vehicle), float(vehicle.k_f), float(vehicle.k_f * vehicle.omega_max ** 2))
 
     @classmethod
     def describe(cls) -> list[dict]:
@@ -115,6 +117,16 @@ def se3_command(x, p_d, v_d, a_d, yaw_d, G, V, cmd):
     M0 = J0 * (-G.k_R * eR0 - G.k_w * w0) + (w1 * J2 * w2 - w2 * J1 * w1)
     M1 = J1 * (-G.k_R * eR1 - G.k_w * w1) + (w2 * J0 * w0 - w0 * J2 * w2)
     M2 = J2 * (-G.k_R * eR2 - G.k_w * w2) + (w0 * J1 * w1 - w1 * J0 * w0)
+    # yaw yields first: the largest share of M_z (down to none) that keeps every rotor within
+    # [0, t_max] given thrust, roll and pitch (as autopilots' mixers do)
+    lam = 1.0
     for i in range(4):
-        t = G.alloc_inv[i, 0] * thrust + G.alloc_inv[i, 1] * M0 + G.alloc_inv[i, 2] * M1 + G.alloc_inv[i, 3] * M2
+        base = G.alloc_inv[i, 0] * thrust + G.alloc_inv[i, 1] * M0 + G.alloc_inv[i, 2] * M1
+        yaw = G.alloc_inv[i, 3] * M2
+        if base + lam * yaw < 0.0 and yaw < 0.0:
+            lam = max(0.0, min(lam, -base / yaw))
+        elif base + lam * yaw > G.t_max and yaw > 0.0:
+            lam = max(0.0, min(lam, (G.t_max - base) / yaw))
+    for i in range(4):
+        t = G.alloc_inv[i, 0] * thrust + G.alloc_inv[i, 1] * M0 + G.alloc_inv[i, 2] * M1 + G.alloc_inv[i, 3] * M2 * lam
         cmd[i] = np.sqrt(max(t, 0.0) / G.k_f)

@@ -4,6 +4,8 @@ sensor models as the prescribed scenarios (:func:`quadest.sim.simulator.sample_s
 every command (estimate, compare, recover, calibrate) reads a flown flight."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from quadest.data.recording import Recording
@@ -15,12 +17,18 @@ from quadest.sim.truth import Truth, motor_current
 
 
 def flown_recording(t, states, derivs, thrusts, vehicle: MultirotorParams, *, cfg: SimConfig | None = None,
-                    seed: int = 0, eta=None, meta: dict | None = None) -> Recording:
+                    seed: int = 0, eta=None, meta: dict | None = None, readings=None,
+                    processes=None) -> Recording:
     """A recording of a flight: ``states``, their derivatives and the rotor thrusts at the IMU
     instants ``t`` (one row each, at ``cfg.imu.rate_hz``). ``cfg`` gives the sensors (default:
     the bebop2 preset's); the vehicle's own mass, thrust and rotors set the vibration load and
     the motor current that disturbs the magnetometer. ``eta``: the rotor efficiencies, one row
-    per sample or one for all (default: all rotors intact)."""
+    per sample or one for all (default: all rotors intact). ``readings``: ``(gyr, acc, mag)``
+    sampled in a closed loop from the same flight and seed (:mod:`quadest.sim.inloop`); they
+    must agree with what this function samples to rounding (else ValueError: the two sensor
+    implementations have parted), and they are what the recording holds, as the estimator in
+    the loop read them. ``processes``: the sensor draws the loop made (for the rows it
+    planned; a run that ended early uses their first rows), instead of drawing them from ``seed``."""
     cfg = (cfg or build_config("bebop2")).validate()
     t = np.asarray(t, float)
     states, derivs, thrusts = (np.asarray(a, float) for a in (states, derivs, thrusts))
@@ -40,5 +48,22 @@ def flown_recording(t, states, derivs, thrusts, vehicle: MultirotorParams, *, cf
     k = np.round((t - t[0]) * cfg.imu.rate_hz).astype(np.int64)
     has_mag = S.mag_rows(k, cfg.imu.rate_hz, cfg.mag.rate_hz)
     info = {"source": "quadest fly", "seed": int(seed), **(meta or {})}
-    rec, _, _ = sample_sensors(truth, cfg, np.ones(n, bool), has_mag, rng, info)
+    rec, _, _ = sample_sensors(truth, cfg, np.ones(n, bool), has_mag, rng, info, processes=processes)
+    if readings is not None:
+        loop = {}
+        for name, got in zip(("gyr", "acc", "mag"), readings):
+            ref = getattr(rec, name)
+            got = np.asarray(got, float)
+            same = np.isnan(ref) == np.isnan(got)
+            diff = np.abs(np.nan_to_num(got) - np.nan_to_num(ref))
+            if got.shape != ref.shape or not same.all() or (diff > READINGS_RTOL * (1.0 + np.abs(np.nan_to_num(ref)))).any():
+                raise ValueError(f"flown_recording: the closed loop's {name} readings differ from the sensor model's "
+                                 f"(largest difference {np.nanmax(diff) if diff.size else 0:.3g})")
+            loop[name] = got
+        rec = replace(rec, **loop)
     return rec
+
+
+READINGS_RTOL = 1e-9
+"""How far a closed loop's readings may be from the batch sensor model's: rounding only (the
+sums are the same, in the same order, except the 3x3 matrix products)."""

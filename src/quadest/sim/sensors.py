@@ -51,16 +51,28 @@ def random_walk(t, std, rng):
     return np.cumsum(rng.normal(size=(len(t), 3)) * (std * np.sqrt(dt))[:, None], axis=0)
 
 
+def inertial_processes(t, model: Gyroscope | Accelerometer, errors, rng):
+    """What an inertial sensor adds that does not depend on the motion, drawn at the instants
+    ``t``: the bias at each sample (constant part plus random walk) and the white noise."""
+    bias = errors["bias"] + random_walk(t, model.bias_rw_std, rng)
+    noise = rng.normal(0.0, model.noise_std, (len(t), 3)) if model.noise_std > 0 else np.zeros((len(t), 3))
+    return bias, noise
+
+
+def apply_inertial(true, matrix, bias, noise, limit, extra=None):
+    """``clip(M true + bias + extra + noise, ±limit)`` over rows (the order of the sums is the
+    one :func:`quadest.sim.inloop` keeps sample by sample)."""
+    out = true @ matrix.T + bias
+    if extra is not None:
+        out = out + extra
+    return np.clip(out + noise, -limit, limit)
+
+
 def inertial(true, t, model: Gyroscope | Accelerometer, errors, rng, extra=None):
     """Apply scale/misalignment, bias, random walk, extra terms, noise and saturation.
     Returns the readings and the bias at each sample (constant part plus random walk)."""
-    bias = errors["bias"] + random_walk(t, model.bias_rw_std, rng)
-    out = true @ errors["matrix"].T + bias
-    if extra is not None:
-        out = out + extra
-    if model.noise_std > 0:
-        out = out + rng.normal(0.0, model.noise_std, out.shape)
-    return np.clip(out, -model.range, model.range), bias
+    bias, noise = inertial_processes(t, model, errors, rng)
+    return apply_inertial(true, errors["matrix"], bias, noise, model.range, extra), bias
 
 
 def specific_force_at_imu(q, acc_n, w, wdot, lever, gravity):
@@ -70,23 +82,34 @@ def specific_force_at_imu(q, acc_n, w, wdot, lever, gravity):
     return f + np.cross(wdot, r) + np.cross(w, np.cross(w, r))
 
 
-def vibration(t, rotor_load, rotor_hz_hover, amp, rng):
-    """Rotor tone: frequency ``f_hover √load``, amplitude ``amp · load`` per axis."""
+def vibration_offsets(amp, rng) -> np.ndarray:
+    """The tone's phase offset per axis (drawn only when there is a tone)."""
+    return rng.uniform(0, 2 * np.pi, 3) if np.asarray(amp, float).any() else np.zeros(3)
+
+
+def vibration(t, rotor_load, rotor_hz_hover, amp, rng=None, offsets=None):
+    """Rotor tone: frequency ``f_hover √load``, amplitude ``amp · load`` per axis; the phase
+    offsets drawn from ``rng`` or given."""
     amp = np.asarray(amp, float)
     if not amp.any():
         return np.zeros((len(t), 3))
     freq = rotor_hz_hover * np.sqrt(np.maximum(rotor_load, 0.0))
     phase = 2 * np.pi * np.concatenate([[0.0], np.cumsum(0.5 * (freq[1:] + freq[:-1]) * np.diff(t))])
-    offs = rng.uniform(0, 2 * np.pi, 3)
+    offs = vibration_offsets(amp, rng) if offsets is None else offsets
     return np.sin(phase[:, None] + offs) * amp * rotor_load[:, None]
 
 
-def magnetometer(q, current, env: Environment, model: Magnetometer, rng):
+def mag_noise(n: int, model: Magnetometer, rng) -> np.ndarray:
+    """White noise of ``n`` magnetometer samples."""
+    return rng.normal(0.0, model.noise_std, (n, 3)) if model.noise_std > 0 else np.zeros((n, 3))
+
+
+def magnetometer(q, current, env: Environment, model: Magnetometer, rng=None, noise=None):
+    """``clip(S Rᵀ B_n + b_hard + k_motor current + noise)``; the noise drawn from ``rng`` or given."""
     B_b = quat_rotate(quat_conj(q), earth_field(env))
     m = B_b @ np.array(model.soft_iron, float).T + np.array(model.hard_iron, float)
     m = m + np.outer(current, np.array(model.motor_coef, float))
-    if model.noise_std > 0:
-        m = m + rng.normal(0.0, model.noise_std, m.shape)
+    m = m + (mag_noise(len(q), model, rng) if noise is None else noise)
     return np.clip(m, -model.range, model.range)
 
 

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 
@@ -114,25 +115,52 @@ def simulate(scenario: str, preset: str = "bebop2", seed: int = 0, duration: flo
     return rec
 
 
-def sample_sensors(truth: Truth, cfg: SimConfig, keep, has_mag, rngs, meta: dict):
+Processes = namedtuple("Processes", ["gyro_errors", "acc_errors", "gyr_bias", "gyr_noise", "acc_bias", "acc_noise",
+                                     "vib_offsets", "mag_noise"])
+"""Every sensor error that does not depend on the motion, drawn for one run (:func:`draw_processes`)."""
+
+
+def draw_processes(cfg: SimConfig, t, has_mag, rngs) -> Processes:
+    """Draw a run's sensor errors at the IMU instants ``t`` (magnetometer noise on the rows
+    ``has_mag``), always in the same order from the four generators ``(gyro, acc, mag,
+    vibration)``: the sensors sampled from a whole trajectory (:func:`sample_sensors`) and
+    sample by sample in a closed loop (:mod:`quadest.sim.inloop`) read the same draws."""
+    rng_gyro, rng_acc, rng_mag, rng_vib = rngs
+    g_err = S.draw_errors(cfg.gyro, rng_gyro)
+    a_err = S.draw_errors(cfg.acc, rng_acc)
+    gyr_bias, gyr_noise = S.inertial_processes(t, cfg.gyro, g_err, rng_gyro)
+    vib_offsets = S.vibration_offsets(cfg.acc.vibration_amp, rng_vib)
+    acc_bias, acc_noise = S.inertial_processes(t, cfg.acc, a_err, rng_acc)
+    mag_noise = S.mag_noise(int(np.count_nonzero(has_mag)), cfg.mag, rng_mag)
+    return Processes(g_err, a_err, gyr_bias, gyr_noise, acc_bias, acc_noise, vib_offsets, mag_noise)
+
+
+def sample_sensors(truth: Truth, cfg: SimConfig, keep, has_mag, rngs, meta: dict, processes: Processes | None = None):
     """The sensors of ``cfg`` sampled from a true motion (prescribed or flown) at its instants:
     IMU with lever arm, errors, vibration and saturation, magnetometer on the rows ``has_mag``;
     rows ``keep`` are recorded (the others were dropped). Returns the recording and the true
-    gyro and accelerometer biases over time (all rows)."""
-    rng_gyro, rng_acc, rng_mag, rng_vib = rngs
+    gyro and accelerometer biases over time (all rows). ``processes``: draws made beforehand
+    for at least these rows (a closed loop that ended early), used instead of ``rngs``."""
     t = truth.t
     rate = cfg.imu.rate_hz
-    g_err = S.draw_errors(cfg.gyro, rng_gyro)
-    a_err = S.draw_errors(cfg.acc, rng_acc)
+    if processes is None:
+        pr = draw_processes(cfg, t, has_mag, rngs)
+    else:
+        n, m = len(t), int(np.count_nonzero(has_mag))
+        pr = processes._replace(gyr_bias=processes.gyr_bias[:n], gyr_noise=processes.gyr_noise[:n],
+                                acc_bias=processes.acc_bias[:n], acc_noise=processes.acc_noise[:n],
+                                mag_noise=processes.mag_noise[:m])
+    g_err, a_err = pr.gyro_errors, pr.acc_errors
     f_imu = S.specific_force_at_imu(truth.q, truth.acc_n, truth.gyr, truth.gyr_dot, cfg.acc.lever_arm,
                                     cfg.environment.gravity)
-    gyr, gyr_bias = S.inertial(truth.gyr, t, cfg.gyro, g_err, rng_gyro)
-    vib = S.vibration(t, truth.rotor_load, cfg.vehicle.rotor_hz_hover, cfg.acc.vibration_amp, rng_vib)
-    acc, acc_bias = S.inertial(f_imu, t, cfg.acc, a_err, rng_acc, extra=vib)
+    gyr = S.apply_inertial(truth.gyr, g_err["matrix"], pr.gyr_bias, pr.gyr_noise, cfg.gyro.range)
+    vib = S.vibration(t, truth.rotor_load, cfg.vehicle.rotor_hz_hover, cfg.acc.vibration_amp, offsets=pr.vib_offsets)
+    acc = S.apply_inertial(f_imu, a_err["matrix"], pr.acc_bias, pr.acc_noise, cfg.acc.range, extra=vib)
+    gyr_bias, acc_bias = pr.gyr_bias, pr.acc_bias
     mag = np.full((len(t), 3), np.nan)
     if has_mag.any():
         mag[has_mag] = S.magnetometer(truth.q[has_mag], truth.current[has_mag], cfg.environment,
-                                      cfg.mag, rng_mag)
+                                      cfg.mag, noise=pr.mag_noise)
 
     sat = np.abs(truth.gyr @ g_err["matrix"].T) > cfg.gyro.range
     meta = {

@@ -1,0 +1,248 @@
+"""Fault-tolerant control after the complete loss of one rotor (issue #13): the reduced-attitude
+strategy of Mueller & D'Andrea, "Stability and control of a quadrocopter despite the complete
+loss of one, two, or three propellers" (ICRA 2014) and "Relaxed hover solutions for
+multicopters" (2016), on quadest's conventions (NED, FRD, ``q_nb``).
+
+The vehicle gives up its heading. It spins about a *primary axis* ``n`` fixed in the body, and
+the controller keeps ``n`` pointing up; the spin rate is whatever the yaw torques balance to.
+
+**Relaxed hover** (the controller's own model: rigid body, thrust ``k_f Ω²``, reaction torque
+``k_m Ω²``, damping ``d ⊙ ω`` with a lumped yaw damping). At a steady spin ``ω = ω̄ n`` with
+``R n = −e_z`` (up):
+
+- force along ``n``: ``T (−n_z) = m g`` (the horizontal part of the thrust turns with the
+  vehicle: it draws a small circle);
+- moments (body): ``Σ_j [−r_jy t_j, r_jx t_j, −s_j κ t_j] − d ⊙ ω = ω × J ω`` with ``κ = k_m/k_f``
+  (the rotors' moments and reaction torques, and the damping, balance the gyroscopic moment).
+
+Three rotors remain, so with ``n`` (two unknowns), the spin ``ω̄`` and three thrusts the four
+equations leave two choices. As Mueller & D'Andrea (2014, section V) the two rotors beside the
+lost one carry equal thrust ``t_a`` and the opposite one ``ρ t_a``; ``ρ`` is chosen
+(:class:`FtcParams`). :func:`relaxed_hover` solves the four equations.
+
+**Control** (here the inner loop is a dynamic inversion of the same model, not the LQR of the
+paper; gains are chosen, see :class:`FtcParams`). With the estimated attitude ``R̂``, the
+measured rate ``ω`` and the position and velocity estimates:
+
+- desired specific force ``f_d = −k_p e_p − k_v e_v + a_ref − g e_z`` (tilt limited), up
+  direction ``d = f_d/‖f_d‖`` and in the body ``d_b = R̂ᵀ d``;
+- collective thrust ``T = m ‖f_d‖ / (−d_b,z)`` (its component along ``d`` carries ``m ‖f_d‖``);
+- desired rate ``ω_d = k_n e + k_i ∫ e dt + (ω · d_b) d_b`` with the axis error ``e = n × d_b``:
+  the first terms turn ``n`` towards ``d_b`` (``ḋ_b = d_b × ω``; the integral, in the body frame
+  where the error of a steady spin stands still, removes what the model leaves out), the last
+  leaves the spin about ``d_b`` free;
+- moment ``M = J k_ω (ω_d − ω) + ω × J ω + d ⊙ ω`` of which the x and y components are kept;
+- allocation: ``[T, M_x, M_y] = A₃ t`` for the three remaining rotors, ``t`` clipped to what the
+  rotors can give, ``Ω = √(t/k_f)``. The yaw moment is not controlled: it sets the spin.
+
+In the relaxed hover ``d_b = n`` and ``ω ∥ n``, so ``ω_d = ω`` and the controller supplies
+exactly the gyroscopic moment the equilibrium needs.
+"""
+from __future__ import annotations
+
+from collections import namedtuple
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+from scipy.optimize import fsolve
+
+from quadest.models.multirotor import MultirotorParams, fly_open_loop
+from quadest.records import check, describe, param
+from quadest.rotation.kernels import rot_matrix
+
+FtcGains = namedtuple("FtcGains", ["n_b", "k_n", "k_i", "k_w", "k_p", "k_v", "max_tilt", "inertia", "damping",
+                                   "alloc_inv", "active", "failed", "mass", "gravity", "k_f", "t_max"])
+"""What the compiled controller reads (built by :meth:`FtcParams.gains`)."""
+
+
+@dataclass(frozen=True)
+class FtcParams:
+    rho: float = param(0.25, "-", "thrust of the rotor opposite the lost one over that of its neighbours",
+                       "chosen: leaves that rotor room to push and to relax (Mueller & D'Andrea 2014 leave "
+                       "it free); a smaller ratio spins faster and tilts less", bounds="[0, 1]")
+    k_n: float = param(12.0, "1/s", "primary-axis gain (rate commanded per unit of axis error)",
+                       "chosen: about a quarter of k_w", bounds="(0, 1e3]")
+    k_i: float = param(4.0, "1/s²", "integral gain on the primary-axis error (body frame)",
+                       "chosen: a third of k_n; removes the steady axis error the controller's model leaves "
+                       "(inflow and rotor drag it does not know: 3.4° without it)", bounds="[0, 1e3]")
+    k_w: float = param(50.0, "1/s", "rate gain (angular acceleration per rate error)",
+                       "chosen: above the spin rate (15-25 rad/s), below the motors' 1/τ", bounds="(0, 1e4]")
+    k_p: tuple = param((2.0, 2.0, 6.0), "1/s²", "position gain (north, east, down)",
+                       "chosen: a third of the nominal horizontal gains (the thrust axis turns with the spin)")
+    k_v: tuple = param((2.5, 2.5, 5.0), "1/s", "velocity gain (north, east, down)", "chosen: about critical damping")
+    max_tilt_deg: float = param(25.0, "deg", "largest tilt of the commanded up direction",
+                                "chosen: keeps thrust for the height", bounds="(0, 80]")
+    yaw_damping: float | None = param(None, "N m s", "the controller's lumped yaw damping (None: fitted from "
+                                      "a simulated spin, fit_yaw_damping)", "fitted: the controller's model")
+
+    def __post_init__(self):
+        check(self, "ftc")
+        for name in ("k_p", "k_v"):
+            v = np.asarray(getattr(self, name), float)
+            if v.shape != (3,) or not np.isfinite(v).all() or (v < 0).any():
+                raise ValueError(f"ftc: {name} must be three non-negative numbers, got {getattr(self, name)!r}")
+        if self.yaw_damping is not None and not (np.isfinite(self.yaw_damping) and self.yaw_damping > 0):
+            raise ValueError(f"ftc: yaw_damping must be a positive number, got {self.yaw_damping!r}")
+
+    def model(self, vehicle: MultirotorParams) -> "FtcModel":
+        d_z = self.yaw_damping if self.yaw_damping is not None else fit_yaw_damping(vehicle, self.rho)
+        return FtcModel.of(vehicle, d_z)
+
+    def gains(self, vehicle: MultirotorParams, failed: int) -> FtcGains:
+        model = self.model(vehicle)
+        hover = relaxed_hover(model, failed, self.rho)
+        active = np.array([j for j in range(vehicle.rotors) if j != failed], np.int64)
+        pos = np.asarray(vehicle.rotor_pos, float)[active]
+        A = np.vstack([np.ones(3), -pos[:, 1], pos[:, 0]])
+        return FtcGains(hover.axis, float(self.k_n), float(self.k_i), float(self.k_w), np.asarray(self.k_p, float),
+                        np.asarray(self.k_v, float), float(np.radians(self.max_tilt_deg)), np.asarray(model.inertia),
+                        np.asarray(model.damping), np.linalg.inv(A), active, int(failed), float(vehicle.mass_kg),
+                        float(vehicle.gravity), float(vehicle.k_f), float(vehicle.k_f * vehicle.omega_max ** 2))
+
+    @classmethod
+    def describe(cls) -> list[dict]:
+        return describe(cls)
+
+
+@dataclass(frozen=True)
+class FtcModel:
+    """The fault-tolerant controller's model of the vehicle: what it assumes, not the truth."""
+
+    mass: float
+    gravity: float
+    inertia: tuple
+    damping: tuple  # (d_x, d_y, d_z): rotational damping, the yaw one lumped (rotor drag included)
+    rotor_pos: tuple
+    spin: tuple
+    kappa: float  # k_m / k_f
+
+    @classmethod
+    def of(cls, v: MultirotorParams, yaw_damping: float) -> "FtcModel":
+        return cls(v.mass_kg, v.gravity, tuple(v.inertia), (v.damping[0], v.damping[1], float(yaw_damping)),
+                   tuple(map(tuple, v.rotor_pos)), tuple(v.spin), v.k_m / v.k_f)
+
+
+RelaxedHover = namedtuple("RelaxedHover", ["axis", "spin", "thrusts", "tilt_deg"])
+"""A relaxed hover: primary axis ``n`` (body, unit, pointing up), spin ``ω̄`` (rad/s, signed:
+``ω = ω̄ n``), rotor thrusts (N, the lost one 0) and tilt (deg: the angle between the thrust axis
+``−e_z`` and the vertical ``n``)."""
+
+
+def neighbours(rotor_pos, failed: int) -> tuple[list[int], int]:
+    """The two rotors nearest the lost one, and the one farthest from it."""
+    pos = np.asarray(rotor_pos, float)
+    dist = np.linalg.norm(pos - pos[failed], axis=1)
+    order = [j for j in np.argsort(dist) if j != failed]
+    return [int(order[0]), int(order[1])], int(order[-1])
+
+
+def relaxed_hover(model: FtcModel, failed: int, rho: float) -> RelaxedHover:
+    """Solve the relaxed hover of ``model`` after the loss of rotor ``failed`` (module doc)."""
+    pos = np.asarray(model.rotor_pos, float)
+    if len(pos) != 4:
+        raise ValueError(f"the relaxed hover here is for quadrotors, the vehicle has {len(pos)} rotors")
+    adj, opp = neighbours(pos, failed)
+    spin = np.asarray(model.spin, float)
+    J, d = np.asarray(model.inertia, float), np.asarray(model.damping, float)
+    share = np.zeros(4)
+    share[adj], share[opp] = 1.0, rho
+
+    def residual(z):
+        t_a, nx, ny, wbar = z
+        nz = -np.sqrt(max(1.0 - nx * nx - ny * ny, 1e-12))
+        n = np.array([nx, ny, nz])
+        t = t_a * share
+        w = wbar * n
+        M = np.array([-(pos[:, 1] * t).sum(), (pos[:, 0] * t).sum(), -(spin * model.kappa * t).sum()]) - d * w
+        return np.concatenate([[t.sum() * -nz - model.mass * model.gravity], M - np.cross(w, J * w)])
+
+    t0 = model.mass * model.gravity / (2.0 + rho)
+    w0 = -(spin * model.kappa * t0 * share).sum() / d[2]  # yaw balance with n = −e_z: ω_z = −ω̄
+    best = None
+    for guess in ((-0.05, -0.05), (0.05, 0.05), (-0.05, 0.05), (0.05, -0.05)):
+        z, info, ok, _ = fsolve(residual, [t0, guess[0], guess[1], -w0], full_output=True, xtol=1e-12)
+        if ok == 1 and np.abs(residual(z)).max() < 1e-9 and z[0] > 0 and z[1] ** 2 + z[2] ** 2 < 1:
+            if best is None or z[1] ** 2 + z[2] ** 2 < best[1] ** 2 + best[2] ** 2:
+                best = z
+    if best is None:
+        raise ValueError(f"no relaxed hover found for the loss of rotor {failed} with rho = {rho}")
+    t_a, nx, ny, wbar = best
+    n = np.array([nx, ny, -np.sqrt(1.0 - nx * nx - ny * ny)])
+    return RelaxedHover(n, float(wbar), t_a * share, float(np.degrees(np.arccos(-n[2]))))
+
+
+def fit_yaw_damping(vehicle: MultirotorParams, rho: float = 0.25, seconds: float = 4.0) -> float:
+    """The lumped yaw damping of the controller's model, identified from a simulated spin of the
+    vehicle model: rotors held at the thrusts of a relaxed hover with ``rho`` (intact rotors,
+    diagonal pairs unequal so the net reaction torque is the relaxed hover's, the roll and pitch
+    moments zero, total thrust the weight), the steady yaw rate measured after ``seconds``;
+    ``d_z = yaw torque / yaw rate``. What the fit leaves out (rotor drag at other speeds,
+    the orbit) is the model's error."""
+    if vehicle.rotors != 4:
+        raise ValueError("fit_yaw_damping: a quadrotor is needed")
+    spin = np.asarray(vehicle.spin, float)
+    kappa = vehicle.k_m / vehicle.k_f
+    w = vehicle.mass_kg * vehicle.gravity
+    t_a = w / (2.0 + rho)
+    torque = kappa * t_a * (2.0 - rho)  # the relaxed hover's net reaction torque (rotor 0 lost)
+    # two rotors of each sense, thrusts t_plus (sense +1) and t_minus: 2 t_plus + 2 t_minus = w and a
+    # reaction torque −κ (2 t_plus − 2 t_minus) = torque about +z
+    plus = spin > 0
+    t_plus = (w / 2.0 - torque / (2.0 * kappa)) / 2.0 if plus.sum() == 2 else None
+    if t_plus is None or t_plus <= 0:
+        raise ValueError("fit_yaw_damping: the layout needs two rotors of each sense")
+    t_minus = w / 2.0 - t_plus
+    thrust = np.where(plus, t_plus, t_minus)
+    x = vehicle.hover_state()
+    x[13:] = np.sqrt(thrust / vehicle.k_f)
+    steps = int(seconds * 1000)
+    out = np.empty((steps, len(x)))
+    fly_open_loop(x, x[13:].copy(), np.ones(4), vehicle.vehicle(), 1e-3, steps, out)
+    rate = out[-1, 12]
+    if not (np.isfinite(rate) and rate > 0):
+        raise ValueError("fit_yaw_damping: the simulated spin did not settle")
+    return float(torque / rate)
+
+
+@njit(cache=True)
+def ftc_command(xh, p_d, v_d, a_d, F, V, dt, integral, cmd):
+    """Rotor speed commands (rad/s) into ``cmd`` for the estimated state ``xh`` (position,
+    velocity, ``q_nb``, measured body rate) after the loss of rotor ``F.failed`` (module doc);
+    ``integral`` (3, start at zero) carries the integral of the axis error over calls ``dt`` apart."""
+    R = rot_matrix(xh[6:10])
+    fd = np.empty(3)
+    for i in range(3):
+        fd[i] = -F.k_p[i] * (xh[i] - p_d[i]) - F.k_v[i] * (xh[3 + i] - v_d[i]) + a_d[i]
+    fd[2] -= F.gravity
+    # tilt limit: the horizontal part at most tan(max_tilt) of the vertical one
+    up = max(-fd[2], 0.2 * F.gravity)
+    fd[2] = -up
+    h = np.sqrt(fd[0] * fd[0] + fd[1] * fd[1])
+    hmax = up * np.tan(F.max_tilt)
+    if h > hmax:
+        fd[0] *= hmax / h
+        fd[1] *= hmax / h
+    nf = np.sqrt(fd[0] * fd[0] + fd[1] * fd[1] + fd[2] * fd[2])
+    db = np.empty(3)  # d_b = R̂ᵀ d
+    for i in range(3):
+        db[i] = (R[0, i] * fd[0] + R[1, i] * fd[1] + R[2, i] * fd[2]) / nf
+    thrust = F.mass * nf / max(-db[2], 0.3)
+    n = F.n_b
+    w0, w1, w2 = xh[10], xh[11], xh[12]
+    wd = w0 * db[0] + w1 * db[1] + w2 * db[2]
+    e0, e1, e2 = n[1] * db[2] - n[2] * db[1], n[2] * db[0] - n[0] * db[2], n[0] * db[1] - n[1] * db[0]
+    lim = 0.5  # rad s: anti-windup (the integral term stays below k_i · 0.5 rad/s)
+    integral[0] = min(max(integral[0] + e0 * dt, -lim), lim)
+    integral[1] = min(max(integral[1] + e1 * dt, -lim), lim)
+    integral[2] = min(max(integral[2] + e2 * dt, -lim), lim)
+    od0 = F.k_n * e0 + F.k_i * integral[0] + wd * db[0]
+    od1 = F.k_n * e1 + F.k_i * integral[1] + wd * db[1]
+    J0, J1, J2 = F.inertia[0], F.inertia[1], F.inertia[2]
+    M0 = J0 * F.k_w * (od0 - w0) + (w1 * J2 * w2 - w2 * J1 * w1) + F.damping[0] * w0
+    M1 = J1 * F.k_w * (od1 - w1) + (w2 * J0 * w0 - w0 * J2 * w2) + F.damping[1] * w1
+    for i in range(cmd.shape[0]):
+        cmd[i] = 0.0
+    for a in range(3):
+        t = F.alloc_inv[a, 0] * thrust + F.alloc_inv[a, 1] * M0 + F.alloc_inv[a, 2] * M1
+        cmd[F.active[a]] = np.sqrt(min(max(t, 0.0), F.t_max) / F.k_f)

@@ -1,0 +1,277 @@
+"""Flights of the rotor-level vehicle with an estimator in the loop (issue #13; docs/vehicle.md).
+
+``fly(scenario, estimator=..., controller=...)`` flies one run and returns a :class:`Flight`:
+the recording (what the sensors gave, as every command reads it), the true states, what the
+loop estimated and commanded, and a summary (survived or crashed, why and when, position error
+after settling, the attitude error in the loop, the settled spin and tilt after a rotor loss).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.linalg import solve_discrete_are
+
+from quadest.control import Failure, FtcParams, SE3Params, circle_reference, hover_reference
+from quadest.control.ftc import relaxed_hover
+from quadest.data.recording import Recording
+from quadest.errors import UsageError
+from quadest.filters import FILTERS, Estimator, make_filter
+from quadest.filters.base import _declination_quat
+from quadest.flight.loop import OK, STATUS, closed_loop, no_estimator
+from quadest.models.multirotor import MultirotorParams
+from quadest.records import check, describe, param
+from quadest.rotation import euler_to_quat, quat_conj, quat_mul, quat_rotate
+from quadest.sim import build_config
+from quadest.sim import sensors as S
+from quadest.sim.flown import flown_recording
+from quadest.sim.inloop import sensor_model
+from quadest.sim.simulator import draw_processes
+
+SIM_RATE_HZ = 1000.0
+SCENARIOS = ("hover", "trajectory", "rotor-loss")
+CONTROLLERS = ("se3", "ftc")
+DEFAULT_DURATION = {"hover": 10.0, "trajectory": 20.0, "rotor-loss": 10.0}
+
+
+@dataclass(frozen=True)
+class FlightParams:
+    """What a flight assumes beyond the vehicle, its sensors and its controllers."""
+
+    mocap_rate_hz: float = param(100.0, "Hz", "position sensor rate",
+                                 "chosen: a motion-capture system (Vicon/OptiTrack class, 100-300 Hz)",
+                                 bounds="(0, 1000]")
+    mocap_noise_m: float = param(1e-3, "m", "position sensor white noise per axis",
+                                 "chosen: motion capture, millimetre noise", bounds="[0, 10]")
+    mocap_latency_s: float = param(0.01, "s", "position sensor latency",
+                                   "chosen: motion capture over a radio link, about 10 ms", bounds="[0, 1]")
+    fusion_acc_std: float = param(0.5, "m/s²", "acceleration noise the position fusion assumes",
+                                  "chosen: accelerometer noise plus what a degree of attitude error makes of g",
+                                  bounds="(0, 100]")
+    height_m: float = param(3.0, "m", "height of the hover point above the ground",
+                            "chosen: room for the fall a rotor loss causes before control is regained",
+                            bounds="(0, 1e3]")
+    detect_delay_s: float = param(0.05, "s", "a rotor loss is known to the controller this long after it "
+                                  "happens (known at t + delay, not detected from measurements)",
+                                  "chosen: the order of the detection delays reported for rotor failures",
+                                  bounds="[0, 10]")
+    settle_m: float = param(0.3, "m", "a run has settled once its position error stays below this",
+                            "chosen: a relaxed hover circles a few centimetres; a drifting one does not",
+                            bounds="(0, 100]")
+
+    def __post_init__(self):
+        check(self, "flight")
+
+    @classmethod
+    def describe(cls) -> list[dict]:
+        return describe(cls)
+
+
+@dataclass
+class Flight:
+    """One flown run."""
+
+    recording: Recording  # the rows flown
+    states: np.ndarray  # true state at each row (13 + rotors)
+    commands: np.ndarray  # rotor speed commands (rad/s)
+    q_est: np.ndarray  # the attitude the controller read (geographic NED)
+    pv_est: np.ndarray  # the position and velocity it read
+    summary: dict = field(default_factory=dict)
+
+
+def position_gain(p: FlightParams, imu_rate_hz: float) -> np.ndarray:
+    """Steady-state Kalman gain ``[k_p, k_v]`` of a constant-velocity model driven by white
+    acceleration (std ``fusion_acc_std`` per IMU sample) and corrected by the position sensor
+    (std ``mocap_noise_m``) every ``1/mocap_rate_hz``."""
+    T = 1.0 / p.mocap_rate_hz
+    Fm = np.array([[1.0, T], [0.0, 1.0]])
+    # acceleration noise integrated over T: std per IMU sample, white at that rate
+    q = p.fusion_acc_std ** 2 / imu_rate_hz
+    Q = q * np.array([[T ** 3 / 3, T ** 2 / 2], [T ** 2 / 2, T]])
+    H = np.array([[1.0, 0.0]])
+    R = np.array([[max(p.mocap_noise_m, 1e-6) ** 2]])
+    P = solve_discrete_are(Fm.T, H.T, Q, R)
+    K = P @ H.T / (H @ P @ H.T + R)
+    return K[:, 0].copy()
+
+
+def _reference(scenario, t, rng, vehicle):
+    x0 = vehicle.hover_state()
+    if scenario == "hover":
+        ref = hover_reference(len(t))
+        x0[0:3] = rng.uniform(-0.5, 0.5, 3)
+        x0[6:10] = euler_to_quat(np.concatenate([rng.uniform(-0.2, 0.2, 2), rng.uniform(-np.pi, np.pi, 1)]))
+    elif scenario == "trajectory":
+        ref = circle_reference(t)
+        x0[0], x0[4] = 1.0, 2 * np.pi * 0.2
+    else:
+        ref = hover_reference(len(t))
+    return x0, ref
+
+
+def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", controller: str | None = None,
+        duration: float | None = None, seed: int = 0, preset: str = "bebop2",
+        vehicle: MultirotorParams | None = None, failure: Failure | None = None,
+        se3: SE3Params | None = None, ftc: FtcParams | None = None,
+        params: FlightParams | None = None) -> Flight:
+    """Fly ``scenario`` with ``estimator`` in the loop: a quadest filter by name (with the
+    preset's declination), an :class:`~quadest.filters.Estimator` (it continues from its state),
+    or ``truth`` (the controller reads the true state).
+
+    Scenarios: ``hover`` (hold the origin from a disturbed start), ``trajectory`` (a 1 m circle
+    at 0.2 Hz), ``rotor-loss`` (hover; rotor 0 lost at 2 s unless ``failure`` says otherwise).
+    ``controller``: ``se3`` (nominal only) or ``ftc`` (SE(3), then the fault-tolerant controller
+    once a complete rotor loss is known); default ``ftc`` for ``rotor-loss``, else ``se3``.
+    The sensors are the ``preset``'s, the position sensor and what the loop assumes
+    ``params``'."""
+    if scenario not in SCENARIOS:
+        raise UsageError(f"unknown scenario {scenario!r}; scenarios: {', '.join(SCENARIOS)}")
+    if not isinstance(estimator, Estimator) and estimator != "truth" and estimator not in FILTERS:
+        raise UsageError(f"unknown estimator {estimator!r}; estimators: truth, {', '.join(FILTERS)}")
+    controller = controller or ("ftc" if scenario == "rotor-loss" else "se3")
+    if controller not in CONTROLLERS:
+        raise UsageError(f"unknown controller {controller!r}; controllers: {', '.join(CONTROLLERS)}")
+    duration = DEFAULT_DURATION[scenario] if duration is None else float(duration)
+    if not (math.isfinite(duration) and 0 < duration <= 3600):
+        raise UsageError(f"duration must be between 0 and 3600 s, got {duration}")
+    vehicle = vehicle or MultirotorParams()
+    params = params or FlightParams()
+    if scenario == "rotor-loss" and failure is None:
+        failure = Failure(rotor=0, time_s=min(2.0, duration / 2))
+    if failure is not None:
+        failure.check(vehicle, duration)
+    if controller == "ftc" and (failure is None or failure.efficiency > 0.0):
+        raise UsageError("the fault-tolerant controller is for a complete rotor loss: give a failure with "
+                         "efficiency 0 (scenario rotor-loss)")
+    cfg = build_config(preset)
+    rate = cfg.imu.rate_hz
+    substeps = SIM_RATE_HZ / rate
+    if abs(substeps - round(substeps)) > 1e-9 or substeps < 1:
+        raise UsageError(f"preset {preset!r}: its IMU rate {rate:g} Hz must divide the simulation rate "
+                         f"{SIM_RATE_HZ:g} Hz")
+    mocap_every = rate / params.mocap_rate_hz
+    if abs(mocap_every - round(mocap_every)) > 1e-9 or mocap_every < 1:
+        raise UsageError(f"the position sensor's rate {params.mocap_rate_hz:g} Hz must divide the IMU rate {rate:g} Hz")
+    substeps, mocap_every = int(round(substeps)), int(round(mocap_every))
+    n = int(round(duration * rate))
+    t = np.arange(n) / rate
+    ss = np.random.SeedSequence([int(seed), 13])
+    rng_ref, rng_mocap = (np.random.default_rng(s) for s in ss.spawn(2))
+    x0, ref = _reference(scenario, t, rng_ref, vehicle)
+    p_d, v_d, a_d, yaw_d = (np.ascontiguousarray(a, dtype=float) for a in ref)
+
+    # sensor draws: the same generators and order as flown_recording's sample_sensors
+    rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(int(seed)).spawn(4)]
+    has_mag = S.mag_rows(np.arange(n), rate, cfg.mag.rate_hz)
+    processes = draw_processes(cfg, t, has_mag, rngs)
+    sm = sensor_model(cfg, processes, has_mag)
+    n_mocap = (n - 1) // mocap_every + 1
+    mocap_noise = rng_mocap.normal(0.0, params.mocap_noise_m, (n_mocap, 3))
+    delay = int(round(params.mocap_latency_s * rate))
+
+    declination = math.radians(cfg.environment.declination_deg)
+    use_truth = isinstance(estimator, str) and estimator == "truth"
+    if use_truth:
+        step, ex, ep, ec, ediag = no_estimator(), np.zeros(4), 0.0, 0.0, np.zeros(1)
+    else:
+        est = estimator if isinstance(estimator, Estimator) else make_filter(estimator, declination=declination)
+        step, ex, ep, ec, ediag = type(est).step, est._x, est._p, est._c, est._diag
+        declination, estimator = est.declination, est.name
+    dq = _declination_quat(declination)
+
+    fail_rotor, fail_k, fail_eta, ftc_k = -1, -1, 1.0, -1
+    G = (se3 or SE3Params()).gains(vehicle)
+    ftc = ftc or FtcParams()
+    if failure is not None:
+        fail_rotor, fail_k, fail_eta = failure.rotor, int(round(failure.time_s * rate)), float(failure.efficiency)
+    F = ftc.gains(vehicle, failure.rotor if controller == "ftc" else 0)
+    if controller == "ftc":
+        ftc_k = min(n, fail_k + int(round(params.detect_delay_s * rate)))
+    tw = vehicle.rotors * vehicle.k_f * vehicle.omega_max ** 2 / (vehicle.mass_kg * vehicle.gravity)
+
+    N = vehicle.rotors
+    out = dict(x=np.empty((n, 13 + N)), dx=np.empty((n, 13 + N)), thrust=np.empty((n, N)), eta=np.empty((n, N)),
+               cmd=np.empty((n, N)), gyr=np.empty((n, 3)), acc=np.empty((n, 3)), mag=np.empty((n, 3)),
+               q=np.empty((n, 4)), pv=np.empty((n, 6)))
+    x = x0.copy()
+    eta = np.ones(N)
+    status, flown = closed_loop(
+        x, eta, vehicle.vehicle(), G, F, sm, step, ex, ep, ec, ediag, dq, use_truth, 1.0 / SIM_RATE_HZ,
+        substeps, float(rate), p_d, v_d, a_d, yaw_d, fail_rotor, fail_k, fail_eta, ftc_k, tw, mocap_every, delay,
+        mocap_noise, position_gain(params, rate), params.height_m, out["x"], out["dx"], out["thrust"], out["eta"],
+        out["cmd"], out["gyr"], out["acc"], out["mag"], out["q"], out["pv"])
+    out = {k: v[:flown] for k, v in out.items()}
+    if flown == 0:
+        raise ValueError(f"the flight ended before its first sample ({STATUS[status]})")
+
+    meta = {"scenario": f"flown {scenario}", "preset": preset, "controller": controller, "estimator": estimator}
+    if failure is not None:
+        meta["failure"] = {"rotor": failure.rotor, "time_s": failure.time_s, "efficiency": failure.efficiency}
+    rec = flown_recording(t[:flown], out["x"], out["dx"], out["thrust"], vehicle, cfg=cfg, seed=seed,
+                          eta=out["eta"], meta=meta, readings=(out["gyr"], out["acc"], out["mag"]), processes=processes)
+    flight = Flight(rec, out["x"], out["cmd"], out["q"], out["pv"])
+    flight.summary = summarize(flight, scenario=scenario, status=status, duration=duration, failure=failure,
+                               controller=controller, estimator=estimator, seed=seed, params=params,
+                               ftc=ftc, vehicle=vehicle, ref=(p_d, yaw_d))
+    return flight
+
+
+def _angle_deg(q_true, q_est):
+    """Rotation angle between two attitudes (deg) and the tilt error: the angle between the
+    true and the estimated down direction in the body."""
+    dq = quat_mul(quat_conj(q_true), q_est)
+    total = np.degrees(2 * np.arccos(np.clip(np.abs(dq[:, 0]), 0.0, 1.0)))
+    ez = np.array([0.0, 0.0, 1.0])
+    g_true = quat_rotate(quat_conj(q_true), ez)
+    g_est = quat_rotate(quat_conj(q_est), ez)
+    tilt = np.degrees(np.arccos(np.clip((g_true * g_est).sum(axis=1), -1.0, 1.0)))
+    return total, tilt
+
+
+def _rms(v):
+    return float(np.sqrt(np.mean(np.square(v)))) if len(v) else None
+
+
+def summarize(flight: Flight, *, scenario, status, duration, failure, controller, estimator, seed, params,
+              ftc, vehicle, ref) -> dict:
+    """The summary of one run (module doc)."""
+    rec, x = flight.recording, flight.states
+    t = rec.t
+    p_d, _ = ref
+    err = np.linalg.norm(x[:, 0:3] - p_d[:len(t)], axis=1)
+    start = failure.time_s if failure is not None else 0.0
+    s = {"scenario": scenario, "controller": controller, "estimator": estimator, "seed": int(seed),
+         "status": "survived" if status == OK else "crashed" if status in (1, 2) else "stopped",
+         "reason": STATUS[status], "duration_s": float(duration), "flown_s": float(t[-1] + (t[1] - t[0] if len(t) > 1 else 0)),
+         "end_time_s": None if status == OK else float(t[-1])}
+    # settled: the position error stays below settle_m from then to the end
+    after = t >= start
+    above = np.flatnonzero(after & (err >= params.settle_m))
+    if status != OK:
+        settle = None
+    elif len(above) == 0:
+        settle = float(start)
+    elif above[-1] + 1 < len(t):
+        settle = float(t[above[-1] + 1])
+    else:
+        settle = None
+    s["time_to_settle_s"] = None if settle is None else settle - start
+    s["position_rms_settled_m"] = _rms(err[t >= settle]) if settle is not None else None
+    total, tilt = _angle_deg(x[:, 6:10], flight.q_est)
+    s["attitude_error_rms_deg"] = _rms(total)
+    s["tilt_error_rms_deg"] = _rms(tilt)
+    s["tilt_error_max_deg"] = float(tilt.max())
+    if failure is not None and failure.efficiency == 0.0 and controller == "ftc":
+        late = t >= max(start + 0.5 * (duration - start), start + 1.0)
+        if status == OK and late.any():
+            # spin: the body rate about the vertical (navigation z); tilt: body −z from the vertical
+            w_n = quat_rotate(x[late, 6:10], x[late, 10:13])
+            down_b = quat_rotate(x[late, 6:10], np.tile([0.0, 0.0, 1.0], (late.sum(), 1)))
+            s["spin_rate_rad_s"] = float(np.mean(w_n[:, 2]))
+            s["tilt_deg"] = float(np.degrees(np.mean(np.arccos(np.clip(down_b[:, 2], -1.0, 1.0)))))
+        hover = relaxed_hover(ftc.model(vehicle), failure.rotor, ftc.rho)
+        s["relaxed_hover_model"] = {"spin_rate_rad_s": float(-hover.spin),
+                                    "tilt_deg": hover.tilt_deg,
+                                    "thrusts_n": [float(v) for v in hover.thrusts]}
+    return s

@@ -1,0 +1,147 @@
+"""The closed loop with the estimator in it (issue #13, part 5), every step in compiled code.
+
+Per IMU sample ``k`` (time ``k / rate``; the controller runs at the IMU rate, the vehicle at the
+simulation rate, ``substeps`` RK4 steps per sample):
+
+1. a failure due at ``k`` strikes (the rotor's efficiency changes);
+2. the sensors are sampled from the true state (:mod:`quadest.sim.inloop`): IMU, magnetometer,
+   and every ``mocap_every`` samples the position sensor (its reading ``delay`` samples old);
+3. the estimator takes one step (its compiled ``step``, the same function its batch run calls);
+   its attitude goes through the declination into the geographic frame;
+4. position and velocity: predicted with the accelerometer rotated by the estimated attitude,
+   corrected at each position reading with a constant (steady-state Kalman) gain;
+5. the controller (SE(3) before the failure is known, the fault-tolerant one after) commands
+   the rotors from the estimated state and the measured body rate;
+6. the vehicle flies to the next sample.
+
+The loop ends early with a status: ground contact, lost control (body rate or speed beyond
+what a flying vehicle has), a non-finite estimate, or a diverged simulation.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from quadest.control.ftc import ftc_command
+from quadest.control.se3 import se3_command
+from quadest.models.multirotor import derivative, rk4, rotor_forces
+from quadest.rotation.kernels import qmul, rotate_s
+from quadest.sim.inloop import motor_current, sample_imu, sample_mag
+
+OK, GROUND, LOST_CONTROL, ESTIMATE_NAN, DIVERGED = 0, 1, 2, 3, 4
+STATUS = {OK: "survived", GROUND: "crashed: ground contact", LOST_CONTROL: "crashed: lost control",
+          ESTIMATE_NAN: "stopped: the estimator returned a non-finite attitude",
+          DIVERGED: "stopped: the simulation diverged"}
+MAX_RATE = 100.0  # rad/s: beyond this the vehicle is tumbling out of control (RotorPy stops at the same)
+MAX_SPEED = 20.0  # m/s: beyond this it is falling or flying away (RotorPy stops at the same)
+
+
+@njit(cache=True)
+def _true_estimate(x, p, c, gyr, acc, mag, dt, diag):
+    """The 'truth' estimator: nothing to do (the loop reads the true state)."""
+
+
+def no_estimator():
+    return _true_estimate
+
+
+@njit
+def closed_loop(x, eta, V, G, F, sm, est_step, ex, ep, ec, ediag, dq, use_truth, h, substeps, rate,
+                p_d, v_d, a_d, yaw_d, fail_rotor, fail_k, fail_eta, ftc_k, tw,
+                mocap_every, mocap_delay, mocap_noise, pos_gain, ground_z,
+                out_x, out_dx, out_thrust, out_eta, out_cmd, out_gyr, out_acc, out_mag, out_q, out_pv):
+    """Fly ``len(yaw_d)`` IMU samples (module doc). ``est_step`` is the estimator's compiled step
+    with its state ``ex``, records ``ep``, ``ec`` and diagnostics ``ediag``; ``dq`` the
+    declination quaternion. Returns ``(status, samples flown)``."""
+    n_rot = eta.shape[0]
+    cmd = np.empty(n_rot)
+    dx = np.empty(x.shape[0])
+    Fb, Mb, T = np.empty(3), np.empty(3), np.empty(n_rot)
+    gyr, acc, mag = np.empty(3), np.empty(3), np.empty(3)
+    vib = np.array([0.0, np.nan, np.nan])
+    xh = np.empty(13)
+    integral = np.zeros(3)
+    ph = x[0:3].copy()  # position and velocity estimates start at the truth (the vehicle is on its pad)
+    vh = x[3:6].copy()
+    hist = np.empty((mocap_delay + 1, 3))
+    for j in range(mocap_delay + 1):
+        hist[j] = x[0:3]
+    dt = 1.0 / rate
+    for k in range(yaw_d.shape[0]):
+        if k == fail_k and fail_rotor >= 0:
+            eta[fail_rotor] = fail_eta
+        # sensors from the true state
+        derivative(x, cmd, eta, V, dx)
+        rotor_forces(x, eta, V, Fb, Mb, T)
+        active = 0
+        total = 0.0
+        for i in range(n_rot):
+            total += T[i]
+            if eta[i] > 0.0:
+                active += 1
+        active = max(active, 1)
+        load = total / active / (V.mass * V.gravity / n_rot)
+        sample_imu(sm, k, k * dt, x[6:10], dx[3:6], x[10:13], dx[10:13], load, vib, gyr, acc)
+        sample_mag(sm, k, x[6:10], motor_current(load, active, tw), mag)
+        # the estimator
+        est_step(ex, ep, ec, gyr, acc, mag, dt, ediag)
+        if use_truth:
+            for j in range(4):
+                xh[6 + j] = x[6 + j]
+        else:
+            xh[6:10] = qmul(dq, ex[0:4])
+        if not (np.isfinite(xh[6]) and np.isfinite(xh[7]) and np.isfinite(xh[8]) and np.isfinite(xh[9])):
+            return ESTIMATE_NAN, k
+        # position and velocity
+        if use_truth:
+            for j in range(3):
+                ph[j], vh[j] = x[j], x[3 + j]
+        else:
+            a0, a1, a2 = rotate_s(xh[6], xh[7], xh[8], xh[9], acc[0], acc[1], acc[2])
+            an = (a0, a1, a2 + V.gravity)
+            for j in range(3):
+                ph[j] += vh[j] * dt + 0.5 * an[j] * dt * dt
+                vh[j] += an[j] * dt
+            for j in range(mocap_delay, 0, -1):
+                hist[j] = hist[j - 1]
+            hist[0] = x[0:3]
+            if k % mocap_every == 0:
+                m = k // mocap_every
+                for j in range(3):
+                    e = hist[mocap_delay, j] + mocap_noise[m, j] - ph[j]
+                    ph[j] += pos_gain[0] * e
+                    vh[j] += pos_gain[1] * e
+        for j in range(3):
+            xh[j], xh[3 + j], xh[10 + j] = ph[j], vh[j], gyr[j]
+        # control
+        if ftc_k >= 0 and k >= ftc_k:
+            ftc_command(xh, p_d[k], v_d[k], a_d[k], F, V, dt, integral, cmd)
+        else:
+            se3_command(xh, p_d[k], v_d[k], a_d[k], yaw_d[k], G, V, cmd)
+        if fail_rotor >= 0 and k >= fail_k and fail_eta == 0.0:
+            cmd[fail_rotor] = 0.0  # a lost rotor: its motor spins down
+        # record, then fly to the next sample
+        out_x[k] = x
+        out_dx[k] = dx
+        out_thrust[k] = T
+        out_eta[k] = eta
+        out_cmd[k] = cmd
+        out_gyr[k] = gyr
+        out_acc[k] = acc
+        out_mag[k] = mag
+        out_q[k] = xh[6:10]
+        out_pv[k, 0:3] = ph
+        out_pv[k, 3:6] = vh
+        for _ in range(substeps):
+            rk4(x, cmd, eta, V, h)
+        finite = True
+        for j in range(x.shape[0]):
+            finite = finite and np.isfinite(x[j])
+        if not finite:
+            return DIVERGED, k + 1
+        if x[2] > ground_z:
+            return GROUND, k + 1
+        if (x[10] * x[10] + x[11] * x[11] + x[12] * x[12] > MAX_RATE * MAX_RATE
+                or x[3] * x[3] + x[4] * x[4] + x[5] * x[5] > MAX_SPEED * MAX_SPEED):
+            return LOST_CONTROL, k + 1
+    return OK, yaw_d.shape[0]

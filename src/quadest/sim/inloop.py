@@ -1,0 +1,100 @@
+"""The sensors sampled one sample at a time, in compiled code, for a closed loop (issue #13:
+the estimator in the loop reads them as the vehicle flies).
+
+The model is the one of :mod:`quadest.sim.sensors` with the draws of
+:func:`quadest.sim.simulator.draw_processes`, so that the readings of a closed-loop flight
+equal, to rounding, what :func:`~quadest.sim.simulator.sample_sensors` makes of the same flight
+afterwards (``tests/test_flight.py`` checks it; :func:`quadest.sim.flown.flown_recording`
+checks it on every flown recording). Per IMU sample ``k``::
+
+    gyr = clip(M_g ω + b_g[k] + n_g[k])
+    acc = clip(M_a f_imu + b_a[k] + vib[k] + n_a[k]),  f_imu = Rᵀ(a − g) + ω̇ × r + ω × (ω × r)
+    vib = sin(2π ∫ f_hover √load dt + φ) · amp · load   (trapezoid in time, as the batch model)
+    mag = clip(S Rᵀ B_n + b_hard + k_motor · current + n_m)   on magnetometer rows
+"""
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+from numba import njit
+
+from quadest.rotation.kernels import rotate_inv_s
+from quadest.sim import sensors as S
+from quadest.sim.params import SimConfig
+
+SensorModel = namedtuple("SensorModel", [
+    "gyr_matrix", "gyr_bias", "gyr_noise", "gyr_range",
+    "acc_matrix", "acc_bias", "acc_noise", "acc_range", "lever", "gravity",
+    "vib_amp", "vib_offsets", "rotor_hz", "has_vib",
+    "has_mag", "mag_index", "mag_soft", "mag_hard", "mag_motor", "mag_noise", "mag_range", "field_n"])
+"""What the compiled sampler reads: the configuration's constants and one run's draws."""
+
+
+def sensor_model(cfg: SimConfig, processes, has_mag) -> SensorModel:
+    """Pack a configuration and the draws of one run (``draw_processes``) for the sampler."""
+    has_mag = np.asarray(has_mag, bool)
+    index = np.cumsum(has_mag) - 1  # row k's magnetometer noise is mag_noise[index[k]]
+    amp = np.asarray(cfg.acc.vibration_amp, float)
+    mag_noise = processes.mag_noise if len(processes.mag_noise) else np.zeros((1, 3))
+    return SensorModel(
+        np.ascontiguousarray(processes.gyro_errors["matrix"]), np.ascontiguousarray(processes.gyr_bias),
+        np.ascontiguousarray(processes.gyr_noise), float(cfg.gyro.range),
+        np.ascontiguousarray(processes.acc_errors["matrix"]), np.ascontiguousarray(processes.acc_bias),
+        np.ascontiguousarray(processes.acc_noise), float(cfg.acc.range), np.asarray(cfg.acc.lever_arm, float),
+        float(cfg.environment.gravity), amp, np.asarray(processes.vib_offsets, float),
+        float(cfg.vehicle.rotor_hz_hover), bool(amp.any()),
+        has_mag, index.astype(np.int64), np.ascontiguousarray(cfg.mag.soft_iron, dtype=float),
+        np.asarray(cfg.mag.hard_iron, float), np.asarray(cfg.mag.motor_coef, float), np.ascontiguousarray(mag_noise),
+        float(cfg.mag.range), S.earth_field(cfg.environment))
+
+
+@njit(cache=True)
+def _clip(v, limit):
+    return min(max(v, -limit), limit)
+
+
+@njit(cache=True)
+def sample_imu(m, k, t, q, acc_n, w, wdot, load, vib_state, gyr, acc):
+    """IMU sample ``k`` at time ``t`` from the true attitude ``q``, acceleration ``acc_n``
+    (navigation frame), rate ``w`` and angular acceleration ``wdot`` (body), and the rotors'
+    ``load``; into ``gyr`` and ``acc``. ``vib_state`` carries the tone's phase integral, the
+    previous frequency and time (start with ``[0, nan, nan]``)."""
+    for i in range(3):
+        gyr[i] = _clip(m.gyr_matrix[i, 0] * w[0] + m.gyr_matrix[i, 1] * w[1] + m.gyr_matrix[i, 2] * w[2]
+                       + m.gyr_bias[k, i] + m.gyr_noise[k, i], m.gyr_range)
+    f0, f1, f2 = rotate_inv_s(q[0], q[1], q[2], q[3], acc_n[0], acc_n[1], acc_n[2] - m.gravity)
+    r0, r1, r2 = m.lever[0], m.lever[1], m.lever[2]
+    # ω̇ × r + ω × (ω × r)
+    c0, c1, c2 = w[1] * r2 - w[2] * r1, w[2] * r0 - w[0] * r2, w[0] * r1 - w[1] * r0
+    f0 += (wdot[1] * r2 - wdot[2] * r1) + (w[1] * c2 - w[2] * c1)
+    f1 += (wdot[2] * r0 - wdot[0] * r2) + (w[2] * c0 - w[0] * c2)
+    f2 += (wdot[0] * r1 - wdot[1] * r0) + (w[0] * c1 - w[1] * c0)
+    freq = m.rotor_hz * np.sqrt(max(load, 0.0))
+    if np.isfinite(vib_state[2]):
+        vib_state[0] += 0.5 * (freq + vib_state[1]) * (t - vib_state[2])
+    vib_state[1], vib_state[2] = freq, t
+    for i in range(3):
+        a = m.acc_matrix[i, 0] * f0 + m.acc_matrix[i, 1] * f1 + m.acc_matrix[i, 2] * f2 + m.acc_bias[k, i]
+        if m.has_vib:
+            a += np.sin(2 * np.pi * vib_state[0] + m.vib_offsets[i]) * m.vib_amp[i] * load
+        acc[i] = _clip(a + m.acc_noise[k, i], m.acc_range)
+
+
+@njit(cache=True)
+def sample_mag(m, k, q, current, mag):
+    """Magnetometer sample on IMU row ``k`` into ``mag`` (NaN where no sample arrives)."""
+    if not m.has_mag[k]:
+        mag[0], mag[1], mag[2] = np.nan, np.nan, np.nan
+        return
+    b0, b1, b2 = rotate_inv_s(q[0], q[1], q[2], q[3], m.field_n[0], m.field_n[1], m.field_n[2])
+    j = m.mag_index[k]
+    for i in range(3):
+        v = m.mag_soft[i, 0] * b0 + m.mag_soft[i, 1] * b1 + m.mag_soft[i, 2] * b2 + m.mag_hard[i]
+        mag[i] = _clip(v + current * m.mag_motor[i] + m.mag_noise[j, i], m.mag_range)
+
+
+@njit(cache=True)
+def motor_current(load, active, thrust_to_weight):
+    """As :func:`quadest.sim.truth.motor_current`, one sample."""
+    return (active / 4.0) * (max(load, 0.0) / thrust_to_weight) ** 1.5
