@@ -18,7 +18,7 @@ def run(capsys, *argv):
 def test_help_and_version(capsys):
     for argv in (["--help"], ["simulate", "--help"], ["info", "--help"], ["demo", "--help"], ["sweep", "--help"],
                  ["tune", "--help"], ["benchmark", "--help"], ["calibrate", "--help"], ["estimate", "--help"],
-                 ["compare", "--help"], ["reproduce", "--help"], ["recover", "--help"], ["fit-aero", "--help"]):
+                 ["compare", "--help"], ["reproduce", "--help"], ["recover", "--help"], ["fit-aero", "--help"], ["fly", "--help"]):
         with pytest.raises(SystemExit) as e:
             main(argv)
         assert e.value.code == 0
@@ -143,3 +143,43 @@ def test_recovery_commands(tmp_path, capsys):
     save_recording(Recording(t=np.arange(10) * 0.01, gyr=np.zeros((10, 3)), acc=np.tile([0, 0, -9.8], (10, 1))), plain)
     code, _, err = run(capsys, "recover", str(plain))
     assert code == 2 and "--aero" in err and err.count("\n") == 1
+
+
+def test_fly_writes_runs_that_every_command_reads(tmp_path, capsys):
+    """quadest fly: per seed a recording (read back by estimate), the flight table, a summary
+    and a plot; summary.json gathers the runs; the nominal controller after a rotor loss crashes
+    with its reason, the fault-tolerant one keeps the vehicle (truth in the loop)."""
+    import json
+
+    import pyarrow.parquet as pq
+
+    out = tmp_path / "fly"
+    code, text, _ = run(capsys, "fly", "--scenario", "rotor-loss", "--estimator", "truth", "--seeds", "1",
+                        "--duration", "6", "-o", str(out))
+    assert code == 0 and "1 of 1 runs survived" in text and "spin" in text
+    summary = json.loads((out / "summary.json").read_text())
+    run0 = summary["runs"][0]
+    assert run0["status"] == "survived" and run0["controller"] == "ftc"
+    rec = load_recording(run0["files"]["recording"])
+    assert rec.meta["failure"] == {"rotor": 0, "time_s": 2.0, "efficiency": 0.0} and len(rec) == 3000
+    table = pq.read_table(run0["files"]["flight"])
+    assert table.num_rows == 3000 and "rotor0_cmd" in table.column_names and "est_qw" in table.column_names
+    assert open(run0["files"]["plot"], "rb").read(4) == b"\x89PNG"
+    code, text, _ = run(capsys, "fly", "--scenario", "rotor-loss", "--controller", "se3", "--estimator", "truth",
+                        "--duration", "6", "--no-plot", "-o", str(out))
+    assert code == 0 and "crashed" in text and "0 of 1 runs survived" in text
+    code, text, _ = run(capsys, "estimate", run0["files"]["recording"], "--filter", "madgwick",
+                        "-o", str(tmp_path / "q.csv"))
+    assert code == 0
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["--failure", "x@2"], "--failure expects"),
+    (["--failure", "7@2"], "rotor 7 does not exist"),
+    (["--failure", "0@99"], "outside the run"),
+    (["--seeds", "a-b"], "--seeds expects"),
+    (["--preset", "lowcost-20hz"], "position sensor"),
+])
+def test_fly_refuses_bad_options_in_one_line(tmp_path, capsys, argv, match):
+    code, _, err = run(capsys, "fly", "--estimator", "truth", "--duration", "3", "-o", str(tmp_path / "f"), *argv)
+    assert code == 2 and match in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, err

@@ -50,12 +50,12 @@ def test_it_tracks_a_circle_up_to_the_drag_it_does_not_know():
     x0[0] = 1.0
     x0[4] = w  # on the circle, at its speed
     k_p, k_v = SE3Params().k_p[0], SE3Params().k_v[0]
-    drag = (4 * P.k_h * P.hover_speed() + P.body_drag * w) * w / P.mass_kg
+    drag = (4 * P.k_h * P.hover_speed() + P.body_drag[0] * w) * w / P.mass_kg
     bound = drag / abs(complex(k_p - w * w, k_v * w))
     states, _ = fly_se3(x0, ref, rate_hz=rate)
     err = np.linalg.norm(states[:, 0:3] - ref[0], axis=1)[t > 5.0]
     assert err.max() < bound and err.max() - err.min() < 0.002  # a steady lag
-    clean = replace(P, k_h=0.0, body_drag=0.0)
+    clean = replace(P, k_h=0.0, body_drag=(0.0, 0.0, 0.0))
     states, _ = fly_se3(x0, ref, vehicle=clean, rate_hz=rate)
     err_clean = np.linalg.norm(states[:, 0:3] - ref[0], axis=1)[t > 5.0]
     assert err_clean.max() < 0.03 and err_clean.max() < 0.8 * err.max()

@@ -24,7 +24,8 @@ def test_a_free_rigid_body_keeps_energy_and_angular_momentum():
     """Rotors stopped, no drag or damping, gravity on: a tumbling body with three different
     moments of inertia (the intermediate axis is unstable: a demanding case) over 10 s at 1 kHz
     keeps its mechanical energy and its angular momentum in the navigation frame to 1e-6."""
-    p = replace(P, inertia=(0.0023, 0.0031, 0.0046), body_drag=0.0, damping=(0.0, 0.0, 0.0))
+    p = replace(P, inertia=(0.0023, 0.0031, 0.0046), body_drag=(0.0, 0.0, 0.0), damping=(0.0, 0.0, 0.0),
+                rot_drag=(0.0, 0.0, 0.0))
     V = p.vehicle()
     x = np.zeros(13 + p.rotors)
     x[3:6] = [1.0, 2.0, -3.0]

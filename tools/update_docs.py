@@ -54,6 +54,82 @@ def vehicle_params() -> str:
     return "\n".join(rows)
 
 
+def _param_rows(describe_rows, default_header="default"):
+    rows = [f"| parameter | {default_header} | unit | bounds | meaning | source |", "|---|---|---|---|---|---|"]
+    for d in describe_rows:
+        rows.append(f"| `{d['name']}` | {json.dumps(d['default'], default=float)} | {d['unit']} | "
+                    f"{d.get('bounds', '-')} | {d['doc']} | {d['source']} |")
+    return "\n".join(rows)
+
+
+def vehicle_presets() -> str:
+    """The presets' values that differ from the default vehicle, with sources."""
+    from quadest.models.multirotor import VEHICLE_PRESETS, preset_rows
+    out = []
+    for name, (values, _) in VEHICLE_PRESETS.items():
+        if not values:
+            continue
+        rows = ["| parameter | value | unit | source |", "|---|---|---|---|"]
+        for d in preset_rows(name):
+            if d["name"] in values:
+                value = json.dumps(d["default"], default=float)
+                rows.append(f"| `{d['name']}` | {value} | {d['unit']} | {d['source']} |")
+        out.append(f"**`{name}`**\n\n" + "\n".join(rows) + "\n")
+    return "\n".join(out).rstrip()
+
+
+def ftc_params() -> str:
+    from quadest.control import FtcParams
+    return _param_rows(FtcParams.describe())
+
+
+def flight_params() -> str:
+    from quadest.flight import FlightParams
+    return _param_rows(FlightParams.describe())
+
+
+def _f(v, fmt="{:.1f}"):
+    return "-" if v is None else fmt.format(v)
+
+
+def results_flight() -> str:
+    r = _load("flight")
+    rows = [[t["estimator"], f"{t['survived']}/{t['runs']}", f"{t['settled']}/{t['runs']}",
+             _f(t["tilt_error_in_loop_deg"]), _f(t["tilt_error_offline_deg"]), _f(t["position_rms_settled_m"], "{:.3f}"),
+             _f(t["spin_rate_rad_s"]), _f(t["tilt_deg"])] for t in r["table"]]
+    seeds = sorted({run["seed"] for run in r["runs"]})
+    return (_table(["in the loop", "survived", "settled", "tilt error in the loop (° RMS)",
+                    "offline, truth's flight (° RMS)", "position RMS settled (m)", "spin (rad/s)", "tilt (°)"], rows)
+            + f"\n\nRotor 0 lost at 2 s, 10 s flights, seeds {seeds[0]}-{seeds[-1]}, recovery vehicle, bebop2 sensors "
+              "(docs/results/flight.json).")
+
+
+def results_sim() -> str:
+    r = _load("sim")
+    c = r["closed_loop"]
+    rows = [["closed loop: rotor loss, fault-tolerant controller, " + c["estimator"] + " in the loop, sensors at 1 kHz",
+             f"{c['loop_us_per_step']:.2f} µs", f"{c['loop_x_real_time']:.0f}x real time (whole `fly` call with its "
+             f"recording: {c['total_x_real_time']:.0f}x)", "≥ 200x"]]
+    if "rotorpy" in r:
+        p = r["rotorpy"]
+        rows.append(["SE(3) circle, Hummingbird, 1 kHz: quadest", f"{p['ms_per_step']['quadest'] * 1e3:.2f} µs",
+                     f"{p['speedup']:.0f}x faster than RotorPy", "≥ 100x"])
+        rows.append(["the same, RotorPy", f"{p['ms_per_step']['rotorpy'] * 1e3:.0f} µs", "-", "-"])
+    return _table(["flight", "per step", "measured", "target"], rows) + (
+        f"\n\n{c['duration_s']:g} s flown, best of 3 after a warm-up, one core (docs/results/sim.json).")
+
+
+def results_crosscheck() -> str:
+    p = _load("sim")["rotorpy"]
+    h, t = p["hover_rotor_speed"], p["tracking_rms_m"]
+    rows = [["hover rotor speed (rad/s)", f"{h['quadest']:.3f}", f"{h['rotorpy']:.3f}",
+             f"{100 * (h['quadest'] / h['rotorpy'] - 1):+.3f} %", "within 1 %"],
+            [f"tracking RMS after {t['from_s']:g} s (cm)", f"{100 * t['quadest']:.2f}", f"{100 * t['rotorpy']:.2f}",
+             f"{100 * (t['quadest'] / t['rotorpy'] - 1):+.1f} %", "within 20 %"]]
+    return (_table(["", "quadest", "RotorPy", "difference", "required"], rows)
+            + f"\n\nAt {p['rate_hz']:g} Hz over {p['duration_s']:g} s (docs/results/sim.json).")
+
+
 RESULTS = ROOT / "docs" / "results"
 SPEED_TARGET_US = {"afckf": 0.5, "qukf": 2.0, "ekf": 2.0, "madgwick": 0.2, "mahony": 0.2, "complementary": 0.2,
                    "kalman": 5.0}  # batch targets of issue #3 (targets, not measurements)
@@ -143,6 +219,8 @@ def results_afckf() -> str:
 
 GENERATORS = {"simulator-params": simulator_params, "estimator-params": estimator_params,
               "recovery-params": recovery_params, "vehicle-params": vehicle_params,
+              "vehicle-presets": vehicle_presets, "ftc-params": ftc_params, "flight-params": flight_params,
+              "results-flight": results_flight, "results-sim": results_sim, "results-crosscheck": results_crosscheck,
               "results-overview": results_overview,
               "results-broad-summary": results_broad_summary, "results-broad-trials": results_broad_trials,
               "results-flights": results_flights, "results-speed": results_speed, "results-afckf": results_afckf}

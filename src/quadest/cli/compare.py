@@ -25,6 +25,8 @@ from quadest.evaluation.compare import compare, format_tables, parse_params
 from quadest.evaluation.runner import estimator_names, filter_notes
 from quadest.evaluation.speed import benchmark_speed
 from quadest.filters import FILTERS
+from quadest.flight.crosscheck import rotorpy_available
+from quadest.flight.speed import benchmark_sim
 from quadest.sim import PRESETS, SCENARIOS, simulate
 
 
@@ -129,7 +131,35 @@ def _reproduce_recovery(args):
     return 0
 
 
+def _benchmark_sim(args):
+    est = args.filters if args.filters in ("truth", *FILTERS) else "afckf"
+    rp = min(args.duration, 10.0)
+    say(f"the flying vehicle on one core at 1 kHz: {args.duration:g} s of rotor loss with the fault-tolerant "
+        f"controller and {est} in the loop (sensors at 1 kHz), best of 3 after a warm-up"
+        + (f"; then {rp:g} s of the SE(3) circle flown by quadest and by RotorPy (RotorPy's "
+           "Hummingbird, its SE(3) gains)" if rotorpy_available() else "; RotorPy is not installed: "
+           "pip install rotorpy for the comparison"))
+    res = benchmark_sim(args.duration, rp, est)
+    c = res["closed_loop"]
+    say(f"closed loop ({c['estimator']}, ftc): {c['loop_us_per_step']:.2f} µs per step, "
+        f"{c['loop_x_real_time']:.0f}x real time; the whole fly() call with its recording "
+        f"{c['total_x_real_time']:.0f}x real time (run {c['status']})")
+    if "rotorpy" in res:
+        r = res["rotorpy"]
+        say(f"SE(3) circle at 1 kHz: quadest {r['ms_per_step']['quadest'] * 1e3:.2f} µs per step, RotorPy "
+            f"{r['ms_per_step']['rotorpy']:.2f} ms per step: quadest {r['speedup']:.0f}x faster")
+        say(f"  hover rotor speed: quadest {r['hover_rotor_speed']['quadest']:.2f}, RotorPy "
+            f"{r['hover_rotor_speed']['rotorpy']:.2f} rad/s; tracking RMS after the first lap: quadest "
+            f"{100 * r['tracking_rms_m']['quadest']:.2f} cm, RotorPy {100 * r['tracking_rms_m']['rotorpy']:.2f} cm")
+    return res
+
+
 def cmd_benchmark(args):
+    if args.what == "sim":
+        res = _benchmark_sim(args)
+        if args.json:
+            write_json(args.json, res)
+        return 0
     names = estimator_names(args.filters, all_includes_peers=True)
     if args.what == "speed":
         say(f"µs per sample on {args.duration:g} s of a simulated damaged-rotor flight (bebop2), one core; "
@@ -197,15 +227,18 @@ def add_parsers(sub):
     add_engine_args(r, default_workers=0)
     r.set_defaults(func=cmd_reproduce)
 
-    b = sub.add_parser("benchmark", help="benchmarks: BROAD, quadrotor flights, speed",
+    b = sub.add_parser("benchmark", help="benchmarks: BROAD, quadrotor flights, speed, the flying vehicle",
                        description="broad: every filter on every BROAD trial in --data with the benchmark's "
                                    "metric (total, heading, inclination RMSE over the movement phases), per "
                                    "trial and per group of trials.json. flights: roll/pitch/yaw RMS on the "
                                    "DIDO and Blackbird flights under --data (6-axis; heading offset removed). "
                                    "speed: microseconds per sample of every filter, batch and streaming. "
+                                   "sim: the flying vehicle's closed loop (rotor loss, fault-tolerant "
+                                   "controller, --filters names the estimator in the loop, default afckf) "
+                                   "and the SE(3) circle flown by quadest and RotorPy (when installed). "
                                    "quadest's filters and the installed peers (pip install 'quadest[peers]': "
                                    "vqf, imufusion, ahrs) run side by side.")
-    b.add_argument("what", choices=["broad", "flights", "speed"], help="what to benchmark")
+    b.add_argument("what", choices=["broad", "flights", "speed", "sim"], help="what to benchmark")
     b.add_argument("--data", type=Path, metavar="DIR", help="broad, flights: folder with the data")
     b.add_argument("--filters", default="all",
                    help="all (quadest and installed peers), quadest, peers, or a comma-separated list")
@@ -213,6 +246,7 @@ def add_parsers(sub):
     b.add_argument("--align", choices=["none", "heading", "full"], default=None,
                    help="constant navigation-frame rotation removed before the errors (default: none "
                         "for broad, heading for flights)")
-    b.add_argument("--duration", type=float, default=60.0, help="speed: seconds of simulated data (default: 60)")
+    b.add_argument("--duration", type=float, default=60.0,
+                   help="speed: seconds of simulated data; sim: seconds flown (RotorPy: at most 10) (default: 60)")
     b.add_argument("--json", metavar="OUT", help="write the figures as JSON")
     b.set_defaults(func=cmd_benchmark)

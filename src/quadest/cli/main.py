@@ -11,13 +11,13 @@ import traceback
 from pathlib import Path
 
 from quadest import __version__
-from quadest.cli import compare, recordings, recovery, sim, sweep
+from quadest.cli import compare, fly, recordings, recovery, sim, sweep
 from quadest.cli.common import CliError
 from quadest.data.files import refuse_overwriting_inputs
 from quadest.errors import UsageError
 
-GROUPS = (sim, recordings, compare, recovery, sweep)
-ORDER = ("simulate", "info", "compare", "reproduce", "fit-aero", "recover", "calibrate", "estimate", "benchmark",
+GROUPS = (sim, fly, recordings, compare, recovery, sweep)
+ORDER = ("simulate", "fly", "info", "compare", "reproduce", "fit-aero", "recover", "calibrate", "estimate", "benchmark",
          "sweep", "tune", "demo")
 
 

@@ -9,6 +9,7 @@ import numpy as np
 from numba import njit
 
 from quadest.control.se3 import SE3Params, se3_command
+from quadest.errors import UsageError
 from quadest.models.multirotor import MultirotorParams, rk4
 
 
@@ -60,12 +61,12 @@ class Failure:
 
     def check(self, vehicle: MultirotorParams, duration_s: float) -> None:
         if not 0 <= self.rotor < vehicle.rotors:
-            raise ValueError(f"failure: rotor {self.rotor} does not exist (the vehicle has rotors 0 to "
+            raise UsageError(f"failure: rotor {self.rotor} does not exist (the vehicle has rotors 0 to "
                              f"{vehicle.rotors - 1})")
         if not 0.0 <= self.time_s < duration_s:
-            raise ValueError(f"failure: time {self.time_s} s lies outside the run (0 to {duration_s:g} s)")
+            raise UsageError(f"failure: time {self.time_s} s lies outside the run (0 to {duration_s:g} s)")
         if not 0.0 <= self.efficiency < 1.0:
-            raise ValueError(f"failure: efficiency must be in [0, 1), got {self.efficiency}")
+            raise UsageError(f"failure: efficiency must be in [0, 1), got {self.efficiency}")
 
 
 def fly_se3(x0, reference, *, vehicle: MultirotorParams | None = None, gains: SE3Params | None = None,

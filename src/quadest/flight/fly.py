@@ -8,6 +8,7 @@ after settling, the attitude error in the loop, the settled spin and tilt after 
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,13 +21,14 @@ from quadest.errors import UsageError
 from quadest.filters import FILTERS, Estimator, make_filter
 from quadest.filters.base import _declination_quat
 from quadest.flight.loop import OK, STATUS, closed_loop, no_estimator
-from quadest.models.multirotor import MultirotorParams
+from quadest.models.multirotor import MultirotorParams, vehicle_preset
 from quadest.records import check, describe, param
 from quadest.rotation import euler_to_quat, quat_conj, quat_mul, quat_rotate
 from quadest.sim import build_config
 from quadest.sim import sensors as S
 from quadest.sim.flown import flown_recording
 from quadest.sim.inloop import sensor_model
+from quadest.sim.params import SimConfig
 from quadest.sim.simulator import draw_processes
 
 SIM_RATE_HZ = 1000.0
@@ -78,6 +80,7 @@ class Flight:
     q_est: np.ndarray  # the attitude the controller read (geographic NED)
     pv_est: np.ndarray  # the position and velocity it read
     summary: dict = field(default_factory=dict)
+    timing: dict = field(default_factory=dict)  # wall time of the compiled loop (its first call compiles)
 
 
 def position_gain(p: FlightParams, imu_rate_hz: float) -> np.ndarray:
@@ -112,9 +115,9 @@ def _reference(scenario, t, rng, vehicle):
 
 def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", controller: str | None = None,
         duration: float | None = None, seed: int = 0, preset: str = "bebop2",
-        vehicle: MultirotorParams | None = None, failure: Failure | None = None,
+        vehicle: MultirotorParams | str | None = None, failure: Failure | None = None,
         se3: SE3Params | None = None, ftc: FtcParams | None = None,
-        params: FlightParams | None = None) -> Flight:
+        params: FlightParams | None = None, config: SimConfig | None = None) -> Flight:
     """Fly ``scenario`` with ``estimator`` in the loop: a quadest filter by name (with the
     preset's declination), an :class:`~quadest.filters.Estimator` (it continues from its state),
     or ``truth`` (the controller reads the true state).
@@ -123,8 +126,9 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     at 0.2 Hz), ``rotor-loss`` (hover; rotor 0 lost at 2 s unless ``failure`` says otherwise).
     ``controller``: ``se3`` (nominal only) or ``ftc`` (SE(3), then the fault-tolerant controller
     once a complete rotor loss is known); default ``ftc`` for ``rotor-loss``, else ``se3``.
-    The sensors are the ``preset``'s, the position sensor and what the loop assumes
-    ``params``'."""
+    The sensors are the ``preset``'s (or ``config``'s), the position sensor and what the loop
+    assumes ``params``'; ``vehicle`` a :class:`MultirotorParams` or a preset name
+    (:data:`~quadest.models.VEHICLE_PRESETS`, default ``recovery``)."""
     if scenario not in SCENARIOS:
         raise UsageError(f"unknown scenario {scenario!r}; scenarios: {', '.join(SCENARIOS)}")
     if not isinstance(estimator, Estimator) and estimator != "truth" and estimator not in FILTERS:
@@ -135,7 +139,8 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     duration = DEFAULT_DURATION[scenario] if duration is None else float(duration)
     if not (math.isfinite(duration) and 0 < duration <= 3600):
         raise UsageError(f"duration must be between 0 and 3600 s, got {duration}")
-    vehicle = vehicle or MultirotorParams()
+    vehicle_name = vehicle if isinstance(vehicle, str) else ("recovery" if vehicle is None else "custom")
+    vehicle = vehicle_preset(vehicle) if isinstance(vehicle, str) else (vehicle or MultirotorParams())
     params = params or FlightParams()
     if scenario == "rotor-loss" and failure is None:
         failure = Failure(rotor=0, time_s=min(2.0, duration / 2))
@@ -144,7 +149,7 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     if controller == "ftc" and (failure is None or failure.efficiency > 0.0):
         raise UsageError("the fault-tolerant controller is for a complete rotor loss: give a failure with "
                          "efficiency 0 (scenario rotor-loss)")
-    cfg = build_config(preset)
+    cfg = (config or build_config(preset)).validate()
     rate = cfg.imu.rate_hz
     substeps = SIM_RATE_HZ / rate
     if abs(substeps - round(substeps)) > 1e-9 or substeps < 1:
@@ -196,21 +201,24 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
                q=np.empty((n, 4)), pv=np.empty((n, 6)))
     x = x0.copy()
     eta = np.ones(N)
+    t0 = time.perf_counter()
     status, flown = closed_loop(
         x, eta, vehicle.vehicle(), G, F, sm, step, ex, ep, ec, ediag, dq, use_truth, 1.0 / SIM_RATE_HZ,
         substeps, float(rate), p_d, v_d, a_d, yaw_d, fail_rotor, fail_k, fail_eta, ftc_k, tw, mocap_every, delay,
         mocap_noise, position_gain(params, rate), params.height_m, out["x"], out["dx"], out["thrust"], out["eta"],
         out["cmd"], out["gyr"], out["acc"], out["mag"], out["q"], out["pv"])
+    loop_s = time.perf_counter() - t0
     out = {k: v[:flown] for k, v in out.items()}
     if flown == 0:
         raise ValueError(f"the flight ended before its first sample ({STATUS[status]})")
 
-    meta = {"scenario": f"flown {scenario}", "preset": preset, "controller": controller, "estimator": estimator}
+    meta = {"scenario": f"flown {scenario}", "preset": preset, "vehicle": vehicle_name, "controller": controller,
+            "estimator": estimator}
     if failure is not None:
         meta["failure"] = {"rotor": failure.rotor, "time_s": failure.time_s, "efficiency": failure.efficiency}
     rec = flown_recording(t[:flown], out["x"], out["dx"], out["thrust"], vehicle, cfg=cfg, seed=seed,
                           eta=out["eta"], meta=meta, readings=(out["gyr"], out["acc"], out["mag"]), processes=processes)
-    flight = Flight(rec, out["x"], out["cmd"], out["q"], out["pv"])
+    flight = Flight(rec, out["x"], out["cmd"], out["q"], out["pv"], timing={"loop_s": loop_s})
     flight.summary = summarize(flight, scenario=scenario, status=status, duration=duration, failure=failure,
                                controller=controller, estimator=estimator, seed=seed, params=params,
                                ftc=ftc, vehicle=vehicle, ref=(p_d, yaw_d))
@@ -275,3 +283,59 @@ def summarize(flight: Flight, *, scenario, status, duration, failure, controller
                                     "tilt_deg": hover.tilt_deg,
                                     "thrusts_n": [float(v) for v in hover.thrusts]}
     return s
+
+
+def offline_errors(flight: Flight, estimator: str) -> dict:
+    """``estimator`` run afterwards over a flight's recording (not in its loop): its tilt and
+    attitude error, as the controller's estimator's are summarised."""
+    rec = flight.recording
+    q = make_filter(estimator, declination=rec.declination).run(rec).q
+    total, tilt = _angle_deg(rec.true_q, q)
+    return {"attitude_error_rms_deg": _rms(total), "tilt_error_rms_deg": _rms(tilt)}
+
+
+def fly_many(scenario: str, estimators, seeds, *, on_flight=None, **kwargs) -> list[dict]:
+    """Fly ``scenario`` with each of ``estimators`` in the loop for each seed. For every seed the
+    flight with ``truth`` in the loop comes first, and each estimator is also run over that
+    flight's recording afterwards (``offline``: the same estimator, the motion not its own), so
+    that what the loop changes shows. ``on_flight(flight)`` sees every flight as it ends.
+    Returns the summaries."""
+    estimators = [e for e in estimators if e != "truth"]
+    out = []
+    for seed in seeds:
+        base = fly(scenario, estimator="truth", seed=seed, **kwargs)
+        out.append(base.summary)
+        if on_flight:
+            on_flight(base)
+        for name in estimators:
+            f = fly(scenario, estimator=name, seed=seed, **kwargs)
+            f.summary["offline_on_truth_flight"] = offline_errors(base, name)
+            out.append(f.summary)
+            if on_flight:
+                on_flight(f)
+    return out
+
+
+def campaign_table(summaries: list[dict]) -> list[dict]:
+    """Per estimator over the runs: how many survived and settled, the tilt error in the loop and
+    offline (over the truth-controlled flight), the settled spin and tilt (rotor loss)."""
+    rows = []
+    for name in dict.fromkeys(s["estimator"] for s in summaries):
+        runs = [s for s in summaries if s["estimator"] == name]
+        ok = [s for s in runs if s["status"] == "survived"]
+
+        def mean(values):
+            values = [v for v in values if v is not None]
+            return float(np.mean(values)) if values else None
+
+        rows.append({
+            "estimator": name, "runs": len(runs), "survived": len(ok),
+            "settled": sum(s["time_to_settle_s"] is not None for s in runs),
+            "tilt_error_in_loop_deg": mean([s["tilt_error_rms_deg"] for s in runs]),
+            "tilt_error_offline_deg": mean([s.get("offline_on_truth_flight", {}).get("tilt_error_rms_deg")
+                                            for s in runs]) if name != "truth" else 0.0,
+            "position_rms_settled_m": mean([s["position_rms_settled_m"] for s in runs]),
+            "spin_rate_rad_s": mean([s.get("spin_rate_rad_s") for s in ok]),
+            "tilt_deg": mean([s.get("tilt_deg") for s in ok]),
+        })
+    return rows

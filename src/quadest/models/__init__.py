@@ -2,7 +2,7 @@
 conventions, rotation and data). The simulator evaluates them as truth; estimators fit and use
 their own copies (docs/developing.md, layers)."""
 from quadest.models.aero import AeroModel, aero_force, features, fit_aero, free_flight_mask, psi
-from quadest.models.multirotor import MultirotorParams, quad_x
+from quadest.models.multirotor import VEHICLE_PRESETS, MultirotorParams, quad_x, vehicle_preset
 
-__all__ = ["AeroModel", "MultirotorParams", "aero_force", "features", "fit_aero", "free_flight_mask", "psi",
+__all__ = ["AeroModel", "MultirotorParams", "VEHICLE_PRESETS", "vehicle_preset", "aero_force", "features", "fit_aero", "free_flight_mask", "psi",
            "quad_x"]

@@ -15,7 +15,8 @@ part ``u_⊥``:
   during a fall is not a constant);
 - rotor drag (H-force) in the disc plane: ``H_i = −η_i k_h Ω u_⊥``;
 - reaction torque about z: ``−s_i η_i k_m Ω²``; the forces act at ``r_i`` (moment ``r_i × F_i``);
-- body drag ``−c_d |u| u`` with ``u = Rᵀ v``, and rotational damping ``−D ω``.
+- body drag ``−|u| C_d u`` with ``u = Rᵀ v`` and ``C_d = diag(c_x, c_y, c_z)``, rotational
+  damping ``−D ω`` and rotational drag ``−C_r |ω| ω`` (per axis).
 
 ``η_i`` is rotor i's efficiency: 1 intact, between 0 and 1 a damaged rotor, 0 a lost one.
 Motors: ``Ω̇ = clip((clip(Ω_cmd, Ω_min, Ω_max) − Ω)/τ, ±Ω̇_max)``.
@@ -36,11 +37,12 @@ import numpy as np
 from numba import njit
 
 from quadest.conventions import GRAVITY
+from quadest.errors import UsageError
 from quadest.records import check, describe, param
 from quadest.rotation.kernels import qdot_s, rotate_inv_s, rotate_s
 
 Vehicle = namedtuple("Vehicle", ["mass", "inertia", "rotor_pos", "spin", "k_f", "k_m", "k_z", "k_h", "tau",
-                                 "omega_min", "omega_max", "omega_dot_max", "c_d", "damping", "gravity"])
+                                 "omega_min", "omega_max", "omega_dot_max", "c_d", "damping", "rot_drag", "gravity"])
 """What the compiled dynamics read (built by :meth:`MultirotorParams.vehicle`)."""
 
 
@@ -78,10 +80,13 @@ class MultirotorParams:
                              bounds="(0, 1e4]")
     omega_dot_max: float = param(5e4, "rad/s²", "rotor acceleration limit",
                                  "Sun et al. 2021 (their Bebop 2 simulation)", bounds="(0, 1e12]")
-    body_drag: float = param(0.01, "N s²/m²", "quadratic body drag c_d", "chosen: 0.16 N at 4 m/s",
-                             bounds="[0, 10]")
-    damping: tuple = param((5e-5, 5e-5, 1e-4), "N m s", "rotational damping per axis",
-                           "Sun et al. 2021 (their Bebop 2 simulation)")
+    body_drag: tuple = param((0.01, 0.01, 0.01), "N s²/m²", "quadratic body drag per body axis (x, y, z)",
+                             "chosen: 0.16 N at 4 m/s")
+    damping: tuple = param((0.0, 0.0, 0.0), "N m s", "linear rotational damping per axis",
+                           "chosen: none; the body's rotational drag is quadratic (rot_drag), the rotors' drag "
+                           "acts through k_h")
+    rot_drag: tuple = param((5e-5, 5e-5, 1e-4), "N m s²", "quadratic rotational drag per axis: −sign(ω) c ω²",
+                            "Sun et al. 2021, their Bebop 2 simulation (simParams.m, aero.rotDrag)")
     gravity: float = param(GRAVITY, "m/s²", "gravity", "standard gravity", bounds="(0, 100]")
 
     def __post_init__(self):
@@ -91,7 +96,7 @@ class MultirotorParams:
             raise ValueError(f"vehicle: rotor_pos must be N rows of 3 coordinates, got shape {pos.shape}")
         if np.asarray(self.spin, float).shape != (len(pos),) or not np.isin(self.spin, (-1.0, 1.0)).all():
             raise ValueError(f"vehicle: spin must hold +1 or -1 for each of the {len(pos)} rotors")
-        for name in ("inertia", "damping"):
+        for name in ("inertia", "damping", "body_drag", "rot_drag"):
             v = np.asarray(getattr(self, name), float)
             if v.shape != (3,) or not np.isfinite(v).all() or (v < 0).any() or (name == "inertia" and (v <= 0).any()):
                 raise ValueError(f"vehicle: {name} must be three {'positive' if name == 'inertia' else 'non-negative'} "
@@ -107,8 +112,8 @@ class MultirotorParams:
         return Vehicle(float(self.mass_kg), np.asarray(self.inertia, float), np.ascontiguousarray(self.rotor_pos, float),
                        np.asarray(self.spin, float), float(self.k_f), float(self.k_m), float(self.k_z), float(self.k_h),
                        float(self.motor_tau_s), float(self.omega_min), float(self.omega_max),
-                       float(self.omega_dot_max), float(self.body_drag), np.asarray(self.damping, float),
-                       float(self.gravity))
+                       float(self.omega_dot_max), np.asarray(self.body_drag, float), np.asarray(self.damping, float),
+                       np.asarray(self.rot_drag, float), float(self.gravity))
 
     def hover_speed(self) -> float:
         """Rotor speed at which N equal rotors at rest carry the weight: ``√(m g / (N k_f))``."""
@@ -126,6 +131,66 @@ class MultirotorParams:
         return describe(cls)
 
 
+_SUN = "Sun et al., T-RO 2021, public simulation (github.com/SihaoSun/INDI_Quadrotor_FTC)"
+_ROTORPY = "RotorPy 3.0, rotorpy/vehicles/hummingbird_params.py"
+
+VEHICLE_PRESETS = {
+    "recovery": ({}, {}),
+    "bebop2": (
+        dict(mass_kg=0.375, inertia=(0.0014, 0.0013, 0.0025),
+             rotor_pos=((0.0875, 0.115, 0.0), (-0.0875, -0.115, 0.0), (0.0875, -0.115, 0.0), (-0.0875, 0.115, 0.0)),
+             spin=(1.0, 1.0, -1.0, -1.0), k_f=1.9035e-6, k_m=1.9202951e-8, k_z=3.3e-5, k_h=4.05e-5,
+             motor_tau_s=1.0 / 30.0, omega_min=0.0, omega_max=1200.0, omega_dot_max=5e4,
+             body_drag=(0.01, 0.01, 0.01), damping=(0.0, 0.0, 0.0), rot_drag=(5e-5, 5e-5, 1e-4), gravity=9.8124),
+        dict(mass_kg=f"{_SUN}: controlParams.m (the simulation's own mass is in a .mat file)",
+             inertia=f"{_SUN}: controlParams.m",
+             rotor_pos=f"{_SUN}: controlParams.m, arms l = 0.0875 m (fore-aft) and b = 0.115 m (lateral)",
+             spin=f"{_SUN}: simpleAeroModel.m (front-left and rear-right turn counter-clockwise)",
+             k_f=f"{_SUN}: simParams.m, aero.k0", k_m=f"{_SUN}: simParams.m, aero.t0",
+             k_z="chosen: 10 % less thrust climbing at 4 m/s in hover (as the default vehicle)",
+             k_h="chosen: linear rotor drag 0.3 1/s at hover (the simulator's rotor_drag, Faessler et al. 2018)",
+             motor_tau_s=f"{_SUN}: simParams.m, actuator.t_w", omega_min=f"{_SUN}: simParams.m",
+             omega_max=f"{_SUN}: simParams.m", omega_dot_max=f"{_SUN}: simParams.m, actuator.rateRise",
+             body_drag="chosen: as the default vehicle", damping="chosen: none (the drag is quadratic)",
+             rot_drag=f"{_SUN}: simParams.m, aero.rotDrag", gravity=f"{_SUN}: simParams.m (Delft)")),
+    "hummingbird": (
+        dict(mass_kg=0.5, inertia=(3.65e-3, 3.68e-3, 7.03e-3),
+             rotor_pos=tuple((x, y, 0.0) for x, y, _ in quad_x(0.17)),
+             spin=(-1.0, -1.0, 1.0, 1.0), k_f=5.57e-6, k_m=1.36e-7, k_z=2.32e-4, k_h=1.19e-4, motor_tau_s=0.005,
+             omega_min=0.0, omega_max=1500.0, omega_dot_max=1e12, body_drag=(5e-3, 5e-3, 1e-2),
+             damping=(0.0, 0.0, 0.0), rot_drag=(0.0, 0.0, 0.0), gravity=9.81),
+        dict(mass_kg=f"{_ROTORPY}: mass", inertia=f"{_ROTORPY}: Ixx, Iyy, Izz",
+             rotor_pos=f"{_ROTORPY}: rotor_pos (d = 0.17 m, X), in FRD",
+             spin=f"{_ROTORPY}: rotor_directions [1, -1, 1, -1] (FLU order r1..r4)",
+             k_f=f"{_ROTORPY}: k_eta", k_m=f"{_ROTORPY}: k_m", k_z=f"{_ROTORPY}: k_z (induced inflow)",
+             k_h=f"{_ROTORPY}: k_d (rotor drag); its translational lift k_h and flapping are not modelled here",
+             motor_tau_s=f"{_ROTORPY}: tau_m", omega_min=f"{_ROTORPY}: rotor_speed_min",
+             omega_max=f"{_ROTORPY}: rotor_speed_max", omega_dot_max="RotorPy has no rate limit",
+             body_drag=f"{_ROTORPY}: c_Dx, c_Dy, c_Dz", damping="RotorPy has none", rot_drag="RotorPy has none",
+             gravity="RotorPy: 9.81")),
+}
+"""Vehicles by name: the fields that differ from :class:`MultirotorParams`' defaults (the
+recovery paper's vehicle) and the source of each."""
+
+
+def vehicle_preset(name: str) -> MultirotorParams:
+    """A vehicle by name (:data:`VEHICLE_PRESETS`)."""
+    if name not in VEHICLE_PRESETS:
+        raise UsageError(f"unknown vehicle {name!r}; vehicles: {', '.join(VEHICLE_PRESETS)}")
+    return MultirotorParams(**VEHICLE_PRESETS[name][0])
+
+
+def preset_rows(name: str) -> list[dict]:
+    """Every parameter of a vehicle preset with its value and source (for the docs)."""
+    values, sources = VEHICLE_PRESETS[name]
+    rows = []
+    for row in MultirotorParams.describe():
+        if row["name"] in values:
+            row = {**row, "default": values[row["name"]], "source": sources[row["name"]]}
+        rows.append(row)
+    return rows
+
+
 @njit(cache=True)
 def rotor_forces(x, eta, V, F, M, T):
     """Total rotor and body force ``F`` and moment ``M`` (body frame) at state ``x``, and each
@@ -134,8 +199,10 @@ def rotor_forces(x, eta, V, F, M, T):
     w0, w1, w2 = x[10], x[11], x[12]
     ub0, ub1, ub2 = rotate_inv_s(qw, qx, qy, qz, x[3], x[4], x[5])
     sp = np.sqrt(ub0 * ub0 + ub1 * ub1 + ub2 * ub2)
-    F[0], F[1], F[2] = -V.c_d * sp * ub0, -V.c_d * sp * ub1, -V.c_d * sp * ub2
-    M[0], M[1], M[2] = -V.damping[0] * w0, -V.damping[1] * w1, -V.damping[2] * w2
+    F[0], F[1], F[2] = -V.c_d[0] * sp * ub0, -V.c_d[1] * sp * ub1, -V.c_d[2] * sp * ub2
+    M[0] = -V.damping[0] * w0 - V.rot_drag[0] * abs(w0) * w0
+    M[1] = -V.damping[1] * w1 - V.rot_drag[1] * abs(w1) * w1
+    M[2] = -V.damping[2] * w2 - V.rot_drag[2] * abs(w2) * w2
     for i in range(V.rotor_pos.shape[0]):
         r0, r1, r2 = V.rotor_pos[i, 0], V.rotor_pos[i, 1], V.rotor_pos[i, 2]
         om = x[13 + i]

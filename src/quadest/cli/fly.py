@@ -1,0 +1,149 @@
+"""``quadest fly``: the vehicle flies with an estimator in the loop."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from quadest.cli.common import CliError, parse_seeds, say, write_json
+from quadest.control import Failure
+from quadest.data import save_recording, write_table
+from quadest.filters import FILTERS
+from quadest.flight import CONTROLLERS, SCENARIOS, campaign_table, fly, fly_many
+from quadest.models import VEHICLE_PRESETS
+from quadest.sim import PRESETS
+
+
+def parse_failure(text) -> Failure | None:
+    """``ROTOR@TIME`` or ``ROTOR@TIME:EFFICIENCY`` (``0@2``: rotor 0 lost at 2 s;
+    ``1@3:0.6``: rotor 1 keeps 60 % from 3 s)."""
+    if text is None:
+        return None
+    rotor, at, rest = text.partition("@")
+    time_s, colon, eff = rest.partition(":")
+    try:
+        return Failure(int(rotor), float(time_s), float(eff) if colon else 0.0)
+    except ValueError:
+        raise CliError(f"--failure expects ROTOR@TIME or ROTOR@TIME:EFFICIENCY (for example 0@2 or 1@3:0.6), "
+                       f"got {text!r}") from None
+
+
+def flight_table(flight) -> dict:
+    """Per IMU sample: the true state, the rotor commands and what the controller read."""
+    x = flight.states
+    cols = {"t": flight.recording.t}
+    names = ["pn", "pe", "pd", "vn", "ve", "vd", "qw", "qx", "qy", "qz", "wx", "wy", "wz"]
+    for i, n in enumerate(names):
+        cols[f"true_{n}"] = x[:, i]
+    for i in range(x.shape[1] - 13):
+        cols[f"rotor{i}_speed"] = x[:, 13 + i]
+        cols[f"rotor{i}_cmd"] = flight.commands[:, i]
+    for i, n in enumerate(("qw", "qx", "qy", "qz")):
+        cols[f"est_{n}"] = flight.q_est[:, i]
+    for i, n in enumerate(("pn", "pe", "pd", "vn", "ve", "vd")):
+        cols[f"est_{n}"] = flight.pv_est[:, i]
+    return cols
+
+
+def _fmt(v, unit="", digits=2):
+    return "-" if v is None else f"{v:.{digits}f}{unit}"
+
+
+def parse_estimators(text) -> list[str]:
+    """``all`` (truth and every quadest filter) or a comma-separated list."""
+    names = ["truth", *FILTERS] if text.strip() == "all" else [n.strip() for n in text.split(",") if n.strip()]
+    bad = [n for n in names if n != "truth" and n not in FILTERS]
+    if bad or not names:
+        raise CliError(f"--estimator: unknown {', '.join(bad) or repr(text)}; estimators: truth, {', '.join(FILTERS)}, "
+                       "or all")
+    return names
+
+
+def _report(flight, out: Path, plot: bool):
+    s = flight.summary
+    stem = out / f"{s['scenario']}-{s['controller']}-{s['estimator']}-seed{s['seed']}"
+    s["files"] = {"recording": str(save_recording(flight.recording, stem.with_suffix(".csv"))),
+                  "flight": str(write_table(flight_table(flight), Path(f"{stem}-flight.parquet")))}
+    if plot:
+        from quadest.plot import plot_flight  # matplotlib: only when a plot is drawn
+
+        s["files"]["plot"] = str(plot_flight(flight, Path(f"{stem}.png")))
+    extra = ""
+    if "spin_rate_rad_s" in s:
+        extra = f", spin {s['spin_rate_rad_s']:.1f} rad/s, tilt {s['tilt_deg']:.1f}°"
+    end = f" at {s['end_time_s']:.2f} s" if s["end_time_s"] is not None else ""
+    say(f"{s['estimator']}, seed {s['seed']}: {s['reason']}{end}; settled after {_fmt(s['time_to_settle_s'], ' s')}, "
+        f"position RMS {_fmt(s['position_rms_settled_m'], ' m', 3)}, tilt error in the loop "
+        f"{_fmt(s['tilt_error_rms_deg'], '°')} RMS{extra}")
+
+
+def cmd_fly(args):
+    seeds = parse_seeds(args.seeds)
+    failure = parse_failure(args.failure)
+    estimators = parse_estimators(args.estimator)
+    out = Path(args.output)
+    if out.exists() and not out.is_dir():
+        raise CliError(f"{out}: -o names a folder for the runs' files, and this is a file")
+    out.mkdir(parents=True, exist_ok=True)
+    say(f"flying {args.scenario} ({args.vehicle} vehicle, {args.preset} sensors) with the "
+        f"{args.controller or 'default'} controller and {', '.join(estimators)} in the loop, seeds {args.seeds} "
+        "(the first flight with each estimator compiles the loop: some seconds)")
+    kwargs = dict(controller=args.controller, duration=args.duration, preset=args.preset, failure=failure,
+                  vehicle=args.vehicle)
+    runs = []
+    if len(estimators) == 1:
+        for seed in seeds:
+            flight = fly(args.scenario, estimator=estimators[0], seed=seed, **kwargs)
+            _report(flight, out, not args.no_plot)
+            runs.append(flight.summary)
+        table = campaign_table(runs)
+    else:
+        runs = fly_many(args.scenario, estimators, seeds, on_flight=lambda f: _report(f, out, not args.no_plot),
+                        **kwargs)
+        table = campaign_table(runs)
+        say("\nper estimator (tilt error offline: the same estimator over the flight with truth in the loop)")
+        say(f"{'estimator':<14}{'survived':>9}{'settled':>8}{'tilt err loop':>14}{'offline':>9}{'pos RMS':>9}"
+            f"{'spin':>7}{'tilt':>7}")
+        for r in table:
+            say(f"{r['estimator']:<14}{r['survived']:>5}/{r['runs']:<3}{r['settled']:>4}/{r['runs']:<3}"
+                f"{_fmt(r['tilt_error_in_loop_deg'], '°'):>14}{_fmt(r['tilt_error_offline_deg'], '°'):>9}"
+                f"{_fmt(r['position_rms_settled_m'], ' m'):>9}{_fmt(r['spin_rate_rad_s'], '', 1):>7}"
+                f"{_fmt(r['tilt_deg'], '°', 1):>7}")
+    survived = sum(r["status"] == "survived" for r in runs)
+    say(f"{survived} of {len(runs)} runs survived")
+    write_json(out / "summary.json", {"runs": runs, "table": table, "survived": survived, "runs_flown": len(runs)})
+    return 0
+
+
+def add_parsers(sub):
+    s = sub.add_parser(
+        "fly", help="fly the vehicle with an estimator in the loop (hover, trajectory, rotor loss)",
+        description="Fly the rotor-level vehicle model with a controller that reads an estimator's attitude "
+                    "(and position from a motion-capture sensor) at the IMU rate. Per seed, writes the "
+                    "recording (.csv, readable by every command), the flight (.parquet: true state, rotor "
+                    "speeds and commands, what the controller read), a summary and a plot; summary.json "
+                    "gathers the runs. A run that crashes or whose estimator fails ends with a status and "
+                    "reason. docs/vehicle.md has the models.")
+    s.add_argument("--scenario", choices=SCENARIOS, default="rotor-loss",
+                   help="hover: hold the origin from a disturbed start; trajectory: a 1 m circle at 0.2 Hz; "
+                        "rotor-loss: hover, rotor 0 lost at 2 s (default)")
+    s.add_argument("--controller", choices=CONTROLLERS, default=None,
+                   help="se3: the nominal controller only; ftc: SE(3), then the fault-tolerant controller once a "
+                        "rotor loss is known (default: ftc for rotor-loss, else se3)")
+    s.add_argument("--estimator", default="madgwick",
+                   help=f"the attitude estimator in the loop: truth, {', '.join(FILTERS)}; several (comma-separated) "
+                        "or all fly each, with the flight with truth in the loop first and each estimator also run "
+                        "over that flight afterwards (default: madgwick)")
+    s.add_argument("--seeds", default="0", help="seeds: 0-4 or 0,3,7 (default: 0)")
+    s.add_argument("--duration", type=float, default=None, help="seconds (default: per scenario)")
+    s.add_argument("--failure", default=None, metavar="ROTOR@TIME[:EFF]",
+                   help="a rotor failure: 0@2 loses rotor 0 at 2 s, 1@3:0.6 leaves rotor 1 60 %% from 3 s "
+                        "(default for rotor-loss: 0@2)")
+    s.add_argument("--preset", choices=list(PRESETS), default="bebop2", help="sensors (default: bebop2)")
+    s.add_argument("--vehicle", choices=list(VEHICLE_PRESETS), default="recovery",
+                   help="vehicle: recovery (the recovery paper's), bebop2 (Sun et al. 2021), hummingbird (RotorPy's) "
+                        "(default: recovery; docs/vehicle.md)")
+    s.add_argument("-o", "--output", required=True, metavar="DIR", help="folder for the runs' files")
+    s.add_argument("--no-plot", action="store_true", help="skip the figures")
+    s.set_defaults(func=cmd_fly)
+
+
+__all__ = ["add_parsers", "cmd_fly", "flight_table", "parse_failure"]
