@@ -83,6 +83,11 @@ def ftc_params() -> str:
     return _param_rows(FtcParams.describe())
 
 
+def throw_params() -> str:
+    from quadest.flight.throw import ThrowParams
+    return _param_rows(ThrowParams.describe())
+
+
 def flight_params() -> str:
     from quadest.flight import FlightParams
     return _param_rows(FlightParams.describe())
@@ -102,6 +107,28 @@ def results_flight() -> str:
                     "offline, truth's flight (° RMS)", "position RMS settled (m)", "spin (rad/s)", "tilt (°)"], rows)
             + f"\n\nRotor 0 lost at 2 s, 10 s flights, seeds {seeds[0]}-{seeds[-1]}, recovery vehicle, bebop2 sensors "
               "(docs/results/flight.json).")
+
+
+def results_throw() -> str:
+    import numpy as np
+    r = _load("throw")
+    rows = []
+    for t in r["table"]:
+        runs = [x for x in r["runs"] if x["estimator"] == t["estimator"]]
+        g = [x["gravity_error_at_handover_deg"] for x in runs if x.get("gravity_error_at_handover_deg") is not None]
+        v = [x["velocity_error_at_handover_m_s"] for x in runs if x.get("velocity_error_at_handover_m_s") is not None]
+        up = [x["upright_s"] for x in runs if x.get("upright_s") is not None]
+        rows.append([t["estimator"], f"{t['recovered']}/{t['runs']}", _f(t["handover_s"], "{:.3f}"),
+                     f"{np.median(g):.1f} / {np.max(g):.1f}" if g else "-",
+                     f"{np.median(v):.2f} / {np.max(v):.2f}" if v else "-",
+                     f"{np.median(up):.2f}" if up else "-",
+                     f"{np.mean([x['lowest_point_m'] for x in runs]):.2f} / {np.max([x['lowest_point_m'] for x in runs]):.2f}"])
+    seeds = sorted({x["seed"] for x in r["runs"]})
+    return (_table(["in the loop", "recovered", "handover (s, mean)", "gravity error there (°, median / max)",
+                    "velocity error there (m/s, median / max)", "upright (s, median)",
+                    "fall (m, mean / max)"], rows)
+            + f"\n\n{len(seeds)} throws (seeds {seeds[0]}-{seeds[-1]}), recovery vehicle, fma sensors "
+              "(docs/results/throw.json).")
 
 
 def results_sim() -> str:
@@ -220,7 +247,8 @@ def results_afckf() -> str:
 GENERATORS = {"simulator-params": simulator_params, "estimator-params": estimator_params,
               "recovery-params": recovery_params, "vehicle-params": vehicle_params,
               "vehicle-presets": vehicle_presets, "ftc-params": ftc_params, "flight-params": flight_params,
-              "results-flight": results_flight, "results-sim": results_sim, "results-crosscheck": results_crosscheck,
+              "throw-params": throw_params,
+              "results-flight": results_flight, "results-throw": results_throw, "results-sim": results_sim, "results-crosscheck": results_crosscheck,
               "results-overview": results_overview,
               "results-broad-summary": results_broad_summary, "results-broad-trials": results_broad_trials,
               "results-flights": results_flights, "results-speed": results_speed, "results-afckf": results_afckf}

@@ -47,13 +47,17 @@ def _fmt(v, unit="", digits=2):
     return "-" if v is None else f"{v:.{digits}f}{unit}"
 
 
-def parse_estimators(text) -> list[str]:
-    """``all`` (truth and every quadest filter) or a comma-separated list."""
-    names = ["truth", *FILTERS] if text.strip() == "all" else [n.strip() for n in text.split(",") if n.strip()]
-    bad = [n for n in names if n != "truth" and n not in FILTERS]
+def parse_estimators(text, scenario: str) -> list[str]:
+    """``all`` (truth and every quadest filter; for a throw truth and the recovery) or a
+    comma-separated list."""
+    known = ["truth", "recovery"] if scenario == "throw" else ["truth", *FILTERS]
+    if text is None:
+        return ["recovery" if scenario == "throw" else "madgwick"]
+    names = known if text.strip() == "all" else [n.strip() for n in text.split(",") if n.strip()]
+    bad = [n for n in names if n not in known]
     if bad or not names:
-        raise CliError(f"--estimator: unknown {', '.join(bad) or repr(text)}; estimators: truth, {', '.join(FILTERS)}, "
-                       "or all")
+        raise CliError(f"--estimator: unknown {', '.join(bad) or repr(text)} for {scenario}; estimators: "
+                       f"{', '.join(known)}, or all")
     return names
 
 
@@ -69,6 +73,12 @@ def _report(flight, out: Path, plot: bool):
     extra = ""
     if "spin_rate_rad_s" in s:
         extra = f", spin {s['spin_rate_rad_s']:.1f} rad/s, tilt {s['tilt_deg']:.1f}°"
+    if "recovered" in s:
+        hand = "-" if s["handover_s"] is None else f"{s['handover_s']:.3f} s"
+        say(f"{s['estimator']}, seed {s['seed']}: {s['reason']}; {'recovered' if s['recovered'] else 'not recovered'}: "
+            f"handover at {hand}, gravity error there {_fmt(s.get('gravity_error_at_handover_deg'), '°')}, "
+            f"upright at {_fmt(s.get('upright_s'), ' s')}, lowest {s['lowest_point_m']:.2f} m below the release")
+        return
     end = f" at {s['end_time_s']:.2f} s" if s["end_time_s"] is not None else ""
     say(f"{s['estimator']}, seed {s['seed']}: {s['reason']}{end}; settled after {_fmt(s['time_to_settle_s'], ' s')}, "
         f"position RMS {_fmt(s['position_rms_settled_m'], ' m', 3)}, tilt error in the loop "
@@ -78,12 +88,12 @@ def _report(flight, out: Path, plot: bool):
 def cmd_fly(args):
     seeds = parse_seeds(args.seeds)
     failure = parse_failure(args.failure)
-    estimators = parse_estimators(args.estimator)
+    estimators = parse_estimators(args.estimator, args.scenario)
     out = Path(args.output)
     if out.exists() and not out.is_dir():
         raise CliError(f"{out}: -o names a folder for the runs' files, and this is a file")
     out.mkdir(parents=True, exist_ok=True)
-    say(f"flying {args.scenario} ({args.vehicle} vehicle, {args.preset} sensors) with the "
+    say(f"flying {args.scenario} ({args.vehicle} vehicle, {args.preset or 'default'} sensors) with the "
         f"{args.controller or 'default'} controller and {', '.join(estimators)} in the loop, seeds {args.seeds} "
         "(the first flight with each estimator compiles the loop: some seconds)")
     kwargs = dict(controller=args.controller, duration=args.duration, preset=args.preset, failure=failure,
@@ -99,6 +109,13 @@ def cmd_fly(args):
         runs = fly_many(args.scenario, estimators, seeds, on_flight=lambda f: _report(f, out, not args.no_plot),
                         **kwargs)
         table = campaign_table(runs)
+    if args.scenario == "throw":
+        say(f"\n{'estimator':<12}{'recovered':>10}{'handover':>10}{'gravity err':>12}{'velocity err':>13}{'lowest':>9}")
+        for r in table:
+            say(f"{r['estimator']:<12}{r['recovered']:>6}/{r['runs']:<3}{_fmt(r['handover_s'], ' s', 3):>10}"
+                f"{_fmt(r['gravity_error_at_handover_deg'], '°'):>12}"
+                f"{_fmt(r['velocity_error_at_handover_m_s'], ' m/s'):>13}{_fmt(r['lowest_point_m'], ' m'):>9}")
+    elif len(estimators) > 1:
         say("\nper estimator (tilt error offline: the same estimator over the flight with truth in the loop)")
         say(f"{'estimator':<14}{'survived':>9}{'settled':>8}{'tilt err loop':>14}{'offline':>9}{'pos RMS':>9}"
             f"{'spin':>7}{'tilt':>7}")
@@ -124,20 +141,22 @@ def add_parsers(sub):
                     "reason. docs/vehicle.md has the models.")
     s.add_argument("--scenario", choices=SCENARIOS, default="rotor-loss",
                    help="hover: hold the origin from a disturbed start; trajectory: a 1 m circle at 0.2 Hz; "
-                        "rotor-loss: hover, rotor 0 lost at 2 s (default)")
+                        "rotor-loss: hover, rotor 0 lost at 2 s (default); throw: released tumbling, recovered by the "
+                        "recovery paper's bank of EKFs, then held")
     s.add_argument("--controller", choices=CONTROLLERS, default=None,
                    help="se3: the nominal controller only; ftc: SE(3), then the fault-tolerant controller once a "
                         "rotor loss is known (default: ftc for rotor-loss, else se3)")
-    s.add_argument("--estimator", default="madgwick",
-                   help=f"the attitude estimator in the loop: truth, {', '.join(FILTERS)}; several (comma-separated) "
-                        "or all fly each, with the flight with truth in the loop first and each estimator also run "
-                        "over that flight afterwards (default: madgwick)")
+    s.add_argument("--estimator", default=None,
+                   help=f"the attitude estimator in the loop: truth, {', '.join(FILTERS)}; for a throw recovery (the "
+                        "bank of EKFs, then its nominal EKF) or truth. Several (comma-separated) or all fly each, with "
+                        "the flight with truth in the loop first and each estimator also run over that flight "
+                        "afterwards (default: madgwick; recovery for a throw)")
     s.add_argument("--seeds", default="0", help="seeds: 0-4 or 0,3,7 (default: 0)")
     s.add_argument("--duration", type=float, default=None, help="seconds (default: per scenario)")
     s.add_argument("--failure", default=None, metavar="ROTOR@TIME[:EFF]",
                    help="a rotor failure: 0@2 loses rotor 0 at 2 s, 1@3:0.6 leaves rotor 1 60 %% from 3 s "
                         "(default for rotor-loss: 0@2)")
-    s.add_argument("--preset", choices=list(PRESETS), default="bebop2", help="sensors (default: bebop2)")
+    s.add_argument("--preset", choices=list(PRESETS), default=None, help="sensors (default: bebop2; fma for a throw)")
     s.add_argument("--vehicle", choices=list(VEHICLE_PRESETS), default="recovery",
                    help="vehicle: recovery (the recovery paper's), bebop2 (Sun et al. 2021), hummingbird (RotorPy's) "
                         "(default: recovery; docs/vehicle.md)")

@@ -117,6 +117,14 @@ def se3_command(x, p_d, v_d, a_d, yaw_d, G, V, cmd):
     M0 = J0 * (-G.k_R * eR0 - G.k_w * w0) + (w1 * J2 * w2 - w2 * J1 * w1)
     M1 = J1 * (-G.k_R * eR1 - G.k_w * w1) + (w2 * J0 * w0 - w0 * J2 * w2)
     M2 = J2 * (-G.k_R * eR2 - G.k_w * w2) + (w0 * J1 * w1 - w1 * J0 * w0)
+    mix(thrust, M0, M1, M2, G, cmd)
+
+
+@njit(cache=True)
+def mix(thrust, M0, M1, M2, G, cmd):
+    """Rotor speed commands for a collective thrust and body moments (module doc): the exact
+    inverse of the quadrotor's map, the yaw moment yielding first when the rotors cannot give
+    everything."""
     # yaw yields first: the largest share of M_z (down to none) that keeps every rotor within
     # [0, t_max] given thrust, roll and pitch (as autopilots' mixers do)
     lam = 1.0

@@ -9,94 +9,28 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import solve_discrete_are
 
 from quadest.control import Failure, FtcParams, SE3Params, circle_reference, hover_reference
 from quadest.control.ftc import relaxed_hover
-from quadest.data.recording import Recording
 from quadest.errors import UsageError
 from quadest.filters import FILTERS, Estimator, make_filter
 from quadest.filters.base import _declination_quat
+from quadest.flight.common import (SIM_RATE_HZ, Flight, FlightParams, angle_errors, position_gain, rms,
+                                   sensors_for)
 from quadest.flight.loop import OK, STATUS, closed_loop, no_estimator
+from quadest.flight.throw import fly_throw
 from quadest.models.multirotor import MultirotorParams, vehicle_preset
-from quadest.records import check, describe, param
-from quadest.rotation import euler_to_quat, quat_conj, quat_mul, quat_rotate
+from quadest.rotation import euler_to_quat, quat_rotate
 from quadest.sim import build_config
-from quadest.sim import sensors as S
 from quadest.sim.flown import flown_recording
-from quadest.sim.inloop import sensor_model
 from quadest.sim.params import SimConfig
-from quadest.sim.simulator import draw_processes
 
-SIM_RATE_HZ = 1000.0
-SCENARIOS = ("hover", "trajectory", "rotor-loss")
+SCENARIOS = ("hover", "trajectory", "rotor-loss", "throw")
 CONTROLLERS = ("se3", "ftc")
-DEFAULT_DURATION = {"hover": 10.0, "trajectory": 20.0, "rotor-loss": 10.0}
-
-
-@dataclass(frozen=True)
-class FlightParams:
-    """What a flight assumes beyond the vehicle, its sensors and its controllers."""
-
-    mocap_rate_hz: float = param(100.0, "Hz", "position sensor rate",
-                                 "chosen: a motion-capture system (Vicon/OptiTrack class, 100-300 Hz)",
-                                 bounds="(0, 1000]")
-    mocap_noise_m: float = param(1e-3, "m", "position sensor white noise per axis",
-                                 "chosen: motion capture, millimetre noise", bounds="[0, 10]")
-    mocap_latency_s: float = param(0.01, "s", "position sensor latency",
-                                   "chosen: motion capture over a radio link, about 10 ms", bounds="[0, 1]")
-    fusion_acc_std: float = param(0.5, "m/s²", "acceleration noise the position fusion assumes",
-                                  "chosen: accelerometer noise plus what a degree of attitude error makes of g",
-                                  bounds="(0, 100]")
-    height_m: float = param(3.0, "m", "height of the hover point above the ground",
-                            "chosen: room for the fall a rotor loss causes before control is regained",
-                            bounds="(0, 1e3]")
-    detect_delay_s: float = param(0.05, "s", "a rotor loss is known to the controller this long after it "
-                                  "happens (known at t + delay, not detected from measurements)",
-                                  "chosen: the order of the detection delays reported for rotor failures",
-                                  bounds="[0, 10]")
-    settle_m: float = param(0.3, "m", "a run has settled once its position error stays below this",
-                            "chosen: a relaxed hover circles a few centimetres; a drifting one does not",
-                            bounds="(0, 100]")
-
-    def __post_init__(self):
-        check(self, "flight")
-
-    @classmethod
-    def describe(cls) -> list[dict]:
-        return describe(cls)
-
-
-@dataclass
-class Flight:
-    """One flown run."""
-
-    recording: Recording  # the rows flown
-    states: np.ndarray  # true state at each row (13 + rotors)
-    commands: np.ndarray  # rotor speed commands (rad/s)
-    q_est: np.ndarray  # the attitude the controller read (geographic NED)
-    pv_est: np.ndarray  # the position and velocity it read
-    summary: dict = field(default_factory=dict)
-    timing: dict = field(default_factory=dict)  # wall time of the compiled loop (its first call compiles)
-
-
-def position_gain(p: FlightParams, imu_rate_hz: float) -> np.ndarray:
-    """Steady-state Kalman gain ``[k_p, k_v]`` of a constant-velocity model driven by white
-    acceleration (std ``fusion_acc_std`` per IMU sample) and corrected by the position sensor
-    (std ``mocap_noise_m``) every ``1/mocap_rate_hz``."""
-    T = 1.0 / p.mocap_rate_hz
-    Fm = np.array([[1.0, T], [0.0, 1.0]])
-    # acceleration noise integrated over T: std per IMU sample, white at that rate
-    q = p.fusion_acc_std ** 2 / imu_rate_hz
-    Q = q * np.array([[T ** 3 / 3, T ** 2 / 2], [T ** 2 / 2, T]])
-    H = np.array([[1.0, 0.0]])
-    R = np.array([[max(p.mocap_noise_m, 1e-6) ** 2]])
-    P = solve_discrete_are(Fm.T, H.T, Q, R)
-    K = P @ H.T / (H @ P @ H.T + R)
-    return K[:, 0].copy()
+DEFAULT_DURATION = {"hover": 10.0, "trajectory": 20.0, "rotor-loss": 10.0, "throw": 6.0}
+DEFAULT_PRESET = {"throw": "fma"}  # the recovery paper's sensors (IMU 1 kHz, no magnetometer); else bebop2
 
 
 def _reference(scenario, t, rng, vehicle):
@@ -114,7 +48,7 @@ def _reference(scenario, t, rng, vehicle):
 
 
 def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", controller: str | None = None,
-        duration: float | None = None, seed: int = 0, preset: str = "bebop2",
+        duration: float | None = None, seed: int = 0, preset: str | None = None,
         vehicle: MultirotorParams | str | None = None, failure: Failure | None = None,
         se3: SE3Params | None = None, ftc: FtcParams | None = None,
         params: FlightParams | None = None, config: SimConfig | None = None) -> Flight:
@@ -123,7 +57,10 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     or ``truth`` (the controller reads the true state).
 
     Scenarios: ``hover`` (hold the origin from a disturbed start), ``trajectory`` (a 1 m circle
-    at 0.2 Hz), ``rotor-loss`` (hover; rotor 0 lost at 2 s unless ``failure`` says otherwise).
+    at 0.2 Hz), ``rotor-loss`` (hover; rotor 0 lost at 2 s unless ``failure`` says otherwise),
+    ``throw`` (released tumbling; the recovery paper's bank of EKFs and logic in the loop, then
+    SE(3) hover hold: :mod:`quadest.flight.throw`; estimator ``recovery`` or ``truth``, sensors
+    ``fma`` by default).
     ``controller``: ``se3`` (nominal only) or ``ftc`` (SE(3), then the fault-tolerant controller
     once a complete rotor loss is known); default ``ftc`` for ``rotor-loss``, else ``se3``.
     The sensors are the ``preset``'s (or ``config``'s), the position sensor and what the loop
@@ -131,7 +68,13 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     (:data:`~quadest.models.VEHICLE_PRESETS`, default ``recovery``)."""
     if scenario not in SCENARIOS:
         raise UsageError(f"unknown scenario {scenario!r}; scenarios: {', '.join(SCENARIOS)}")
-    if not isinstance(estimator, Estimator) and estimator != "truth" and estimator not in FILTERS:
+    if scenario == "throw":
+        if estimator not in ("recovery", "truth"):
+            raise UsageError(f"a throw is recovered by the recovery paper's bank of EKFs: estimator recovery (or "
+                             f"truth), not {estimator!r}")
+        if controller not in (None, "se3"):
+            raise UsageError("after a throw the SE(3) controller holds the vehicle: controller se3 (or none)")
+    elif not isinstance(estimator, Estimator) and estimator != "truth" and estimator not in FILTERS:
         raise UsageError(f"unknown estimator {estimator!r}; estimators: truth, {', '.join(FILTERS)}")
     controller = controller or ("ftc" if scenario == "rotor-loss" else "se3")
     if controller not in CONTROLLERS:
@@ -149,6 +92,7 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     if controller == "ftc" and (failure is None or failure.efficiency > 0.0):
         raise UsageError("the fault-tolerant controller is for a complete rotor loss: give a failure with "
                          "efficiency 0 (scenario rotor-loss)")
+    preset = preset or DEFAULT_PRESET.get(scenario, "bebop2")
     cfg = (config or build_config(preset)).validate()
     rate = cfg.imu.rate_hz
     substeps = SIM_RATE_HZ / rate
@@ -159,6 +103,12 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     if abs(mocap_every - round(mocap_every)) > 1e-9 or mocap_every < 1:
         raise UsageError(f"the position sensor's rate {params.mocap_rate_hz:g} Hz must divide the IMU rate {rate:g} Hz")
     substeps, mocap_every = int(round(substeps)), int(round(mocap_every))
+    if scenario == "throw":
+        if failure is not None:
+            raise UsageError("a throw has no rotor failure")
+        return fly_throw(estimator=estimator, duration=duration, seed=seed, cfg=cfg, vehicle=vehicle, params=params,
+                         se3=se3, meta={"scenario": "flown throw", "preset": preset, "vehicle": vehicle_name,
+                                        "controller": "se3 after recovery", "estimator": estimator})
     n = int(round(duration * rate))
     t = np.arange(n) / rate
     ss = np.random.SeedSequence([int(seed), 13])
@@ -167,10 +117,7 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     p_d, v_d, a_d, yaw_d = (np.ascontiguousarray(a, dtype=float) for a in ref)
 
     # sensor draws: the same generators and order as flown_recording's sample_sensors
-    rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(int(seed)).spawn(4)]
-    has_mag = S.mag_rows(np.arange(n), rate, cfg.mag.rate_hz)
-    processes = draw_processes(cfg, t, has_mag, rngs)
-    sm = sensor_model(cfg, processes, has_mag)
+    processes, sm = sensors_for(cfg, n, seed)
     n_mocap = (n - 1) // mocap_every + 1
     mocap_noise = rng_mocap.normal(0.0, params.mocap_noise_m, (n_mocap, 3))
     delay = int(round(params.mocap_latency_s * rate))
@@ -225,22 +172,6 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     return flight
 
 
-def _angle_deg(q_true, q_est):
-    """Rotation angle between two attitudes (deg) and the tilt error: the angle between the
-    true and the estimated down direction in the body."""
-    dq = quat_mul(quat_conj(q_true), q_est)
-    total = np.degrees(2 * np.arccos(np.clip(np.abs(dq[:, 0]), 0.0, 1.0)))
-    ez = np.array([0.0, 0.0, 1.0])
-    g_true = quat_rotate(quat_conj(q_true), ez)
-    g_est = quat_rotate(quat_conj(q_est), ez)
-    tilt = np.degrees(np.arccos(np.clip((g_true * g_est).sum(axis=1), -1.0, 1.0)))
-    return total, tilt
-
-
-def _rms(v):
-    return float(np.sqrt(np.mean(np.square(v)))) if len(v) else None
-
-
 def summarize(flight: Flight, *, scenario, status, duration, failure, controller, estimator, seed, params,
               ftc, vehicle, ref) -> dict:
     """The summary of one run (module doc)."""
@@ -265,10 +196,10 @@ def summarize(flight: Flight, *, scenario, status, duration, failure, controller
     else:
         settle = None
     s["time_to_settle_s"] = None if settle is None else settle - start
-    s["position_rms_settled_m"] = _rms(err[t >= settle]) if settle is not None else None
-    total, tilt = _angle_deg(x[:, 6:10], flight.q_est)
-    s["attitude_error_rms_deg"] = _rms(total)
-    s["tilt_error_rms_deg"] = _rms(tilt)
+    s["position_rms_settled_m"] = rms(err[t >= settle]) if settle is not None else None
+    total, tilt = angle_errors(x[:, 6:10], flight.q_est)
+    s["attitude_error_rms_deg"] = rms(total)
+    s["tilt_error_rms_deg"] = rms(tilt)
     s["tilt_error_max_deg"] = float(tilt.max())
     if failure is not None and failure.efficiency == 0.0 and controller == "ftc":
         late = t >= max(start + 0.5 * (duration - start), start + 1.0)
@@ -290,8 +221,8 @@ def offline_errors(flight: Flight, estimator: str) -> dict:
     attitude error, as the controller's estimator's are summarised."""
     rec = flight.recording
     q = make_filter(estimator, declination=rec.declination).run(rec).q
-    total, tilt = _angle_deg(rec.true_q, q)
-    return {"attitude_error_rms_deg": _rms(total), "tilt_error_rms_deg": _rms(tilt)}
+    total, tilt = angle_errors(rec.true_q, q)
+    return {"attitude_error_rms_deg": rms(total), "tilt_error_rms_deg": rms(tilt)}
 
 
 def fly_many(scenario: str, estimators, seeds, *, on_flight=None, **kwargs) -> list[dict]:
@@ -309,7 +240,8 @@ def fly_many(scenario: str, estimators, seeds, *, on_flight=None, **kwargs) -> l
             on_flight(base)
         for name in estimators:
             f = fly(scenario, estimator=name, seed=seed, **kwargs)
-            f.summary["offline_on_truth_flight"] = offline_errors(base, name)
+            if name in FILTERS:
+                f.summary["offline_on_truth_flight"] = offline_errors(base, name)
             out.append(f.summary)
             if on_flight:
                 on_flight(f)
@@ -338,4 +270,11 @@ def campaign_table(summaries: list[dict]) -> list[dict]:
             "spin_rate_rad_s": mean([s.get("spin_rate_rad_s") for s in ok]),
             "tilt_deg": mean([s.get("tilt_deg") for s in ok]),
         })
+        if any("recovered" in s for s in runs):  # throws
+            rows[-1].update({
+                "recovered": sum(bool(s.get("recovered")) for s in runs),
+                "handover_s": mean([s.get("handover_s") for s in runs]),
+                "gravity_error_at_handover_deg": mean([s.get("gravity_error_at_handover_deg") for s in runs]),
+                "velocity_error_at_handover_m_s": mean([s.get("velocity_error_at_handover_m_s") for s in runs]),
+                "lowest_point_m": mean([s.get("lowest_point_m") for s in runs])})
     return rows

@@ -45,6 +45,57 @@ def no_estimator():
     return _true_estimate
 
 
+@njit(cache=True)
+def sense(x, cmd, eta, V, sm, k, dt, tw, dx, Fb, Mb, T, vib, gyr, acc, mag):
+    """IMU and magnetometer sample ``k`` (at ``k dt``) from the true state ``x``: the state's
+    derivative (into ``dx``) gives the acceleration and angular acceleration, the rotors'
+    thrusts (into ``T``) their load and the motor current."""
+    derivative(x, cmd, eta, V, dx)
+    rotor_forces(x, eta, V, Fb, Mb, T)
+    n_rot = eta.shape[0]
+    active = 0
+    total = 0.0
+    for i in range(n_rot):
+        total += T[i]
+        if eta[i] > 0.0:
+            active += 1
+    active = max(active, 1)
+    load = total / active / (V.mass * V.gravity / n_rot)
+    sample_imu(sm, k, k * dt, x[6:10], dx[3:6], x[10:13], dx[10:13], load, vib, gyr, acc)
+    sample_mag(sm, k, x[6:10], motor_current(load, active, tw), mag)
+
+
+@njit(cache=True)
+def ended(x, ground_z):
+    """Whether a flight ends after this step, and why (module doc)."""
+    for j in range(x.shape[0]):
+        if not np.isfinite(x[j]):
+            return DIVERGED
+    if x[2] > ground_z:
+        return GROUND
+    if (x[10] * x[10] + x[11] * x[11] + x[12] * x[12] > MAX_RATE * MAX_RATE
+            or x[3] * x[3] + x[4] * x[4] + x[5] * x[5] > MAX_SPEED * MAX_SPEED):
+        return LOST_CONTROL
+    return OK
+
+
+@njit(cache=True)
+def record_and_fly(k, x, dx, T, cmd, gyr, acc, mag, eta, V, h, substeps, ground_z,
+                   out_x, out_dx, out_thrust, out_cmd, out_gyr, out_acc, out_mag):
+    """Record sample ``k`` (state, derivative, thrusts, commands, readings), fly ``substeps``
+    RK4 steps to the next sample, and say whether the flight ends there (:func:`ended`)."""
+    out_x[k] = x
+    out_dx[k] = dx
+    out_thrust[k] = T
+    out_cmd[k] = cmd
+    out_gyr[k] = gyr
+    out_acc[k] = acc
+    out_mag[k] = mag
+    for _ in range(substeps):
+        rk4(x, cmd, eta, V, h)
+    return ended(x, ground_z)
+
+
 @njit
 def closed_loop(x, eta, V, G, F, sm, est_step, ex, ep, ec, ediag, dq, use_truth, h, substeps, rate,
                 p_d, v_d, a_d, yaw_d, fail_rotor, fail_k, fail_eta, ftc_k, tw,
@@ -71,18 +122,7 @@ def closed_loop(x, eta, V, G, F, sm, est_step, ex, ep, ec, ediag, dq, use_truth,
         if k == fail_k and fail_rotor >= 0:
             eta[fail_rotor] = fail_eta
         # sensors from the true state
-        derivative(x, cmd, eta, V, dx)
-        rotor_forces(x, eta, V, Fb, Mb, T)
-        active = 0
-        total = 0.0
-        for i in range(n_rot):
-            total += T[i]
-            if eta[i] > 0.0:
-                active += 1
-        active = max(active, 1)
-        load = total / active / (V.mass * V.gravity / n_rot)
-        sample_imu(sm, k, k * dt, x[6:10], dx[3:6], x[10:13], dx[10:13], load, vib, gyr, acc)
-        sample_mag(sm, k, x[6:10], motor_current(load, active, tw), mag)
+        sense(x, cmd, eta, V, sm, k, dt, tw, dx, Fb, Mb, T, vib, gyr, acc, mag)
         # the estimator
         est_step(ex, ep, ec, gyr, acc, mag, dt, ediag)
         if use_truth:
@@ -121,27 +161,12 @@ def closed_loop(x, eta, V, G, F, sm, est_step, ex, ep, ec, ediag, dq, use_truth,
         if fail_rotor >= 0 and k >= fail_k and fail_eta == 0.0:
             cmd[fail_rotor] = 0.0  # a lost rotor: its motor spins down
         # record, then fly to the next sample
-        out_x[k] = x
-        out_dx[k] = dx
-        out_thrust[k] = T
         out_eta[k] = eta
-        out_cmd[k] = cmd
-        out_gyr[k] = gyr
-        out_acc[k] = acc
-        out_mag[k] = mag
         out_q[k] = xh[6:10]
         out_pv[k, 0:3] = ph
         out_pv[k, 3:6] = vh
-        for _ in range(substeps):
-            rk4(x, cmd, eta, V, h)
-        finite = True
-        for j in range(x.shape[0]):
-            finite = finite and np.isfinite(x[j])
-        if not finite:
-            return DIVERGED, k + 1
-        if x[2] > ground_z:
-            return GROUND, k + 1
-        if (x[10] * x[10] + x[11] * x[11] + x[12] * x[12] > MAX_RATE * MAX_RATE
-                or x[3] * x[3] + x[4] * x[4] + x[5] * x[5] > MAX_SPEED * MAX_SPEED):
-            return LOST_CONTROL, k + 1
+        status = record_and_fly(k, x, dx, T, cmd, gyr, acc, mag, eta, V, h, substeps, ground_z,
+                                out_x, out_dx, out_thrust, out_cmd, out_gyr, out_acc, out_mag)
+        if status != OK:
+            return status, k + 1
     return OK, yaw_d.shape[0]

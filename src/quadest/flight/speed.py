@@ -6,7 +6,8 @@ from __future__ import annotations
 import time
 
 from quadest.flight.crosscheck import crosscheck, rotorpy_available
-from quadest.flight.fly import SIM_RATE_HZ, fly
+from quadest.flight.common import SIM_RATE_HZ
+from quadest.flight.fly import fly
 from quadest.sim import build_config
 
 

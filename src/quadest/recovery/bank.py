@@ -79,8 +79,10 @@ def gravity_body(q, g, out):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def bank_step(V, Qr, P, L, w_prev, gyr, acc, dt, prm, A, B, C):
-    """Advance every hypothesis by one IMU sample (in place). ``prm``: a :data:`BankRecord`."""
+def bank_step(V, Qr, P, L, w_prev, gyr, acc, dt, prm, A, B, C, update=True):
+    """Advance every hypothesis by one IMU sample (in place). ``prm``: a :data:`BankRecord`.
+    ``update=False`` skips the accelerometer update (prior only; the likelihoods stay): the
+    nominal estimator's gate while the attitude control error is large (section V-B)."""
     g, m = prm.gravity, prm.mass
     n = V.shape[0]
     f = np.empty(3)
@@ -143,6 +145,9 @@ def bank_step(V, Qr, P, L, w_prev, gyr, acc, dt, prm, A, B, C):
             Pi[r, r] += prm.q_vel * dt
         Pi[3, 3] += prm.q_att * dt
         Pi[4, 4] += prm.q_att * dt
+        if not update:  # the prior is the estimate
+            v[0], v[1], v[2] = vbar[0], vbar[1], vbar[2]
+            continue
         # -- posterior (eqs 26-29) -------------------------------------------------------------
         _aero(vbar, gyr, A, B, C, m, f, U)
         r0, r1, r2 = acc[0] - f[0], acc[1] - f[1], acc[2] - f[2]

@@ -67,6 +67,15 @@ def shortest_arc(d) -> np.ndarray:
     return q / np.linalg.norm(q)
 
 
+def initial_bank(p: RecoveryParams, dirs):
+    """The bank at the detection (eq 20): one hypothesis per gravity direction ``dirs`` (body),
+    at rest, with the initial covariance; equal likelihoods. Returns ``(V, Q_ref, P, L)``."""
+    H = len(dirs)
+    P0 = np.diag([p.sigma_v0 ** 2] * 3 + [p.sigma_delta0 ** 2] * 2)
+    return (np.zeros((H, 3)), np.array([shortest_arc(d) for d in dirs]), np.repeat(P0[None], H, axis=0),
+            np.zeros(H))
+
+
 @njit(cache=True, fastmath=FASTMATH)
 def _run_bank(V, Qr, P, L, w_prev, t, gyr, acc, k0, prm, A, B, C, beta2, best_out, sg_out, prob_out,
               gd_out, v_out, record_all):
@@ -173,13 +182,7 @@ def recover(rec, model: AeroModel, params: RecoveryParams | None = None, *, reco
     if k_det is not None and n > 1:
         events.append(("thrown", float(t[k_det])))
         events.append(("converging", float(t[k_det])))
-        if dirs is None:
-            dirs = spread_points(H)
-        V = np.zeros((H, 3))
-        Qr = np.array([shortest_arc(d) for d in dirs])
-        P0 = np.diag([p.sigma_v0 ** 2] * 3 + [p.sigma_delta0 ** 2] * 2)
-        P = np.repeat(P0[None], H, axis=0)
-        L = np.zeros(H)
+        V, Qr, P, L = initial_bank(p, spread_points(H) if dirs is None else dirs)
         w_prev = gyr[k_det - 1].copy() if k_det > 0 else gyr[k_det].copy()
         kc = _run_bank(V, Qr, P, L, w_prev, t, gyr, acc, k_det, prm, model.A, model.B, model.C, p.beta2,
                        best, s_g, prob, gd_all, vel, record_all)
