@@ -224,3 +224,36 @@ def test_reproduce_runs_on_the_same_engine():
     a = reproduce_qukf([1, 2], duration=8.0, workers=0)
     b = reproduce_qukf([1, 2], duration=8.0, workers=2)
     assert a == b
+
+
+def test_flown_runs_sweep_resume_and_tune(tmp_path, capsys):
+    """Flown flights in a sweep (issue #13): estimator x failure x seed, one row per run with
+    the flight's outcome; the same run twice is skipped (resume); tuning reads the tilt error
+    the controller flew with; a sweep that mixes flown and estimation runs is refused."""
+    import pyarrow.parquet as pq
+
+    from quadest.errors import UsageError
+    from quadest.sweep import flown_sources
+
+    out = tmp_path / "flown.parquet"
+    argv = ["sweep", "--fly", "rotor-loss", "--filters", "truth,madgwick", "--failure", "0@1", "--failure", "2@1",
+            "--seeds", "0-1", "--duration", "3", "--workers", "0", "-o", str(out)]
+    assert main(argv) == 0
+    t = pq.read_table(out).to_pylist()
+    assert len(t) == 8 and all(r["status"] == "ok" and r["flight"] == "survived" for r in t)
+    assert {r["source"] for r in t} == {f"flown rotor-loss/rotor{k}@1/seed{s}" for k in (0, 2) for s in (0, 1)}
+    truth = [r for r in t if r["filter"] == "truth"]
+    assert all(r["inclination_rmse_deg"] < 1e-5 and r["recovered"] == -1 for r in truth)
+    assert all(abs(r["spin_rate_rad_s"]) > 5.0 for r in t)  # the rotor-loss spin, an output (its sign: the lost rotor's sense)
+    capsys.readouterr()
+    assert main(argv) == 0 and "executed 0 (skipped 8" in capsys.readouterr().out
+    assert main(["tune", "madgwick", "--fly", "rotor-loss", "--grid", "madgwick.beta_marg=0.05", "--seeds", "0",
+                 "--duration", "3", "--metric", "inclination_rmse_deg", "--workers", "0",
+                 "-o", str(tmp_path / "t.parquet")]) == 0
+    assert "trial-agnostic best" in capsys.readouterr().out
+    mixed = flown_sources("hover", [0]) + sim_sources("hover", "bebop2", [0], 2.0)
+    with pytest.raises(UsageError, match="either flown"):
+        run_sweep(build_runs("madgwick", {}, mixed), tmp_path / "m.parquet", workers=0, progress=False)
+    code = main(["sweep", "--fly", "rotor-loss", "--failure", "9@1", "--filters", "madgwick", "-o",
+                 str(tmp_path / "x.parquet")])
+    assert code == 2 and "rotor 9 does not exist" in capsys.readouterr().err

@@ -4,18 +4,41 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from quadest.cli.common import add_engine_args, parse_seeds, parse_sets, say, sim_config, write_json
+from quadest.cli.common import CliError, add_engine_args, parse_seeds, parse_sets, say, sim_config, write_json
+from quadest.cli.fly import parse_failure
+from quadest.flight import CONTROLLERS, DEFAULT_DURATION
+from quadest.flight import SCENARIOS as FLY_SCENARIOS
+from quadest.models import VEHICLE_PRESETS, vehicle_preset
 from quadest.sim import PRESETS, SCENARIOS
-from quadest.sweep import build_runs, file_sources, format_selection, parse_grid, run_sweep, sim_sources, tune
+from quadest.sweep import (build_runs, file_sources, flown_sources, format_selection, parse_grid, run_sweep,
+                           sim_sources, tune)
+
+
+def _flown_sources(args):
+    if args.data or args.set:
+        raise CliError("--fly flies the vehicle: it takes neither --data nor --set")
+    failures = [parse_failure(f) for f in args.failure] if args.failure else [None]
+    vehicle = vehicle_preset(args.vehicle)
+    duration = args.duration or DEFAULT_DURATION[args.fly]
+    for f in failures:  # refused before any run starts
+        if f is not None:
+            f.check(vehicle, duration)
+    return flown_sources(args.fly, parse_seeds(args.seeds), controller=args.controller,
+                         failures=[None if f is None else {"rotor": f.rotor, "time_s": f.time_s,
+                                                           "efficiency": f.efficiency} for f in failures],
+                         duration=args.duration, vehicle=args.vehicle, preset=args.preset)
 
 
 def _sweep_runs(args, filters):
     grid = parse_grid(args.grid)
-    if args.data:
+    if args.fly:
+        sources = _flown_sources(args)
+    elif args.data:
         sources = file_sources(args.data, args.format)
     else:
-        sim_config(args.preset, args.set)  # refuse a wrong --set before any run starts
-        sources = sim_sources(args.scenario, args.preset, parse_seeds(args.seeds), args.duration,
+        preset = args.preset or "bebop2"
+        sim_config(preset, args.set)  # refuse a wrong --set before any run starts
+        sources = sim_sources(args.scenario, preset, parse_seeds(args.seeds), args.duration,
                               parse_sets(args.set), args.t_from)
     return build_runs(filters, grid, sources, args.align)
 
@@ -76,12 +99,22 @@ def _add_sweep_args(p):
                      help="recordings or folders of them (e.g. ../shared/data/broad), any supported format")
     src.add_argument("--format", default=None, help="with --data: reader (default: chosen from each file)")
     src.add_argument("--scenario", choices=SCENARIOS, default="nominal", help="simulated scenario (default: nominal)")
-    src.add_argument("--preset", choices=list(PRESETS), default="bebop2", help="simulator preset (default: bebop2)")
+    src.add_argument("--preset", choices=list(PRESETS), default=None,
+                     help="simulator preset (default: bebop2; fma for a flown throw)")
     src.add_argument("--seeds", default="1-10", help="seed range or list (default: 1-10)")
     src.add_argument("--duration", type=float, default=None, help="seconds per simulated flight")
     src.add_argument("--set", action="append", metavar="KEY=VALUE", help="simulator parameter")
     src.add_argument("--from", dest="t_from", type=float, default=None, metavar="SECONDS",
                      help="count errors from this time on")
+    fl = p.add_argument_group("flown flights: the vehicle flies with each estimator in the loop (docs/vehicle.md)")
+    fl.add_argument("--fly", choices=FLY_SCENARIOS, default=None, metavar="SCENARIO",
+                    help=f"fly this scenario ({', '.join(FLY_SCENARIOS)}) instead of simulating a prescribed one; "
+                         "--filters then names the estimators in the loop (truth too; recovery for a throw)")
+    fl.add_argument("--controller", choices=CONTROLLERS, default=None, help="with --fly (default: per scenario)")
+    fl.add_argument("--failure", action="append", metavar="ROTOR@TIME[:EFF]",
+                    help="with --fly: a rotor failure (repeatable: every failure with every seed)")
+    fl.add_argument("--vehicle", choices=list(VEHICLE_PRESETS), default="recovery",
+                    help="with --fly: the vehicle (default: recovery)")
     p.add_argument("--align", choices=["none", "heading", "full"], default=None,
                    help="constant navigation-frame rotation removed (default: the reader's recommendation)")
     p.add_argument("-o", "--out", required=True, type=Path, metavar="RESULTS.parquet",

@@ -51,7 +51,8 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
         duration: float | None = None, seed: int = 0, preset: str | None = None,
         vehicle: MultirotorParams | str | None = None, failure: Failure | None = None,
         se3: SE3Params | None = None, ftc: FtcParams | None = None,
-        params: FlightParams | None = None, config: SimConfig | None = None) -> Flight:
+        params: FlightParams | None = None, config: SimConfig | None = None,
+        estimator_params: dict | None = None) -> Flight:
     """Fly ``scenario`` with ``estimator`` in the loop: a quadest filter by name (with the
     preset's declination), an :class:`~quadest.filters.Estimator` (it continues from its state),
     or ``truth`` (the controller reads the true state).
@@ -65,7 +66,8 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     once a complete rotor loss is known); default ``ftc`` for ``rotor-loss``, else ``se3``.
     The sensors are the ``preset``'s (or ``config``'s), the position sensor and what the loop
     assumes ``params``'; ``vehicle`` a :class:`MultirotorParams` or a preset name
-    (:data:`~quadest.models.VEHICLE_PRESETS`, default ``recovery``)."""
+    (:data:`~quadest.models.VEHICLE_PRESETS`, default ``recovery``); ``estimator_params`` the
+    named estimator's parameters (``{"beta_marg": 0.05}``)."""
     if scenario not in SCENARIOS:
         raise UsageError(f"unknown scenario {scenario!r}; scenarios: {', '.join(SCENARIOS)}")
     if scenario == "throw":
@@ -127,7 +129,8 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     if use_truth:
         step, ex, ep, ec, ediag = no_estimator(), np.zeros(4), 0.0, 0.0, np.zeros(1)
     else:
-        est = estimator if isinstance(estimator, Estimator) else make_filter(estimator, declination=declination)
+        est = (estimator if isinstance(estimator, Estimator)
+               else make_filter(estimator, declination=declination, **(estimator_params or {})))
         step, ex, ep, ec, ediag = type(est).step, est._x, est._p, est._c, est._diag
         declination, estimator = est.declination, est.name
     dq = _declination_quat(declination)

@@ -12,16 +12,13 @@ client receives each future's result once, and only the client writes.
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 import time
 import uuid
 from pathlib import Path
 
-import numpy as np
-
 from quadest.evaluation.parallel import execute
-from quadest.sweep.runs import METRICS, ROW_TYPES, group_runs, run_group, run_id, source_label
+from quadest.sweep.runs import empty_row, group_runs, row_types, run_group, run_id
 
 
 # -- the result store ---------------------------------------------------------------------------------
@@ -151,7 +148,7 @@ def run_sweep(runs, out, *, workers: int | None = 0, scheduler: str | None = Non
     Runs on the same flight go to one task (up to 32 runs), so each flight is simulated or
     read once; rows are still written one per run as the tasks finish."""
     store = ResultStore(out)
-    store.check_layout(ROW_TYPES)
+    store.check_layout(row_types(runs))
     done_before = store.done_ids(retry_failed)
     todo = [r for r in runs if run_id(r) not in done_before]
     ids = [run_id(r) for r in todo]
@@ -165,10 +162,7 @@ def run_sweep(runs, out, *, workers: int | None = 0, scheduler: str | None = Non
 
     def on_result(i, rows):
         if isinstance(rows, BaseException):  # the task itself was lost (e.g. its worker died 3 times)
-            rows = [{"run_id": run_id(spec), "filter": spec["filter"], "params": _json(spec["params"]),
-                     "source": source_label(spec["source"]), "seed": spec["source"].get("seed", -1),
-                     "spec": _json(spec), "status": "failed", "error": f"{type(rows).__name__}: {rows}",
-                     **{k: np.nan for k in METRICS}, "samples": 0, "seconds": np.nan} for spec in groups[i]]
+            rows = [empty_row(spec, f"{type(rows).__name__}: {rows}") for spec in groups[i]]
         for row in rows:
             store.add(row)
             new_ok[0] += row.get("status") == "ok"
@@ -188,7 +182,3 @@ def run_sweep(runs, out, *, workers: int | None = 0, scheduler: str | None = Non
     return {"runs": len(runs), "skipped": len(runs) - len(todo), "executed": len(todo), "wall_s": wall,
             "compute_s": compute, "runs_per_s": len(todo) / compute if compute > 0 and todo else float("nan"),
             "ok": status.count("ok"), "failed": status.count("failed"), "executed_ok": new_ok[0]}
-
-
-def _json(x):
-    return json.dumps(x, sort_keys=True)

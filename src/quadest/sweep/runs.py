@@ -18,8 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
+from quadest.control import Failure
 from quadest.errors import UsageError
 from quadest.evaluation.runner import check_params, estimate, estimator_names, score
+from quadest.filters import FILTERS
+from quadest.flight import fly
 from quadest.readers import read_recording
 from quadest.sim import simulate
 
@@ -31,6 +34,40 @@ ROW_TYPES = {"run_id": "string", "filter": "string", "params": "string", "source
              "spec": "string", "status": "string", "error": "string", **{k: "double" for k in METRICS},
              "samples": "int64", "seconds": "double"}
 """The columns of a results row and their Arrow types (a results file must hold these)."""
+
+
+FLOWN_ROW_TYPES = {**ROW_TYPES, "flight": "string", "reason": "string", "end_time_s": "double",
+                   "time_to_settle_s": "double", "position_rms_m": "double", "spin_rate_rad_s": "double",
+                   "tilt_deg": "double", "recovered": "int64", "handover_s": "double",
+                   "gravity_error_at_handover_deg": "double"}
+"""A flown run's row: the estimation columns (``total_rmse_deg``: the attitude error the
+controller flew with, ``inclination_rmse_deg``: its tilt error; the others NaN) and the
+flight's outcome (``flight``: survived, crashed or stopped; ``recovered`` 1/0 for a throw, −1
+otherwise)."""
+FLOWN_FIELDS = {"end_time_s": "end_time_s", "time_to_settle_s": "time_to_settle_s",
+                "position_rms_m": "position_rms_settled_m", "spin_rate_rad_s": "spin_rate_rad_s",
+                "tilt_deg": "tilt_deg", "handover_s": "handover_s",
+                "gravity_error_at_handover_deg": "gravity_error_at_handover_deg"}
+
+
+def row_types(runs) -> dict:
+    """The layout of a sweep's results: flown runs have their own (a sweep is one or the other)."""
+    kinds = {r["source"]["kind"] == "flown" for r in runs}
+    if len(kinds) > 1:
+        raise UsageError("a sweep runs either flown flights or estimation runs, not both")
+    return FLOWN_ROW_TYPES if kinds == {True} else ROW_TYPES
+
+
+def empty_row(spec: dict, error: str = "") -> dict:
+    """A run's row before (or without) its results: NaN metrics, status failed when ``error``."""
+    layout = FLOWN_ROW_TYPES if spec["source"]["kind"] == "flown" else ROW_TYPES
+    row = {"run_id": run_id(spec), "filter": spec["filter"], "params": json.dumps(spec["params"], sort_keys=True),
+           "source": source_label(spec["source"]), "seed": spec["source"].get("seed", -1),
+           "spec": json.dumps(spec, sort_keys=True), "status": "failed" if error else "ok", "error": error}
+    for k, t in layout.items():
+        if k not in row:
+            row[k] = {"double": math.nan, "int64": -1 if k == "recovered" else 0, "string": ""}[t]
+    return row
 
 
 def run_id(spec: dict) -> str:
@@ -80,6 +117,14 @@ def sim_sources(scenario, preset, seeds, duration=None, overrides=None, t_from=N
              "set": dict(overrides or {}), "from_s": t_from} for s in seeds]
 
 
+def flown_sources(scenario, seeds, *, controller=None, failures=(None,), duration=None, vehicle="recovery",
+                  preset=None) -> list[dict]:
+    """Flown flights (:func:`quadest.flight.fly`): one per (failure, seed); a failure as
+    ``{"rotor", "time_s", "efficiency"}`` or None."""
+    return [{"kind": "flown", "scenario": scenario, "controller": controller, "failure": f, "seed": int(s),
+             "duration": duration, "vehicle": vehicle, "preset": preset} for f in failures for s in seeds]
+
+
 def file_sources(paths, fmt=None) -> list[dict]:
     out = []
     for p in paths:
@@ -95,9 +140,26 @@ def file_sources(paths, fmt=None) -> list[dict]:
     return out
 
 
+def flown_names(filters, scenario: str) -> list[str]:
+    """The estimators a flown sweep puts in the loop: quadest's filters, truth, and for a throw
+    the recovery; ``all``/``quadest`` are truth and quadest's filters (or truth and recovery)."""
+    spec = (filters if isinstance(filters, str) else ",".join(filters)).strip()
+    known = ["truth", "recovery"] if scenario == "throw" else ["truth", *FILTERS]
+    names = known if spec in ("all", "quadest") else [n.strip() for n in spec.split(",") if n.strip()]
+    bad = [n for n in names if n not in known]
+    if bad or not names:
+        raise UsageError(f"unknown estimator(s) in the loop for {scenario}: {', '.join(bad) or spec!r}; known: "
+                         f"{', '.join(known)} (peers cannot fly yet)")
+    return names
+
+
 def build_runs(filters, grid: dict, sources, align: str | None = None) -> list[dict]:
     """Every (filter, parameter set, source) as a run spec."""
-    names = estimator_names(filters if isinstance(filters, str) else ",".join(filters), all_includes_peers=True)
+    flown = [s for s in sources if s["kind"] == "flown"]
+    if flown:
+        names = flown_names(filters, flown[0]["scenario"])
+    else:
+        names = estimator_names(filters if isinstance(filters, str) else ",".join(filters), all_includes_peers=True)
     unknown = [n for n in grid if n not in names]
     if unknown:
         raise UsageError(f"--grid names filter(s) {', '.join(unknown)} that the sweep does not run")
@@ -114,6 +176,10 @@ def build_runs(filters, grid: dict, sources, align: str | None = None) -> list[d
 
 
 def source_label(src: dict) -> str:
+    if src["kind"] == "flown":
+        f = src.get("failure")
+        fail = f"/rotor{f['rotor']}@{f['time_s']:g}" + (f":{f['efficiency']:g}" if f["efficiency"] else "") if f else ""
+        return f"flown {src['scenario']}{fail}/seed{src['seed']}"
     if src["kind"] == "sim":
         return f"{src['scenario']}/{src['preset']}/seed{src['seed']}"
     return Path(src["path"]).stem if Path(src["path"]).is_file() else Path(src["path"]).name
@@ -154,15 +220,36 @@ def group_runs(runs: list, max_runs: int = 32) -> list:
     return groups
 
 
+def fly_one(spec: dict, row: dict) -> None:
+    """A flown run: fly it and put its summary into ``row``."""
+    src = spec["source"]
+    f = src.get("failure")
+    flight = fly(src["scenario"], estimator=spec["filter"], controller=src.get("controller"),
+                 duration=src.get("duration"), seed=src["seed"], preset=src.get("preset"),
+                 vehicle=src.get("vehicle") or "recovery", failure=Failure(**f) if f else None,
+                 estimator_params=spec["params"] or None)
+    s = flight.summary
+    row.update({"flight": s["status"], "reason": s["reason"], "samples": len(flight.recording),
+                "total_rmse_deg": s.get("attitude_error_rms_deg", math.nan),
+                "inclination_rmse_deg": s.get("tilt_error_rms_deg", math.nan),
+                "recovered": int(s["recovered"]) if "recovered" in s else -1})
+    for col, key in FLOWN_FIELDS.items():
+        v = s.get(key)
+        row[col] = math.nan if v is None else float(v)
+
+
 def run_one(spec: dict) -> dict:
     """Evaluate one run; never raises: a failure becomes a row with ``status='failed'``."""
     t0 = time.perf_counter()
-    row = {"run_id": run_id(spec), "filter": spec["filter"], "params": json.dumps(spec["params"], sort_keys=True),
-           "source": source_label(spec["source"]), "seed": spec["source"].get("seed", -1),
-           "spec": json.dumps(spec, sort_keys=True), "status": "ok", "error": ""}
-    for k in METRICS:
-        row[k] = math.nan
-    row["samples"] = 0
+    row = empty_row(spec)
+    if spec["source"]["kind"] == "flown":
+        try:
+            fly_one(spec, row)
+        except Exception as exc:  # a failing run is recorded and the sweep goes on
+            row["status"] = "failed"
+            row["error"] = f"{type(exc).__name__}: {exc}"
+        row["seconds"] = time.perf_counter() - t0
+        return row
     try:
         rec = load_source(spec["source"])
         q = estimate(rec, spec["filter"], spec["params"]).q
