@@ -77,7 +77,7 @@ def test_peer_frame_conversions(name, marg):
     9-axis (AQUA's default gains make its heading slow: 13° measured), and inclination 6-axis
     below 12°: the 3 m/s² manoeuvres tilt the apparent gravity by up to atan(3/9.81) = 17°, and a
     filter that follows the accelerometer within 0.2 s (AQUA's default) shows about half of it."""
-    from quadest.evaluation.peers import run_peer
+    from quadest.filters.peers import run_peer
 
     pytest.importorskip({"vqf-offline": "vqf", "imufusion": "imufusion"}.get(name, name.split("-")[0]))
     mask = marg.t > 10

@@ -205,3 +205,18 @@ def test_the_bank_without_its_update_keeps_the_prior():
     f = aero_force(np.array([1.0, 0.0, 0.0]), w, m.A, m.B, m.C) / 0.5
     expect = np.array([1.0, 0.0, 0.0]) + 1e-3 * (-np.cross(w, [1.0, 0.0, 0.0]) + f + [0.0, 0.0, prm.gravity])
     np.testing.assert_allclose(Va[0], expect, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("peer", ["vqf", "imufusion"])
+def test_peers_fly_in_the_loop_through_their_streaming_api(peer):
+    """A peer in the loop (its per-sample API, from Python) gives, sample by sample, what its
+    batch adapter gives over the flown recording afterwards (the same frames and declination),
+    and holds a hover."""
+    pytest.importorskip(peer)
+    from quadest.filters.peers import run_peer
+
+    f = fly("trajectory", estimator=peer, seed=1, duration=4.0)
+    q = run_peer(peer, f.recording)
+    assert np.abs(np.abs((q * f.q_est).sum(axis=1)) - 1.0).max() < 1e-6
+    s = fly("hover", estimator=peer, seed=4).summary
+    assert s["status"] == "survived" and s["time_to_settle_s"] is not None, s

@@ -7,7 +7,7 @@ from quadest.cli.common import CliError, parse_seeds, say, write_json
 from quadest.control import Failure
 from quadest.data import save_recording, write_table
 from quadest.filters import FILTERS
-from quadest.flight import CONTROLLERS, SCENARIOS, campaign_table, fly, fly_many
+from quadest.flight import CONTROLLERS, SCENARIOS, campaign_table, fly, fly_many, in_loop_estimators
 from quadest.models import VEHICLE_PRESETS
 from quadest.sim import PRESETS
 
@@ -50,7 +50,7 @@ def _fmt(v, unit="", digits=2):
 def parse_estimators(text, scenario: str) -> list[str]:
     """``all`` (truth and every quadest filter; for a throw truth and the recovery) or a
     comma-separated list."""
-    known = ["truth", "recovery"] if scenario == "throw" else ["truth", *FILTERS]
+    known = ["truth", "recovery"] if scenario == "throw" else ["truth", *in_loop_estimators()]
     if text is None:
         return ["recovery" if scenario == "throw" else "madgwick"]
     names = known if text.strip() == "all" else [n.strip() for n in text.split(",") if n.strip()]
@@ -147,7 +147,8 @@ def add_parsers(sub):
                    help="se3: the nominal controller only; ftc: SE(3), then the fault-tolerant controller once a "
                         "rotor loss is known (default: ftc for rotor-loss, else se3)")
     s.add_argument("--estimator", default=None,
-                   help=f"the attitude estimator in the loop: truth, {', '.join(FILTERS)}; for a throw recovery (the "
+                   help=f"the attitude estimator in the loop: truth, {', '.join(FILTERS)}, the peers vqf and imufusion "
+                        "(their streaming API, when installed); for a throw recovery (the "
                         "bank of EKFs, then its nominal EKF) or truth. Several (comma-separated) or all fly each, with "
                         "the flight with truth in the loop first and each estimator also run over that flight "
                         "afterwards (default: madgwick; recovery for a throw)")

@@ -11,7 +11,7 @@ from quadest.calibration import apply_calibrations, calibrate
 from quadest.cli.common import CliError, add_calibration_arg, add_input_args, read, say
 from quadest.data import format_summary, summarize, write_table
 from quadest.evaluation.compare import parse_params
-from quadest.evaluation.peers import PEERS
+from quadest.filters.peers import PEERS
 from quadest.evaluation.runner import estimate, filter_notes
 from quadest.filters import FILTERS
 from quadest.rotation import quat_to_euler

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from quadest.evaluation.peers import available_peers
+from quadest.filters.peers import available_peers
 from quadest.evaluation.runner import estimate, score
 from quadest.filters import FILTERS
 from quadest.readers import detect_format, read_recording

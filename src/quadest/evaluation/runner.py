@@ -16,7 +16,7 @@ from quadest.data.recording import Recording
 from quadest.errors import UsageError
 from quadest.evaluation.align import Alignment, fit_alignment
 from quadest.evaluation.metrics import summarize_errors
-from quadest.evaluation.peers import PEERS, available_peers, run_peer
+from quadest.filters.peers import PEERS, available_peers, run_peer
 from quadest.filters import FILTERS, FilterResult, make_filter
 
 

@@ -7,7 +7,7 @@ import time
 
 import numpy as np
 
-from quadest.evaluation.peers import run_peer
+from quadest.filters.peers import run_peer
 from quadest.filters import FILTERS, make_filter
 from quadest.recovery.logic import RecoveryParams, _run_bank, shortest_arc
 from quadest.recovery.sphere import spread_points

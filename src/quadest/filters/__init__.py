@@ -1,4 +1,5 @@
-"""The attitude estimators, one module each (docs/estimators.md).
+"""The attitude estimators, one module each (docs/estimators.md), and the adapters of the peers
+(:mod:`quadest.filters.peers`: VQF, imufusion, ahrs, in quadest's conventions).
 
 ``FILTERS`` maps the command-line name to the estimator class; every class takes a parameter
 record (or keyword overrides), offers streaming ``update`` and batch ``run``.

@@ -19,7 +19,8 @@ from quadest.filters import FILTERS, Estimator, make_filter
 from quadest.filters.base import _declination_quat
 from quadest.flight.common import (SIM_RATE_HZ, Flight, FlightParams, angle_errors, position_gain, rms,
                                    sensors_for)
-from quadest.flight.loop import OK, STATUS, closed_loop, no_estimator
+from quadest.filters.peers import STREAMING_PEERS, available_peers, run_peer, stream_peer
+from quadest.flight.loop import ESTIMATE_NAN, OK, STATUS, Loop, closed_loop, no_estimator, step_act, step_sense
 from quadest.flight.throw import fly_throw
 from quadest.models.multirotor import MultirotorParams, vehicle_preset
 from quadest.rotation import euler_to_quat, quat_rotate
@@ -28,6 +29,12 @@ from quadest.sim.flown import flown_recording
 from quadest.sim.params import SimConfig
 
 SCENARIOS = ("hover", "trajectory", "rotor-loss", "throw")
+
+
+def in_loop_estimators() -> list[str]:
+    """What can fly in the loop (besides truth): quadest's filters and the installed peers with
+    a per-sample API."""
+    return [*FILTERS, *[p for p in STREAMING_PEERS if p in available_peers()]]
 CONTROLLERS = ("se3", "ftc")
 DEFAULT_DURATION = {"hover": 10.0, "trajectory": 20.0, "rotor-loss": 10.0, "throw": 6.0}
 DEFAULT_PRESET = {"throw": "fma"}  # the recovery paper's sensors (IMU 1 kHz, no magnetometer); else bebop2
@@ -76,8 +83,10 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
                              f"truth), not {estimator!r}")
         if controller not in (None, "se3"):
             raise UsageError("after a throw the SE(3) controller holds the vehicle: controller se3 (or none)")
-    elif not isinstance(estimator, Estimator) and estimator != "truth" and estimator not in FILTERS:
-        raise UsageError(f"unknown estimator {estimator!r}; estimators: truth, {', '.join(FILTERS)}")
+    elif (not isinstance(estimator, Estimator) and estimator != "truth" and estimator not in FILTERS
+          and estimator not in STREAMING_PEERS):
+        raise UsageError(f"unknown estimator {estimator!r}; estimators: truth, {', '.join(FILTERS)}, and the peers "
+                         f"{', '.join(STREAMING_PEERS)} (through their streaming API)")
     controller = controller or ("ftc" if scenario == "rotor-loss" else "se3")
     if controller not in CONTROLLERS:
         raise UsageError(f"unknown controller {controller!r}; controllers: {', '.join(CONTROLLERS)}")
@@ -126,14 +135,19 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
 
     declination = math.radians(cfg.environment.declination_deg)
     use_truth = isinstance(estimator, str) and estimator == "truth"
+    peer = None
     if use_truth:
         step, ex, ep, ec, ediag = no_estimator(), np.zeros(4), 0.0, 0.0, np.zeros(1)
+    elif isinstance(estimator, str) and estimator in STREAMING_PEERS:
+        peer = stream_peer(estimator, 1.0 / rate, declination, use_mag=cfg.mag.rate_hz > 0)
+        step, ex, ep, ec, ediag = None, None, None, None, None
+        dq = None
     else:
         est = (estimator if isinstance(estimator, Estimator)
                else make_filter(estimator, declination=declination, **(estimator_params or {})))
         step, ex, ep, ec, ediag = type(est).step, est._x, est._p, est._c, est._diag
         declination, estimator = est.declination, est.name
-    dq = _declination_quat(declination)
+    dq = _declination_quat(declination) if peer is None else None
 
     fail_rotor, fail_k, fail_eta, ftc_k = -1, -1, 1.0, -1
     G = (se3 or SE3Params()).gains(vehicle)
@@ -151,12 +165,27 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
                q=np.empty((n, 4)), pv=np.empty((n, 6)))
     x = x0.copy()
     eta = np.ones(N)
+    hist = np.empty((delay + 1, 3))
+    hist[:] = x0[0:3]
+    L = Loop(vehicle.vehicle(), G, F, sm, use_truth, 1.0 / SIM_RATE_HZ, substeps, 1.0 / rate, p_d, v_d, a_d, yaw_d,
+             fail_rotor, fail_k, fail_eta, ftc_k, tw, mocap_every, delay, mocap_noise, position_gain(params, rate),
+             float(params.height_m),
+             np.zeros(N), np.empty(13 + N), np.empty(3), np.empty(3), np.empty(N), np.empty(3), np.empty(3),
+             np.empty(3), np.array([0.0, np.nan, np.nan]), np.empty(13), np.zeros(3), x0[0:3].copy(),
+             x0[3:6].copy(), hist,  # position and velocity estimates start at the truth (on the pad)
+             out["x"], out["dx"], out["thrust"], out["eta"], out["cmd"], out["gyr"], out["acc"], out["mag"], out["q"],
+             out["pv"])
     t0 = time.perf_counter()
-    status, flown = closed_loop(
-        x, eta, vehicle.vehicle(), G, F, sm, step, ex, ep, ec, ediag, dq, use_truth, 1.0 / SIM_RATE_HZ,
-        substeps, float(rate), p_d, v_d, a_d, yaw_d, fail_rotor, fail_k, fail_eta, ftc_k, tw, mocap_every, delay,
-        mocap_noise, position_gain(params, rate), params.height_m, out["x"], out["dx"], out["thrust"], out["eta"],
-        out["cmd"], out["gyr"], out["acc"], out["mag"], out["q"], out["pv"])
+    if peer is not None:
+        status, flown = OK, n
+        for k in range(n):
+            step_sense(k, x, eta, L)
+            status = step_act(k, x, eta, L, peer.update(L.gyr, L.acc, L.mag))
+            if status != OK:
+                flown = k if status == ESTIMATE_NAN else k + 1
+                break
+    else:
+        status, flown = closed_loop(x, eta, L, step, ex, ep, ec, ediag, dq)
     loop_s = time.perf_counter() - t0
     out = {k: v[:flown] for k, v in out.items()}
     if flown == 0:
@@ -223,7 +252,10 @@ def offline_errors(flight: Flight, estimator: str) -> dict:
     """``estimator`` run afterwards over a flight's recording (not in its loop): its tilt and
     attitude error, as the controller's estimator's are summarised."""
     rec = flight.recording
-    q = make_filter(estimator, declination=rec.declination).run(rec).q
+    if estimator in STREAMING_PEERS:
+        q = run_peer(estimator, rec)
+    else:
+        q = make_filter(estimator, declination=rec.declination).run(rec).q
     total, tilt = angle_errors(rec.true_q, q)
     return {"attitude_error_rms_deg": rms(total), "tilt_error_rms_deg": rms(tilt)}
 
@@ -243,7 +275,7 @@ def fly_many(scenario: str, estimators, seeds, *, on_flight=None, **kwargs) -> l
             on_flight(base)
         for name in estimators:
             f = fly(scenario, estimator=name, seed=seed, **kwargs)
-            if name in FILTERS:
+            if name in FILTERS or name in STREAMING_PEERS:
                 f.summary["offline_on_truth_flight"] = offline_errors(base, name)
             out.append(f.summary)
             if on_flight:

@@ -19,6 +19,8 @@ what a flying vehicle has), a non-finite estimate, or a diverged simulation.
 """
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 from numba import njit
 
@@ -96,77 +98,91 @@ def record_and_fly(k, x, dx, T, cmd, gyr, acc, mag, eta, V, h, substeps, ground_
     return ended(x, ground_z)
 
 
-@njit
-def closed_loop(x, eta, V, G, F, sm, est_step, ex, ep, ec, ediag, dq, use_truth, h, substeps, rate,
-                p_d, v_d, a_d, yaw_d, fail_rotor, fail_k, fail_eta, ftc_k, tw,
-                mocap_every, mocap_delay, mocap_noise, pos_gain, ground_z,
-                out_x, out_dx, out_thrust, out_eta, out_cmd, out_gyr, out_acc, out_mag, out_q, out_pv):
-    """Fly ``len(yaw_d)`` IMU samples (module doc). ``est_step`` is the estimator's compiled step
-    with its state ``ex``, records ``ep``, ``ec`` and diagnostics ``ediag``; ``dq`` the
-    declination quaternion. Returns ``(status, samples flown)``."""
-    n_rot = eta.shape[0]
-    cmd = np.empty(n_rot)
-    dx = np.empty(x.shape[0])
-    Fb, Mb, T = np.empty(3), np.empty(3), np.empty(n_rot)
-    gyr, acc, mag = np.empty(3), np.empty(3), np.empty(3)
-    vib = np.array([0.0, np.nan, np.nan])
-    xh = np.empty(13)
-    integral = np.zeros(3)
-    ph = x[0:3].copy()  # position and velocity estimates start at the truth (the vehicle is on its pad)
-    vh = x[3:6].copy()
-    hist = np.empty((mocap_delay + 1, 3))
-    for j in range(mocap_delay + 1):
-        hist[j] = x[0:3]
-    dt = 1.0 / rate
-    for k in range(yaw_d.shape[0]):
-        if k == fail_k and fail_rotor >= 0:
-            eta[fail_rotor] = fail_eta
-        # sensors from the true state
-        sense(x, cmd, eta, V, sm, k, dt, tw, dx, Fb, Mb, T, vib, gyr, acc, mag)
-        # the estimator
-        est_step(ex, ep, ec, gyr, acc, mag, dt, ediag)
-        if use_truth:
-            for j in range(4):
-                xh[6 + j] = x[6 + j]
-        else:
-            xh[6:10] = qmul(dq, ex[0:4])
-        if not (np.isfinite(xh[6]) and np.isfinite(xh[7]) and np.isfinite(xh[8]) and np.isfinite(xh[9])):
-            return ESTIMATE_NAN, k
-        # position and velocity
-        if use_truth:
-            for j in range(3):
-                ph[j], vh[j] = x[j], x[3 + j]
-        else:
-            a0, a1, a2 = rotate_s(xh[6], xh[7], xh[8], xh[9], acc[0], acc[1], acc[2])
-            an = (a0, a1, a2 + V.gravity)
-            for j in range(3):
-                ph[j] += vh[j] * dt + 0.5 * an[j] * dt * dt
-                vh[j] += an[j] * dt
-            for j in range(mocap_delay, 0, -1):
-                hist[j] = hist[j - 1]
-            hist[0] = x[0:3]
-            if k % mocap_every == 0:
-                m = k // mocap_every
-                for j in range(3):
-                    e = hist[mocap_delay, j] + mocap_noise[m, j] - ph[j]
-                    ph[j] += pos_gain[0] * e
-                    vh[j] += pos_gain[1] * e
+Loop = namedtuple("Loop", [
+    # the flight: vehicle, controllers, sensors, reference, failure, position sensor, ground
+    "V", "G", "F", "sm", "use_truth", "h", "substeps", "dt", "p_d", "v_d", "a_d", "yaw_d",
+    "fail_rotor", "fail_k", "fail_eta", "ftc_k", "tw", "mocap_every", "mocap_delay", "mocap_noise", "pos_gain",
+    "ground_z",
+    # what the loop carries from sample to sample
+    "cmd", "dx", "Fb", "Mb", "T", "gyr", "acc", "mag", "vib", "xh", "integral", "ph", "vh", "hist",
+    # what it records per sample
+    "out_x", "out_dx", "out_thrust", "out_eta", "out_cmd", "out_gyr", "out_acc", "out_mag", "out_q", "out_pv"])
+"""Everything a closed loop reads and writes (built by :func:`quadest.flight.fly`)."""
+
+
+@njit(cache=True)
+def step_sense(k, x, eta, L):
+    """Sample ``k``, first half: a failure due now strikes; the sensors are sampled into
+    ``L.gyr``, ``L.acc``, ``L.mag``."""
+    if k == L.fail_k and L.fail_rotor >= 0:
+        eta[L.fail_rotor] = L.fail_eta
+    sense(x, L.cmd, eta, L.V, L.sm, k, L.dt, L.tw, L.dx, L.Fb, L.Mb, L.T, L.vib, L.gyr, L.acc, L.mag)
+
+
+@njit(cache=True)
+def step_act(k, x, eta, L, q_est):
+    """Sample ``k``, second half, with the estimator's attitude ``q_est`` (geographic ``q_nb``;
+    ignored with truth in the loop): position and velocity, control, record, fly to the next
+    sample. Returns the status (:data:`OK` to go on)."""
+    V, xh, ph, vh, hist, acc, gyr = L.V, L.xh, L.ph, L.vh, L.hist, L.acc, L.gyr
+    dt = L.dt
+    if L.use_truth:
+        for j in range(4):
+            xh[6 + j] = x[6 + j]
+    else:
+        for j in range(4):
+            xh[6 + j] = q_est[j]
+    if not (np.isfinite(xh[6]) and np.isfinite(xh[7]) and np.isfinite(xh[8]) and np.isfinite(xh[9])):
+        return ESTIMATE_NAN
+    # position and velocity
+    if L.use_truth:
         for j in range(3):
-            xh[j], xh[3 + j], xh[10 + j] = ph[j], vh[j], gyr[j]
-        # control
-        if ftc_k >= 0 and k >= ftc_k:
-            ftc_command(xh, p_d[k], v_d[k], a_d[k], F, V, dt, integral, cmd)
-        else:
-            se3_command(xh, p_d[k], v_d[k], a_d[k], yaw_d[k], G, V, cmd)
-        if fail_rotor >= 0 and k >= fail_k and fail_eta == 0.0:
-            cmd[fail_rotor] = 0.0  # a lost rotor: its motor spins down
-        # record, then fly to the next sample
-        out_eta[k] = eta
-        out_q[k] = xh[6:10]
-        out_pv[k, 0:3] = ph
-        out_pv[k, 3:6] = vh
-        status = record_and_fly(k, x, dx, T, cmd, gyr, acc, mag, eta, V, h, substeps, ground_z,
-                                out_x, out_dx, out_thrust, out_cmd, out_gyr, out_acc, out_mag)
+            ph[j], vh[j] = x[j], x[3 + j]
+    else:
+        a0, a1, a2 = rotate_s(xh[6], xh[7], xh[8], xh[9], acc[0], acc[1], acc[2])
+        an = (a0, a1, a2 + V.gravity)
+        for j in range(3):
+            ph[j] += vh[j] * dt + 0.5 * an[j] * dt * dt
+            vh[j] += an[j] * dt
+        for j in range(L.mocap_delay, 0, -1):
+            hist[j] = hist[j - 1]
+        hist[0] = x[0:3]
+        if k % L.mocap_every == 0:
+            m = k // L.mocap_every
+            for j in range(3):
+                e = hist[L.mocap_delay, j] + L.mocap_noise[m, j] - ph[j]
+                ph[j] += L.pos_gain[0] * e
+                vh[j] += L.pos_gain[1] * e
+    for j in range(3):
+        xh[j], xh[3 + j], xh[10 + j] = ph[j], vh[j], gyr[j]
+    # control
+    if L.ftc_k >= 0 and k >= L.ftc_k:
+        ftc_command(xh, L.p_d[k], L.v_d[k], L.a_d[k], L.F, V, dt, L.integral, L.cmd)
+    else:
+        se3_command(xh, L.p_d[k], L.v_d[k], L.a_d[k], L.yaw_d[k], L.G, V, L.cmd)
+    if L.fail_rotor >= 0 and k >= L.fail_k and L.fail_eta == 0.0:
+        L.cmd[L.fail_rotor] = 0.0  # a lost rotor: its motor spins down
+    # record, then fly to the next sample
+    L.out_eta[k] = eta
+    L.out_q[k] = xh[6:10]
+    L.out_pv[k, 0:3] = ph
+    L.out_pv[k, 3:6] = vh
+    return record_and_fly(k, x, L.dx, L.T, L.cmd, gyr, acc, L.mag, eta, V, L.h, L.substeps, L.ground_z,
+                          L.out_x, L.out_dx, L.out_thrust, L.out_cmd, L.out_gyr, L.out_acc, L.out_mag)
+
+
+@njit
+def closed_loop(x, eta, L, est_step, ex, ep, ec, ediag, dq):
+    """Fly ``len(L.yaw_d)`` IMU samples (module doc) with a quadest estimator in the loop:
+    ``est_step`` its compiled step, with its state ``ex``, records ``ep``, ``ec`` and
+    diagnostics ``ediag``; ``dq`` the declination quaternion. Returns ``(status, samples flown)``.
+    (Not cached: numba compiles it once per estimator and process, a few seconds.)"""
+    for k in range(L.yaw_d.shape[0]):
+        step_sense(k, x, eta, L)
+        est_step(ex, ep, ec, L.gyr, L.acc, L.mag, L.dt, ediag)
+        status = step_act(k, x, eta, L, qmul(dq, ex[0:4]))
+        if status == ESTIMATE_NAN:
+            return status, k
         if status != OK:
             return status, k + 1
-    return OK, yaw_d.shape[0]
+    return OK, L.yaw_d.shape[0]

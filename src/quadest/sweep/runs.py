@@ -21,8 +21,7 @@ import numpy as np
 from quadest.control import Failure
 from quadest.errors import UsageError
 from quadest.evaluation.runner import check_params, estimate, estimator_names, score
-from quadest.filters import FILTERS
-from quadest.flight import fly
+from quadest.flight import fly, in_loop_estimators
 from quadest.readers import read_recording
 from quadest.sim import simulate
 
@@ -141,15 +140,15 @@ def file_sources(paths, fmt=None) -> list[dict]:
 
 
 def flown_names(filters, scenario: str) -> list[str]:
-    """The estimators a flown sweep puts in the loop: quadest's filters, truth, and for a throw
-    the recovery; ``all``/``quadest`` are truth and quadest's filters (or truth and recovery)."""
+    """The estimators a flown sweep puts in the loop: quadest's filters, the installed streaming
+    peers, truth, and for a throw the recovery; ``all`` is all of these."""
     spec = (filters if isinstance(filters, str) else ",".join(filters)).strip()
-    known = ["truth", "recovery"] if scenario == "throw" else ["truth", *FILTERS]
+    known = ["truth", "recovery"] if scenario == "throw" else ["truth", *in_loop_estimators()]
     names = known if spec in ("all", "quadest") else [n.strip() for n in spec.split(",") if n.strip()]
     bad = [n for n in names if n not in known]
     if bad or not names:
         raise UsageError(f"unknown estimator(s) in the loop for {scenario}: {', '.join(bad) or spec!r}; known: "
-                         f"{', '.join(known)} (peers cannot fly yet)")
+                         f"{', '.join(known)}")
     return names
 
 

@@ -159,6 +159,72 @@ RUNNERS = {"vqf": run_vqf, "vqf-offline": run_vqf_offline, "imufusion": run_imuf
            "ahrs-aqua": run_ahrs_aqua}
 
 
+# -- streaming: one sample at a time, for the closed loop --------------------------------------------
+STREAMING_PEERS = ("vqf", "imufusion")
+"""The peers with a per-sample API (``quadest fly --estimator vqf``)."""
+
+
+class _VqfStream:
+    def __init__(self, dt, use_mag):
+        from vqf import VQF
+
+        self.f, self.use_mag = VQF(dt), use_mag
+
+    def step(self, gyr, acc, mag):
+        g, a = np.ascontiguousarray(vec_frd_to_flu(gyr)), np.ascontiguousarray(vec_frd_to_flu(acc))
+        if self.use_mag and np.isfinite(mag).all():
+            self.f.update(g, a, np.ascontiguousarray(vec_frd_to_flu(mag)))
+        else:
+            self.f.update(g, a)
+        return _vqf_to_ned(self.f.getQuat9D() if self.use_mag else self.f.getQuat6D())
+
+
+class _FusionStream:
+    def __init__(self, dt, use_mag):
+        import imufusion
+
+        settings = imufusion.AhrsSettings()
+        settings.convention = imufusion.CONVENTION_NED  # the constructor argument is ignored
+        settings.sample_rate = 1.0 / dt
+        self.ahrs, self.dt, self.use_mag, self.mag = imufusion.Ahrs(), dt, use_mag, None
+        self.ahrs.set_settings(settings)
+        self.ahrs.set_sample_period(dt)
+
+    def step(self, gyr, acc, mag):
+        if self.use_mag and np.isfinite(mag).all():
+            self.mag = np.array(mag, float)  # held between magnetometer samples, as run_imufusion does
+        if self.mag is not None:
+            self.ahrs.update(np.degrees(gyr), acc / GRAVITY, self.mag)
+        else:
+            self.ahrs.update_no_magnetometer(np.degrees(gyr), acc / GRAVITY)
+        return np.asarray(self.ahrs.get_quaternion(), float)
+
+
+class PeerStream:
+    """A peer fed one sample at a time (FRD, rad/s, m/s², a NaN magnetometer row for "no new
+    sample"), returning quadest's geographic ``q_nb`` (turned by ``declination`` when the
+    magnetometer is used), with the same frame changes as the batch adapters."""
+
+    def __init__(self, name: str, dt: float, declination: float = 0.0, use_mag: bool = True):
+        if name not in STREAMING_PEERS:
+            raise ValueError(f"peer {name!r} has no per-sample API here; streaming peers: {', '.join(STREAMING_PEERS)}")
+        try:
+            self._s = (_VqfStream if name == "vqf" else _FusionStream)(float(dt), use_mag)
+        except ImportError:
+            raise ValueError(f"peer {name} needs the package {PACKAGE[name]!r}: pip install 'quadest[peers]'") from None
+        self.name = name
+        d = declination if use_mag else 0.0
+        self._dq = np.array([np.cos(d / 2), 0.0, 0.0, np.sin(d / 2)])
+
+    def update(self, gyr, acc, mag) -> np.ndarray:
+        return quat_mul(self._dq, self._s.step(np.asarray(gyr, float), np.asarray(acc, float),
+                                               np.asarray(mag, float)))
+
+
+def stream_peer(name: str, dt: float, declination: float = 0.0, use_mag: bool = True) -> PeerStream:
+    return PeerStream(name, dt, declination, use_mag)
+
+
 def run_peer(name: str, rec, use_mag: bool = True, declination: float | None = None) -> np.ndarray:
     """``q_nb`` of peer ``name`` on ``rec``. With the magnetometer, the peers reference magnetic
     north; the heading is turned by the declination (default: the recording's, as for quadest's
