@@ -220,3 +220,37 @@ def test_peers_fly_in_the_loop_through_their_streaming_api(peer):
     assert np.abs(np.abs((q * f.q_est).sum(axis=1)) - 1.0).max() < 1e-6
     s = fly("hover", estimator=peer, seed=4).summary
     assert s["status"] == "survived" and s["time_to_settle_s"] is not None, s
+
+
+def test_other_sensors_of_a_flight():
+    """The GNSS-like position sensor flies a hover: what the loop read stays within 1.5 times
+    its noise (0.5-1 m) of the truth, and so does the vehicle after the start; the barometer
+    samples at its rate with its noise
+    (the lag of 50 ms is small against
+    the hover's slow height changes); a magnetometer latency is sampled in the loop as in the
+    batch model (flown_recording's check) and reads the attitude of 20 ms before."""
+    from quadest.flight import FlightParams
+    from quadest.rotation import quat_conj, quat_rotate
+    from quadest.sim import build_config
+    from quadest.sim.sensors import earth_field
+
+    p = FlightParams(position_sensor="gnss")
+    f = fly("hover", estimator="madgwick", seed=4, params=p)
+    assert f.summary["status"] == "survived" and f.recording.meta["position_sensor"] == "gnss"
+    err = np.linalg.norm(f.pv_est[:, 0:3] - f.states[:, 0:3], axis=1)
+    bound = 1.5 * np.linalg.norm(p.gnss_noise_m)
+    assert np.sqrt(np.mean(err ** 2)) < bound and np.abs(f.states[f.recording.t > 5.0, 0:3]).max() < bound
+    ok = np.isfinite(f.baro)
+    assert ok.sum() == pytest.approx(50 * 10, abs=1)
+    resid = f.baro[ok] + f.states[ok, 2]
+    assert np.std(resid) == pytest.approx(0.1, rel=0.15) and abs(np.mean(resid)) < 0.03
+    cfg = build_config("bebop2", {"mag.latency_s": 0.02, "mag.noise_std": 0.0, "mag.motor_coef": [0.0, 0.0, 0.0],
+                                  "mag.hard_iron": [0.0, 0.0, 0.0],
+                                  "mag.soft_iron": [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]})
+    g = fly("trajectory", estimator="madgwick", seed=1, duration=3.0, config=cfg)
+    rows = np.flatnonzero(np.isfinite(g.recording.mag[:, 0]))
+    rows = rows[rows >= 10]
+    B = earth_field(cfg.environment)
+    for lag, close in ((10, True), (0, False)):
+        expect = quat_rotate(quat_conj(g.recording.true_q[rows - lag]), np.tile(B, (len(rows), 1)))
+        assert np.allclose(g.recording.mag[rows], expect, atol=1e-6) == close

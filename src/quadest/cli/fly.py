@@ -7,7 +7,7 @@ from quadest.cli.common import CliError, parse_seeds, say, write_json
 from quadest.control import Failure
 from quadest.data import save_recording, write_table
 from quadest.filters import FILTERS
-from quadest.flight import CONTROLLERS, SCENARIOS, campaign_table, fly, fly_many, in_loop_estimators
+from quadest.flight import CONTROLLERS, SCENARIOS, FlightParams, campaign_table, fly, fly_many, in_loop_estimators
 from quadest.models import VEHICLE_PRESETS
 from quadest.sim import PRESETS
 
@@ -27,7 +27,8 @@ def parse_failure(text) -> Failure | None:
 
 
 def flight_table(flight) -> dict:
-    """Per IMU sample: the true state, the rotor commands and what the controller read."""
+    """Per IMU sample: the true state, the rotor speeds and commands, what the controller read,
+    the barometer (NaN between its samples) and a throw's recovery state."""
     x = flight.states
     cols = {"t": flight.recording.t}
     names = ["pn", "pe", "pd", "vn", "ve", "vd", "qw", "qx", "qy", "qz", "wx", "wy", "wz"]
@@ -40,6 +41,10 @@ def flight_table(flight) -> dict:
         cols[f"est_{n}"] = flight.q_est[:, i]
     for i, n in enumerate(("pn", "pe", "pd", "vn", "ve", "vd")):
         cols[f"est_{n}"] = flight.pv_est[:, i]
+    if flight.baro is not None:
+        cols["baro_alt"] = flight.baro
+    if flight.modes is not None:
+        cols["recovery_mode"] = flight.modes
     return cols
 
 
@@ -97,7 +102,7 @@ def cmd_fly(args):
         f"{args.controller or 'default'} controller and {', '.join(estimators)} in the loop, seeds {args.seeds} "
         "(the first flight with each estimator compiles the loop: some seconds)")
     kwargs = dict(controller=args.controller, duration=args.duration, preset=args.preset, failure=failure,
-                  vehicle=args.vehicle)
+                  vehicle=args.vehicle, params=FlightParams(position_sensor=args.position_sensor))
     runs = []
     if len(estimators) == 1:
         for seed in seeds:
@@ -161,6 +166,9 @@ def add_parsers(sub):
     s.add_argument("--vehicle", choices=list(VEHICLE_PRESETS), default="recovery",
                    help="vehicle: recovery (the recovery paper's), bebop2 (Sun et al. 2021), hummingbird (RotorPy's) "
                         "(default: recovery; docs/vehicle.md)")
+    s.add_argument("--position-sensor", choices=["mocap", "gnss"], default="mocap",
+                   help="the position sensor the loop reads: mocap (100 Hz, 1 mm, 10 ms) or gnss (5 Hz, 0.5 m "
+                        "horizontal, 1 m vertical, 100 ms) (default: mocap)")
     s.add_argument("-o", "--output", required=True, metavar="DIR", help="folder for the runs' files")
     s.add_argument("--no-plot", action="store_true", help="skip the figures")
     s.set_defaults(func=cmd_fly)

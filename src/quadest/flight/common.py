@@ -28,7 +28,25 @@ class FlightParams:
                                  "chosen: motion capture, millimetre noise", bounds="[0, 10]")
     mocap_latency_s: float = param(0.01, "s", "position sensor latency",
                                    "chosen: motion capture over a radio link, about 10 ms", bounds="[0, 1]")
-    fusion_acc_std: float = param(0.5, "m/s²", "acceleration noise the position fusion assumes",
+    position_sensor: str = param("mocap", "-", "the position sensor the loop reads: mocap or gnss", "chosen")
+    gnss_rate_hz: float = param(5.0, "Hz", "GNSS-like position sensor rate", "chosen: a u-blox M8-class receiver",
+                                bounds="(0, 1000]")
+    gnss_noise_m: tuple = param((0.5, 0.5, 1.0), "m", "GNSS-like position white noise (north, east, down)",
+                                "chosen: a single receiver without corrections, vertical worse than horizontal")
+    gnss_latency_s: float = param(0.1, "s", "GNSS-like position latency", "chosen: a receiver's fix delay",
+                                  bounds="[0, 1]")
+    gnss_fusion_acc_std: float = param(5.0, "m/s²", "acceleration noise the position fusion assumes with the "
+                                       "GNSS-like sensor", "tuned in simulation (hover, seed 4; 0.5, 2, 5, 10 tried): "
+                                       "over 0.2 s between fixes the accelerometer's error is mostly bias and "
+                                       "attitude error, which a white model underrates; at 0.5 the estimate "
+                                       "drifts 3 m RMS", bounds="(0, 100]")
+    baro_rate_hz: float = param(50.0, "Hz", "barometer rate (recorded in the flight table, not read by the loop)",
+                                "chosen: an MS5611-class sensor", bounds="(0, 1000]")
+    baro_noise_m: float = param(0.1, "m", "barometer altitude white noise", "chosen: an MS5611-class sensor, "
+                                "about 10 cm RMS", bounds="[0, 100]")
+    baro_tau_s: float = param(0.05, "s", "barometer lag (first order)", "chosen: the sensor's and its filter's",
+                              bounds="[0, 10]")
+    fusion_acc_std: float = param(0.5, "m/s²", "acceleration noise the position fusion assumes (motion capture)",
                                   "chosen: accelerometer noise plus what a degree of attitude error makes of g",
                                   bounds="(0, 100]")
     height_m: float = param(3.0, "m", "height of the hover point above the ground",
@@ -44,6 +62,19 @@ class FlightParams:
 
     def __post_init__(self):
         check(self, "flight")
+        if self.position_sensor not in ("mocap", "gnss"):
+            raise ValueError(f"flight: position_sensor must be mocap or gnss, got {self.position_sensor!r}")
+        g = np.asarray(self.gnss_noise_m, float)
+        if g.shape != (3,) or not np.isfinite(g).all() or (g < 0).any():
+            raise ValueError(f"flight: gnss_noise_m must be three non-negative numbers, got {self.gnss_noise_m!r}")
+
+    def position(self) -> tuple[float, np.ndarray, float, float]:
+        """The position sensor the loop reads: rate (Hz), white noise per axis (m), latency (s),
+        and the acceleration noise the fusion assumes with it (m/s²)."""
+        if self.position_sensor == "gnss":
+            return (self.gnss_rate_hz, np.asarray(self.gnss_noise_m, float), self.gnss_latency_s,
+                    self.gnss_fusion_acc_std)
+        return self.mocap_rate_hz, np.full(3, self.mocap_noise_m), self.mocap_latency_s, self.fusion_acc_std
 
     @classmethod
     def describe(cls) -> list[dict]:
@@ -61,22 +92,46 @@ class Flight:
     pv_est: np.ndarray  # the position and velocity it read
     summary: dict = field(default_factory=dict)
     timing: dict = field(default_factory=dict)  # wall time of the compiled loop (its first call compiles)
+    baro: np.ndarray | None = None  # barometric altitude (m, up), NaN between samples
+    modes: np.ndarray | None = None  # a throw's recovery state per sample (flight.throw.MODES)
 
 
 def position_gain(p: FlightParams, imu_rate_hz: float) -> np.ndarray:
-    """Steady-state Kalman gain ``[k_p, k_v]`` of a constant-velocity model driven by white
-    acceleration (std ``fusion_acc_std`` per IMU sample) and corrected by the position sensor
-    (std ``mocap_noise_m``) every ``1/mocap_rate_hz``."""
-    T = 1.0 / p.mocap_rate_hz
+    """Per axis, the steady-state Kalman gain ``[k_p, k_v]`` (a 3x2 array) of a constant-velocity
+    model driven by white acceleration (std per IMU sample) and corrected by the position sensor
+    (:meth:`FlightParams.position`) at its rate."""
+    rate, noise, _, acc_std = p.position()
+    T = 1.0 / rate
     Fm = np.array([[1.0, T], [0.0, 1.0]])
     # acceleration noise integrated over T: std per IMU sample, white at that rate
-    q = p.fusion_acc_std ** 2 / imu_rate_hz
+    q = acc_std ** 2 / imu_rate_hz
     Q = q * np.array([[T ** 3 / 3, T ** 2 / 2], [T ** 2 / 2, T]])
     H = np.array([[1.0, 0.0]])
-    R = np.array([[max(p.mocap_noise_m, 1e-6) ** 2]])
-    P = solve_discrete_are(Fm.T, H.T, Q, R)
-    K = P @ H.T / (H @ P @ H.T + R)
-    return K[:, 0].copy()
+    gains = np.empty((3, 2))
+    for axis in range(3):
+        R = np.array([[max(noise[axis], 1e-6) ** 2]])
+        P = solve_discrete_are(Fm.T, H.T, Q, R)
+        gains[axis] = (P @ H.T / (H @ P @ H.T + R))[:, 0]
+    return gains
+
+
+def barometer(t, states, p: FlightParams, seed: int) -> np.ndarray:
+    """Barometric altitude (m, up) at ``p.baro_rate_hz`` (NaN between samples): the true height
+    through a first-order lag of ``baro_tau_s`` plus white noise; its own generator."""
+    alt = -np.asarray(states)[:, 2]
+    out = np.full(len(t), np.nan)
+    if len(t) == 0:
+        return out
+    dt = np.diff(t, prepend=t[0])
+    a = np.exp(-dt / p.baro_tau_s) if p.baro_tau_s > 0 else np.zeros(len(t))
+    lag = np.empty(len(t))
+    lag[0] = alt[0]
+    for k in range(1, len(t)):
+        lag[k] = a[k] * lag[k - 1] + (1.0 - a[k]) * alt[k]
+    rows = np.flatnonzero(np.diff(np.floor((t - t[0]) * p.baro_rate_hz + 1e-9), prepend=-1.0) > 0)
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 16]))
+    out[rows] = lag[rows] + rng.normal(0.0, p.baro_noise_m, len(rows))
+    return out
 
 
 def sensors_for(cfg, n: int, seed: int):

@@ -17,7 +17,7 @@ from quadest.control.ftc import relaxed_hover
 from quadest.errors import UsageError
 from quadest.filters import FILTERS, Estimator, make_filter
 from quadest.filters.base import _declination_quat
-from quadest.flight.common import (SIM_RATE_HZ, Flight, FlightParams, angle_errors, position_gain, rms,
+from quadest.flight.common import (SIM_RATE_HZ, Flight, FlightParams, angle_errors, barometer, position_gain, rms,
                                    sensors_for)
 from quadest.filters.peers import STREAMING_PEERS, available_peers, run_peer, stream_peer
 from quadest.flight.loop import ESTIMATE_NAN, OK, STATUS, Loop, closed_loop, no_estimator, step_act, step_sense
@@ -110,9 +110,10 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     if abs(substeps - round(substeps)) > 1e-9 or substeps < 1:
         raise UsageError(f"preset {preset!r}: its IMU rate {rate:g} Hz must divide the simulation rate "
                          f"{SIM_RATE_HZ:g} Hz")
-    mocap_every = rate / params.mocap_rate_hz
+    pos_rate, pos_noise, pos_latency, _ = params.position()
+    mocap_every = rate / pos_rate
     if abs(mocap_every - round(mocap_every)) > 1e-9 or mocap_every < 1:
-        raise UsageError(f"the position sensor's rate {params.mocap_rate_hz:g} Hz must divide the IMU rate {rate:g} Hz")
+        raise UsageError(f"the position sensor's rate {pos_rate:g} Hz must divide the IMU rate {rate:g} Hz")
     substeps, mocap_every = int(round(substeps)), int(round(mocap_every))
     if scenario == "throw":
         if failure is not None:
@@ -130,8 +131,8 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     # sensor draws: the same generators and order as flown_recording's sample_sensors
     processes, sm = sensors_for(cfg, n, seed)
     n_mocap = (n - 1) // mocap_every + 1
-    mocap_noise = rng_mocap.normal(0.0, params.mocap_noise_m, (n_mocap, 3))
-    delay = int(round(params.mocap_latency_s * rate))
+    mocap_noise = rng_mocap.normal(0.0, 1.0, (n_mocap, 3)) * pos_noise
+    delay = int(round(pos_latency * rate))
 
     declination = math.radians(cfg.environment.declination_deg)
     use_truth = isinstance(estimator, str) and estimator == "truth"
@@ -192,12 +193,13 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
         raise ValueError(f"the flight ended before its first sample ({STATUS[status]})")
 
     meta = {"scenario": f"flown {scenario}", "preset": preset, "vehicle": vehicle_name, "controller": controller,
-            "estimator": estimator}
+            "estimator": estimator, "position_sensor": params.position_sensor}
     if failure is not None:
         meta["failure"] = {"rotor": failure.rotor, "time_s": failure.time_s, "efficiency": failure.efficiency}
     rec = flown_recording(t[:flown], out["x"], out["dx"], out["thrust"], vehicle, cfg=cfg, seed=seed,
                           eta=out["eta"], meta=meta, readings=(out["gyr"], out["acc"], out["mag"]), processes=processes)
-    flight = Flight(rec, out["x"], out["cmd"], out["q"], out["pv"], timing={"loop_s": loop_s})
+    flight = Flight(rec, out["x"], out["cmd"], out["q"], out["pv"], timing={"loop_s": loop_s},
+                    baro=barometer(rec.t, out["x"], params, seed))
     flight.summary = summarize(flight, scenario=scenario, status=status, duration=duration, failure=failure,
                                controller=controller, estimator=estimator, seed=seed, params=params,
                                ftc=ftc, vehicle=vehicle, ref=(p_d, yaw_d))

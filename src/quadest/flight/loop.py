@@ -5,7 +5,8 @@ simulation rate, ``substeps`` RK4 steps per sample):
 
 1. a failure due at ``k`` strikes (the rotor's efficiency changes);
 2. the sensors are sampled from the true state (:mod:`quadest.sim.inloop`): IMU, magnetometer,
-   and every ``mocap_every`` samples the position sensor (its reading ``delay`` samples old);
+   and every ``mocap_every`` samples the position sensor, motion capture or GNSS-like (its
+   reading ``delay`` samples old);
 3. the estimator takes one step (its compiled ``step``, the same function its batch run calls);
    its attitude goes through the declination into the geographic frame;
 4. position and velocity: predicted with the accelerometer rotated by the estimated attitude,
@@ -151,8 +152,8 @@ def step_act(k, x, eta, L, q_est):
             m = k // L.mocap_every
             for j in range(3):
                 e = hist[L.mocap_delay, j] + L.mocap_noise[m, j] - ph[j]
-                ph[j] += L.pos_gain[0] * e
-                vh[j] += L.pos_gain[1] * e
+                ph[j] += L.pos_gain[j, 0] * e
+                vh[j] += L.pos_gain[j, 1] * e
     for j in range(3):
         xh[j], xh[3 + j], xh[10 + j] = ph[j], vh[j], gyr[j]
     # control

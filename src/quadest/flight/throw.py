@@ -38,7 +38,7 @@ from numba import njit
 
 from quadest.control import SE3Params
 from quadest.control.se3 import mix, se3_command
-from quadest.flight.common import SIM_RATE_HZ, Flight, FlightParams, angle_errors, sensors_for
+from quadest.flight.common import SIM_RATE_HZ, Flight, FlightParams, angle_errors, barometer, sensors_for
 from quadest.flight.loop import OK, STATUS, record_and_fly, sense
 from quadest.models import fit_aero
 from quadest.models.multirotor import MultirotorParams, derivatives, fly_open_loop
@@ -308,7 +308,8 @@ def fly_throw(*, estimator: str = "recovery", duration: float = 6.0, seed: int =
     rp = recovery or RecoveryParams()
     rate = cfg.imu.rate_hz
     substeps = int(round(SIM_RATE_HZ / rate))
-    mocap_every = int(round(rate / params.mocap_rate_hz))
+    pos_rate, pos_noise, pos_latency, _ = params.position()
+    mocap_every = int(round(rate / pos_rate))
     n = int(round(duration * rate))
     t = np.arange(n) / rate
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 13]))
@@ -334,8 +335,8 @@ def fly_throw(*, estimator: str = "recovery", duration: float = 6.0, seed: int =
         Vb, Qr, Pb, Lb, np.empty(H), np.empty((H, 3)), V1, Q1, P1, L1, w_prev, 1.0 / SIM_RATE_HZ, substeps,
         float(rate), tw, rp.beta1, rp.detect_samples, rp.beta2, np.radians(throw.beta3_deg),
         np.radians(throw.upright_switch_deg), throw.rotor_speed,
-        estimator == "truth", mocap_every, int(round(params.mocap_latency_s * rate)),
-        rng_mocap.normal(0.0, params.mocap_noise_m, ((n - 1) // mocap_every + 1, 3)), throw.drop_m,
+        estimator == "truth", mocap_every, int(round(pos_latency * rate)),
+        rng_mocap.normal(0.0, 1.0, ((n - 1) // mocap_every + 1, 3)) * pos_noise, throw.drop_m,
         out["x"], out["dx"], out["thrust"], out["cmd"], out["gyr"], out["acc"], out["mag"], out["q"], out["pv"],
         out["mode"], out["sg"], out["gdir"], events)
     loop_s = time.perf_counter() - t0
@@ -343,8 +344,8 @@ def fly_throw(*, estimator: str = "recovery", duration: float = 6.0, seed: int =
     rec = flown_recording(t[:flown], out["x"], out["dx"], out["thrust"], vehicle, cfg=cfg, seed=seed,
                           meta={**meta, "aero_model_fitted": model.info.get("residual_rms_mps2")},
                           readings=(out["gyr"], out["acc"], out["mag"]), processes=processes)
-    flight = Flight(rec, out["x"], out["cmd"], out["q"], out["pv"], timing={"loop_s": loop_s})
-    flight.modes = out["mode"]
+    flight = Flight(rec, out["x"], out["cmd"], out["q"], out["pv"], timing={"loop_s": loop_s},
+                    baro=barometer(rec.t, out["x"], params, seed), modes=out["mode"])
     flight.summary = summarize_throw(flight, out, events, status, duration, throw, estimator, seed)
     return flight
 

@@ -10,7 +10,8 @@ checks it on every flown recording). Per IMU sample ``k``::
     gyr = clip(M_g ω + b_g[k] + n_g[k])
     acc = clip(M_a f_imu + b_a[k] + vib[k] + n_a[k]),  f_imu = Rᵀ(a − g) + ω̇ × r + ω × (ω × r)
     vib = sin(2π ∫ f_hover √load dt + φ) · amp · load   (trapezoid in time, as the batch model)
-    mag = clip(S Rᵀ B_n + b_hard + k_motor · current + n_m)   on magnetometer rows
+    mag = clip(S Rᵀ B_n + b_hard + k_motor · current + n_m)   on magnetometer rows, R and
+          current as they were latency_s before
 """
 from __future__ import annotations
 
@@ -27,7 +28,8 @@ SensorModel = namedtuple("SensorModel", [
     "gyr_matrix", "gyr_bias", "gyr_noise", "gyr_range",
     "acc_matrix", "acc_bias", "acc_noise", "acc_range", "lever", "gravity",
     "vib_amp", "vib_offsets", "rotor_hz", "has_vib",
-    "has_mag", "mag_index", "mag_soft", "mag_hard", "mag_motor", "mag_noise", "mag_range", "field_n"])
+    "has_mag", "mag_index", "mag_soft", "mag_hard", "mag_motor", "mag_noise", "mag_range", "field_n",
+    "mag_hist"])
 """What the compiled sampler reads: the configuration's constants and one run's draws."""
 
 
@@ -46,7 +48,8 @@ def sensor_model(cfg: SimConfig, processes, has_mag) -> SensorModel:
         float(cfg.vehicle.rotor_hz_hover), bool(amp.any()),
         has_mag, index.astype(np.int64), np.ascontiguousarray(cfg.mag.soft_iron, dtype=float),
         np.asarray(cfg.mag.hard_iron, float), np.asarray(cfg.mag.motor_coef, float), np.ascontiguousarray(mag_noise),
-        float(cfg.mag.range), S.earth_field(cfg.environment))
+        float(cfg.mag.range), S.earth_field(cfg.environment),
+        np.zeros((int(round(cfg.mag.latency_s * cfg.imu.rate_hz)) + 1, 5)))
 
 
 @njit(cache=True)
@@ -83,11 +86,22 @@ def sample_imu(m, k, t, q, acc_n, w, wdot, load, vib_state, gyr, acc):
 
 @njit(cache=True)
 def sample_mag(m, k, q, current, mag):
-    """Magnetometer sample on IMU row ``k`` into ``mag`` (NaN where no sample arrives)."""
+    """Magnetometer sample on IMU row ``k`` into ``mag`` (NaN where no sample arrives), from the
+    attitude and motor current of ``latency`` samples before (``m.mag_hist`` keeps them; call
+    it every sample)."""
+    h = m.mag_hist
+    d = h.shape[0] - 1
+    if k == 0:
+        for r in range(d + 1):
+            h[r, 0], h[r, 1], h[r, 2], h[r, 3], h[r, 4] = q[0], q[1], q[2], q[3], current
+    i = k % (d + 1)
+    h[i, 0], h[i, 1], h[i, 2], h[i, 3], h[i, 4] = q[0], q[1], q[2], q[3], current
     if not m.has_mag[k]:
         mag[0], mag[1], mag[2] = np.nan, np.nan, np.nan
         return
-    b0, b1, b2 = rotate_inv_s(q[0], q[1], q[2], q[3], m.field_n[0], m.field_n[1], m.field_n[2])
+    j = max(k - d, 0) % (d + 1)
+    current = h[j, 4]
+    b0, b1, b2 = rotate_inv_s(h[j, 0], h[j, 1], h[j, 2], h[j, 3], m.field_n[0], m.field_n[1], m.field_n[2])
     j = m.mag_index[k]
     for i in range(3):
         v = m.mag_soft[i, 0] * b0 + m.mag_soft[i, 1] * b1 + m.mag_soft[i, 2] * b2 + m.mag_hard[i]

@@ -82,6 +82,7 @@ class Magnetometer:
                          "soft-iron matrix applied to the earth field in the body frame")
     motor_coef: tuple = P((0.0, 0.0, 0.0), "µT", "disturbance at maximum motor current (all rotors at full thrust), body frame")
     range: float = P(4900.0, "µT", "saturation limit per axis")
+    latency_s: float = P(0.0, "s", "age of the field a sample reads (rounded to IMU samples; 0: none)")
 
 
 @dataclass(frozen=True)

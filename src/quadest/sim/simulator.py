@@ -115,6 +115,11 @@ def simulate(scenario: str, preset: str = "bebop2", seed: int = 0, duration: flo
     return rec
 
 
+def mag_delay(cfg: SimConfig) -> int:
+    """The magnetometer's latency in IMU samples."""
+    return int(round(cfg.mag.latency_s * cfg.imu.rate_hz))
+
+
 Processes = namedtuple("Processes", ["gyro_errors", "acc_errors", "gyr_bias", "gyr_noise", "acc_bias", "acc_noise",
                                      "vib_offsets", "mag_noise"])
 """Every sensor error that does not depend on the motion, drawn for one run (:func:`draw_processes`)."""
@@ -159,8 +164,9 @@ def sample_sensors(truth: Truth, cfg: SimConfig, keep, has_mag, rngs, meta: dict
     gyr_bias, acc_bias = pr.gyr_bias, pr.acc_bias
     mag = np.full((len(t), 3), np.nan)
     if has_mag.any():
-        mag[has_mag] = S.magnetometer(truth.q[has_mag], truth.current[has_mag], cfg.environment,
-                                      cfg.mag, noise=pr.mag_noise)
+        rows = np.flatnonzero(has_mag)
+        src = np.maximum(rows - mag_delay(cfg), 0)  # the field the sample reads is latency_s old
+        mag[rows] = S.magnetometer(truth.q[src], truth.current[src], cfg.environment, cfg.mag, noise=pr.mag_noise)
 
     sat = np.abs(truth.gyr @ g_err["matrix"].T) > cfg.gyro.range
     meta = {
