@@ -10,19 +10,20 @@ from numba import njit
 
 from quadest.control.se3 import SE3Params, se3_command
 from quadest.errors import UsageError
-from quadest.models.multirotor import MultirotorParams, rk4
+from quadest.models.multirotor import MultirotorParams, rk4_ws, work
 
 
 @njit(cache=True)
 def _fly(x, eta, V, G, h, p_d, v_d, a_d, yaw_d, fail_rotor, fail_step, fail_eta, out_x, out_cmd, out_eta):
     cmd = np.empty(V.rotor_pos.shape[0])
+    W = work(V, x.shape[0])
     for k in range(yaw_d.shape[0]):
         if k == fail_step and fail_rotor >= 0:
             eta[fail_rotor] = fail_eta
         se3_command(x, p_d[k], v_d[k], a_d[k], yaw_d[k], G, V, cmd)
         if fail_rotor >= 0 and k >= fail_step and fail_eta == 0.0:
             cmd[fail_rotor] = 0.0  # a lost rotor: no thrust or torque, and its motor spins down
-        rk4(x, cmd, eta, V, h)
+        rk4_ws(x, cmd, eta, V, h, W)
         for j in range(eta.shape[0]):
             out_eta[k, j] = eta[j]
         for j in range(x.shape[0]):

@@ -22,7 +22,7 @@ from quadest.flight.common import (SIM_RATE_HZ, Flight, FlightParams, angle_erro
 from quadest.filters.peers import STREAMING_PEERS, available_peers, run_peer, stream_peer
 from quadest.flight.loop import ESTIMATE_NAN, OK, STATUS, Loop, closed_loop, no_estimator, step_act, step_sense
 from quadest.flight.throw import fly_throw
-from quadest.models.multirotor import MultirotorParams, vehicle_preset
+from quadest.models.multirotor import MultirotorParams, vehicle_preset, work
 from quadest.rotation import euler_to_quat, quat_rotate
 from quadest.sim import build_config
 from quadest.sim.flown import flown_recording
@@ -175,7 +175,7 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
              np.empty(3), np.array([0.0, np.nan, np.nan]), np.empty(13), np.zeros(3), x0[0:3].copy(),
              x0[3:6].copy(), hist,  # position and velocity estimates start at the truth (on the pad)
              out["x"], out["dx"], out["thrust"], out["eta"], out["cmd"], out["gyr"], out["acc"], out["mag"], out["q"],
-             out["pv"])
+             out["pv"], work(vehicle.vehicle(), 13 + N))
     t0 = time.perf_counter()
     if peer is not None:
         status, flown = OK, n

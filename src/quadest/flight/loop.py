@@ -27,8 +27,8 @@ from numba import njit
 
 from quadest.control.ftc import ftc_command
 from quadest.control.se3 import se3_command
-from quadest.models.multirotor import derivative, rk4, rotor_forces
-from quadest.rotation.kernels import qmul, rotate_s
+from quadest.models.multirotor import derivative_ws, rk4_ws
+from quadest.rotation.kernels import rotate_s
 from quadest.sim.inloop import motor_current, sample_imu, sample_mag
 
 OK, GROUND, LOST_CONTROL, ESTIMATE_NAN, DIVERGED = 0, 1, 2, 3, 4
@@ -53,8 +53,7 @@ def sense(x, cmd, eta, V, sm, k, dt, tw, dx, Fb, Mb, T, vib, gyr, acc, mag):
     """IMU and magnetometer sample ``k`` (at ``k dt``) from the true state ``x``: the state's
     derivative (into ``dx``) gives the acceleration and angular acceleration, the rotors'
     thrusts (into ``T``) their load and the motor current."""
-    derivative(x, cmd, eta, V, dx)
-    rotor_forces(x, eta, V, Fb, Mb, T)
+    derivative_ws(x, cmd, eta, V, dx, Fb, Mb, T)  # also the force, moment and rotor thrusts
     n_rot = eta.shape[0]
     active = 0
     total = 0.0
@@ -84,7 +83,7 @@ def ended(x, ground_z):
 
 @njit(cache=True)
 def record_and_fly(k, x, dx, T, cmd, gyr, acc, mag, eta, V, h, substeps, ground_z,
-                   out_x, out_dx, out_thrust, out_cmd, out_gyr, out_acc, out_mag):
+                   out_x, out_dx, out_thrust, out_cmd, out_gyr, out_acc, out_mag, W):
     """Record sample ``k`` (state, derivative, thrusts, commands, readings), fly ``substeps``
     RK4 steps to the next sample, and say whether the flight ends there (:func:`ended`)."""
     out_x[k] = x
@@ -95,7 +94,7 @@ def record_and_fly(k, x, dx, T, cmd, gyr, acc, mag, eta, V, h, substeps, ground_
     out_acc[k] = acc
     out_mag[k] = mag
     for _ in range(substeps):
-        rk4(x, cmd, eta, V, h)
+        rk4_ws(x, cmd, eta, V, h, W)
     return ended(x, ground_z)
 
 
@@ -107,11 +106,13 @@ Loop = namedtuple("Loop", [
     # what the loop carries from sample to sample
     "cmd", "dx", "Fb", "Mb", "T", "gyr", "acc", "mag", "vib", "xh", "integral", "ph", "vh", "hist",
     # what it records per sample
-    "out_x", "out_dx", "out_thrust", "out_eta", "out_cmd", "out_gyr", "out_acc", "out_mag", "out_q", "out_pv"])
+    "out_x", "out_dx", "out_thrust", "out_eta", "out_cmd", "out_gyr", "out_acc", "out_mag", "out_q", "out_pv",
+    # the integrator's work arrays (multirotor.work)
+    "W"])
 """Everything a closed loop reads and writes (built by :func:`quadest.flight.fly`)."""
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def step_sense(k, x, eta, L):
     """Sample ``k``, first half: a failure due now strikes; the sensors are sampled into
     ``L.gyr``, ``L.acc``, ``L.mag``."""
@@ -120,7 +121,7 @@ def step_sense(k, x, eta, L):
     sense(x, L.cmd, eta, L.V, L.sm, k, L.dt, L.tw, L.dx, L.Fb, L.Mb, L.T, L.vib, L.gyr, L.acc, L.mag)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def step_act(k, x, eta, L, q_est):
     """Sample ``k``, second half, with the estimator's attitude ``q_est`` (geographic ``q_nb``;
     ignored with truth in the loop): position and velocity, control, record, fly to the next
@@ -169,7 +170,7 @@ def step_act(k, x, eta, L, q_est):
     L.out_pv[k, 0:3] = ph
     L.out_pv[k, 3:6] = vh
     return record_and_fly(k, x, L.dx, L.T, L.cmd, gyr, acc, L.mag, eta, V, L.h, L.substeps, L.ground_z,
-                          L.out_x, L.out_dx, L.out_thrust, L.out_cmd, L.out_gyr, L.out_acc, L.out_mag)
+                          L.out_x, L.out_dx, L.out_thrust, L.out_cmd, L.out_gyr, L.out_acc, L.out_mag, L.W)
 
 
 @njit
@@ -178,10 +179,16 @@ def closed_loop(x, eta, L, est_step, ex, ep, ec, ediag, dq):
     ``est_step`` its compiled step, with its state ``ex``, records ``ep``, ``ec`` and
     diagnostics ``ediag``; ``dq`` the declination quaternion. Returns ``(status, samples flown)``.
     (Not cached: numba compiles it once per estimator and process, a few seconds.)"""
+    q = np.empty(4)
     for k in range(L.yaw_d.shape[0]):
         step_sense(k, x, eta, L)
         est_step(ex, ep, ec, L.gyr, L.acc, L.mag, L.dt, ediag)
-        status = step_act(k, x, eta, L, qmul(dq, ex[0:4]))
+        # q = dq ⊗ q_est (the declination turns the magnetic frame into the geographic one)
+        q[0] = dq[0] * ex[0] - dq[1] * ex[1] - dq[2] * ex[2] - dq[3] * ex[3]
+        q[1] = dq[0] * ex[1] + dq[1] * ex[0] + dq[2] * ex[3] - dq[3] * ex[2]
+        q[2] = dq[0] * ex[2] - dq[1] * ex[3] + dq[2] * ex[0] + dq[3] * ex[1]
+        q[3] = dq[0] * ex[3] + dq[1] * ex[2] - dq[2] * ex[1] + dq[3] * ex[0]
+        status = step_act(k, x, eta, L, q)
         if status == ESTIMATE_NAN:
             return status, k
         if status != OK:

@@ -41,7 +41,7 @@ from quadest.control.se3 import mix, se3_command
 from quadest.flight.common import SIM_RATE_HZ, Flight, FlightParams, angle_errors, barometer, sensors_for
 from quadest.flight.loop import OK, STATUS, record_and_fly, sense
 from quadest.models import fit_aero
-from quadest.models.multirotor import MultirotorParams, derivatives, fly_open_loop
+from quadest.models.multirotor import MultirotorParams, derivatives, fly_open_loop, work
 from quadest.records import check, describe, param
 from quadest.recovery import RecoveryParams
 from quadest.recovery.bank import bank_step, summarize
@@ -157,6 +157,7 @@ def throw_loop(x, eta, V, G, sm, prm, A, B, C, Vb, Qr, Pb, Lb, prob, gd, V1, Q1,
     Fb, Mb, T = np.empty(3), np.empty(3), np.empty(n_rot)
     gyr, acc, mag = np.empty(3), np.empty(3), np.empty(3)
     Cn = C.copy()
+    W = work(V, x.shape[0])
     vib = np.array([0.0, np.nan, np.nan])
     xh = np.zeros(13)
     zero3 = np.zeros(3)
@@ -255,7 +256,7 @@ def throw_loop(x, eta, V, G, sm, prm, A, B, C, Vb, Qr, Pb, Lb, prob, gd, V1, Q1,
             out_pv[k, 3 + j] = xh[3 + j] if mode == NOMINAL else np.nan
         out_mode[k] = mode
         status = record_and_fly(k, x, dx, T, cmd, gyr, acc, mag, eta, V, h, substeps, ground_z,
-                                out_x, out_dx, out_thrust, out_cmd, out_gyr, out_acc, out_mag)
+                                out_x, out_dx, out_thrust, out_cmd, out_gyr, out_acc, out_mag, W)
         if status != OK:
             return status, k + 1
     return OK, out_mode.shape[0]

@@ -224,9 +224,13 @@ def rotor_forces(x, eta, V, F, M, T):
 @njit(cache=True)
 def derivative(x, cmd, eta, V, dx):
     """``ẋ`` at ``x`` with rotor speed commands ``cmd`` (rad/s) and efficiencies ``eta``."""
-    F = np.empty(3)
-    M = np.empty(3)
-    T = np.empty(V.rotor_pos.shape[0])
+    derivative_ws(x, cmd, eta, V, dx, np.empty(3), np.empty(3), np.empty(V.rotor_pos.shape[0]))
+
+
+@njit(cache=True)
+def derivative_ws(x, cmd, eta, V, dx, F, M, T):
+    """:func:`derivative` with its work arrays given (no allocation in a hot loop); on return
+    ``F``, ``M`` and ``T`` hold the body force, moment and rotor thrusts at ``x``."""
     rotor_forces(x, eta, V, F, M, T)
     qw, qx, qy, qz = x[6], x[7], x[8], x[9]
     w0, w1, w2 = x[10], x[11], x[12]
@@ -249,18 +253,31 @@ def derivative(x, cmd, eta, V, dx):
 def rk4(x, cmd, eta, V, h):
     """One classical Runge-Kutta step of ``h`` seconds, in place; the quaternion is renormalised
     and rotor speeds kept non-negative."""
+    rk4_ws(x, cmd, eta, V, h, work(V, x.shape[0]))
+
+
+@njit(cache=True)
+def work(V, n):
+    """Work arrays of :func:`rk4_ws`: the stages and the force, moment and thrusts."""
+    return np.empty((5, n)), np.empty(3), np.empty(3), np.empty(V.rotor_pos.shape[0])
+
+
+@njit(cache=True)
+def rk4_ws(x, cmd, eta, V, h, W):
+    """:func:`rk4` with its work arrays ``W`` (from :func:`work`): no allocation per step."""
     n = x.shape[0]
-    k1, k2, k3, k4, y = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    derivative(x, cmd, eta, V, k1)
+    S, F, M, T = W
+    k1, k2, k3, k4, y = S[0], S[1], S[2], S[3], S[4]
+    derivative_ws(x, cmd, eta, V, k1, F, M, T)
     for j in range(n):
         y[j] = x[j] + 0.5 * h * k1[j]
-    derivative(y, cmd, eta, V, k2)
+    derivative_ws(y, cmd, eta, V, k2, F, M, T)
     for j in range(n):
         y[j] = x[j] + 0.5 * h * k2[j]
-    derivative(y, cmd, eta, V, k3)
+    derivative_ws(y, cmd, eta, V, k3, F, M, T)
     for j in range(n):
         y[j] = x[j] + h * k3[j]
-    derivative(y, cmd, eta, V, k4)
+    derivative_ws(y, cmd, eta, V, k4, F, M, T)
     for j in range(n):
         x[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
     nq = np.sqrt(x[6] * x[6] + x[7] * x[7] + x[8] * x[8] + x[9] * x[9])
@@ -273,8 +290,9 @@ def rk4(x, cmd, eta, V, h):
 @njit(cache=True)
 def fly_open_loop(x, cmd, eta, V, h, steps, out):
     """``steps`` RK4 steps with constant commands; ``out[k]`` the state after step k."""
+    W = work(V, x.shape[0])
     for k in range(steps):
-        rk4(x, cmd, eta, V, h)
+        rk4_ws(x, cmd, eta, V, h, W)
         for j in range(x.shape[0]):
             out[k, j] = x[j]
 
@@ -286,5 +304,4 @@ def derivatives(states, cmds, etas, V, dx, thrusts):
     F = np.empty(3)
     M = np.empty(3)
     for k in range(states.shape[0]):
-        derivative(states[k], cmds[k], etas[k], V, dx[k])
-        rotor_forces(states[k], etas[k], V, F, M, thrusts[k])
+        derivative_ws(states[k], cmds[k], etas[k], V, dx[k], F, M, thrusts[k])
