@@ -7,8 +7,8 @@ equal, to rounding, what :func:`~quadest.sim.simulator.sample_sensors` makes of 
 afterwards (``tests/test_flight.py`` checks it; :func:`quadest.sim.flown.flown_recording`
 checks it on every flown recording). Per IMU sample ``k``::
 
-    gyr = clip(M_g ω + b_g[k] + n_g[k])
-    acc = clip(M_a f_imu + b_a[k] + vib[k] + n_a[k]),  f_imu = Rᵀ(a − g) + ω̇ × r + ω × (ω × r)
+    gyr = clip(DLPF(M_g ω + b_g[k] + n_g[k]))
+    acc = clip(DLPF(M_a f_imu + b_a[k] + vib[k] + n_a[k])),  f_imu = Rᵀ(a − g) + ω̇ × r + ω × (ω × r)
     vib = sin(2π ∫ f_hover √load dt + φ) · amp · load   (trapezoid in time, as the batch model)
     mag = clip(S Rᵀ B_n + b_hard + k_motor · current + n_m)   on magnetometer rows, R and
           current as they were latency_s before
@@ -23,13 +23,14 @@ from numba import njit
 from quadest.rotation.kernels import rotate_inv_s
 from quadest.sim import sensors as S
 from quadest.sim.params import SimConfig
+from quadest.sim.sensors import lowpass_step
 
 SensorModel = namedtuple("SensorModel", [
     "gyr_matrix", "gyr_bias", "gyr_noise", "gyr_range",
     "acc_matrix", "acc_bias", "acc_noise", "acc_range", "lever", "gravity",
     "vib_amp", "vib_offsets", "rotor_hz", "has_vib",
     "has_mag", "mag_index", "mag_soft", "mag_hard", "mag_motor", "mag_noise", "mag_range", "field_n",
-    "mag_hist"])
+    "mag_hist", "gyr_alpha", "acc_alpha", "lp"])
 """What the compiled sampler reads: the configuration's constants and one run's draws."""
 
 
@@ -49,7 +50,9 @@ def sensor_model(cfg: SimConfig, processes, has_mag) -> SensorModel:
         has_mag, index.astype(np.int64), np.ascontiguousarray(cfg.mag.soft_iron, dtype=float),
         np.asarray(cfg.mag.hard_iron, float), np.asarray(cfg.mag.motor_coef, float), np.ascontiguousarray(mag_noise),
         float(cfg.mag.range), S.earth_field(cfg.environment),
-        np.zeros((int(round(cfg.mag.latency_s * cfg.imu.rate_hz)) + 1, 5)))
+        np.zeros((int(round(cfg.mag.latency_s * cfg.imu.rate_hz)) + 1, 5)),
+        S.dlpf_alpha(cfg.gyro.dlpf_hz, cfg.imu.rate_hz), S.dlpf_alpha(cfg.acc.dlpf_hz, cfg.imu.rate_hz),
+        np.zeros(6))
 
 
 @njit(cache=True)
@@ -64,8 +67,12 @@ def sample_imu(m, k, t, q, acc_n, w, wdot, load, vib_state, gyr, acc):
     ``load``; into ``gyr`` and ``acc``. ``vib_state`` carries the tone's phase integral, the
     previous frequency and time (start with ``[0, nan, nan]``)."""
     for i in range(3):
-        gyr[i] = _clip(m.gyr_matrix[i, 0] * w[0] + m.gyr_matrix[i, 1] * w[1] + m.gyr_matrix[i, 2] * w[2]
-                       + m.gyr_bias[k, i] + m.gyr_noise[k, i], m.gyr_range)
+        u = (m.gyr_matrix[i, 0] * w[0] + m.gyr_matrix[i, 1] * w[1] + m.gyr_matrix[i, 2] * w[2]
+             + m.gyr_bias[k, i]) + m.gyr_noise[k, i]
+        if m.gyr_alpha < 1.0:  # the DLPF, settled at the first sample
+            m.lp[i] = lowpass_step(m.lp[i], u, m.gyr_alpha) if k > 0 else u
+            u = m.lp[i]
+        gyr[i] = _clip(u, m.gyr_range)
     f0, f1, f2 = rotate_inv_s(q[0], q[1], q[2], q[3], acc_n[0], acc_n[1], acc_n[2] - m.gravity)
     r0, r1, r2 = m.lever[0], m.lever[1], m.lever[2]
     # ω̇ × r + ω × (ω × r)
@@ -81,7 +88,11 @@ def sample_imu(m, k, t, q, acc_n, w, wdot, load, vib_state, gyr, acc):
         a = m.acc_matrix[i, 0] * f0 + m.acc_matrix[i, 1] * f1 + m.acc_matrix[i, 2] * f2 + m.acc_bias[k, i]
         if m.has_vib:
             a += np.sin(2 * np.pi * vib_state[0] + m.vib_offsets[i]) * m.vib_amp[i] * load
-        acc[i] = _clip(a + m.acc_noise[k, i], m.acc_range)
+        u = a + m.acc_noise[k, i]
+        if m.acc_alpha < 1.0:
+            m.lp[3 + i] = lowpass_step(m.lp[3 + i], u, m.acc_alpha) if k > 0 else u
+            u = m.lp[3 + i]
+        acc[i] = _clip(u, m.acc_range)
 
 
 @njit(cache=True)

@@ -55,6 +55,7 @@ class Gyroscope:
     misalignment_std: float = P(0.002, "rad", "std of each off-diagonal misalignment term")
     misalignment: tuple | None = P(None, "-", "fixed 3x3 misalignment matrix, zero diagonal")
     range: float = P(math.radians(1000.0), "rad/s", "saturation limit per axis")
+    dlpf_hz: float = P(0.0, "Hz", "anti-alias low-pass (first order) cut-off before saturation (0: none)")
 
 
 @dataclass(frozen=True)
@@ -69,6 +70,7 @@ class Accelerometer:
     misalignment: tuple | None = P(None, "-", "fixed 3x3 misalignment matrix, zero diagonal")
     range: float = P(8 * GRAVITY, "m/s²", "saturation limit per axis")
     lever_arm: tuple = P((0.0, 0.0, 0.0), "m", "IMU position from the centre of mass, body frame")
+    dlpf_hz: float = P(0.0, "Hz", "anti-alias low-pass (first order) cut-off before saturation (0: none)")
     vibration_amp: tuple = P((0.0, 0.0, 0.0), "m/s²",
                              "rotor vibration tone amplitude per axis at hover (grows with rotor load)")
 

@@ -1,6 +1,7 @@
 """Sensor models: gyroscope, accelerometer and magnetometer, each with its own errors.
 
-Inertial sensors (per axis, clipped to ``±range``)::
+Inertial sensors (per axis, through an optional first-order anti-alias low-pass (``dlpf_hz``),
+clipped to ``±range``)::
 
     gyr = M_g ω + b_g + b_rw(t) + n
     acc = M_a f_imu + b_a + b_rw(t) + vibration + n,   f_imu = Rᵀ(a − g) + ω̇ × r + ω × (ω × r)
@@ -19,6 +20,7 @@ with thrust, and at equal thrust when a rotor is lost).
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from quadest.rotation import quat_conj, quat_rotate
 from quadest.sim.params import Accelerometer, Environment, Gyroscope, Magnetometer
@@ -59,20 +61,49 @@ def inertial_processes(t, model: Gyroscope | Accelerometer, errors, rng):
     return bias, noise
 
 
-def apply_inertial(true, matrix, bias, noise, limit, extra=None):
-    """``clip(M true + bias + extra + noise, ±limit)`` over rows (the order of the sums is the
-    one :func:`quadest.sim.inloop` keeps sample by sample)."""
+def dlpf_alpha(cutoff_hz: float, rate_hz: float) -> float:
+    """The smoothing factor of a first-order low-pass at ``cutoff_hz`` sampled at ``rate_hz``:
+    ``α = 1 − exp(−2π f_c / f_s)`` (1: no filter)."""
+    return 1.0 if cutoff_hz <= 0 else float(1.0 - np.exp(-2.0 * np.pi * cutoff_hz / rate_hz))
+
+
+@njit(cache=True)
+def lowpass_step(y, u, alpha):
+    """One sample of the first-order low-pass: ``y ← α u + (1 − α) y`` (the sensor's DLPF; the
+    batch model and the closed loop call this same function)."""
+    return alpha * u + (1.0 - alpha) * y
+
+
+@njit(cache=True)
+def _lowpass(u, alpha):
+    out = np.empty_like(u)
+    for j in range(u.shape[1]):
+        y = u[0, j]
+        for k in range(u.shape[0]):
+            y = lowpass_step(y, u[k, j], alpha) if k > 0 else u[0, j]
+            out[k, j] = y
+    return out
+
+
+def apply_inertial(true, matrix, bias, noise, limit, extra=None, alpha: float = 1.0):
+    """``clip(DLPF(M true + bias + extra + noise), ±limit)`` over rows, the low-pass starting
+    settled at the first sample (the order of the sums is the one :mod:`quadest.sim.inloop`
+    keeps sample by sample)."""
     out = true @ matrix.T + bias
     if extra is not None:
         out = out + extra
-    return np.clip(out + noise, -limit, limit)
+    out = out + noise
+    if alpha < 1.0 and len(out):
+        out = _lowpass(np.ascontiguousarray(out), alpha)
+    return np.clip(out, -limit, limit)
 
 
 def inertial(true, t, model: Gyroscope | Accelerometer, errors, rng, extra=None):
     """Apply scale/misalignment, bias, random walk, extra terms, noise and saturation.
     Returns the readings and the bias at each sample (constant part plus random walk)."""
     bias, noise = inertial_processes(t, model, errors, rng)
-    return apply_inertial(true, errors["matrix"], bias, noise, model.range, extra), bias
+    rate = 1.0 / np.median(np.diff(t)) if len(t) > 1 else 1.0
+    return apply_inertial(true, errors["matrix"], bias, noise, model.range, extra, dlpf_alpha(model.dlpf_hz, rate)), bias
 
 
 def specific_force_at_imu(q, acc_n, w, wdot, lever, gravity):

@@ -158,9 +158,11 @@ def sample_sensors(truth: Truth, cfg: SimConfig, keep, has_mag, rngs, meta: dict
     g_err, a_err = pr.gyro_errors, pr.acc_errors
     f_imu = S.specific_force_at_imu(truth.q, truth.acc_n, truth.gyr, truth.gyr_dot, cfg.acc.lever_arm,
                                     cfg.environment.gravity)
-    gyr = S.apply_inertial(truth.gyr, g_err["matrix"], pr.gyr_bias, pr.gyr_noise, cfg.gyro.range)
+    gyr = S.apply_inertial(truth.gyr, g_err["matrix"], pr.gyr_bias, pr.gyr_noise, cfg.gyro.range,
+                           alpha=S.dlpf_alpha(cfg.gyro.dlpf_hz, rate))
     vib = S.vibration(t, truth.rotor_load, cfg.vehicle.rotor_hz_hover, cfg.acc.vibration_amp, offsets=pr.vib_offsets)
-    acc = S.apply_inertial(f_imu, a_err["matrix"], pr.acc_bias, pr.acc_noise, cfg.acc.range, extra=vib)
+    acc = S.apply_inertial(f_imu, a_err["matrix"], pr.acc_bias, pr.acc_noise, cfg.acc.range, extra=vib,
+                           alpha=S.dlpf_alpha(cfg.acc.dlpf_hz, rate))
     gyr_bias, acc_bias = pr.gyr_bias, pr.acc_bias
     mag = np.full((len(t), 3), np.nan)
     if has_mag.any():
