@@ -183,3 +183,22 @@ def test_fly_writes_runs_that_every_command_reads(tmp_path, capsys):
 def test_fly_refuses_bad_options_in_one_line(tmp_path, capsys, argv, match):
     code, _, err = run(capsys, "fly", "--estimator", "truth", "--duration", "3", "-o", str(tmp_path / "f"), *argv)
     assert code == 2 and match in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_fly_a_throw_with_the_recovery_and_the_oracle(tmp_path, capsys):
+    """quadest fly --scenario throw: the recovery and the truth oracle per seed, the throw table
+    (recovered, handover, gravity error), and the flight table's recovery state per sample."""
+    import json
+
+    import pyarrow.parquet as pq
+
+    out = tmp_path / "throws"
+    code, text, _ = run(capsys, "fly", "--scenario", "throw", "--estimator", "all", "--seeds", "0", "--duration", "3",
+                        "--no-plot", "-o", str(out))
+    assert code == 0 and "recovered" in text and "gravity err" in text, text
+    runs = json.loads((out / "summary.json").read_text())["runs"]
+    assert [r["estimator"] for r in runs] == ["truth", "recovery"] and all(r["recovered"] for r in runs)
+    modes = pq.read_table(runs[1]["files"]["flight"]).column("recovery_mode").to_pylist()
+    assert modes[0] in (0, 1) and modes[-1] == 2
+    code, _, err = run(capsys, "fly", "--scenario", "throw", "--estimator", "madgwick", "-o", str(out))
+    assert code == 2 and "--estimator" in err
