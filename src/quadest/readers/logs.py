@@ -16,6 +16,11 @@ LOG_DAMAGE = (KeyError, IndexError, TypeError, AttributeError, OverflowError, st
 """What a damaged log makes the readers' field access raise."""
 
 
+def _gauss_to_ut(g):
+    """Gauss to µT in float64 (PX4 logs float32: a damaged value times 100 would overflow it)."""
+    return np.asarray(g, dtype=np.float64) * 100.0
+
+
 def read_ulog(path, *, instance: int = 0, **_):
     """See :func:`_read_ulog`; a log whose topics lack the fields they should have is refused
     naming the file."""
@@ -68,16 +73,16 @@ def _read_ulog(path, *, instance: int = 0):
     if "vehicle_magnetometer" in data:
         m = data["vehicle_magnetometer"]
         mag = mag_on_imu_rows(t, m["timestamp"] * 1e-6,
-                              np.column_stack([m[f"magnetometer_ga[{i}]"] for i in range(3)]) * 100.0)
+                              _gauss_to_ut(np.column_stack([m[f"magnetometer_ga[{i}]"] for i in range(3)])))
     elif "sensor_mag" in data:
         m = data["sensor_mag"]
-        mag = mag_on_imu_rows(t, m["timestamp"] * 1e-6, np.column_stack([m[a] for a in "xyz"]) * 100.0)
+        mag = mag_on_imu_rows(t, m["timestamp"] * 1e-6, _gauss_to_ut(np.column_stack([m[a] for a in "xyz"])))
     elif "sensor_combined" in data and "magnetometer_ga[0]" in data["sensor_combined"]:
         sc = data["sensor_combined"]
         rel = sc["magnetometer_timestamp_relative"].astype(np.int64)
         fresh = rel != np.iinfo(np.int32).max  # PX4's "no new sample" marker
         tm = (sc["timestamp"] + rel) * 1e-6
-        vals = np.column_stack([sc[f"magnetometer_ga[{i}]"] for i in range(3)]) * 100.0
+        vals = _gauss_to_ut(np.column_stack([sc[f"magnetometer_ga[{i}]"] for i in range(3)]))
         # a new sample is one whose values or timestamp changed
         new = fresh & np.concatenate([[True], (np.diff(tm) != 0) | (np.diff(vals, axis=0) != 0).any(axis=1)])
         mag = mag_on_imu_rows(t, tm[new], vals[new])
