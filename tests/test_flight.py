@@ -71,11 +71,8 @@ def test_the_relaxed_hover_is_the_controllers_model_solved_and_the_flight_reache
     assert s["tilt_deg"] == pytest.approx(np.degrees(theta), rel=0.10)
     assert s["relaxed_hover_model"]["spin_rate_rad_s"] == pytest.approx(spin_model, rel=1e-6)
     # it holds its place: a settled run circles within the settling bound
-    assert s["time_to_settle_s"] is not None and s["position_rms_settled_m"] < FtcParamsBound.position_m
-
-
-class FtcParamsBound:
-    position_m = 0.3  # FlightParams.settle_m: the run stays within it once settled
+    from quadest.flight import FlightParams
+    assert s["time_to_settle_s"] is not None and s["position_rms_settled_m"] < FlightParams().settle_m
 
 
 def test_the_nominal_controller_loses_the_vehicle_after_a_rotor_loss():

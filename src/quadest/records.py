@@ -6,6 +6,8 @@ from __future__ import annotations
 import math
 from dataclasses import field, fields
 
+import numpy as np
+
 from quadest.errors import UsageError
 
 CHOSEN = "chosen (no published value)"
@@ -28,6 +30,14 @@ def _interval(text: str):
         raise ValueError(f"bounds {text!r}: write an interval like (0, 1]")
     lo, hi = (float(v) for v in text[1:-1].split(","))
     return lo, hi, lo_open, hi_open
+
+
+def check_triples(record, owner: str, *names) -> None:
+    """Raise ValueError unless each named field holds three finite non-negative numbers."""
+    for name in names:
+        v = np.asarray(getattr(record, name), float)
+        if v.shape != (3,) or not np.isfinite(v).all() or (v < 0).any():
+            raise ValueError(f"{owner}: {name} must be three non-negative numbers, got {getattr(record, name)!r}")
 
 
 def check(record, owner: str = "") -> None:

@@ -40,6 +40,7 @@ exactly the gyroscopic moment the equilibrium needs.
 """
 from __future__ import annotations
 
+import functools
 from collections import namedtuple
 from dataclasses import dataclass
 
@@ -48,11 +49,11 @@ from numba import njit
 from scipy.optimize import fsolve
 
 from quadest.models.multirotor import MultirotorParams, fly_open_loop
-from quadest.records import check, describe, param
+from quadest.records import check, check_triples, describe, param
 from quadest.rotation.kernels import rot_matrix
 
 FtcGains = namedtuple("FtcGains", ["n_b", "k_n", "k_i", "k_w", "k_p", "k_v", "max_tilt", "inertia", "damping",
-                                   "alloc_inv", "active", "failed", "mass", "gravity", "k_f", "t_max"])
+                                   "alloc_inv", "active", "mass", "gravity", "k_f", "t_max"])
 """What the compiled controller reads (built by :meth:`FtcParams.gains`)."""
 
 
@@ -78,10 +79,7 @@ class FtcParams:
 
     def __post_init__(self):
         check(self, "ftc")
-        for name in ("k_p", "k_v"):
-            v = np.asarray(getattr(self, name), float)
-            if v.shape != (3,) or not np.isfinite(v).all() or (v < 0).any():
-                raise ValueError(f"ftc: {name} must be three non-negative numbers, got {getattr(self, name)!r}")
+        check_triples(self, "ftc", "k_p", "k_v")
         if self.yaw_damping is not None and not (np.isfinite(self.yaw_damping) and self.yaw_damping > 0):
             raise ValueError(f"ftc: yaw_damping must be a positive number, got {self.yaw_damping!r}")
 
@@ -97,7 +95,7 @@ class FtcParams:
         A = np.vstack([np.ones(3), -pos[:, 1], pos[:, 0]])
         return FtcGains(hover.axis, float(self.k_n), float(self.k_i), float(self.k_w), np.asarray(self.k_p, float),
                         np.asarray(self.k_v, float), float(np.radians(self.max_tilt_deg)), np.asarray(model.inertia),
-                        np.asarray(model.damping), np.linalg.inv(A), active, int(failed), float(vehicle.mass_kg),
+                        np.asarray(model.damping), np.linalg.inv(A), active, float(vehicle.mass_kg),
                         float(vehicle.gravity), float(vehicle.k_f), float(vehicle.k_f * vehicle.omega_max ** 2))
 
     @classmethod
@@ -172,6 +170,7 @@ def relaxed_hover(model: FtcModel, failed: int, rho: float) -> RelaxedHover:
     return RelaxedHover(n, float(wbar), t_a * share, float(np.degrees(np.arccos(-n[2]))))
 
 
+@functools.lru_cache(maxsize=32)
 def fit_yaw_damping(vehicle: MultirotorParams, rho: float = 0.25, seconds: float = 4.0) -> float:
     """The lumped yaw damping of the controller's model, identified from a simulated spin of the
     vehicle model: rotors held at the thrusts of a relaxed hover with ``rho`` (intact rotors,
@@ -208,7 +207,7 @@ def fit_yaw_damping(vehicle: MultirotorParams, rho: float = 0.25, seconds: float
 @njit(cache=True)
 def ftc_command(xh, p_d, v_d, a_d, F, V, dt, integral, cmd):
     """Rotor speed commands (rad/s) into ``cmd`` for the estimated state ``xh`` (position,
-    velocity, ``q_nb``, measured body rate) after the loss of rotor ``F.failed`` (module doc);
+    velocity, ``q_nb``, measured body rate) after the loss of a rotor (``F.active``: the three left; module doc);
     ``integral`` (3, start at zero) carries the integral of the axis error over calls ``dt`` apart."""
     R = rot_matrix(xh[6:10])
     fd = np.empty(3)

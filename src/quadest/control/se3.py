@@ -30,7 +30,7 @@ import numpy as np
 from numba import njit
 
 from quadest.models.multirotor import MultirotorParams
-from quadest.records import check, describe, param
+from quadest.records import check, check_triples, describe, param
 from quadest.rotation.kernels import rot_matrix
 
 Gains = namedtuple("Gains", ["k_p", "k_v", "k_R", "k_w", "alloc_inv", "k_f", "t_max"])
@@ -50,10 +50,7 @@ class SE3Params:
 
     def __post_init__(self):
         check(self, "se3")
-        for name in ("k_p", "k_v"):
-            v = np.asarray(getattr(self, name), float)
-            if v.shape != (3,) or not np.isfinite(v).all() or (v < 0).any():
-                raise ValueError(f"se3: {name} must be three non-negative numbers, got {getattr(self, name)!r}")
+        check_triples(self, "se3", "k_p", "k_v")
 
     def gains(self, vehicle: MultirotorParams) -> Gains:
         return Gains(np.asarray(self.k_p, float), np.asarray(self.k_v, float), float(self.k_R), float(self.k_w),

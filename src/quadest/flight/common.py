@@ -8,7 +8,7 @@ import numpy as np
 from scipy.linalg import solve_discrete_are
 
 from quadest.data.recording import Recording
-from quadest.records import check, describe, param
+from quadest.records import check, check_triples, describe, param
 from quadest.rotation import quat_conj, quat_mul, quat_rotate
 from quadest.sim import sensors as S
 from quadest.sim.inloop import sensor_model
@@ -64,9 +64,7 @@ class FlightParams:
         check(self, "flight")
         if self.position_sensor not in ("mocap", "gnss"):
             raise ValueError(f"flight: position_sensor must be mocap or gnss, got {self.position_sensor!r}")
-        g = np.asarray(self.gnss_noise_m, float)
-        if g.shape != (3,) or not np.isfinite(g).all() or (g < 0).any():
-            raise ValueError(f"flight: gnss_noise_m must be three non-negative numbers, got {self.gnss_noise_m!r}")
+        check_triples(self, "flight", "gnss_noise_m")
 
     def position(self) -> tuple[float, np.ndarray, float, float]:
         """The position sensor the loop reads: rate (Hz), white noise per axis (m), latency (s),

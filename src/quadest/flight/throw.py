@@ -29,7 +29,6 @@ from throws this simulator flies open loop at the constant rotor speed
 from __future__ import annotations
 
 import functools
-import json
 import time
 from dataclasses import dataclass
 
@@ -118,11 +117,11 @@ def release_state(vehicle: MultirotorParams, rng, p: ThrowParams) -> np.ndarray:
 def fit_throw_model(vehicle: MultirotorParams, cfg, p: ThrowParams):
     """The bank's aerodynamic model (eq 9) fitted by least squares (eq 14) to ``p.fit_throws``
     throws flown open loop at the constant rotor speed, with ``cfg``'s sensors."""
-    return _fit_cached(vehicle, json.dumps(cfg.to_dict(), sort_keys=True, default=str), cfg, p)
+    return _fit_cached(vehicle, cfg, p)
 
 
 @functools.lru_cache(maxsize=8)
-def _fit_cached(vehicle, _key, cfg, p):
+def _fit_cached(vehicle, cfg, p):  # the records are frozen: their values are the key
     V = vehicle.vehicle()
     rate = cfg.imu.rate_hz
     every = int(round(SIM_RATE_HZ / rate))
