@@ -161,7 +161,7 @@ def test_fly_writes_runs_that_every_command_reads(tmp_path, capsys):
     run0 = summary["runs"][0]
     assert run0["status"] == "survived" and run0["controller"] == "ftc"
     rec = load_recording(run0["files"]["recording"])
-    assert rec.meta["failure"] == {"rotor": 0, "time_s": 2.0, "efficiency": 0.0} and len(rec) == 3000
+    assert rec.meta["failure"] == {"rotor": 0, "time_s": 2.0, "efficiency": 0.0, "imbalance": 0.0} and len(rec) == 3000
     table = pq.read_table(run0["files"]["flight"])
     assert table.num_rows == 3000 and "rotor0_cmd" in table.column_names and "est_qw" in table.column_names
     assert open(run0["files"]["plot"], "rb").read(4) == b"\x89PNG"
@@ -177,6 +177,10 @@ def test_fly_writes_runs_that_every_command_reads(tmp_path, capsys):
     (["--failure", "x@2"], "--failure expects"),
     (["--failure", "7@2"], "rotor 7 does not exist"),
     (["--failure", "0@99"], "outside the run"),
+    (["--failure", "0@1:0.5:1e-6:2"], "--failure expects"),
+    (["--failure", "0@1:1"], "efficiency must be in [0, 1)"),
+    (["--failure", "0@1:0.9:-1e-6"], "imbalance must be between"),
+    (["--failure", "0@1:0.9:5"], "imbalance must be between"),
     (["--seeds", "a-b"], "--seeds expects"),
     (["--preset", "lowcost-20hz"], "position sensor"),
 ])

@@ -132,5 +132,5 @@ def test_a_flight_with_a_damaged_rotor_is_recorded():
     from quadest.flight import fly
 
     rec = fly("hover", duration=4.0, seed=1, failure=Failure(rotor=2, time_s=2.0, efficiency=0.6)).recording
-    assert rec.meta["failure"] == {"rotor": 2, "time_s": 2.0, "efficiency": 0.6}
+    assert rec.meta["failure"] == {"rotor": 2, "time_s": 2.0, "efficiency": 0.6, "imbalance": 0.0}
     assert np.isfinite(rec.acc).all() and len(rec) == 2000

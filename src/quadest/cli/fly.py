@@ -12,18 +12,34 @@ from quadest.models import VEHICLE_PRESETS
 from quadest.sim import PRESETS
 
 
+FAILURE_FORMAT = ("ROTOR@TIME[:EFFICIENCY[:IMBALANCE]] (for example 0@2, 1@3:0.6, or 2@1:0.9:5e-6 for a "
+                  "damaged propeller, its imbalance in kg m)")
+
+
 def parse_failure(text) -> Failure | None:
-    """``ROTOR@TIME`` or ``ROTOR@TIME:EFFICIENCY`` (``0@2``: rotor 0 lost at 2 s;
-    ``1@3:0.6``: rotor 1 keeps 60 % from 3 s)."""
+    """``ROTOR@TIME[:EFFICIENCY[:IMBALANCE]]`` (``0@2``: rotor 0 lost at 2 s; ``1@3:0.6``:
+    rotor 1 keeps 60 % from 3 s; ``2@1:0.9:5e-6``: rotor 2's propeller damaged at 1 s, 90 % of
+    its thrust and an imbalance of 5e-6 kg m)."""
     if text is None:
         return None
     rotor, at, rest = text.partition("@")
-    time_s, colon, eff = rest.partition(":")
+    parts = rest.split(":")
     try:
-        return Failure(int(rotor), float(time_s), float(eff) if colon else 0.0)
+        if not at or len(parts) > 3:
+            raise ValueError
+        eff = float(parts[1]) if len(parts) > 1 else 0.0
+        return Failure(int(rotor), float(parts[0]), eff, float(parts[2]) if len(parts) > 2 else 0.0)
     except ValueError:
-        raise CliError(f"--failure expects ROTOR@TIME or ROTOR@TIME:EFFICIENCY (for example 0@2 or 1@3:0.6), "
-                       f"got {text!r}") from None
+        raise CliError(f"--failure expects {FAILURE_FORMAT}, got {text!r}") from None
+
+
+def failure_record(f: Failure | None) -> dict | None:
+    """A failure as the sweeps keep it (the imbalance only when there is one, so that earlier
+    sweeps' runs keep their keys)."""
+    if f is None:
+        return None
+    out = {"rotor": f.rotor, "time_s": f.time_s, "efficiency": f.efficiency}
+    return {**out, "imbalance": f.imbalance} if f.imbalance else out
 
 
 def flight_table(flight) -> dict:
@@ -159,9 +175,10 @@ def add_parsers(sub):
                         "afterwards (default: madgwick; recovery for a throw)")
     s.add_argument("--seeds", default="0", help="seeds: 0-4 or 0,3,7 (default: 0)")
     s.add_argument("--duration", type=float, default=None, help="seconds (default: per scenario)")
-    s.add_argument("--failure", default=None, metavar="ROTOR@TIME[:EFF]",
-                   help="a rotor failure: 0@2 loses rotor 0 at 2 s, 1@3:0.6 leaves rotor 1 60 %% from 3 s "
-                        "(default for rotor-loss: 0@2)")
+    s.add_argument("--failure", default=None, metavar="ROTOR@TIME[:EFF[:IMB]]",
+                   help="a rotor failure: 0@2 loses rotor 0 at 2 s, 1@3:0.6 leaves rotor 1 60 %% from 3 s, "
+                        "2@1:0.9:5e-6 damages rotor 2's propeller at 1 s (90 %% thrust, imbalance 5e-6 kg m: a "
+                        "0.1 g chip at 5 cm, which shakes the IMU once per revolution) (default for rotor-loss: 0@2)")
     s.add_argument("--preset", choices=list(PRESETS), default=None, help="sensors (default: bebop2; fma for a throw)")
     s.add_argument("--vehicle", choices=list(VEHICLE_PRESETS), default="recovery",
                    help="vehicle: recovery (the recovery paper's), bebop2 (Sun et al. 2021), hummingbird (RotorPy's) "
@@ -174,4 +191,4 @@ def add_parsers(sub):
     s.set_defaults(func=cmd_fly)
 
 
-__all__ = ["add_parsers", "cmd_fly", "flight_table", "parse_failure"]
+__all__ = ["add_parsers", "cmd_fly", "failure_record", "flight_table", "parse_failure"]

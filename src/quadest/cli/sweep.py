@@ -5,7 +5,7 @@ import sys
 from pathlib import Path
 
 from quadest.cli.common import CliError, add_engine_args, parse_seeds, parse_sets, say, sim_config, write_json
-from quadest.cli.fly import parse_failure
+from quadest.cli.fly import failure_record, parse_failure
 from quadest.flight import CONTROLLERS, DEFAULT_DURATION
 from quadest.flight import SCENARIOS as FLY_SCENARIOS
 from quadest.models import VEHICLE_PRESETS, vehicle_preset
@@ -24,8 +24,7 @@ def _flown_sources(args):
         if f is not None:
             f.check(vehicle, duration)
     return flown_sources(args.fly, parse_seeds(args.seeds), controller=args.controller,
-                         failures=[None if f is None else {"rotor": f.rotor, "time_s": f.time_s,
-                                                           "efficiency": f.efficiency} for f in failures],
+                         failures=[failure_record(f) for f in failures],
                          duration=args.duration, vehicle=args.vehicle, preset=args.preset)
 
 
@@ -111,7 +110,7 @@ def _add_sweep_args(p):
                     help=f"fly this scenario ({', '.join(FLY_SCENARIOS)}) instead of simulating a prescribed one; "
                          "--filters then names the estimators in the loop (truth too; recovery for a throw)")
     fl.add_argument("--controller", choices=CONTROLLERS, default=None, help="with --fly (default: per scenario)")
-    fl.add_argument("--failure", action="append", metavar="ROTOR@TIME[:EFF]",
+    fl.add_argument("--failure", action="append", metavar="ROTOR@TIME[:EFF[:IMB]]",
                     help="with --fly: a rotor failure (repeatable: every failure with every seed)")
     fl.add_argument("--vehicle", choices=list(VEHICLE_PRESETS), default="recovery",
                     help="with --fly: the vehicle (default: recovery)")

@@ -132,15 +132,15 @@ def barometer(t, states, p: FlightParams, seed: int) -> np.ndarray:
     return out
 
 
-def sensors_for(cfg, n: int, seed: int):
-    """One run's sensor draws for ``n`` IMU samples (the generators and order of
-    :func:`quadest.sim.flown.flown_recording`) and the compiled sampler's record."""
+def sensors_for(cfg, n: int, seed: int, vehicle):
+    """One run's sensor draws for ``n`` IMU samples of the flown ``vehicle`` (the generators
+    and order of :func:`quadest.sim.flown.flown_recording`) and the compiled sampler's record."""
     rate = cfg.imu.rate_hz
     t = np.arange(n) / rate
     rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(int(seed)).spawn(4)]
     has_mag = S.mag_rows(np.arange(n), rate, cfg.mag.rate_hz)
-    processes = draw_processes(cfg, t, has_mag, rngs)
-    return processes, sensor_model(cfg, processes, has_mag)
+    processes = draw_processes(cfg, t, has_mag, rngs, rotors=vehicle.rotors)
+    return processes, sensor_model(cfg, processes, has_mag, vehicle)
 
 
 def angle_errors(q_true, q_est):

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import asdict
 
 import numpy as np
 
@@ -27,6 +28,7 @@ from quadest.rotation import euler_to_quat, quat_rotate
 from quadest.sim import build_config
 from quadest.sim.flown import flown_recording
 from quadest.sim.params import SimConfig
+from quadest.sim.sensors import vibration_state
 
 SCENARIOS = ("hover", "trajectory", "rotor-loss", "throw")
 
@@ -129,7 +131,7 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     p_d, v_d, a_d, yaw_d = (np.ascontiguousarray(a, dtype=float) for a in ref)
 
     # sensor draws: the same generators and order as flown_recording's sample_sensors
-    processes, sm = sensors_for(cfg, n, seed)
+    processes, sm = sensors_for(cfg, n, seed, vehicle)
     n_mocap = (n - 1) // mocap_every + 1
     mocap_noise = rng_mocap.normal(0.0, 1.0, (n_mocap, 3)) * pos_noise
     delay = int(round(pos_latency * rate))
@@ -150,11 +152,12 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
         declination, estimator = est.declination, est.name
     dq = _declination_quat(declination) if peer is None else None
 
-    fail_rotor, fail_k, fail_eta, ftc_k = -1, -1, 1.0, -1
+    fail_rotor, fail_k, fail_eta, fail_imb, ftc_k = -1, -1, 1.0, 0.0, -1
     G = (se3 or SE3Params()).gains(vehicle)
     ftc = ftc or FtcParams()
     if failure is not None:
         fail_rotor, fail_k, fail_eta = failure.rotor, int(round(failure.time_s * rate)), float(failure.efficiency)
+        fail_imb = float(failure.imbalance)
     F = ftc.gains(vehicle, failure.rotor if controller == "ftc" else 0)
     if controller == "ftc":
         ftc_k = min(n, fail_k + int(round(params.detect_delay_s * rate)))
@@ -169,10 +172,10 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     hist = np.empty((delay + 1, 3))
     hist[:] = x0[0:3]
     L = Loop(vehicle.vehicle(), G, F, sm, use_truth, 1.0 / SIM_RATE_HZ, substeps, 1.0 / rate, p_d, v_d, a_d, yaw_d,
-             fail_rotor, fail_k, fail_eta, ftc_k, tw, mocap_every, delay, mocap_noise, position_gain(params, rate),
+             fail_rotor, fail_k, fail_eta, fail_imb, ftc_k, tw, mocap_every, delay, mocap_noise, position_gain(params, rate),
              float(params.height_m),
              np.zeros(N), np.empty(13 + N), np.empty(3), np.empty(3), np.empty(N), np.empty(3), np.empty(3),
-             np.empty(3), np.array([0.0, np.nan, np.nan]), np.empty(13), np.zeros(3), x0[0:3].copy(),
+             np.empty(3), vibration_state(N), np.zeros(N), np.empty(13), np.zeros(3), x0[0:3].copy(),
              x0[3:6].copy(), hist,  # position and velocity estimates start at the truth (on the pad)
              out["x"], out["dx"], out["thrust"], out["eta"], out["cmd"], out["gyr"], out["acc"], out["mag"], out["q"],
              out["pv"], work(vehicle.vehicle(), 13 + N))
@@ -195,9 +198,12 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     meta = {"scenario": f"flown {scenario}", "preset": preset, "vehicle": vehicle_name, "controller": controller,
             "estimator": estimator, "position_sensor": params.position_sensor}
     if failure is not None:
-        meta["failure"] = {"rotor": failure.rotor, "time_s": failure.time_s, "efficiency": failure.efficiency}
+        meta["failure"] = asdict(failure)  # imbalance in kg m
+    imbalance = np.zeros((flown, N))
+    if failure is not None:
+        imbalance[fail_k:, failure.rotor] = failure.imbalance
     rec = flown_recording(t[:flown], out["x"], out["dx"], out["thrust"], vehicle, cfg=cfg, seed=seed,
-                          eta=out["eta"], meta=meta, readings=(out["gyr"], out["acc"], out["mag"]), processes=processes)
+                          eta=out["eta"], imbalance=imbalance, meta=meta, readings=(out["gyr"], out["acc"], out["mag"]), processes=processes)
     flight = Flight(rec, out["x"], out["cmd"], out["q"], out["pv"], timing={"loop_s": loop_s},
                     baro=barometer(rec.t, out["x"], params, seed))
     flight.summary = summarize(flight, scenario=scenario, status=status, duration=duration, failure=failure,

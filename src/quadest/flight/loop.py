@@ -48,11 +48,12 @@ def no_estimator():
     return _true_estimate
 
 
-@njit(cache=True)
-def sense(x, cmd, eta, V, sm, k, dt, tw, dx, Fb, Mb, T, vib, gyr, acc, mag):
+@njit(cache=True, inline="always")
+def sense(x, cmd, eta, imb, V, sm, k, dt, tw, dx, Fb, Mb, T, vib, gyr, acc, mag):
     """IMU and magnetometer sample ``k`` (at ``k dt``) from the true state ``x``: the state's
     derivative (into ``dx``) gives the acceleration and angular acceleration, the rotors'
-    thrusts (into ``T``) their load and the motor current."""
+    thrusts (into ``T``) their load and the motor current, their speeds and imbalances ``imb``
+    (kg m) the vibration."""
     derivative_ws(x, cmd, eta, V, dx, Fb, Mb, T)  # also the force, moment and rotor thrusts
     n_rot = eta.shape[0]
     active = 0
@@ -63,11 +64,11 @@ def sense(x, cmd, eta, V, sm, k, dt, tw, dx, Fb, Mb, T, vib, gyr, acc, mag):
             active += 1
     active = max(active, 1)
     load = total / active / (V.mass * V.gravity / n_rot)
-    sample_imu(sm, k, k * dt, x[6:10], dx[3:6], x[10:13], dx[10:13], load, vib, gyr, acc)
+    sample_imu(sm, k, k * dt, x[6:10], dx[3:6], x[10:13], dx[10:13], x[13:], imb, vib, gyr, acc)
     sample_mag(sm, k, x[6:10], motor_current(load, active, tw), mag)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def ended(x, ground_z):
     """Whether a flight ends after this step, and why (module doc)."""
     for j in range(x.shape[0]):
@@ -81,7 +82,7 @@ def ended(x, ground_z):
     return OK
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def record_and_fly(k, x, dx, T, cmd, gyr, acc, mag, eta, V, h, substeps, ground_z,
                    out_x, out_dx, out_thrust, out_cmd, out_gyr, out_acc, out_mag, W):
     """Record sample ``k`` (state, derivative, thrusts, commands, readings), fly ``substeps``
@@ -101,10 +102,10 @@ def record_and_fly(k, x, dx, T, cmd, gyr, acc, mag, eta, V, h, substeps, ground_
 Loop = namedtuple("Loop", [
     # the flight: vehicle, controllers, sensors, reference, failure, position sensor, ground
     "V", "G", "F", "sm", "use_truth", "h", "substeps", "dt", "p_d", "v_d", "a_d", "yaw_d",
-    "fail_rotor", "fail_k", "fail_eta", "ftc_k", "tw", "mocap_every", "mocap_delay", "mocap_noise", "pos_gain",
+    "fail_rotor", "fail_k", "fail_eta", "fail_imb", "ftc_k", "tw", "mocap_every", "mocap_delay", "mocap_noise", "pos_gain",
     "ground_z",
     # what the loop carries from sample to sample
-    "cmd", "dx", "Fb", "Mb", "T", "gyr", "acc", "mag", "vib", "xh", "integral", "ph", "vh", "hist",
+    "cmd", "dx", "Fb", "Mb", "T", "gyr", "acc", "mag", "vib", "imb", "xh", "integral", "ph", "vh", "hist",
     # what it records per sample
     "out_x", "out_dx", "out_thrust", "out_eta", "out_cmd", "out_gyr", "out_acc", "out_mag", "out_q", "out_pv",
     # the integrator's work arrays (multirotor.work)
@@ -118,7 +119,8 @@ def step_sense(k, x, eta, L):
     ``L.gyr``, ``L.acc``, ``L.mag``."""
     if k == L.fail_k and L.fail_rotor >= 0:
         eta[L.fail_rotor] = L.fail_eta
-    sense(x, L.cmd, eta, L.V, L.sm, k, L.dt, L.tw, L.dx, L.Fb, L.Mb, L.T, L.vib, L.gyr, L.acc, L.mag)
+        L.imb[L.fail_rotor] = L.fail_imb
+    sense(x, L.cmd, eta, L.imb, L.V, L.sm, k, L.dt, L.tw, L.dx, L.Fb, L.Mb, L.T, L.vib, L.gyr, L.acc, L.mag)
 
 
 @njit(cache=True, inline="always")

@@ -157,7 +157,9 @@ def throw_loop(x, eta, V, G, sm, prm, A, B, C, Vb, Qr, Pb, Lb, prob, gd, V1, Q1,
     gyr, acc, mag = np.empty(3), np.empty(3), np.empty(3)
     Cn = C.copy()
     W = work(V, x.shape[0])
-    vib = np.array([0.0, np.nan, np.nan])
+    vib = np.zeros(2 * n_rot + 1)  # quadest.sim.sensors.vibration_state
+    vib[n_rot:] = np.nan
+    imb = np.zeros(n_rot)  # sound propellers
     xh = np.zeros(13)
     zero3 = np.zeros(3)
     p_d = np.zeros(3)
@@ -172,7 +174,7 @@ def throw_loop(x, eta, V, G, sm, prm, A, B, C, Vb, Qr, Pb, Lb, prob, gd, V1, Q1,
     yaw_hold = 0.0
     t_throw = n_rot * G.k_f * rotor_speed * rotor_speed
     for k in range(out_mode.shape[0]):
-        sense(x, cmd, eta, V, sm, k, dt, tw, dx, Fb, Mb, T, vib, gyr, acc, mag)
+        sense(x, cmd, eta, imb, V, sm, k, dt, tw, dx, Fb, Mb, T, vib, gyr, acc, mag)
         for j in range(mocap_delay, 0, -1):
             hist[j] = hist[j - 1]
         hist[0] = x[0:3]
@@ -316,7 +318,7 @@ def fly_throw(*, estimator: str = "recovery", duration: float = 6.0, seed: int =
     rng_mocap = np.random.default_rng(np.random.SeedSequence([int(seed), 15]))
     x0 = release_state(vehicle, rng, throw)
     model = fit_throw_model(vehicle, cfg, throw)
-    processes, sm = sensors_for(cfg, n, seed)
+    processes, sm = sensors_for(cfg, n, seed, vehicle)
     H = rp.n_hypotheses
     Vb, Qr, Pb, Lb = initial_bank(rp, spread_points(H))
     V1, Q1, P1, L1 = np.zeros((1, 3)), np.zeros((1, 4)), np.zeros((1, 5, 5)), np.zeros(1)

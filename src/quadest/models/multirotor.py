@@ -88,6 +88,8 @@ class MultirotorParams:
     rot_drag: tuple = param((5e-5, 5e-5, 1e-4), "N m s²", "quadratic rotational drag per axis: −sign(ω) c ω²",
                             "Sun et al. 2021, their Bebop 2 simulation (simParams.m, aero.rotDrag)")
     gravity: float = param(GRAVITY, "m/s²", "gravity", "standard gravity", bounds="(0, 100]")
+    blades: int = param(2, "-", "blades per propeller (the vibration's blade-pass tone; not in the dynamics)",
+                        "chosen: two-blade propellers, the common small-quadrotor kind", bounds="[1, 12]")
 
     def __post_init__(self):
         check(self, "vehicle")
@@ -141,7 +143,8 @@ VEHICLE_PRESETS = {
              rotor_pos=((0.0875, 0.115, 0.0), (-0.0875, -0.115, 0.0), (0.0875, -0.115, 0.0), (-0.0875, 0.115, 0.0)),
              spin=(1.0, 1.0, -1.0, -1.0), k_f=1.9035e-6, k_m=1.9202951e-8, k_z=3.3e-5, k_h=4.05e-5,
              motor_tau_s=1.0 / 30.0, omega_min=0.0, omega_max=1200.0, omega_dot_max=5e4,
-             body_drag=(0.01, 0.01, 0.01), damping=(0.0, 0.0, 0.0), rot_drag=(5e-5, 5e-5, 1e-4), gravity=9.8124),
+             body_drag=(0.01, 0.01, 0.01), damping=(0.0, 0.0, 0.0), rot_drag=(5e-5, 5e-5, 1e-4), gravity=9.8124,
+             blades=3),
         dict(mass_kg=f"{_SUN}: controlParams.m (the simulation's own mass is in a .mat file)",
              inertia=f"{_SUN}: controlParams.m",
              rotor_pos=f"{_SUN}: controlParams.m, arms l = 0.0875 m (fore-aft) and b = 0.115 m (lateral)",
@@ -152,13 +155,14 @@ VEHICLE_PRESETS = {
              motor_tau_s=f"{_SUN}: simParams.m, actuator.t_w", omega_min=f"{_SUN}: simParams.m",
              omega_max=f"{_SUN}: simParams.m", omega_dot_max=f"{_SUN}: simParams.m, actuator.rateRise",
              body_drag="chosen: as the default vehicle", damping="chosen: none (the drag is quadratic)",
-             rot_drag=f"{_SUN}: simParams.m, aero.rotDrag", gravity=f"{_SUN}: simParams.m (Delft)")),
+             rot_drag=f"{_SUN}: simParams.m, aero.rotDrag", gravity=f"{_SUN}: simParams.m (Delft)",
+             blades="the Bebop 2's stock propellers have three blades")),
     "hummingbird": (
         dict(mass_kg=0.5, inertia=(3.65e-3, 3.68e-3, 7.03e-3),
              rotor_pos=tuple((x, y, 0.0) for x, y, _ in quad_x(0.17)),
              spin=(-1.0, -1.0, 1.0, 1.0), k_f=5.57e-6, k_m=1.36e-7, k_z=2.32e-4, k_h=1.19e-4, motor_tau_s=0.005,
              omega_min=0.0, omega_max=1500.0, omega_dot_max=1e12, body_drag=(5e-3, 5e-3, 1e-2),
-             damping=(0.0, 0.0, 0.0), rot_drag=(0.0, 0.0, 0.0), gravity=9.81),
+             damping=(0.0, 0.0, 0.0), rot_drag=(0.0, 0.0, 0.0), gravity=9.81, blades=2),
         dict(mass_kg=f"{_ROTORPY}: mass", inertia=f"{_ROTORPY}: Ixx, Iyy, Izz",
              rotor_pos=f"{_ROTORPY}: rotor_pos (d = 0.17 m, X), in FRD",
              spin=f"{_ROTORPY}: rotor_directions [1, -1, 1, -1] (FLU order r1..r4)",
@@ -167,7 +171,7 @@ VEHICLE_PRESETS = {
              motor_tau_s=f"{_ROTORPY}: tau_m", omega_min=f"{_ROTORPY}: rotor_speed_min",
              omega_max=f"{_ROTORPY}: rotor_speed_max", omega_dot_max="RotorPy has no rate limit",
              body_drag=f"{_ROTORPY}: c_Dx, c_Dy, c_Dz", damping="RotorPy has none", rot_drag="RotorPy has none",
-             gravity="RotorPy: 9.81")),
+             gravity="RotorPy: 9.81", blades="the AscTec Hummingbird's 8-inch propellers have two blades")),
 }
 """Vehicles by name: the fields that differ from :class:`MultirotorParams`' defaults (the
 recovery paper's vehicle) and the source of each."""

@@ -7,9 +7,10 @@ equal, to rounding, what :func:`~quadest.sim.simulator.sample_sensors` makes of 
 afterwards (``tests/test_flight.py`` checks it; :func:`quadest.sim.flown.flown_recording`
 checks it on every flown recording). Per IMU sample ``k``::
 
-    gyr = clip(DLPF(M_g ω + b_g[k] + n_g[k]))
+    gyr = clip(DLPF(M_g ω + b_g[k] + δω[k] + n_g[k]))
     acc = clip(DLPF(M_a f_imu + b_a[k] + vib[k] + n_a[k])),  f_imu = Rᵀ(a − g) + ω̇ × r + ω × (ω × r)
-    vib = sin(2π ∫ f_hover √load dt + φ) · amp · load   (trapezoid in time, as the batch model)
+    vib, δω: each rotor's blade-pass tone and a damaged propeller's imbalance, from the rotor
+             speeds (quadest.sim.sensors.rotor_vibration_step, the function the batch model calls)
     mag = clip(S Rᵀ B_n + b_hard + k_motor · current + n_m)   on magnetometer rows, R and
           current as they were latency_s before
 """
@@ -22,31 +23,33 @@ from numba import njit
 
 from quadest.rotation.kernels import rotate_inv_s
 from quadest.sim import sensors as S
+from quadest.models.multirotor import MultirotorParams
 from quadest.sim.params import SimConfig
-from quadest.sim.sensors import lowpass_step
+from quadest.sim.sensors import lowpass_step, rotor_vibration_model, rotor_vibration_step
 
 SensorModel = namedtuple("SensorModel", [
     "gyr_matrix", "gyr_bias", "gyr_noise", "gyr_range",
     "acc_matrix", "acc_bias", "acc_noise", "acc_range", "lever", "gravity",
-    "vib_amp", "vib_offsets", "rotor_hz", "has_vib",
+    "rv", "vib_acc", "vib_gyr",
     "has_mag", "mag_index", "mag_soft", "mag_hard", "mag_motor", "mag_noise", "mag_range", "field_n",
     "mag_hist", "gyr_alpha", "acc_alpha", "lp"])
 """What the compiled sampler reads: the configuration's constants and one run's draws."""
 
 
-def sensor_model(cfg: SimConfig, processes, has_mag) -> SensorModel:
-    """Pack a configuration and the draws of one run (``draw_processes``) for the sampler."""
+def sensor_model(cfg: SimConfig, processes, has_mag, vehicle: MultirotorParams) -> SensorModel:
+    """Pack a configuration, the flown ``vehicle`` (its rotors vibrate) and the draws of one
+    run (``draw_processes`` with the vehicle's rotors) for the sampler."""
     has_mag = np.asarray(has_mag, bool)
     index = np.cumsum(has_mag) - 1  # row k's magnetometer noise is mag_noise[index[k]]
-    amp = np.asarray(cfg.acc.vibration_amp, float)
     mag_noise = processes.mag_noise if len(processes.mag_noise) else np.zeros((1, 3))
     return SensorModel(
         np.ascontiguousarray(processes.gyro_errors["matrix"]), np.ascontiguousarray(processes.gyr_bias),
         np.ascontiguousarray(processes.gyr_noise), float(cfg.gyro.range),
         np.ascontiguousarray(processes.acc_errors["matrix"]), np.ascontiguousarray(processes.acc_bias),
         np.ascontiguousarray(processes.acc_noise), float(cfg.acc.range), np.asarray(cfg.acc.lever_arm, float),
-        float(cfg.environment.gravity), amp, np.asarray(processes.vib_offsets, float),
-        float(cfg.vehicle.rotor_hz_hover), bool(amp.any()),
+        float(cfg.environment.gravity),
+        rotor_vibration_model(vehicle, cfg.acc.vibration_amp, processes.vib_offsets, cfg.acc.lever_arm),
+        np.zeros(3), np.zeros(3),
         has_mag, index.astype(np.int64), np.ascontiguousarray(cfg.mag.soft_iron, dtype=float),
         np.asarray(cfg.mag.hard_iron, float), np.asarray(cfg.mag.motor_coef, float), np.ascontiguousarray(mag_noise),
         float(cfg.mag.range), S.earth_field(cfg.environment),
@@ -60,15 +63,16 @@ def _clip(v, limit):
     return min(max(v, -limit), limit)
 
 
-@njit(cache=True)
-def sample_imu(m, k, t, q, acc_n, w, wdot, load, vib_state, gyr, acc):
+@njit(cache=True, inline="always")
+def sample_imu(m, k, t, q, acc_n, w, wdot, speeds, imbalance, vib_state, gyr, acc):
     """IMU sample ``k`` at time ``t`` from the true attitude ``q``, acceleration ``acc_n``
     (navigation frame), rate ``w`` and angular acceleration ``wdot`` (body), and the rotors'
-    ``load``; into ``gyr`` and ``acc``. ``vib_state`` carries the tone's phase integral, the
-    previous frequency and time (start with ``[0, nan, nan]``)."""
+    ``speeds`` and ``imbalance``; into ``gyr`` and ``acc``. ``vib_state`` carries the rotor
+    angles (start with :func:`quadest.sim.sensors.vibration_state`)."""
+    rotor_vibration_step(m.rv, t, speeds, imbalance, vib_state, m.vib_acc, m.vib_gyr)
     for i in range(3):
-        u = (m.gyr_matrix[i, 0] * w[0] + m.gyr_matrix[i, 1] * w[1] + m.gyr_matrix[i, 2] * w[2]
-             + m.gyr_bias[k, i]) + m.gyr_noise[k, i]
+        u = ((m.gyr_matrix[i, 0] * w[0] + m.gyr_matrix[i, 1] * w[1] + m.gyr_matrix[i, 2] * w[2]
+              + m.gyr_bias[k, i]) + m.vib_gyr[i]) + m.gyr_noise[k, i]
         if m.gyr_alpha < 1.0:  # the DLPF, settled at the first sample
             m.lp[i] = lowpass_step(m.lp[i], u, m.gyr_alpha) if k > 0 else u
             u = m.lp[i]
@@ -80,22 +84,16 @@ def sample_imu(m, k, t, q, acc_n, w, wdot, load, vib_state, gyr, acc):
     f0 += (wdot[1] * r2 - wdot[2] * r1) + (w[1] * c2 - w[2] * c1)
     f1 += (wdot[2] * r0 - wdot[0] * r2) + (w[2] * c0 - w[0] * c2)
     f2 += (wdot[0] * r1 - wdot[1] * r0) + (w[0] * c1 - w[1] * c0)
-    freq = m.rotor_hz * np.sqrt(max(load, 0.0))
-    if np.isfinite(vib_state[2]):
-        vib_state[0] += 0.5 * (freq + vib_state[1]) * (t - vib_state[2])
-    vib_state[1], vib_state[2] = freq, t
     for i in range(3):
         a = m.acc_matrix[i, 0] * f0 + m.acc_matrix[i, 1] * f1 + m.acc_matrix[i, 2] * f2 + m.acc_bias[k, i]
-        if m.has_vib:
-            a += np.sin(2 * np.pi * vib_state[0] + m.vib_offsets[i]) * m.vib_amp[i] * load
-        u = a + m.acc_noise[k, i]
+        u = (a + m.vib_acc[i]) + m.acc_noise[k, i]
         if m.acc_alpha < 1.0:
             m.lp[3 + i] = lowpass_step(m.lp[3 + i], u, m.acc_alpha) if k > 0 else u
             u = m.lp[3 + i]
         acc[i] = _clip(u, m.acc_range)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def sample_mag(m, k, q, current, mag):
     """Magnetometer sample on IMU row ``k`` into ``mag`` (NaN where no sample arrives), from the
     attitude and motor current of ``latency`` samples before (``m.mag_hist`` keeps them; call

@@ -9,6 +9,9 @@ clipped to ``±range``)::
 with ``M = (I + diag(scale)) (I + misalignment)``, a constant bias, a bias random walk, white
 noise, and for the accelerometer the IMU's lever arm ``r`` from the centre of mass and a rotor
 vibration tone whose frequency follows the rotor speed and whose amplitude grows with rotor load.
+A flown vehicle's vibration comes from each rotor's own speed (:func:`rotor_vibration_step`:
+a blade-pass tone per rotor, and a damaged propeller's once-per-revolution imbalance as the
+rigid body's response to its rotating force, in the gyroscope too).
 Magnetometer (µT)::
 
     mag = S Rᵀ B_n + b_hard + k_motor · current + n
@@ -19,9 +22,12 @@ with thrust, and at equal thrust when a rotor is lost).
 """
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 from numba import njit
 
+from quadest.models.multirotor import MultirotorParams
 from quadest.rotation import quat_conj, quat_rotate
 from quadest.sim.params import Accelerometer, Environment, Gyroscope, Magnetometer
 
@@ -128,6 +134,112 @@ def vibration(t, rotor_load, rotor_hz_hover, amp, rng=None, offsets=None):
     phase = 2 * np.pi * np.concatenate([[0.0], np.cumsum(0.5 * (freq[1:] + freq[:-1]) * np.diff(t))])
     offs = vibration_offsets(amp, rng) if offsets is None else offsets
     return np.sin(phase[:, None] + offs) * amp * rotor_load[:, None]
+
+
+RotorVibration = namedtuple("RotorVibration", ["pos", "spin", "inv_inertia", "mass", "omega_hover", "blades",
+                                               "bp_amp", "has_bp", "offsets", "lever"])
+"""What :func:`rotor_vibration_step` reads: the vehicle's rotors, the blade-pass amplitude per
+rotor and axis, one run's phases and the IMU's lever arm (built by :func:`rotor_vibration_model`)."""
+
+
+def rotor_vibration_model(vehicle: MultirotorParams, amp, offsets, lever) -> RotorVibration:
+    """The flown vehicle's vibration: ``amp`` the total blade-pass amplitude per axis at hover
+    (the configuration's ``acc.vibration_amp``, shared by the rotors so that N incoherent tones
+    carry the power of one: ``amp/√N`` each), ``offsets`` one run's phases (rotors × 4: the
+    blade-pass phase per axis, then the rotor's angle at the start)."""
+    amp = np.asarray(amp, float)
+    offsets = np.ascontiguousarray(offsets, dtype=float)
+    if offsets.shape != (vehicle.rotors, 4):
+        raise ValueError(f"rotor vibration: offsets must be {vehicle.rotors} rows of 4, got shape {offsets.shape}")
+    return RotorVibration(np.ascontiguousarray(vehicle.rotor_pos, dtype=float), np.asarray(vehicle.spin, float),
+                          1.0 / np.asarray(vehicle.inertia, float), float(vehicle.mass_kg), vehicle.hover_speed(),
+                          float(vehicle.blades), amp / np.sqrt(vehicle.rotors), bool(amp.any()), offsets,
+                          np.asarray(lever, float))
+
+
+def rotor_vibration_offsets(rotors: int, rng) -> np.ndarray:
+    """One run's phases of a flown vehicle's vibration (:func:`rotor_vibration_model`)."""
+    return rng.uniform(0.0, 2 * np.pi, (rotors, 4))
+
+
+def vibration_state(rotors: int) -> np.ndarray:
+    """The state :func:`rotor_vibration_step` carries from sample to sample: each rotor's angle,
+    its previous speed and the previous time (NaN: no sample yet)."""
+    state = np.zeros(2 * rotors + 1)
+    state[rotors:] = np.nan
+    return state
+
+
+@njit(cache=True, inline="always")
+def rotor_vibration_step(rv, t, speeds, imbalance, state, acc, gyr):
+    """The vibration a flown vehicle's IMU sees at time ``t`` from its rotors' ``speeds``
+    (rad/s) and propeller ``imbalance`` (kg m, mass times radius; 0 for a sound propeller),
+    into ``acc`` (m/s²) and ``gyr`` (rad/s); ``state`` (:func:`vibration_state`) carries the
+    rotor angles ``ψ_i = ψ_i0 + ∫ Ω_i dt`` (trapezoid between samples).
+
+    - **Blade pass**: per rotor and axis ``a_bp (Ω_i/Ω_hover)² sin(B ψ_i + φ_ia)``, B blades;
+      the amplitude at hover ``a_bp`` is chosen (a property of the frame and the IMU's mount,
+      which a rigid-body model does not have).
+    - **Imbalance** of a damaged propeller: the centrifugal force of the missing mass,
+      ``F_i = u Ω² [cos ψ, s sin ψ, 0]`` (body; ``s`` the rotor's sense, ψ measured in it),
+      acting at the rotor ``r_i``. The rigid body's response, superposed on the flown motion:
+      ``δa = F/m``, ``δω̇ = J⁻¹ (r_i × F)``, ``δω = J⁻¹ (r_i × ∫F dt)`` with the zero-mean
+      ``∫F dt = u Ω [sin ψ, −s cos ψ, 0]`` (Ω slowly varying); at the IMU
+      ``δf = δa + δω̇ × r_imu``, the gyroscope ``δω``. Neglected, and why: the response is
+      not fed back into the flight (its displacement is ``u/m``, 10 µm for 5 g mm on 0.5 kg,
+      its attitude ``|r × u|/J``, a fraction of a milliradian); the gyroscopic coupling
+      ``ω × J δω`` (``|ω|/Ω``, about 2 %); the attitude ripple's share of gravity (``δθ g``, mm/s²)."""
+    n = rv.pos.shape[0]
+    first = not np.isfinite(state[2 * n])
+    for i in range(n):
+        if first:
+            state[i] = rv.offsets[i, 3]
+        else:
+            state[i] += 0.5 * (speeds[i] + state[n + i]) * (t - state[2 * n])
+        state[n + i] = speeds[i]
+    state[2 * n] = t
+    for a in range(3):
+        acc[a] = 0.0
+        gyr[a] = 0.0
+    for i in range(n):
+        w, psi = speeds[i], state[i]
+        if rv.has_bp:
+            s2 = (w / rv.omega_hover) ** 2
+            for a in range(3):
+                acc[a] += rv.bp_amp[a] * s2 * np.sin(rv.blades * psi + rv.offsets[i, a])
+        u = imbalance[i]
+        if u > 0.0:
+            c, sn, sp = np.cos(psi), np.sin(psi), rv.spin[i]
+            f0, f1 = u * w * w * c, u * w * w * sp * sn  # the force (its z part is 0)
+            h0, h1 = u * w * sn, -u * w * sp * c  # its zero-mean time integral
+            r0, r1, r2 = rv.pos[i, 0], rv.pos[i, 1], rv.pos[i, 2]
+            # δω̇ = J⁻¹ (r × F), δω = J⁻¹ (r × ∫F dt), F and ∫F dt in the disc plane
+            d0, d1, d2 = -r2 * f1 * rv.inv_inertia[0], r2 * f0 * rv.inv_inertia[1], (r0 * f1 - r1 * f0) * rv.inv_inertia[2]
+            gyr[0] += -r2 * h1 * rv.inv_inertia[0]
+            gyr[1] += r2 * h0 * rv.inv_inertia[1]
+            gyr[2] += (r0 * h1 - r1 * h0) * rv.inv_inertia[2]
+            l0, l1, l2 = rv.lever[0], rv.lever[1], rv.lever[2]
+            acc[0] += f0 / rv.mass + (d1 * l2 - d2 * l1)
+            acc[1] += f1 / rv.mass + (d2 * l0 - d0 * l2)
+            acc[2] += d0 * l1 - d1 * l0
+
+
+@njit(cache=True)
+def _rotor_vibration(rv, t, speeds, imbalance, acc, gyr):
+    state = np.zeros(2 * speeds.shape[1] + 1)
+    state[speeds.shape[1]:] = np.nan
+    for k in range(t.shape[0]):
+        rotor_vibration_step(rv, t[k], speeds[k], imbalance[k], state, acc[k], gyr[k])
+
+
+def rotor_vibration(rv: RotorVibration, t, speeds, imbalance):
+    """:func:`rotor_vibration_step` over a whole flight (rows of ``t``, ``speeds``,
+    ``imbalance``): the accelerometer's and the gyroscope's vibration, each (n, 3)."""
+    t = np.ascontiguousarray(t, dtype=float)
+    acc, gyr = np.zeros((len(t), 3)), np.zeros((len(t), 3))
+    _rotor_vibration(rv, t, np.ascontiguousarray(speeds, dtype=float), np.ascontiguousarray(imbalance, dtype=float),
+                     acc, gyr)
+    return acc, gyr
 
 
 def mag_noise(n: int, model: Magnetometer, rng) -> np.ndarray:

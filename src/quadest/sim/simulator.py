@@ -8,6 +8,7 @@ import numpy as np
 
 from quadest.data.recording import Recording
 from quadest.models.aero import AeroModel
+from quadest.models.multirotor import MultirotorParams
 from quadest.rotation import quat_continuous
 from quadest.sim import sensors as S
 from quadest.sim.params import SimConfig, load_toml_overrides, preset_config
@@ -125,31 +126,41 @@ Processes = namedtuple("Processes", ["gyro_errors", "acc_errors", "gyr_bias", "g
 """Every sensor error that does not depend on the motion, drawn for one run (:func:`draw_processes`)."""
 
 
-def draw_processes(cfg: SimConfig, t, has_mag, rngs) -> Processes:
+def draw_processes(cfg: SimConfig, t, has_mag, rngs, rotors: int = 0) -> Processes:
     """Draw a run's sensor errors at the IMU instants ``t`` (magnetometer noise on the rows
     ``has_mag``), always in the same order from the four generators ``(gyro, acc, mag,
     vibration)``: the sensors sampled from a whole trajectory (:func:`sample_sensors`) and
-    sample by sample in a closed loop (:mod:`quadest.sim.inloop`) read the same draws."""
+    sample by sample in a closed loop (:mod:`quadest.sim.inloop`) read the same draws.
+    ``rotors``: a flown vehicle's rotor count (its vibration's phases per rotor,
+    :func:`quadest.sim.sensors.rotor_vibration_offsets`); 0 for a prescribed motion (one tone)."""
     rng_gyro, rng_acc, rng_mag, rng_vib = rngs
     g_err = S.draw_errors(cfg.gyro, rng_gyro)
     a_err = S.draw_errors(cfg.acc, rng_acc)
     gyr_bias, gyr_noise = S.inertial_processes(t, cfg.gyro, g_err, rng_gyro)
-    vib_offsets = S.vibration_offsets(cfg.acc.vibration_amp, rng_vib)
+    vib_offsets = (S.rotor_vibration_offsets(rotors, rng_vib) if rotors
+                   else S.vibration_offsets(cfg.acc.vibration_amp, rng_vib))
     acc_bias, acc_noise = S.inertial_processes(t, cfg.acc, a_err, rng_acc)
     mag_noise = S.mag_noise(int(np.count_nonzero(has_mag)), cfg.mag, rng_mag)
     return Processes(g_err, a_err, gyr_bias, gyr_noise, acc_bias, acc_noise, vib_offsets, mag_noise)
 
 
-def sample_sensors(truth: Truth, cfg: SimConfig, keep, has_mag, rngs, meta: dict, processes: Processes | None = None):
+def sample_sensors(truth: Truth, cfg: SimConfig, keep, has_mag, rngs, meta: dict, processes: Processes | None = None,
+                   vehicle: MultirotorParams | None = None):
     """The sensors of ``cfg`` sampled from a true motion (prescribed or flown) at its instants:
     IMU with lever arm, errors, vibration and saturation, magnetometer on the rows ``has_mag``;
     rows ``keep`` are recorded (the others were dropped). Returns the recording and the true
     gyro and accelerometer biases over time (all rows). ``processes``: draws made beforehand
-    for at least these rows (a closed loop that ended early), used instead of ``rngs``."""
+    for at least these rows (a closed loop that ended early), used instead of ``rngs``.
+    ``vehicle``: a flown vehicle, whose vibration comes from each rotor's speed and imbalance
+    (``truth.rotor_speeds``, ``truth.rotor_imbalance``; :func:`quadest.sim.sensors.rotor_vibration_step`)
+    instead of the prescribed motion's one tone."""
     t = truth.t
     rate = cfg.imu.rate_hz
+    flown = vehicle is not None
+    if flown and truth.rotor_speeds is None:
+        raise ValueError("sample_sensors: a flown vehicle's truth must carry its rotor speeds")
     if processes is None:
-        pr = draw_processes(cfg, t, has_mag, rngs)
+        pr = draw_processes(cfg, t, has_mag, rngs, rotors=vehicle.rotors if flown else 0)
     else:
         n, m = len(t), int(np.count_nonzero(has_mag))
         pr = processes._replace(gyr_bias=processes.gyr_bias[:n], gyr_noise=processes.gyr_noise[:n],
@@ -158,9 +169,16 @@ def sample_sensors(truth: Truth, cfg: SimConfig, keep, has_mag, rngs, meta: dict
     g_err, a_err = pr.gyro_errors, pr.acc_errors
     f_imu = S.specific_force_at_imu(truth.q, truth.acc_n, truth.gyr, truth.gyr_dot, cfg.acc.lever_arm,
                                     cfg.environment.gravity)
-    gyr = S.apply_inertial(truth.gyr, g_err["matrix"], pr.gyr_bias, pr.gyr_noise, cfg.gyro.range,
+    if flown:
+        rv = S.rotor_vibration_model(vehicle, cfg.acc.vibration_amp, pr.vib_offsets, cfg.acc.lever_arm)
+        imbalance = np.zeros_like(truth.rotor_speeds) if truth.rotor_imbalance is None else truth.rotor_imbalance
+        vib, gyr_vib = S.rotor_vibration(rv, t, truth.rotor_speeds, imbalance)
+    else:
+        vib = S.vibration(t, truth.rotor_load, cfg.vehicle.rotor_hz_hover, cfg.acc.vibration_amp,
+                          offsets=pr.vib_offsets)
+        gyr_vib = None
+    gyr = S.apply_inertial(truth.gyr, g_err["matrix"], pr.gyr_bias, pr.gyr_noise, cfg.gyro.range, extra=gyr_vib,
                            alpha=S.dlpf_alpha(cfg.gyro.dlpf_hz, rate))
-    vib = S.vibration(t, truth.rotor_load, cfg.vehicle.rotor_hz_hover, cfg.acc.vibration_amp, offsets=pr.vib_offsets)
     acc = S.apply_inertial(f_imu, a_err["matrix"], pr.acc_bias, pr.acc_noise, cfg.acc.range, extra=vib,
                            alpha=S.dlpf_alpha(cfg.acc.dlpf_hz, rate))
     gyr_bias, acc_bias = pr.gyr_bias, pr.acc_bias
@@ -170,7 +188,7 @@ def sample_sensors(truth: Truth, cfg: SimConfig, keep, has_mag, rngs, meta: dict
         src = np.maximum(rows - mag_delay(cfg), 0)  # the field the sample reads is latency_s old
         mag[rows] = S.magnetometer(truth.q[src], truth.current[src], cfg.environment, cfg.mag, noise=pr.mag_noise)
 
-    sat = np.abs(truth.gyr @ g_err["matrix"].T) > cfg.gyro.range
+    sat = np.abs(truth.gyr @ g_err["matrix"].T + (0.0 if gyr_vib is None else gyr_vib)) > cfg.gyro.range
     meta = {
         **{k: v for k, v in meta.items() if k != "ideal_sensors"},
         "imu_rate_hz": rate,

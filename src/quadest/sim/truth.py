@@ -40,6 +40,8 @@ class Truth:
     meta: dict = field(default_factory=dict)
     gyr_bias: np.ndarray | None = None  # (N, 3) gyroscope bias incl. random walk (simulate(return_truth=True))
     acc_bias: np.ndarray | None = None  # (N, 3) accelerometer bias incl. random walk
+    rotor_speeds: np.ndarray | None = None  # (N, rotors) rad/s, a flown vehicle's (its vibration)
+    rotor_imbalance: np.ndarray | None = None  # (N, rotors) kg m, a damaged propeller's imbalance
 
     @classmethod
     def concat(cls, parts):

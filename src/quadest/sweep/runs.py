@@ -119,7 +119,7 @@ def sim_sources(scenario, preset, seeds, duration=None, overrides=None, t_from=N
 def flown_sources(scenario, seeds, *, controller=None, failures=(None,), duration=None, vehicle="recovery",
                   preset=None) -> list[dict]:
     """Flown flights (:func:`quadest.flight.fly`): one per (failure, seed); a failure as
-    ``{"rotor", "time_s", "efficiency"}`` or None."""
+    ``{"rotor", "time_s", "efficiency"[, "imbalance"]}`` or None."""
     return [{"kind": "flown", "scenario": scenario, "controller": controller, "failure": f, "seed": int(s),
              "duration": duration, "vehicle": vehicle, "preset": preset} for f in failures for s in seeds]
 
@@ -177,7 +177,9 @@ def build_runs(filters, grid: dict, sources, align: str | None = None) -> list[d
 def source_label(src: dict) -> str:
     if src["kind"] == "flown":
         f = src.get("failure")
-        fail = f"/rotor{f['rotor']}@{f['time_s']:g}" + (f":{f['efficiency']:g}" if f["efficiency"] else "") if f else ""
+        fail = (f"/rotor{f['rotor']}@{f['time_s']:g}" + (f":{f['efficiency']:g}" if f["efficiency"] or f.get("imbalance")
+                                                         else "")
+                + (f":{f['imbalance']:g}" if f.get("imbalance") else "")) if f else ""
         return f"flown {src['scenario']}{fail}/seed{src['seed']}"
     if src["kind"] == "sim":
         return f"{src['scenario']}/{src['preset']}/seed{src['seed']}"
