@@ -206,3 +206,12 @@ def test_fly_a_throw_with_the_recovery_and_the_oracle(tmp_path, capsys):
     assert modes[0] in (0, 1) and modes[-1] == 2
     code, _, err = run(capsys, "fly", "--scenario", "throw", "--estimator", "madgwick", "-o", str(out))
     assert code == 2 and "--estimator" in err
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["reproduce", "qukf", "--ablations"], "are for reproduce afckf"),
+    (["reproduce", "afckf", "--prescribed", "--ablations"], "leave out --prescribed"),
+])
+def test_reproduce_refuses_options_that_do_not_fit(capsys, argv, match):
+    code, _, err = run(capsys, *argv)
+    assert code == 2 and match in err and len(err.strip().splitlines()) == 1, err

@@ -129,7 +129,8 @@ LAYERS = [  # the first four are the issue's layer 0, in the order they build on
     {"data", ""},  # "": the package itself (its __init__ exposes Recording and the version)
     {"models"},
     {"filters", "recovery", "sim", "readers", "calibration", "control"},
-    {"evaluation", "flight"},
+    {"flight"},
+    {"evaluation"},
     {"sweep", "plot"},
     {"cli"},
 ]

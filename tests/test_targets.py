@@ -1,4 +1,4 @@
-"""The accuracy targets of issue #3, measured as `quadest reproduce afckf` measures them.
+"""The accuracy targets of issue #3, measured as `quadest reproduce afckf --prescribed` measures them.
 
 Deterministic (simulated seeds), so they guard against regressions; speed targets are measured
 by `quadest benchmark speed`, never here.
@@ -10,7 +10,7 @@ from quadest.evaluation.reproduce import reproduce_afckf
 
 @pytest.fixture(scope="module")
 def afckf():
-    return reproduce_afckf(range(1, 6))
+    return reproduce_afckf(range(1, 6), prescribed=True)
 
 
 def test_afckf_damaged_rotor_targets(afckf):

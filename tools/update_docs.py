@@ -231,17 +231,68 @@ def results_speed() -> str:
             + f"\n\n{speed['samples']} simulated samples (docs/results/speed.json).")
 
 
+AFCKF_NAMES = ["madgwick", "complementary", "kalman", "afckf"]
+
+
+def _afckf_table(r, cases) -> str:
+    """Our RMS per filter with the paper's in parentheses, one row per case and axis."""
+    pub = r["published"]
+    rows = []
+    for case, label in cases:
+        for a in ("roll", "pitch", "yaw"):
+            p = pub.get(case, {}).get("rms_deg", {})
+            rows.append([f"{label}, {a}"]
+                        + [f"{r['cases'][case][n]['rms_deg'][a]:.2f}" + (f" ({p[n][a]:.2f})" if n in p else "")
+                           for n in AFCKF_NAMES]
+                        + [f"{r['cases'][case]['afckf-nocal']['rms_deg'][a]:.2f}"])
+    return _table([""] + AFCKF_NAMES + ["afckf uncalibrated"], rows)
+
+
 def results_afckf() -> str:
-    """README: the AFCKF paper's damaged-rotor table, our mean over seeds beside the paper's."""
+    """README and docs/estimators.md: the flown reproduction, ours (paper's)."""
     r = _load("afckf")
-    case = r["cases"]["damaged-rotor"]
-    names = ["madgwick", "complementary", "kalman", "afckf"]
-    pub = r["published"]["damaged-rotor"]["rms_deg"]
-    rows = [[a] + [f"{case[n]['rms_deg'][a]:.2f}°" for n in names] + [f"{pub['afckf'][a]:.2f}°"]
-            for a in ("roll", "pitch", "yaw")]
     seeds = r["seeds"]
-    return (_table([""] + names + ["afckf, paper"], rows)
-            + f"\n\nRMS error from the failure on, mean over seeds {seeds[0]}-{seeds[-1]} (docs/results/afckf.json).")
+    return (_afckf_table(r, [("damaged-rotor", "rotor loss from hover"),
+                             ("damaged-rotor-trajectory", "rotor loss on the circle"), ("nominal", "normal flight")])
+            + f"\n\nRMS error in degrees, the paper's in parentheses; from the loss on; mean over seeds "
+              f"{seeds[0]}-{seeds[-1]} (`quadest reproduce afckf`, docs/results/afckf.json).")
+
+
+def results_afckf_flights() -> str:
+    """docs/estimators.md: what the flown reproduction's flights made of the loss."""
+    r = _load("afckf")
+    rows = []
+    for case, f in r["flights"].items():
+        spin = "-" if f["spin_rate_rad_s"] is None else f"{f['spin_rate_rad_s']:.1f}"
+        tilt = "-" if f["tilt_deg"] is None else f"{f['tilt_deg']:.1f}"
+        rows.append([case, spin, tilt, f"{f['peak_rate_rad_s']:.1f}", f"{100 * f['gyro_clipped_share']:.2f} %"])
+    p = r["params"]
+    return (_table(["case", "settled spin (rad/s)", "tilt (°)", "peak body rate (rad/s)",
+                    "gyro samples clipped (±1000°/s)"], rows)
+            + f"\n\nThe paper: 15.5 rad/s. A {p['vehicle']} loses rotor {p['rotor']} at {p['failure_s']:g} s "
+              f"(docs/results/afckf.json).")
+
+
+def results_afckf_ablations() -> str:
+    """README and docs/estimators.md: the ablation table."""
+    r = _load("afckf")
+    names = AFCKF_NAMES + ["afckf-nocal"]
+    rows = [[row["change"]] + [" / ".join(f"{row[n][a]:.1f}" for a in ("roll", "pitch", "yaw")) for n in names]
+            for row in r["ablations"]]
+    seeds = r["seeds"]
+    return (_table(["one change", *names[:-1], "afckf uncalibrated"], rows)
+            + f"\n\nRoll / pitch / yaw RMS error in degrees from the loss on, the flown rotor loss from hover, mean "
+              f"over seeds {seeds[0]}-{seeds[-1]} (`quadest reproduce afckf --ablations`, docs/results/afckf.json).")
+
+
+def results_afckf_prescribed() -> str:
+    """docs/estimators.md: the prescribed reproduction."""
+    r = _load("afckf-prescribed")
+    seeds = r["seeds"]
+    return (_afckf_table(r, [("damaged-rotor", "damaged rotor"), ("nominal", "normal flight")])
+            + f"\n\nRMS error in degrees, the paper's in parentheses; damaged rotor from the failure on; mean over "
+              f"seeds {seeds[0]}-{seeds[-1]} (`quadest reproduce afckf --prescribed`, "
+              f"docs/results/afckf-prescribed.json).")
 
 
 GENERATORS = {"simulator-params": simulator_params, "estimator-params": estimator_params,
@@ -251,7 +302,9 @@ GENERATORS = {"simulator-params": simulator_params, "estimator-params": estimato
               "results-flight": results_flight, "results-throw": results_throw, "results-sim": results_sim, "results-crosscheck": results_crosscheck,
               "results-overview": results_overview,
               "results-broad-summary": results_broad_summary, "results-broad-trials": results_broad_trials,
-              "results-flights": results_flights, "results-speed": results_speed, "results-afckf": results_afckf}
+              "results-flights": results_flights, "results-speed": results_speed, "results-afckf": results_afckf,
+              "results-afckf-flights": results_afckf_flights, "results-afckf-ablations": results_afckf_ablations,
+              "results-afckf-prescribed": results_afckf_prescribed}
 PATTERN = re.compile(r"(<!-- generated:([a-z-]+) -->\n)(.*?)(<!-- /generated -->)", re.S)
 
 

@@ -87,11 +87,23 @@ def cmd_reproduce(args):
     if args.paper == "recovery":
         return _reproduce_recovery(args)
     seeds = parse_seeds(args.seeds)
+    if (args.prescribed or args.ablations) and args.paper != "afckf":
+        raise CliError("--prescribed and --ablations are for reproduce afckf")
+    if args.prescribed and args.ablations:
+        raise CliError("--ablations run on the flown rotor loss: leave out --prescribed")
     if args.paper == "afckf":
-        say("Reproducing Solanki & de Visser 2022 (AFCKF), Tables I-V, on the simulator: a Bebop 2 "
-            f"that loses a rotor (errors from the failure on) and in normal flight, seeds {args.seeds}.")
-        say("(first use compiles the estimators: about a minute)")
-        result = R.reproduce_afckf(seeds, progress=True, workers=args.workers, scheduler=args.scheduler)
+        if args.prescribed:
+            say("Reproducing Solanki & de Visser 2022 (AFCKF), Tables I-V, on the prescribed scenarios: a "
+                f"Bebop 2 that loses a rotor (spin, tilt and spin-up given; errors from the failure on) and in "
+                f"normal flight, seeds {args.seeds}.")
+        else:
+            say("Reproducing Solanki & de Visser 2022 (AFCKF), Tables I-V, on the flying vehicle: a Bebop 2 "
+                "hovers (and flies a circle) and loses a rotor; a fault-tolerant controller flies it on the true "
+                f"state; the estimators run on its sensors (errors from the loss on); seeds {args.seeds}"
+                + (", then the ablations (each row one sensor change)." if args.ablations else "."))
+        say("(first use compiles the estimators and the closed loop: about a minute)")
+        result = R.reproduce_afckf(seeds, progress=True, workers=args.workers, scheduler=args.scheduler,
+                                   prescribed=args.prescribed, ablations=args.ablations)
     else:
         say("Reproducing Liang et al. 2023 (QUKF), Table 1, on the simulator: MPU6050 + HMC5883L at "
             f"20 Hz, 30 s of hover and of motion, seeds {args.seeds}.")
@@ -216,12 +228,19 @@ def add_parsers(sub):
     r = sub.add_parser("reproduce", help="reproduce a paper's experiments on the simulator",
                        description="Run a paper's experiment on simulated flights over several seeds and "
                                    "print our figures next to the published ones. afckf: Tables I-V of "
-                                   "Solanki & de Visser 2022; qukf: Table 1 of Liang et al. 2023; "
+                                   "Solanki & de Visser 2022 on the flown rotor loss (--prescribed: on the "
+                                   "prescribed scenario; --ablations: what each sensor property does); qukf: Table 1 of Liang et al. 2023; "
                                    "recovery: throws and the bank of EKFs of Beffa et al.")
     r.add_argument("paper", choices=["afckf", "qukf", "recovery"])
     r.add_argument("--seeds", default="1-5", help="afckf, qukf: seed range or list (default: 1-5)")
     r.add_argument("--throws", type=positive, default=100, help="recovery: number of throws (default: 100)")
     r.add_argument("--seed", type=int, default=1, help="recovery: first seed (default: 1)")
+    r.add_argument("--prescribed", action="store_true",
+                   help="afckf: the prescribed scenarios (spin, tilt and spin-up given) instead of the flown vehicle")
+    r.add_argument("--ablations", action="store_true",
+                   help="afckf: also the ablation table on the flown rotor loss (each row one sensor change: gyro "
+                        "range and scale, magnetometer latency, motor interference, indoor field, lever arm, "
+                        "vibration, a damaged propeller; docs/estimators.md)")
     r.add_argument("--json", metavar="OUT", help="write all figures (per seed too) as JSON")
     r.add_argument("--plot-dir", metavar="DIR", help="draw the errors over time for the first seed")
     add_engine_args(r, default_workers=0)

@@ -1,10 +1,13 @@
 """Reproduce the papers' experiments on the simulator, with the published figures beside ours.
 
-AFCKF (Solanki & de Visser 2022, Tables I-V): a Bebop 2 (``bebop2`` preset) with one rotor lost
-(``damaged-rotor``, errors counted from the failure on) and in normal flight (``nominal``);
-Madgwick, Valenti's complementary filter, Roetenberg's Kalman filter and the AFCKF. The AFCKF's
-centrifugal constants (eq 13) come from a separate calibration flight (seed 1000, the spinning
-segment), never from the evaluated seeds; it also runs uncalibrated (``afckf-nocal``).
+AFCKF (Solanki & de Visser 2022, Tables I-V): a Bebop 2 with one rotor lost (errors counted from
+the failure on) and in normal flight; Madgwick, Valenti's complementary filter, Roetenberg's
+Kalman filter and the AFCKF. By default the vehicle *flies* (:mod:`quadest.evaluation.flown`:
+the loss from hover and from a circle, and the circle without a loss; spin, tilt and clipping
+are outputs), with ablations on request; ``prescribed=True`` runs the prescribed scenarios
+(``damaged-rotor``, ``nominal``) instead. The AFCKF's centrifugal constants (eq 13) come from a
+separate calibration flight (seed 1000, the spinning segment), never from the evaluated seeds;
+it also runs uncalibrated (``afckf-nocal``).
 
 QUKF (Liang et al. 2023, Table 1): the ``lowcost-20hz`` preset, 30 s of hover and 30 s of motion;
 QUKF, EKF and a complementary filter (the paper does not say which; quadest uses Valenti's).
@@ -14,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from quadest.calibration import calibrate_centrifugal
+from quadest.evaluation import flown as FL
 from quadest.evaluation.metrics import AXES
 from quadest.evaluation.parallel import execute
 from quadest.evaluation.runner import estimate, estimate_all, score
@@ -89,27 +93,65 @@ def _aggregate(per_seed: list[dict], names) -> dict:
     return out
 
 
-def reproduce_afckf(seeds=range(1, 6), progress: bool = False, workers: int = 0, scheduler=None) -> dict:
-    """AFCKF Tables I-V on the simulator. Seeds run through
-    :func:`quadest.evaluation.parallel.execute`:
-    in this process (``workers=0``), on a local Dask cluster or on ``scheduler``."""
+def reproduce_afckf(seeds=range(1, 6), progress: bool = False, workers: int = 0, scheduler=None, *,
+                    prescribed: bool = False, ablations: bool = False,
+                    params: FL.FlownAfckfParams | None = None) -> dict:
+    """AFCKF Tables I-V on the simulator: flown (default) or on the prescribed scenarios; with
+    ``ablations`` (flown only) the ablation table too. Seeds run through
+    :func:`quadest.evaluation.parallel.execute`: in this process (``workers=0``), on a local
+    Dask cluster or on ``scheduler``."""
+    if prescribed:
+        if ablations:
+            raise ValueError("the ablations run on the flown rotor loss, not on the prescribed scenario")
+        return _reproduce_afckf_prescribed(seeds, progress, workers, scheduler)
+    p = params or FL.FlownAfckfParams()
+    cal = FL.afckf_calibration_flown(p)
+    fparams = {"afckf": {"omega1": cal["omega1"], "omega2": cal["omega2"]}, "afckf-nocal": {}}
+    seeds = list(seeds)
+    out = {"seeds": seeds, "mode": "flown", "params": {r["name"]: getattr(p, r["name"]) for r in p.describe()},
+           "calibration": cal, "published": PUBLISHED["afckf"], "cases": {}, "flights": {}}
+    for case in FL.CASES:
+        res = _map(FL.flown_seed, [(case, s, p, fparams) for s in seeds], progress, f"AFCKF flown {case}",
+                   workers, scheduler)
+        out["cases"][case] = _aggregate([r["scores"] for r in res], FL.LABELS)
+        out["flights"][case] = _flight_means([r["flight"] for r in res])
+    if ablations:
+        per_seed = _map(FL.ablation_seed, [(s, p, fparams, FL.ABLATIONS) for s in seeds], progress,
+                        "AFCKF ablations", workers, scheduler)
+        out["ablations"] = FL.ablation_rows(per_seed)
+    rec = FL.flown_flight("damaged-rotor", seeds[0], p).recording
+    out["time_us"] = _times(rec, fparams)
+    return out
+
+
+def _flight_means(outputs: list[dict]) -> dict:
+    """The flights' outputs per seed, and their mean where every seed has one."""
+    out = {"per_seed": outputs}
+    for k in ("spin_rate_rad_s", "tilt_deg", "gyro_clipped_share", "peak_rate_rad_s"):
+        v = [o[k] for o in outputs]
+        out[k] = float(np.mean(v)) if all(x is not None for x in v) else None
+    return out
+
+
+def _times(rec, params) -> dict:
+    out = {}
+    for name, label in zip(FL.FILTERS, FL.LABELS):
+        out[label] = time_estimator(lambda n=name, lb=label: make_filter(n, declination=rec.declination,
+                                                                          **params.get(lb, {})), rec)
+    return out
+
+
+def _reproduce_afckf_prescribed(seeds, progress, workers, scheduler) -> dict:
     cal = afckf_calibration()
     cfg = build_config("bebop2")
-    names = ["madgwick", "complementary", "kalman", "afckf", "afckf"]
-    labels_list = ["madgwick", "complementary", "kalman", "afckf", "afckf-nocal"]
     params = {"afckf": {"omega1": cal["omega1"], "omega2": cal["omega2"]}, "afckf-nocal": {}}
     seeds = list(seeds)
-    out = {"seeds": seeds, "calibration": cal, "published": PUBLISHED["afckf"], "cases": {}}
+    out = {"seeds": seeds, "mode": "prescribed", "calibration": cal, "published": PUBLISHED["afckf"], "cases": {}}
     for scenario in ("damaged-rotor", "nominal"):
-        out["cases"][scenario] = _run_case_labelled(scenario, "bebop2", seeds, names, labels_list, params,
+        out["cases"][scenario] = _run_case_labelled(scenario, "bebop2", seeds, FL.FILTERS, FL.LABELS, params,
                                                     cfg.damaged.failure_s if scenario == "damaged-rotor" else 0.0,
                                                     progress, f"AFCKF {scenario}", workers, scheduler)
-    rec = simulate("damaged-rotor", "bebop2", seed=seeds[0])
-    out["time_us"] = {}
-    for name, label in zip(names, labels_list):
-        tm = time_estimator(lambda n=name, lb=label: make_filter(n, declination=rec.declination, **params.get(lb, {})),
-                            rec)
-        out["time_us"][label] = tm
+    out["time_us"] = _times(simulate("damaged-rotor", "bebop2", seed=seeds[0]), params)
     return out
 
 
@@ -121,9 +163,8 @@ def _one_seed(task) -> dict:
             for name, label in zip(names, labels_list)}
 
 
-def _map_seeds(tasks, progress, desc, workers, scheduler) -> list:
-    results = execute(_one_seed, tasks, workers=workers,
-                      scheduler=scheduler, progress=progress, desc=desc)
+def _map(fn, tasks, progress, desc, workers, scheduler) -> list:
+    results = execute(fn, tasks, workers=workers, scheduler=scheduler, progress=progress, desc=desc)
     for r in results:
         if isinstance(r, BaseException):
             raise ValueError(f"a reproduction run failed: {type(r).__name__}: {r}")
@@ -133,7 +174,7 @@ def _map_seeds(tasks, progress, desc, workers, scheduler) -> list:
 def _run_case_labelled(scenario, preset, seeds, names, labels_list, params, t_from, progress, desc,
                        workers=0, scheduler=None, duration=None):
     tasks = [(scenario, preset, s, duration, list(names), list(labels_list), params, t_from) for s in seeds]
-    return _aggregate(_map_seeds(tasks, progress, desc, workers, scheduler), labels_list)
+    return _aggregate(_map(_one_seed, tasks, progress, desc, workers, scheduler), labels_list)
 
 
 def reproduce_qukf(seeds=range(1, 6), progress: bool = False, duration: float = 30.0, workers: int = 0,
@@ -152,6 +193,12 @@ def first_seed_estimates(paper: str, result: dict):
     """The first seed's flight of a reproduction and every filter's estimate on it, for the
     error plots: ``(rec, {label: FilterResult}, t_from, title)``."""
     seed = result["seeds"][0]
+    if paper == "afckf" and result.get("mode") == "flown":
+        p = FL.FlownAfckfParams(**result["params"])
+        rec = FL.flown_flight("damaged-rotor", seed, p).recording
+        params = {"afckf": {k: result["calibration"][k] for k in ("omega1", "omega2")}}
+        return (rec, estimate_all(rec, ["madgwick", "complementary", "kalman", "afckf"], params), p.failure_s,
+                f"flown rotor loss / {p.vehicle} / seed {seed}")
     if paper == "afckf":
         scen, preset, t_from, duration = "damaged-rotor", "bebop2", build_config("bebop2").damaged.failure_s, None
         names = ["madgwick", "complementary", "kalman", "afckf"]
@@ -171,7 +218,10 @@ def format_reproduction(paper: str, result: dict) -> str:
     pub = result["published"]
     if paper == "afckf":
         cal = result["calibration"]
-        lines.append(f"AFCKF centrifugal calibration (eq 13) from calibration flight seed {cal['seed']}: "
+        if result.get("mode") == "flown":
+            lines += _flown_lines(result)
+        lines.append(f"AFCKF centrifugal calibration (eq 13) from {'flown ' if cal.get('flown') else ''}calibration "
+                     f"flight seed {cal['seed']}: "
                      f"ω1 = {cal['omega1']:.4f} m, ω2 = {cal['omega2']:.4f} m (± {cal['uncertainty_m']:.1e} m, residual "
                      f"{cal['residual_mps2']:.2f} m/s²; quadest calibrate centrifugal)")
     lines.append(f"seeds {result['seeds'][0]}..{result['seeds'][-1]} (mean over seeds); "
@@ -199,7 +249,29 @@ def format_reproduction(paper: str, result: dict) -> str:
         for n, tm in result["time_us"].items():
             p = pub.get("time_us", {}).get(n)
             lines.append(f"{n:<15}{tm['batch_us']:>10.3f}{tm['stream_us']:>10.2f}" + (f"{p:>12.1f}" if p else ""))
+    if result.get("ablations"):
+        lines += ["", FL.format_ablations(result["ablations"])]
     return "\n".join(lines)
+
+
+PAPER_SPIN_RATE = 15.5  # rad/s, the AFCKF paper's damaged-rotor flights
+
+
+def _flown_lines(result: dict) -> list[str]:
+    """What the flights made of the loss, beside the paper's spin rate."""
+    p = result["params"]
+    lines = [f"flown: a {p['vehicle']} loses rotor {p['rotor']} at {p['failure_s']:g} s of {p['duration_s']:g} s; the "
+             "fault-tolerant controller flies it on the true state; the estimators run on its sensors "
+             f"({p['preset']} preset); the damaged-rotor cases are scored from the loss on."]
+    for case, f in result["flights"].items():
+        if f["spin_rate_rad_s"] is None:
+            lines.append(f"  {case}: no loss; peak body rate {f['peak_rate_rad_s']:.1f} rad/s, "
+                         f"gyro clipped on {100 * f['gyro_clipped_share']:.1f} % of the samples")
+            continue
+        lines.append(f"  {case}: settled spin {f['spin_rate_rad_s']:.1f} rad/s (paper: {PAPER_SPIN_RATE} rad/s), "
+                     f"tilt {f['tilt_deg']:.1f}°, peak body rate {f['peak_rate_rad_s']:.1f} rad/s, gyro clipped on "
+                     f"{100 * f['gyro_clipped_share']:.1f} % of the samples after the loss")
+    return lines
 
 
 # -- recovery ------------------------------------------------------------------------------

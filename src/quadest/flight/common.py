@@ -92,6 +92,11 @@ class Flight:
     timing: dict = field(default_factory=dict)  # wall time of the compiled loop (its first call compiles)
     baro: np.ndarray | None = None  # barometric altitude (m, up), NaN between samples
     modes: np.ndarray | None = None  # a throw's recovery state per sample (flight.throw.MODES)
+    derivs: np.ndarray | None = None  # the true state's derivative at each row (its accelerations)
+    thrusts: np.ndarray | None = None  # each rotor's thrust at each row (N)
+    eta: np.ndarray | None = None  # each rotor's efficiency at each row
+    imbalance: np.ndarray | None = None  # each propeller's imbalance at each row (kg m)
+    vehicle: object = None  # the MultirotorParams flown
 
 
 def position_gain(p: FlightParams, imu_rate_hz: float) -> np.ndarray:

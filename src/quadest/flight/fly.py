@@ -72,7 +72,8 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     SE(3) hover hold: :mod:`quadest.flight.throw`; estimator ``recovery`` or ``truth``, sensors
     ``fma`` by default).
     ``controller``: ``se3`` (nominal only) or ``ftc`` (SE(3), then the fault-tolerant controller
-    once a complete rotor loss is known); default ``ftc`` for ``rotor-loss``, else ``se3``.
+    once a complete rotor loss is known, holding the point the reference had reached then: a
+    trajectory with a loss ends in a relaxed hover); default ``ftc`` for ``rotor-loss``, else ``se3``.
     The sensors are the ``preset``'s (or ``config``'s), the position sensor and what the loop
     assumes ``params``'; ``vehicle`` a :class:`MultirotorParams` or a preset name
     (:data:`~quadest.models.VEHICLE_PRESETS`, default ``recovery``); ``estimator_params`` the
@@ -161,6 +162,10 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     F = ftc.gains(vehicle, failure.rotor if controller == "ftc" else 0)
     if controller == "ftc":
         ftc_k = min(n, fail_k + int(round(params.detect_delay_s * rate)))
+        if ftc_k < n:  # a spinning vehicle does not track a circle: it holds where the reference was
+            p_d[ftc_k:] = p_d[ftc_k]
+            v_d[ftc_k:] = 0.0
+            a_d[ftc_k:] = 0.0
     tw = vehicle.rotors * vehicle.k_f * vehicle.omega_max ** 2 / (vehicle.mass_kg * vehicle.gravity)
 
     N = vehicle.rotors
@@ -205,11 +210,36 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     rec = flown_recording(t[:flown], out["x"], out["dx"], out["thrust"], vehicle, cfg=cfg, seed=seed,
                           eta=out["eta"], imbalance=imbalance, meta=meta, readings=(out["gyr"], out["acc"], out["mag"]), processes=processes)
     flight = Flight(rec, out["x"], out["cmd"], out["q"], out["pv"], timing={"loop_s": loop_s},
-                    baro=barometer(rec.t, out["x"], params, seed))
+                    baro=barometer(rec.t, out["x"], params, seed), derivs=out["dx"], thrusts=out["thrust"],
+                    eta=out["eta"], imbalance=imbalance, vehicle=vehicle)
     flight.summary = summarize(flight, scenario=scenario, status=status, duration=duration, failure=failure,
                                controller=controller, estimator=estimator, seed=seed, params=params,
                                ftc=ftc, vehicle=vehicle, ref=(p_d, yaw_d))
     return flight
+
+
+def resample(flight: Flight, config: SimConfig, *, imbalance=None, seed: int | None = None):
+    """The recording a flight would have given with other sensors (``config``) or another
+    propeller ``imbalance`` (kg m, one per rotor from the failure on, or one row per sample):
+    the same motion sampled again (:func:`quadest.sim.flown.flown_recording`). The motion does
+    not change: with the truth in the loop it does not depend on the sensors (the imbalance's
+    response is not fed back either). Seed: the flight's unless given."""
+    rec = flight.recording
+    imb = flight.imbalance
+    if imbalance is not None:
+        imbalance = np.asarray(imbalance, float)
+        if imbalance.ndim == 1:
+            fail = rec.meta.get("failure")
+            start = 0 if fail is None else int(np.searchsorted(rec.t, fail["time_s"] - 1e-9))
+            imb = np.zeros((len(rec), len(imbalance)))
+            imb[start:] = imbalance
+        else:
+            imb = imbalance
+    meta = {k: rec.meta[k] for k in ("scenario", "preset", "vehicle", "controller", "estimator", "position_sensor",
+                                     "failure") if k in rec.meta}
+    return flown_recording(rec.t, flight.states, flight.derivs, flight.thrusts, flight.vehicle, cfg=config,
+                           seed=rec.meta["seed"] if seed is None else seed, eta=flight.eta, imbalance=imb,
+                           meta={**meta, "resampled": True})
 
 
 def summarize(flight: Flight, *, scenario, status, duration, failure, controller, estimator, seed, params,

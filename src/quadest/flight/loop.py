@@ -65,7 +65,7 @@ def sense(x, cmd, eta, imb, V, sm, k, dt, tw, dx, Fb, Mb, T, vib, gyr, acc, mag)
     active = max(active, 1)
     load = total / active / (V.mass * V.gravity / n_rot)
     sample_imu(sm, k, k * dt, x[6:10], dx[3:6], x[10:13], dx[10:13], x[13:], imb, vib, gyr, acc)
-    sample_mag(sm, k, x[6:10], motor_current(load, active, tw), mag)
+    sample_mag(sm, k, x[6:10], x[0:3], motor_current(load, active, tw), mag)
 
 
 @njit(cache=True, inline="always")

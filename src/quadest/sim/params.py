@@ -25,6 +25,17 @@ class Environment:
     field_ut: float = P(49.0, "µT", "earth magnetic field intensity", "WMM, Delft (52.0°N 4.4°E), 2022")
     inclination_deg: float = P(67.0, "deg", "field inclination, positive down", "WMM, Delft, 2022")
     declination_deg: float = P(2.0, "deg", "field declination, positive east", "WMM, Delft, 2022")
+    distortion_ut: float = P(0.0, "µT", "indoor field distortion: the field of magnetised steel below the "
+                             "flight, its magnitude at the origin (0: none)",
+                             "chosen per case: near steel structures indoor fields deviate by several µT to tens "
+                             "of µT", bounds="[0, 1000]")
+    distortion_depth_m: float = P(3.0, "m", "depth of the distortion's sources below the origin",
+                                  "chosen: steel in the floor under a vehicle hovering at 3 m", bounds="(0, 100]")
+    distortion_spacing_m: float = P(1.5, "m", "spacing of the distortion's sources (3 x 3 dipoles in a "
+                                    "horizontal plane)", "chosen: the spacing of beams or rebar mats",
+                                    bounds="(0, 100]")
+    distortion_seed: int = P(0, "-", "which room: the dipoles' directions are drawn from this seed", "chosen",
+                             bounds="[0, 1e9]")
 
 
 @dataclass(frozen=True)

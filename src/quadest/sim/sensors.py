@@ -14,9 +14,11 @@ a blade-pass tone per rotor, and a damaged propeller's once-per-revolution imbal
 rigid body's response to its rotating force, in the gyroscope too).
 Magnetometer (µT)::
 
-    mag = S Rᵀ B_n + b_hard + k_motor · current + n
+    mag = S Rᵀ B_n(p) + b_hard + k_motor · current + n
 
-with the earth field ``B_n = F [cos I cos D, cos I sin D, sin I]`` (NED), a soft-iron matrix
+with the earth field ``B_n = F [cos I cos D, cos I sin D, sin I]`` (NED), indoors distorted by
+magnetised steel below the flight (:func:`distortion_sources`: a field that varies with the
+position ``p``), a soft-iron matrix
 ``S``, a hard-iron offset and a disturbance proportional to the motor current (which grows
 with thrust, and at equal thrust when a rotor is lost).
 """
@@ -247,9 +249,63 @@ def mag_noise(n: int, model: Magnetometer, rng) -> np.ndarray:
     return rng.normal(0.0, model.noise_std, (n, 3)) if model.noise_std > 0 else np.zeros((n, 3))
 
 
-def magnetometer(q, current, env: Environment, model: Magnetometer, rng=None, noise=None):
-    """``clip(S Rᵀ B_n + b_hard + k_motor current + noise)``; the noise drawn from ``rng`` or given."""
-    B_b = quat_rotate(quat_conj(q), earth_field(env))
+def distortion_sources(env: Environment):
+    """The indoor distortion's dipoles: positions (K, 3; NED, a 3 x 3 grid ``distortion_spacing_m``
+    apart, ``distortion_depth_m`` below the origin) and moments (K, 3; directions drawn from
+    ``distortion_seed``, scaled so that their field at the origin is ``distortion_ut``). None
+    when there is no distortion."""
+    if env.distortion_ut <= 0:
+        return None
+    g = env.distortion_spacing_m * np.arange(-1.0, 2.0)
+    src = np.array([(x, y, env.distortion_depth_m) for x in g for y in g])
+    mom = np.random.default_rng(np.random.SeedSequence([int(env.distortion_seed), 29])).normal(size=src.shape)
+    mom /= np.linalg.norm(mom, axis=1, keepdims=True)
+    at0 = np.array(distortion_at(0.0, 0.0, 0.0, src, mom))
+    return src, mom * (env.distortion_ut / np.linalg.norm(at0))
+
+
+@njit(cache=True, inline="always")
+def distortion_at(p0, p1, p2, src, mom):
+    """The dipoles' field at ``p`` (NED): ``Σ (3 (m·r) r/|r|² − m)/|r|³`` with ``r = p − s_j``
+    (the moments carry µ0/4π and the unit µT m³)."""
+    b0 = b1 = b2 = 0.0
+    for j in range(src.shape[0]):
+        r0, r1, r2 = p0 - src[j, 0], p1 - src[j, 1], p2 - src[j, 2]
+        d2 = r0 * r0 + r1 * r1 + r2 * r2
+        inv3 = 1.0 / (d2 * np.sqrt(d2))
+        md = 3.0 * (mom[j, 0] * r0 + mom[j, 1] * r1 + mom[j, 2] * r2) / d2
+        b0 += (md * r0 - mom[j, 0]) * inv3
+        b1 += (md * r1 - mom[j, 1]) * inv3
+        b2 += (md * r2 - mom[j, 2]) * inv3
+    return b0, b1, b2
+
+
+@njit(cache=True)
+def _distortion_rows(pos, src, mom, out):
+    for k in range(pos.shape[0]):
+        out[k, 0], out[k, 1], out[k, 2] = distortion_at(pos[k, 0], pos[k, 1], pos[k, 2], src, mom)
+
+
+def field_at(env: Environment, pos) -> np.ndarray:
+    """The field in NED (µT) at the positions ``pos`` (n, 3): the earth's plus the indoor
+    distortion (:func:`distortion_sources`)."""
+    pos = np.ascontiguousarray(pos, dtype=float)
+    out = np.zeros((len(pos), 3))
+    sources = distortion_sources(env)
+    if sources is not None:
+        _distortion_rows(pos, sources[0], sources[1], out)
+    return out + earth_field(env)
+
+
+def magnetometer(q, current, env: Environment, model: Magnetometer, rng=None, noise=None, pos=None):
+    """``clip(S Rᵀ B_n + b_hard + k_motor current + noise)``; the noise drawn from ``rng`` or given.
+    With an indoor distortion (``env.distortion_ut``) the field depends on the positions ``pos``."""
+    if env.distortion_ut > 0:
+        if pos is None:
+            raise ValueError("magnetometer: an indoor distortion needs the positions")
+        B_b = quat_rotate(quat_conj(q), field_at(env, pos))
+    else:
+        B_b = quat_rotate(quat_conj(q), earth_field(env))
     m = B_b @ np.array(model.soft_iron, float).T + np.array(model.hard_iron, float)
     m = m + np.outer(current, np.array(model.motor_coef, float))
     m = m + (mag_noise(len(q), model, rng) if noise is None else noise)

@@ -186,7 +186,8 @@ def sample_sensors(truth: Truth, cfg: SimConfig, keep, has_mag, rngs, meta: dict
     if has_mag.any():
         rows = np.flatnonzero(has_mag)
         src = np.maximum(rows - mag_delay(cfg), 0)  # the field the sample reads is latency_s old
-        mag[rows] = S.magnetometer(truth.q[src], truth.current[src], cfg.environment, cfg.mag, noise=pr.mag_noise)
+        mag[rows] = S.magnetometer(truth.q[src], truth.current[src], cfg.environment, cfg.mag, noise=pr.mag_noise,
+                                   pos=truth.pos[src])
 
     sat = np.abs(truth.gyr @ g_err["matrix"].T + (0.0 if gyr_vib is None else gyr_vib)) > cfg.gyro.range
     meta = {
