@@ -144,23 +144,52 @@ def test_impossible_flights_are_refused(kwargs, match):
 
 @pytest.fixture(scope="module")
 def throws():
-    return [fly("throw", estimator="recovery", seed=s, duration=4.0) for s in range(3)]
+    return [fly("throw", estimator="recovery", seed=s, duration=11.5) for s in range(3)]
 
 
 def test_thrown_vehicles_are_recovered_by_the_bank_in_the_loop(throws):
-    """Released tumbling (up to 5 m/s and 10 rad/s, any attitude), the vehicle is recovered
-    with the recovery paper's method in the loop: detection (eq 37) within the first samples,
-    the bank converges (S_g < β2) within 1 s with the gravity direction within 20° and the
-    velocity within 1 m/s (over 50 throws the largest were 18° and 0.75 m/s: docs/vehicle.md), then
-    upright and held: level within 10° and slower than 0.5 m/s at the end, having fallen less
-    than the 10 m to the ground."""
+    """Thrown by a hand (up to 30 m/s²), released at up to 8 m/s and 20 rad/s in any attitude, the
+    vehicle is recovered with the recovery paper's method in the loop: detection (eq 37) within
+    the first samples after the release, the bank converges (S_g < β2) within 1 s with the
+    gravity direction within 20° and the velocity within 1 m/s (over 100 throws the largest were
+    about 18° and 0.6 m/s: docs/vehicle.md), then upright within 30° and its height held within
+    0.5 m for 10 s (issue #14), having fallen less than the 10 m to the ground."""
     for f in throws:
         s = f.summary
         assert s["status"] == "survived" and s["recovered"], s
-        assert s["detected_s"] <= 0.01 and s["handover_s"] < 1.0, s
+        assert 0.0 <= s["detected_s"] <= 0.01 and s["handover_s"] < 1.0, s
         assert s["gravity_error_at_handover_deg"] < 20.0 and s["velocity_error_at_handover_m_s"] < 1.0, s
         assert s["upright_s"] is not None and s["lowest_point_m"] < 10.0, s
-        assert list(np.unique(f.modes)) == [0, 1, 2] or list(np.unique(f.modes)) == [1, 2], np.unique(f.modes)
+        assert s["hover_from_s"] + 10.0 <= 11.5 + 1e-9, s
+        assert list(np.unique(f.modes)) == [0, 1, 2], np.unique(f.modes)
+
+
+def test_the_hand_throws_continuously_into_the_release():
+    """The hand's motion (closed form) ends exactly in the release state; its velocities and
+    body rates are the integrals of its accelerations (trapezoid, to the step's accuracy); its
+    peak acceleration stays within the drawn one; the rotation is about the release rate's axis."""
+    from quadest.flight.throw import ThrowParams, hand_motion, release_state
+
+    rate = 1000.0
+    x_rel = release_state(V, np.random.default_rng(3), ThrowParams())
+    x, dx = hand_motion(x_rel, 25.0, rate, 0.15)
+    assert np.array_equal(x[-1], x_rel) and np.allclose(x[0, 3:6], 0.0) and np.allclose(x[0, 10:13], 0.0)
+    n = len(dx)
+    acc = np.vstack([dx[:, 3:6], np.zeros((1, 3))])  # the acceleration ends at zero at the release
+    wdot = np.vstack([dx[:, 10:13], np.zeros((1, 3))])
+    dv = np.cumsum(0.5 * (acc[1:] + acc[:-1]) / rate, axis=0)
+    dw = np.cumsum(0.5 * (wdot[1:] + wdot[:-1]) / rate, axis=0)
+    np.testing.assert_allclose(dv, x[1:, 3:6], atol=1e-3 * np.linalg.norm(x_rel[3:6]) + 1e-9)
+    np.testing.assert_allclose(dw, x[1:, 10:13], atol=1e-3 * np.linalg.norm(x_rel[10:13]) + 1e-9)
+    dp = np.cumsum(0.5 * (x[1:, 3:6] + x[:-1, 3:6]) / rate, axis=0)
+    np.testing.assert_allclose(x[0, 0:3] + dp, x[1:, 0:3], atol=1e-5)
+    assert np.linalg.norm(dx[:, 3:6], axis=1).max() <= 25.0 + 1e-9 and n >= 150
+    # the attitude turns about the body-fixed axis of the release rate: the relative rotation
+    # from the first sample to the release is along it
+    from quadest.rotation import quat_conj, quat_mul, quat_to_rotvec
+    rv = quat_to_rotvec(quat_mul(quat_conj(x[0, 6:10]), x[-1, 6:10]))
+    axis = x_rel[10:13] / np.linalg.norm(x_rel[10:13])
+    assert np.linalg.norm(np.cross(rv, axis)) < 1e-9 * max(1.0, np.linalg.norm(rv))
 
 
 def test_a_flown_throw_is_read_by_recover_and_its_model_is_fitted(throws):
@@ -176,7 +205,8 @@ def test_a_flown_throw_is_read_by_recover_and_its_model_is_fitted(throws):
     f = throws[0]
     res = recover(f.recording.select(slice(0, int(np.argmax(f.modes == 2)) + 5)), model)
     assert res.converge_index is not None
-    assert f.recording.t[res.converge_index] == pytest.approx(f.summary["handover_s"], abs=1e-9)
+    assert f.recording.t[res.converge_index] == pytest.approx(f.summary["handover_s"] + f.summary["release_s"],
+                                                              abs=1e-9)
 
 
 def test_the_bank_without_its_update_keeps_the_prior():

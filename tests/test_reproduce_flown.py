@@ -43,3 +43,20 @@ def test_the_ablations_change_what_physics_says(flown):
         assert rows["magnetometer latency 10 ms"][label]["yaw"] > base[label]["yaw"] + 1.0
     # Madgwick's heading follows the gyroscope: without a scale error it drifts less
     assert rows["gyro scale error 0"]["madgwick"]["yaw"] < base["madgwick"]["yaw"]
+
+
+def test_estimators_in_the_loop_after_the_loss():
+    """Part 3: the loss with an estimator in the fault-tolerant controller's loop. With the
+    bebop2 sensors the truth and Madgwick's filter keep the vehicle up and in place; with a
+    gyroscope that clips below the spin even the truth loses it (the controller damps with the
+    measured rate)."""
+    from quadest.evaluation.flown import IN_LOOP_VARIANTS, in_loop_seed, in_loop_table
+
+    runs = []
+    for label, overrides in (IN_LOOP_VARIANTS[0], IN_LOOP_VARIANTS[2]):
+        runs += in_loop_seed((label, overrides, 1, FlownAfckfParams(), ["truth", "madgwick"]))
+    rows = {(r["variant"], r["estimator"]): r for r in in_loop_table(runs)}
+    truth, madgwick = rows[("baseline: bebop2 sensors", "truth")], rows[("baseline: bebop2 sensors", "madgwick")]
+    assert truth["survived"] == truth["settled"] == 1 and madgwick["survived"] == madgwick["settled"] == 1
+    assert madgwick["tilt_error_after_loss_deg"] < 5.0 and madgwick["tilt_error_offline_deg"] < 5.0
+    assert rows[("gyro range ±500°/s", "truth")]["survived"] == 0

@@ -124,11 +124,45 @@ def results_throw() -> str:
                      f"{np.median(up):.2f}" if up else "-",
                      f"{np.mean([x['lowest_point_m'] for x in runs]):.2f} / {np.max([x['lowest_point_m'] for x in runs]):.2f}"])
     seeds = sorted({x["seed"] for x in r["runs"]})
-    return (_table(["in the loop", "recovered", "handover (s, mean)", "gravity error there (°, median / max)",
-                    "velocity error there (m/s, median / max)", "upright (s, median)",
+    return (_table(["in the loop", "recovered", "handover (s after the release, mean)",
+                    "gravity error there (°, median / max)",
+                    "velocity error there (m/s, median / max)", "upright (s after the release, median)",
                     "fall (m, mean / max)"], rows)
             + f"\n\n{len(seeds)} throws (seeds {seeds[0]}-{seeds[-1]}), recovery vehicle, fma sensors "
               "(docs/results/throw.json).")
+
+
+def results_recovery_flown() -> str:
+    """docs/recovery.md: the recovery paper's experiment flown, upward and in any direction."""
+    up, anyd = _load("recovery-flown"), _load("recovery-flown-any")
+    cu, ca = up["cases"]["upward"], anyd["cases"]["any direction"]
+    pub = up["published"]
+
+    def med(c, k, fmt):
+        d = c[k]
+        return "-" if d["median"] is None else f"{d['median']:{fmt}} / {d['p90']:{fmt}}"
+
+    rows = [["release detected", f"{cu['detected']}/{cu['throws']}", f"{ca['detected']}/{ca['throws']}", "-"],
+            ["bank converged", f"{cu['converged']}/{cu['throws']}", f"{ca['converged']}/{ca['throws']}", "-"],
+            ["convergence after the detection (s, median / p90)", med(cu, "convergence_s", ".3f"),
+             med(ca, "convergence_s", ".3f"), f"{pub['convergence_s']:.2f} (one throw)"],
+            ["gravity error there (°, median / p90)", med(cu, "gravity_error_deg", ".1f"),
+             med(ca, "gravity_error_deg", ".1f"), f"about {pub['gravity_error_deg']:g} (one throw)"],
+            ["velocity error there (m/s, median / p90)", med(cu, "velocity_error_m_s", ".2f"),
+             med(ca, "velocity_error_m_s", ".2f"), "-"],
+            ["upright within 30° (s after the release, median / p90)", med(cu, "upright_s", ".2f"),
+             med(ca, "upright_s", ".2f"), "-"],
+            ["recovered to hover (height within 0.5 m for 10 s)",
+             f"{cu['recovered']}/{cu['throws']} ({100 * cu['recovered'] / cu['throws']:.0f} %)",
+             f"{ca['recovered']}/{ca['throws']} ({100 * ca['recovered'] / ca['throws']:.0f} %)",
+             f"{pub['hovered_10s']}/{pub['throws']} hovered 10 s; {pub['recovered']}/{pub['throws']} with brief hovers"],
+            ["crashed", f"{cu['crashed']}/{cu['throws']}", f"{ca['crashed']}/{ca['throws']}", "1/32"],
+            ["fall (m, median / p90)", med(cu, "fall_m", ".2f"), med(ca, "fall_m", ".2f"), "-"]]
+    t = up["throw"]
+    return (_table(["", "thrown upward", "in any direction", "paper (real throws)"], rows)
+            + f"\n\n{cu['throws']} flown throws each (seeds {up['seeds'][0]}-{up['seeds'][1]}), release up to "
+              f"{t['speed_max']:g} m/s and {t['rate_max']:g} rad/s, hand up to {t['hand_acc_max']:g} m/s² "
+              "(`quadest reproduce recovery [--any-direction] --json ...`, docs/results/recovery-flown*.json).")
 
 
 def results_sim() -> str:
@@ -285,6 +319,25 @@ def results_afckf_ablations() -> str:
               f"over seeds {seeds[0]}-{seeds[-1]} (`quadest reproduce afckf --ablations`, docs/results/afckf.json).")
 
 
+def results_afckf_in_loop() -> str:
+    """docs/estimators.md: each estimator in the fault-tolerant controller's loop."""
+    r = _load("afckf-in-loop")
+
+    def f(v, fmt="{:.1f}"):
+        return "-" if v is None else fmt.format(v)
+
+    rows = [[row["variant"], row["estimator"], f"{row['survived']}/{row['runs']}", f"{row['settled']}/{row['runs']}",
+             f(row["position_rms_settled_m"], "{:.2f}"), f(row["attitude_error_after_loss_deg"]),
+             f(row["tilt_error_after_loss_deg"]), f(row["tilt_error_offline_deg"])] for row in r["table"]]
+    seeds = r["seeds"]
+    return (_table(["sensors", "in the loop", "stayed up", "settled", "position RMS settled (m)",
+                    "attitude error in the loop (°)", "tilt error in the loop (°)", "tilt error offline (°)"], rows)
+            + f"\n\nA {r['params']['vehicle']} loses rotor {r['params']['rotor']} at {r['params']['failure_s']:g} s; "
+              f"a run must stay up {r['after_loss_s']:g} s more; errors RMS after the loss, mean over the runs that "
+              f"stayed up; offline: the same estimator over the truth's flight. Seeds {seeds[0]}-{seeds[-1]} "
+              f"(`quadest reproduce afckf --in-loop`, docs/results/afckf-in-loop.json).")
+
+
 def results_afckf_prescribed() -> str:
     """docs/estimators.md: the prescribed reproduction."""
     r = _load("afckf-prescribed")
@@ -304,7 +357,8 @@ GENERATORS = {"simulator-params": simulator_params, "estimator-params": estimato
               "results-broad-summary": results_broad_summary, "results-broad-trials": results_broad_trials,
               "results-flights": results_flights, "results-speed": results_speed, "results-afckf": results_afckf,
               "results-afckf-flights": results_afckf_flights, "results-afckf-ablations": results_afckf_ablations,
-              "results-afckf-prescribed": results_afckf_prescribed}
+              "results-afckf-prescribed": results_afckf_prescribed, "results-afckf-in-loop": results_afckf_in_loop,
+              "results-recovery-flown": results_recovery_flown}
 PATTERN = re.compile(r"(<!-- generated:([a-z-]+) -->\n)(.*?)(<!-- /generated -->)", re.S)
 
 

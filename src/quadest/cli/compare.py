@@ -20,11 +20,14 @@ from quadest.cli.common import (
     write_json,
 )
 from quadest.evaluation import benchmark as B
+from quadest.evaluation import flown as FL
 from quadest.evaluation import reproduce as R
 from quadest.evaluation.compare import compare, format_tables, parse_params
 from quadest.evaluation.runner import estimator_names, filter_notes
 from quadest.evaluation.speed import benchmark_speed
 from quadest.filters import FILTERS
+from quadest.flight import fly
+from quadest.flight.throw import ThrowParams
 from quadest.flight.crosscheck import rotorpy_available
 from quadest.flight.speed import benchmark_sim
 from quadest.sim import PRESETS, SCENARIOS, simulate
@@ -86,11 +89,16 @@ def cmd_compare(args):
 def cmd_reproduce(args):
     if args.paper == "recovery":
         return _reproduce_recovery(args)
+    args.seeds = args.seeds or ("1-20" if args.in_loop else "1-5")
     seeds = parse_seeds(args.seeds)
-    if (args.prescribed or args.ablations) and args.paper != "afckf":
-        raise CliError("--prescribed and --ablations are for reproduce afckf")
-    if args.prescribed and args.ablations:
-        raise CliError("--ablations run on the flown rotor loss: leave out --prescribed")
+    if (args.prescribed or args.ablations or args.in_loop) and args.paper == "qukf":
+        raise CliError("--prescribed, --ablations and --in-loop are for reproduce afckf")
+    if args.any_direction:
+        raise CliError("--any-direction is for reproduce recovery")
+    if args.prescribed and (args.ablations or args.in_loop):
+        raise CliError("--ablations and --in-loop run on the flown rotor loss: leave out --prescribed")
+    if args.in_loop:
+        return _reproduce_in_loop(args)
     if args.paper == "afckf":
         if args.prescribed:
             say("Reproducing Solanki & de Visser 2022 (AFCKF), Tables I-V, on the prescribed scenarios: a "
@@ -122,7 +130,26 @@ def cmd_reproduce(args):
     return 0
 
 
+def _reproduce_in_loop(args):
+    seeds = parse_seeds(args.seeds)
+    say("The AFCKF paper's rotor loss flown with each estimator in the fault-tolerant controller's loop (a Bebop 2 "
+        f"loses rotor 0 at 5 s and must stay up 20 s more), seeds {args.seeds}, with the baseline sensors and "
+        "the gyroscope-range and magnetometer-latency ablations.")
+    say("(each estimator's loop compiles on its first flight: some seconds each)")
+    result = R.afckf_in_loop(seeds, progress=True, workers=args.workers, scheduler=args.scheduler)
+    say(FL.format_in_loop(result["table"]))
+    if args.json:
+        write_json(args.json, result)
+    return 0
+
+
 def _reproduce_recovery(args):
+    if args.ablations or args.in_loop:
+        raise CliError("--ablations and --in-loop are for reproduce afckf")
+    if args.any_direction and args.prescribed:
+        raise CliError("--any-direction is for the flown throws: leave out --prescribed")
+    if not args.prescribed:
+        return _reproduce_recovery_flown(args)
     say(f"Reproducing Beffa, Ledergerber & D'Andrea (state estimate recovery) on {args.throws} simulated "
         f"throws (fma preset, seeds {args.seed}..{args.seed + args.throws - 1}), with the simulation's "
         "aerodynamic model, one fitted on 20 separate throws, and one perturbed by ±20 %.")
@@ -138,6 +165,28 @@ def _reproduce_recovery(args):
         say(f"wrote {plot_recovery_histograms(runs, out / 'errors_histogram.png')}")
         res, rec = R.example_throw(args.seed)
         say(f"wrote {plot_recovery(res, rec, out / 'throw.png', title=f'throw seed {args.seed}, true model')}")
+    if args.json:
+        write_json(args.json, result)
+    return 0
+
+
+def _reproduce_recovery_flown(args):
+    say(f"Reproducing Beffa, Ledergerber & D'Andrea (state estimate recovery) on {args.throws} flown throws (seeds "
+        f"{args.seed}..{args.seed + args.throws - 1}): the rotor-level vehicle thrown "
+        + ("in any direction" if args.any_direction else "upward") + " by a hand (up to 30 m/s²), released at up to "
+        "8 m/s and 20 rad/s; the bank of EKFs (its aerodynamic model fitted on separate flown throws) finds gravity, "
+        "the controller rights the vehicle and holds its height.")
+    say("(the first throw fits the model and compiles the loop: about a minute)")
+    result = R.reproduce_recovery_flown(args.throws, args.seed, progress=True, workers=args.workers,
+                                        scheduler=args.scheduler, any_direction=args.any_direction,
+                                        keep_runs=bool(args.json))
+    say(FL.format_throws(result))
+    if args.plot_dir:
+        from quadest.plot import plot_flight
+
+        out = Path(args.plot_dir) / "recovery"
+        f = fly("throw", estimator="recovery", seed=args.seed, throw=ThrowParams(any_direction=args.any_direction))
+        say(f"wrote {plot_flight(f, out / 'flown-throw.png', title=f'flown throw, seed {args.seed}')}")
     if args.json:
         write_json(args.json, result)
     return 0
@@ -232,15 +281,22 @@ def add_parsers(sub):
                                    "prescribed scenario; --ablations: what each sensor property does); qukf: Table 1 of Liang et al. 2023; "
                                    "recovery: throws and the bank of EKFs of Beffa et al.")
     r.add_argument("paper", choices=["afckf", "qukf", "recovery"])
-    r.add_argument("--seeds", default="1-5", help="afckf, qukf: seed range or list (default: 1-5)")
+    r.add_argument("--seeds", default=None, help="afckf, qukf: seed range or list (default: 1-5; 1-20 with --in-loop)")
     r.add_argument("--throws", type=positive, default=100, help="recovery: number of throws (default: 100)")
     r.add_argument("--seed", type=int, default=1, help="recovery: first seed (default: 1)")
     r.add_argument("--prescribed", action="store_true",
-                   help="afckf: the prescribed scenarios (spin, tilt and spin-up given) instead of the flown vehicle")
+                   help="afckf: the prescribed scenarios (spin, tilt and spin-up given) instead of the flown vehicle; "
+                        "recovery: the prescribed throws (the simulation's own aerodynamic model) instead of flown ones")
     r.add_argument("--ablations", action="store_true",
                    help="afckf: also the ablation table on the flown rotor loss (each row one sensor change: gyro "
                         "range and scale, magnetometer latency, motor interference, indoor field, lever arm, "
                         "vibration, a damaged propeller; docs/estimators.md)")
+    r.add_argument("--any-direction", action="store_true",
+                   help="recovery: throw in any direction, downward too (the flagged case; default: upward or level)")
+    r.add_argument("--in-loop", action="store_true",
+                   help="afckf: instead of the tables, the flown loss with each estimator in the fault-tolerant "
+                        "controller's loop (default seeds 1-20): which keep the vehicle up and in place, with the "
+                        "baseline sensors and the gyro-range and magnetometer-latency ablations")
     r.add_argument("--json", metavar="OUT", help="write all figures (per seed too) as JSON")
     r.add_argument("--plot-dir", metavar="DIR", help="draw the errors over time for the first seed")
     add_engine_args(r, default_workers=0)

@@ -174,7 +174,8 @@ def add_parsers(sub):
                         "the flight with truth in the loop first and each estimator also run over that flight "
                         "afterwards (default: madgwick; recovery for a throw)")
     s.add_argument("--seeds", default="0", help="seeds: 0-4 or 0,3,7 (default: 0)")
-    s.add_argument("--duration", type=float, default=None, help="seconds (default: per scenario)")
+    s.add_argument("--duration", type=float, default=None,
+                   help="seconds (default: per scenario; a throw's count from the release, 14 s)")
     s.add_argument("--failure", default=None, metavar="ROTOR@TIME[:EFF[:IMB]]",
                    help="a rotor failure: 0@2 loses rotor 0 at 2 s, 1@3:0.6 leaves rotor 1 60 %% from 3 s, "
                         "2@1:0.9:5e-6 damages rotor 2's propeller at 1 s (90 %% thrust, imbalance 5e-6 kg m: a "

@@ -14,6 +14,8 @@ QUKF, EKF and a complementary filter (the paper does not say which; quadest uses
 """
 from __future__ import annotations
 
+from dataclasses import asdict
+
 import numpy as np
 
 from quadest.calibration import calibrate_centrifugal
@@ -23,6 +25,7 @@ from quadest.evaluation.parallel import execute
 from quadest.evaluation.runner import estimate, estimate_all, score
 from quadest.evaluation.speed import time_estimator
 from quadest.filters import make_filter
+from quadest.flight.throw import ThrowParams
 from quadest.models.aero import fit_aero
 from quadest.recovery.logic import recover
 from quadest.sim import aero_model, build_config, simulate
@@ -122,6 +125,21 @@ def reproduce_afckf(seeds=range(1, 6), progress: bool = False, workers: int = 0,
     rec = FL.flown_flight("damaged-rotor", seeds[0], p).recording
     out["time_us"] = _times(rec, fparams)
     return out
+
+
+def afckf_in_loop(seeds=range(1, 21), progress: bool = False, workers: int = 0, scheduler=None, *,
+                  params: FL.FlownAfckfParams | None = None, estimators=None, variants=None) -> dict:
+    """The flown loss with each estimator in the fault-tolerant controller's loop
+    (:func:`quadest.evaluation.flown.in_loop_seed`), per sensor variant and seed."""
+    p = params or FL.FlownAfckfParams()
+    estimators = list(estimators or FL.IN_LOOP_ESTIMATORS)
+    variants = list(variants or FL.IN_LOOP_VARIANTS)
+    seeds = list(seeds)
+    tasks = [(label, overrides, s, p, estimators) for label, overrides in variants for s in seeds]
+    runs = [r for part in _map(FL.in_loop_seed, tasks, progress, "AFCKF in the loop", workers, scheduler)
+            for r in part]
+    return {"seeds": seeds, "mode": "in-loop", "params": {r["name"]: getattr(p, r["name"]) for r in p.describe()},
+            "after_loss_s": FL.IN_LOOP_AFTER_S, "table": FL.in_loop_table(runs), "runs": runs}
 
 
 def _flight_means(outputs: list[dict]) -> dict:
@@ -344,6 +362,24 @@ def reproduce_recovery(throws: int = 100, seed: int = 1, progress: bool = False,
         out["cases"][name] = recovery_stats(summaries)
         if keep_runs:
             out["cases"][name]["runs"] = summaries
+    return out
+
+
+def reproduce_recovery_flown(throws: int = 100, seed: int = 1, progress: bool = False, workers: int = 0,
+                             scheduler=None, any_direction: bool = False, keep_runs: bool = False,
+                             duration: float = 14.0) -> dict:
+    """The recovery paper's experiment flown (issue #14, part 4): ``throws`` throws of the
+    rotor-level vehicle (seeds ``seed``..), thrown upward (or in any direction), recovered by the
+    bank of EKFs with the aerodynamic model fitted on separate flown throws, then flown to a
+    hover (:mod:`quadest.flight.throw`)."""
+    throw = ThrowParams(any_direction=any_direction)
+    seeds = list(range(seed, seed + throws))
+    runs = _map(FL.flown_throw, [(s, throw, duration) for s in seeds], progress, "flown throws", workers, scheduler)
+    case = "any direction" if any_direction else "upward"
+    out = {"mode": "flown", "seeds": [seeds[0], seeds[-1]], "throw": asdict(throw), "duration_s": duration,
+           "published": FL.RECOVERY_PAPER, "cases": {case: FL.throw_stats(runs)}}
+    if keep_runs:
+        out["cases"][case]["runs"] = runs
     return out
 
 

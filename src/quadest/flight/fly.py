@@ -22,7 +22,7 @@ from quadest.flight.common import (SIM_RATE_HZ, Flight, FlightParams, angle_erro
                                    sensors_for)
 from quadest.filters.peers import STREAMING_PEERS, available_peers, run_peer, stream_peer
 from quadest.flight.loop import ESTIMATE_NAN, OK, STATUS, Loop, closed_loop, no_estimator, step_act, step_sense
-from quadest.flight.throw import fly_throw
+from quadest.flight.throw import ThrowParams, fly_throw
 from quadest.models.multirotor import MultirotorParams, vehicle_preset, work
 from quadest.rotation import euler_to_quat, quat_rotate
 from quadest.sim import build_config
@@ -38,7 +38,7 @@ def in_loop_estimators() -> list[str]:
     a per-sample API."""
     return [*FILTERS, *[p for p in STREAMING_PEERS if p in available_peers()]]
 CONTROLLERS = ("se3", "ftc")
-DEFAULT_DURATION = {"hover": 10.0, "trajectory": 20.0, "rotor-loss": 10.0, "throw": 6.0}
+DEFAULT_DURATION = {"hover": 10.0, "trajectory": 20.0, "rotor-loss": 10.0, "throw": 14.0}  # a throw: from the release
 DEFAULT_PRESET = {"throw": "fma"}  # the recovery paper's sensors (IMU 1 kHz, no magnetometer); else bebop2
 
 
@@ -61,7 +61,7 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
         vehicle: MultirotorParams | str | None = None, failure: Failure | None = None,
         se3: SE3Params | None = None, ftc: FtcParams | None = None,
         params: FlightParams | None = None, config: SimConfig | None = None,
-        estimator_params: dict | None = None) -> Flight:
+        estimator_params: dict | None = None, throw: ThrowParams | None = None) -> Flight:
     """Fly ``scenario`` with ``estimator`` in the loop: a quadest filter by name (with the
     preset's declination), an :class:`~quadest.filters.Estimator` (it continues from its state),
     or ``truth`` (the controller reads the true state).
@@ -77,7 +77,8 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     The sensors are the ``preset``'s (or ``config``'s), the position sensor and what the loop
     assumes ``params``'; ``vehicle`` a :class:`MultirotorParams` or a preset name
     (:data:`~quadest.models.VEHICLE_PRESETS`, default ``recovery``); ``estimator_params`` the
-    named estimator's parameters (``{"beta_marg": 0.05}``)."""
+    named estimator's parameters (``{"beta_marg": 0.05}``); ``throw`` a throw's parameters
+    (:class:`~quadest.flight.throw.ThrowParams`; its duration counts from the release)."""
     if scenario not in SCENARIOS:
         raise UsageError(f"unknown scenario {scenario!r}; scenarios: {', '.join(SCENARIOS)}")
     if scenario == "throw":
@@ -122,7 +123,7 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
         if failure is not None:
             raise UsageError("a throw has no rotor failure")
         return fly_throw(estimator=estimator, duration=duration, seed=seed, cfg=cfg, vehicle=vehicle, params=params,
-                         se3=se3, meta={"scenario": "flown throw", "preset": preset, "vehicle": vehicle_name,
+                         se3=se3, throw=throw, meta={"scenario": "flown throw", "preset": preset, "vehicle": vehicle_name,
                                         "controller": "se3 after recovery", "estimator": estimator})
     n = int(round(duration * rate))
     t = np.arange(n) / rate
@@ -271,6 +272,10 @@ def summarize(flight: Flight, *, scenario, status, duration, failure, controller
     s["attitude_error_rms_deg"] = rms(total)
     s["tilt_error_rms_deg"] = rms(tilt)
     s["tilt_error_max_deg"] = float(tilt.max())
+    if failure is not None:
+        after = t >= start
+        s["attitude_error_after_failure_rms_deg"] = rms(total[after])
+        s["tilt_error_after_failure_rms_deg"] = rms(tilt[after])
     if failure is not None and failure.efficiency == 0.0 and controller == "ftc":
         late = t >= max(start + 0.5 * (duration - start), start + 1.0)
         if status == OK and late.any():
@@ -295,7 +300,11 @@ def offline_errors(flight: Flight, estimator: str) -> dict:
     else:
         q = make_filter(estimator, declination=rec.declination).run(rec).q
     total, tilt = angle_errors(rec.true_q, q)
-    return {"attitude_error_rms_deg": rms(total), "tilt_error_rms_deg": rms(tilt)}
+    out = {"attitude_error_rms_deg": rms(total), "tilt_error_rms_deg": rms(tilt)}
+    if rec.meta.get("failure"):
+        after = rec.t >= rec.meta["failure"]["time_s"]
+        out.update(attitude_error_after_failure_rms_deg=rms(total[after]), tilt_error_after_failure_rms_deg=rms(tilt[after]))
+    return out
 
 
 def fly_many(scenario: str, estimators, seeds, *, on_flight=None, **kwargs) -> list[dict]:

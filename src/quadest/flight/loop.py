@@ -55,6 +55,13 @@ def sense(x, cmd, eta, imb, V, sm, k, dt, tw, dx, Fb, Mb, T, vib, gyr, acc, mag)
     thrusts (into ``T``) their load and the motor current, their speeds and imbalances ``imb``
     (kg m) the vibration."""
     derivative_ws(x, cmd, eta, V, dx, Fb, Mb, T)  # also the force, moment and rotor thrusts
+    sample(x, dx, eta, imb, V, sm, k, dt, tw, T, vib, gyr, acc, mag)
+
+
+@njit(cache=True, inline="always")
+def sample(x, dx, eta, imb, V, sm, k, dt, tw, T, vib, gyr, acc, mag):
+    """The sensors of sample ``k`` from the state ``x``, its derivative ``dx`` (the dynamics' or,
+    in a hand that carries the vehicle, the hand's) and the rotors' thrusts ``T``."""
     n_rot = eta.shape[0]
     active = 0
     total = 0.0
