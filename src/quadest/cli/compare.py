@@ -30,6 +30,7 @@ from quadest.flight import fly
 from quadest.flight.throw import ThrowParams
 from quadest.flight.crosscheck import rotorpy_available
 from quadest.flight.speed import benchmark_sim
+from quadest.readers.catalog import resolve_data
 from quadest.sim import PRESETS, SCENARIOS, simulate
 
 
@@ -230,16 +231,19 @@ def cmd_benchmark(args):
         res = benchmark_speed(names, args.duration,
                               on_result=lambda n, r: say(f"{n:<15}{r['batch_us']:>10.3f}{r['stream_us']:>12.2f}"))
         say(f"{'recovery bank of 40 EKFs':<27}{res['recovery_bank_40_us']:>8.2f} µs per IMU sample (whole bank, batch)")
-    elif not args.data:
-        raise CliError(f"benchmark {args.what} needs --data DIR")
-    elif args.what == "broad":
-        say(f"BROAD on {args.data}: {', '.join(names)}; BROAD's metric over the movement phases")
-        res = B.benchmark_broad(args.data, names, trials=args.trials, nav=args.align or "none", progress=True)
-        say(B.format_broad(res))
     else:
-        say(f"quadrotor flights under {args.data}: {', '.join(names)}; 6-axis, roll/pitch/yaw RMS")
-        res = B.benchmark_flights(args.data, names, nav=args.align or "heading", progress=True)
-        say(B.format_flights(res))
+        if not args.data:
+            raise CliError(f"benchmark {args.what} needs --data DIR or a dataset name ("
+                           + ("broad" if args.what == "broad" else "all") + "; quadest data list)")
+        args.data = resolve_data(args.data)
+        if args.what == "broad":
+            say(f"BROAD on {args.data}: {', '.join(names)}; BROAD's metric over the movement phases")
+            res = B.benchmark_broad(args.data, names, trials=args.trials, nav=args.align or "none", progress=True)
+            say(B.format_broad(res))
+        else:
+            say(f"quadrotor flights under {args.data}: {', '.join(names)}; 6-axis, roll/pitch/yaw RMS")
+            res = B.benchmark_flights(args.data, names, nav=args.align or "heading", progress=True)
+            say(B.format_flights(res))
     if args.json:
         write_json(args.json, res)
     return 0
@@ -314,7 +318,8 @@ def add_parsers(sub):
                                    "quadest's filters and the installed peers (pip install 'quadest[peers]': "
                                    "vqf, imufusion, ahrs) run side by side.")
     b.add_argument("what", choices=["broad", "flights", "speed", "sim"], help="what to benchmark")
-    b.add_argument("--data", type=Path, metavar="DIR", help="broad, flights: folder with the data")
+    b.add_argument("--data", metavar="DIR|NAME", help="broad, flights: folder with the data, or a dataset fetched "
+                                                       "with quadest data fetch (broad; all: every fetched dataset)")
     b.add_argument("--filters", default="all",
                    help="all (quadest and installed peers), quadest, peers, or a comma-separated list")
     b.add_argument("--trials", default="*", metavar="GLOB", help="broad: trial files to run (default: all)")

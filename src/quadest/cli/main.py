@@ -11,14 +11,14 @@ import traceback
 from pathlib import Path
 
 from quadest import __version__
-from quadest.cli import compare, fly, recordings, recovery, sim, sweep
+from quadest.cli import compare, data, fly, recordings, recovery, sim, sweep
 from quadest.cli.common import CliError
 from quadest.data.files import refuse_overwriting_inputs
 from quadest.errors import UsageError
 
-GROUPS = (sim, fly, recordings, compare, recovery, sweep)
+GROUPS = (sim, fly, recordings, compare, recovery, sweep, data)
 ORDER = ("simulate", "fly", "info", "compare", "reproduce", "fit-aero", "recover", "calibrate", "estimate", "benchmark",
-         "sweep", "tune", "demo")
+         "sweep", "tune", "data", "demo")
 
 
 def build_parser():

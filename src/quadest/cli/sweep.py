@@ -6,6 +6,7 @@ from pathlib import Path
 
 from quadest.cli.common import CliError, add_engine_args, parse_seeds, parse_sets, say, sim_config, write_json
 from quadest.cli.fly import failure_record, parse_failure
+from quadest.readers.catalog import resolve_data
 from quadest.flight import CONTROLLERS, DEFAULT_DURATION
 from quadest.flight import SCENARIOS as FLY_SCENARIOS
 from quadest.models import VEHICLE_PRESETS, vehicle_preset
@@ -33,7 +34,7 @@ def _sweep_runs(args, filters):
     if args.fly:
         sources = _flown_sources(args)
     elif args.data:
-        sources = file_sources(args.data, args.format)
+        sources = file_sources([resolve_data(d) for d in args.data], args.format)
     else:
         preset = args.preset or "bebop2"
         sim_config(preset, args.set)  # refuse a wrong --set before any run starts
@@ -94,8 +95,9 @@ def _add_sweep_args(p):
                    help="parameter values: a list 0.01,0.1, lin:A:B:N or log:A:B:N (repeatable; several "
                         "parameters of one filter make their Cartesian product)")
     src = p.add_argument_group("data: simulated flights (default) or recordings")
-    src.add_argument("--data", nargs="+", type=Path, metavar="PATH",
-                     help="recordings or folders of them (e.g. ../shared/data/broad), any supported format")
+    src.add_argument("--data", nargs="+", metavar="PATH",
+                     help="recordings or folders of them (e.g. ../shared/data/broad), any supported format, or a "
+                          "dataset fetched with quadest data fetch (broad)")
     src.add_argument("--format", default=None, help="with --data: reader (default: chosen from each file)")
     src.add_argument("--scenario", choices=SCENARIOS, default="nominal", help="simulated scenario (default: nominal)")
     src.add_argument("--preset", choices=list(PRESETS), default=None,

@@ -87,7 +87,8 @@ def benchmark_flights(data_dir, names=None, *, nav: str = "heading", progress: b
     names = list(names or default_names())
     flights = find_flights(data_dir)
     if not flights:
-        raise ValueError(f"{data_dir}: no DIDO flight (*.hdf5) or Blackbird folder found")
+        raise ValueError(f"{data_dir}: no DIDO flight (*.hdf5) or Blackbird folder found (quadest data fetch "
+                         "blackbird_clover puts the Blackbird flights in the cache; DIDO: quadest data list)")
     out = {"flights": {}, "mean": {}, "filters": names, "alignment": nav}
     bar = tqdm(total=len(flights) * len(names), unit="run", desc="benchmark flights", disable=not progress)
     for f in flights:
