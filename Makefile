@@ -26,7 +26,7 @@ $(VENV)/.installed-test: $(VENV)/.installed
 install: $(VENV)/.installed
 
 demo: $(VENV)/.installed
-	@$(BIN)/quadest reproduce afckf --plot-dir $(OUT) --json $(OUT)/afckf.json
+	@$(BIN)/quadest reproduce afckf --plot-dir $(OUT) --json $(OUT)/afckf.json --report $(OUT)/report.html
 
 test: $(VENV)/.installed-test
 	$(BIN)/python -m pytest

@@ -19,7 +19,7 @@ def test_help_and_version(capsys):
     for argv in (["--help"], ["simulate", "--help"], ["info", "--help"], ["demo", "--help"], ["sweep", "--help"],
                  ["tune", "--help"], ["benchmark", "--help"], ["calibrate", "--help"], ["estimate", "--help"],
                  ["compare", "--help"], ["reproduce", "--help"], ["recover", "--help"], ["fit-aero", "--help"], ["fly", "--help"],
-                 ["data", "--help"], ["data", "fetch", "--help"]):
+                 ["data", "--help"], ["data", "fetch", "--help"], ["report", "--help"]):
         with pytest.raises(SystemExit) as e:
             main(argv)
         assert e.value.code == 0

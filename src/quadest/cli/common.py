@@ -3,9 +3,11 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from quadest.data import files
 from quadest.errors import UsageError
+from quadest.evaluation.inspect import report_data, report_json
 from quadest.readers import FORMATS, read_recording
 from quadest.readers.generic import parse_columns, parse_units
 from quadest.sim import build_config
@@ -144,3 +146,25 @@ def read(args, path):
     for warning in rec.meta.get("warnings", []):
         print(f"warning: {path}: {warning}", file=sys.stderr, flush=True)
     return rec
+
+
+def write_report_for(rec, names, params, path, title, json_path=None, recovery=None, recovery_model="",
+                     rotors=None):
+    """``quadest report`` and every ``--report PATH``: the HTML page for ``rec`` with the
+    estimators ``names`` and a throw's ``recovery`` (docs/report.md)."""
+    from quadest.plot.report import write_report  # bokeh: only when a report is written
+
+    summ, att = report_data(rec, names, params, recovery)
+    att["recovery_model"] = recovery_model
+    att["rotors"] = rotors
+    out = write_report(rec, summ, att, path, title)
+    if json_path:
+        write_json(json_path, report_json(summ, att))
+    say(f"wrote {out} (open it in a browser)")
+    return out
+
+
+def add_report_arg(p):
+    p.add_argument("--report", type=Path, metavar="PATH", default=None,
+                   help="also write an HTML report of the recording and the estimators (quadest report; "
+                        "docs/report.md)")

@@ -13,11 +13,13 @@ from quadest.cli.common import (
     add_engine_args,
     positive,
     add_input_args,
+    add_report_arg,
     parse_seeds,
     read,
     say,
     sim_config,
     write_json,
+    write_report_for,
 )
 from quadest.evaluation import benchmark as B
 from quadest.evaluation import flown as FL
@@ -79,6 +81,8 @@ def cmd_compare(args):
     say(format_tables(report))
     if args.json:
         write_json(args.json, report)
+    if args.report:
+        write_report_for(rec, names, params, args.report, f"quadest compare: {source}")
     if args.plot_dir:
         from quadest.plot import plot_errors  # matplotlib: only when a plot is asked for
 
@@ -120,6 +124,10 @@ def cmd_reproduce(args):
     say(R.format_reproduction(args.paper, result))
     if args.json:
         write_json(args.json, result)
+    if args.report:
+        rec, results, _, title = R.first_seed_estimates(args.paper, result)
+        params = {"afckf": {k: result["calibration"][k] for k in ("omega1", "omega2")}} if args.paper == "afckf" else {}
+        write_report_for(rec, list(results), params, args.report, f"quadest reproduce {args.paper}: {title}")
     if args.plot_dir:
         from quadest.plot import plot_errors, plot_recording
 
@@ -276,6 +284,7 @@ def add_parsers(sub):
     add_calibration_arg(c)
     add_align_args(c)
     add_input_args(c)
+    add_report_arg(c)
     c.set_defaults(func=cmd_compare)
 
     r = sub.add_parser("reproduce", help="reproduce a paper's experiments on the simulator",
@@ -302,6 +311,8 @@ def add_parsers(sub):
                         "controller's loop (default seeds 1-20): which keep the vehicle up and in place, with the "
                         "baseline sensors and the gyro-range and magnetometer-latency ablations")
     r.add_argument("--json", metavar="OUT", help="write all figures (per seed too) as JSON")
+    r.add_argument("--report", type=Path, metavar="PATH", default=None,
+                   help="afckf, qukf: also write an HTML report of the first seed's flight (quadest report)")
     r.add_argument("--plot-dir", metavar="DIR", help="draw the errors over time for the first seed")
     add_engine_args(r, default_workers=0)
     r.set_defaults(func=cmd_reproduce)

@@ -17,7 +17,7 @@ from quadest.data.files import refuse_overwriting_inputs
 from quadest.errors import UsageError
 
 GROUPS = (sim, fly, recordings, compare, recovery, sweep, data)
-ORDER = ("simulate", "fly", "info", "compare", "reproduce", "fit-aero", "recover", "calibrate", "estimate", "benchmark",
+ORDER = ("simulate", "fly", "info", "report", "compare", "reproduce", "fit-aero", "recover", "calibrate", "estimate", "benchmark",
          "sweep", "tune", "data", "demo")
 
 

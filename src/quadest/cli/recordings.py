@@ -8,11 +8,17 @@ from pathlib import Path
 import numpy as np
 
 from quadest.calibration import apply_calibrations, calibrate
-from quadest.cli.common import CliError, add_calibration_arg, add_input_args, read, say
+from quadest.cli.common import (CliError, add_calibration_arg, add_input_args, add_report_arg, read, say,
+                                write_json, write_report_for)
 from quadest.data import format_summary, summarize, write_table
 from quadest.evaluation.compare import parse_params
 from quadest.filters.peers import PEERS
-from quadest.evaluation.runner import estimate, filter_notes
+from quadest.evaluation.inspect import events
+from quadest.evaluation.runner import estimate, estimator_names, filter_notes
+from quadest.models.aero import AeroModel
+from quadest.recovery import recover
+from quadest.sim import aero_model_of
+from quadest.sweep.summary import is_results, sweep_summary
 from quadest.filters import FILTERS
 from quadest.rotation import quat_to_euler
 
@@ -64,6 +70,71 @@ def cmd_estimate(args):
             "roll": e[:, 0], "pitch": e[:, 1], "yaw": e[:, 2]}
     write_table(cols, Path(args.output))
     say(f"{args.filter}: {len(rec)} samples -> {args.output} (t, q_w, q_x, q_y, q_z, roll, pitch, yaw; rad)")
+    if args.report:
+        write_report_for(rec, [args.filter], {args.filter: kw}, args.report,
+                         f"quadest estimate: {args.filter} on {Path(args.file).name}")
+    return 0
+
+
+def cmd_report(args):
+    if Path(args.file).suffix.lower() == ".parquet" and is_results(args.file):
+        return _sweep_report(args)
+    rec = read(args, args.file)
+    rec, cal_params = apply_calibrations(rec, args.calibration)
+    names = estimator_names(args.filters, all_includes_peers=False)
+    params = parse_params(args.param)
+    other = sorted(set(params) - set(names))
+    if other:
+        raise CliError(f"--param names {', '.join(other)}, which this report does not run (--filters)")
+    kw = {n: {**cal_params.get(n, {}), **params.get(n, {})} for n in names}
+    recovery, source = None, ""
+    if any(e["kind"].startswith("free fall") for e in events(rec)):
+        model = AeroModel.load(args.aero) if args.aero else None
+        source = f"the aerodynamic model of {args.aero}"
+        if model is None:
+            try:
+                model = aero_model_of(rec)  # a simulated recording carries its configuration's model
+                source = "the aerodynamic model of the recording's simulation configuration"
+            except ValueError:
+                say("a free fall was found; give --aero aero.json (quadest fit-aero) to see the recovery's bank")
+        if model is not None:
+            recovery = recover(rec, model, record_all=True)
+    rotors = _rotor_speeds(args.rotors or Path(args.file).with_name(Path(args.file).stem + "-flight.parquet"),
+                           explicit=bool(args.rotors))
+    write_report_for(rec, names, kw, args.output, args.title or f"quadest report: {Path(args.file).name}", args.json,
+                     recovery=recovery, recovery_model=source, rotors=rotors)
+    return 0
+
+
+def _rotor_speeds(path, explicit: bool):
+    """A flown recording's rotor speeds and commands (its ``-flight.parquet`` from quadest fly):
+    ``(t, {column: values})``, or None when there is no such file (an error when it was named)."""
+    import pyarrow.parquet as pq
+
+    path = Path(path)
+    if not path.is_file():
+        if explicit:
+            raise CliError(f"--rotors {path}: no such file (quadest fly writes NAME-flight.parquet beside NAME.csv)")
+        return None
+    table = pq.read_table(path)
+    cols = [c for c in table.column_names if c.startswith("rotor") and c.endswith("_speed")]
+    if "t" not in table.column_names or not cols:
+        if explicit:
+            raise CliError(f"--rotors {path}: no t and rotorN_speed columns (a quadest fly flight table)")
+        return None
+    return table.column("t").to_numpy(), {c: table.column(c).to_numpy() for c in cols}
+
+
+def _sweep_report(args):
+    import pyarrow.parquet as pq
+
+    from quadest.plot.report import write_sweep_report  # bokeh: only when a report is written
+
+    summ = sweep_summary(pq.read_table(args.file))
+    out = write_sweep_report(summ, args.output, args.title or f"quadest sweep results: {Path(args.file).name}")
+    if args.json:
+        write_json(args.json, summ)
+    say(f"{summ['runs']} runs of {', '.join(summ['filters'])}; wrote {out} (open it in a browser)")
     return 0
 
 
@@ -75,6 +146,33 @@ def add_parsers(sub):
     i.add_argument("--json", action="store_true", help="print JSON instead of text")
     add_input_args(i)
     i.set_defaults(func=cmd_info)
+
+    r = sub.add_parser("report", help="an HTML report of a recording, to open in a browser",
+                       description="One self-contained HTML page (opens offline) for any recording quadest reads: "
+                                   "a summary (rates, gaps, clipping, vibration, magnetic disturbance, events such "
+                                   "as rests, free falls and spins), each estimator's attitude beside the truth "
+                                   "or the autopilot's own estimate (labelled so) with error plots and an RMS "
+                                   "table, the raw sensors, the magnetometer's norm and dip and the "
+                                   "accelerometer's spectrogram; linked zoom. Numbers from all samples; plots "
+                                   "decimated for display.")
+    r.add_argument("file", type=Path, help="recording: any supported format (docs/readers.md), or a sweep's "
+                                           "results (.parquet from quadest sweep or tune)")
+    r.add_argument("--filters", default="madgwick,afckf,kalman",
+                   help="estimators to run: comma-separated, quadest (all of quadest's), or peers (default: "
+                        "madgwick,afckf,kalman)")
+    r.add_argument("--param", action="append", metavar="FILTER.NAME=VALUE", help="a filter parameter (repeatable)")
+    r.add_argument("--title", default=None, help="the page's title (default: from the file name)")
+    r.add_argument("-o", "--output", type=Path, required=True, help="the HTML file to write")
+    r.add_argument("--json", type=Path, default=None, help="also write the report's tables as JSON")
+    r.add_argument("--rotors", type=Path, default=None, metavar="FLIGHT.parquet",
+                   help="rotor speeds to show (default: NAME-flight.parquet beside the recording, as quadest fly "
+                        "writes it)")
+    r.add_argument("--aero", metavar="JSON", default=None,
+                   help="with a throw in the recording: the aerodynamic model for the recovery's bank (default: a "
+                        "simulation's own; quadest fit-aero)")
+    add_calibration_arg(r)
+    add_input_args(r)
+    r.set_defaults(func=cmd_report)
 
     cb = sub.add_parser("calibrate", help="calibrate a sensor from recordings",
                         description="Fit a calibration and write it with its uncertainty and quality "
@@ -103,4 +201,5 @@ def add_parsers(sub):
                     help="magnetic declination (default: from a simulation's metadata, else 0)")
     add_calibration_arg(es)
     add_input_args(es)
+    add_report_arg(es)
     es.set_defaults(func=cmd_estimate)

@@ -6,7 +6,8 @@ from pathlib import Path
 import numpy as np
 
 from quadest.calibration import apply_calibrations, load_calibration
-from quadest.cli.common import CliError, add_calibration_arg, add_input_args, read, say, write_json
+from quadest.cli.common import (CliError, add_calibration_arg, add_input_args, add_report_arg, read, say, write_json,
+                                write_report_for)
 from quadest.models.aero import AeroModel, fit_aero
 from quadest.recovery import RecoveryParams, recover
 from quadest.sim import aero_model_of
@@ -37,7 +38,7 @@ def cmd_recover(args):
     rec, _ = apply_calibrations(rec, [c for c in cals if c.kind != "aero"])
     model = aero[-1] if aero else AeroModel.load(args.aero) if args.aero else _simulated_model(rec)
     params = RecoveryParams(n_hypotheses=args.hypotheses, beta1=args.beta1, beta2=args.beta2)
-    res = recover(rec, model, params, record_all=bool(args.plot))
+    res = recover(rec, model, params, record_all=bool(args.plot or args.report))
     s = res.summary
     for ev in s["events"]:
         say(f"{ev['t_s']:8.3f} s  {ev['state']}")
@@ -61,6 +62,9 @@ def cmd_recover(args):
         from quadest.plot import plot_recovery  # matplotlib: only when a plot is asked for
 
         say(f"wrote {plot_recovery(res, rec, args.plot, title=f'recovery: {args.file}')}")
+    if args.report:
+        write_report_for(rec, ["madgwick"], {}, args.report, f"quadest recover: {args.file}", recovery=res,
+                         recovery_model="the aerodynamic model this recovery used")
     return 0
 
 
@@ -100,4 +104,5 @@ def add_parsers(sub):
     rv.add_argument("--plot", metavar="PNG", help="hypothesis errors, probabilities and velocity over time")
     add_calibration_arg(rv)
     add_input_args(rv)
+    add_report_arg(rv)
     rv.set_defaults(func=cmd_recover)
