@@ -459,3 +459,20 @@ def test_rosbag_odometry_as_truth(tmp_path, flight):
     assert rec.meta["topics"] == {"imu": "/imu", "mag": None, "truth": "/odom"}
     assert not rec.has_mag
     assert angle_between(rec.true_q, short.true_q).max() < 1e-6
+
+
+def test_both_repoimu_headers_are_read(tmp_path):
+    """RepoIMU's files come with two header variants ("Time (s);..." with a trailing ';', and
+    "Time;Vicon Orientation;..." with a units row): both are detected and read alike."""
+    from quadest.readers import detect_format, read_recording
+
+    rows = [f"{0.01 * k};1;0;0;0;0;0;9.81;0.01;0;0;0.4;0;0.9" for k in range(50)]
+    a = tmp_path / "a.csv"
+    a.write_text("Time (s);Vicon Orientation;;;;IMU Acceleration;;;IMU Gyroscope;;;IMU Magnetometer;;;\n"
+                 ";W;X;Y;Z;X;Y;Z;X;Y;Z;X;Y;Z;\n" + "\n".join(r + ";" for r in rows) + "\n")
+    b = tmp_path / "b.csv"
+    b.write_text("Time;Vicon Orientation;;;;IMU Acceleration;;;IMU Gyroscope;;;IMU Magnetometer;;\n"
+                 "s;W;X;Y;Z;X;Y;Z;X;Y;Z;X;Y;Z\n" + "\n".join(rows) + "\n")
+    ra, rb = (read_recording(p) for p in (a, b))
+    assert detect_format(a) == detect_format(b) == "repoimu"
+    assert len(ra) == len(rb) == 50 and np.array_equal(ra.gyr, rb.gyr) and np.array_equal(ra.true_q, rb.true_q)

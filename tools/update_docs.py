@@ -132,6 +132,19 @@ def results_throw() -> str:
               "(docs/results/throw.json).")
 
 
+def results_repoimu() -> str:
+    """docs/readers.md: the RepoIMU benchmark, total RMS per trial and the means."""
+    r = _load("repoimu")
+    names = r["filters"]
+    rows = [[t] + [f"{row[n]['total_rmse_deg']:.2f}" for n in names] for t, row in r["trials"].items()]
+    rows.append(["mean total"] + [f"{r['mean'][n]['total_rmse_deg']:.2f}" for n in names])
+    rows.append(["mean roll / pitch"] + [f"{r['mean'][n]['roll']:.1f} / {r['mean'][n]['pitch']:.1f}" for n in names])
+    return (_table(["trial"] + names, rows)
+            + f"\n\nTotal RMS error in degrees after the reader's alignment (heading and body rotation); "
+              f"{', '.join(r['without_truth']) or 'none'} without Vicon truth, not scored "
+              "(`quadest benchmark repoimu --data ../shared/data/repoimu --json docs/results/repoimu.json`).")
+
+
 def results_recovery_flown() -> str:
     """docs/recovery.md: the recovery paper's experiment flown, upward and in any direction."""
     up, anyd = _load("recovery-flown"), _load("recovery-flown-any")
@@ -358,7 +371,7 @@ GENERATORS = {"simulator-params": simulator_params, "estimator-params": estimato
               "results-flights": results_flights, "results-speed": results_speed, "results-afckf": results_afckf,
               "results-afckf-flights": results_afckf_flights, "results-afckf-ablations": results_afckf_ablations,
               "results-afckf-prescribed": results_afckf_prescribed, "results-afckf-in-loop": results_afckf_in_loop,
-              "results-recovery-flown": results_recovery_flown}
+              "results-recovery-flown": results_recovery_flown, "results-repoimu": results_repoimu}
 PATTERN = re.compile(r"(<!-- generated:([a-z-]+) -->\n)(.*?)(<!-- /generated -->)", re.S)
 
 

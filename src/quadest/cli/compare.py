@@ -242,12 +242,17 @@ def cmd_benchmark(args):
     else:
         if not args.data:
             raise CliError(f"benchmark {args.what} needs --data DIR or a dataset name ("
-                           + ("broad" if args.what == "broad" else "all") + "; quadest data list)")
+                           + ({"broad": "broad", "repoimu": "repoimu"}.get(args.what, "all")) + "; quadest data list)")
         args.data = resolve_data(args.data)
         if args.what == "broad":
             say(f"BROAD on {args.data}: {', '.join(names)}; BROAD's metric over the movement phases")
             res = B.benchmark_broad(args.data, names, trials=args.trials, nav=args.align or "none", progress=True)
             say(B.format_broad(res))
+        elif args.what == "repoimu":
+            say(f"RepoIMU trials under {args.data}: {', '.join(names)}; 9-axis, roll/pitch/yaw and total RMS after "
+                "the reader's alignment")
+            res = B.benchmark_repoimu(args.data, names, progress=True)
+            say(B.format_repoimu(res))
         else:
             say(f"quadrotor flights under {args.data}: {', '.join(names)}; 6-axis, roll/pitch/yaw RMS")
             res = B.benchmark_flights(args.data, names, nav=args.align or "heading", progress=True)
@@ -322,15 +327,17 @@ def add_parsers(sub):
                                    "metric (total, heading, inclination RMSE over the movement phases), per "
                                    "trial and per group of trials.json. flights: roll/pitch/yaw RMS on the "
                                    "DIDO and Blackbird flights under --data (6-axis; heading offset removed). "
+                                   "repoimu: roll/pitch/yaw and total RMS on the RepoIMU T-stick and pendulum "
+                                   "trials under --data (9-axis; the IMU-to-Vicon body rotation and heading removed). "
                                    "speed: microseconds per sample of every filter, batch and streaming. "
                                    "sim: the flying vehicle's closed loop (rotor loss, fault-tolerant "
                                    "controller, --filters names the estimator in the loop, default afckf) "
                                    "and the SE(3) circle flown by quadest and RotorPy (when installed). "
                                    "quadest's filters and the installed peers (pip install 'quadest[peers]': "
                                    "vqf, imufusion, ahrs) run side by side.")
-    b.add_argument("what", choices=["broad", "flights", "speed", "sim"], help="what to benchmark")
-    b.add_argument("--data", metavar="DIR|NAME", help="broad, flights: folder with the data, or a dataset fetched "
-                                                       "with quadest data fetch (broad; all: every fetched dataset)")
+    b.add_argument("what", choices=["broad", "flights", "repoimu", "speed", "sim"], help="what to benchmark")
+    b.add_argument("--data", metavar="DIR|NAME", help="broad, flights, repoimu: folder with the data, or a dataset "
+                                                       "in the cache (broad, repoimu; all: every dataset there)")
     b.add_argument("--filters", default="all",
                    help="all (quadest and installed peers), quadest, peers, or a comma-separated list")
     b.add_argument("--trials", default="*", metavar="GLOB", help="broad: trial files to run (default: all)")

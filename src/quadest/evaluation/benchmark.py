@@ -110,6 +110,74 @@ def benchmark_flights(data_dir, names=None, *, nav: str = "heading", progress: b
     return out
 
 
+def find_repoimu(data_dir) -> list[Path]:
+    """RepoIMU trials (their ``;``-separated CSV files) anywhere under ``data_dir``."""
+    d = Path(data_dir)
+    if not d.is_dir():
+        raise ValueError(f"{data_dir}: no such folder")
+    found = []
+    for p in sorted(d.rglob("*.csv")):
+        try:
+            if detect_format(p) == "repoimu":
+                found.append(p)
+        except ValueError:
+            pass
+    return found
+
+
+def benchmark_repoimu(data_dir, names=None, *, progress: bool = False) -> dict:
+    """Roll, pitch, yaw and total RMS on the RepoIMU trials (9-axis; the reader's alignment: the
+    IMU's and Vicon's frames differ by a constant rotation in the body and a heading, both
+    estimated and removed per run, as BROAD's metric does with its heading)."""
+    names = list(names or default_names())
+    trials = find_repoimu(data_dir)
+    if not trials:
+        raise ValueError(f"{data_dir}: no RepoIMU trial (*.csv) found (quadest data list says where to get them)")
+    out = {"trials": {}, "mean": {}, "filters": names, "alignment": "heading and body rotation (the reader's)",
+           "without_truth": []}
+    bar = tqdm(total=len(trials) * len(names), unit="run", desc="benchmark repoimu", disable=not progress)
+    for f in trials:
+        rec = read_recording(f)
+        key = f"{f.parent.name}/{f.stem}"
+        if rec.true_q is None or np.isfinite(rec.true_q[:, 0]).sum() < 2:  # a static trial without Vicon
+            out["without_truth"].append(key)
+            bar.update(len(names))
+            continue
+        out["trials"][key] = {"samples": len(rec), "duration_s": rec.duration}
+        for n in names:
+            bar.set_postfix_str(f"{key[:24]} {n}")
+            s = score(rec, estimate(rec, n).q)
+            out["trials"][key][n] = {"rms_deg": s["rms_deg"], "total_rmse_deg": s["total_rmse_deg"],
+                                     "samples": s["samples"]}
+            bar.update(1)
+    bar.close()
+    for n in names:
+        rows = [v[n] for v in out["trials"].values()]
+        out["mean"][n] = {a: float(np.mean([r["rms_deg"][a] for r in rows])) for a in ("roll", "pitch", "yaw")}
+        out["mean"][n]["total_rmse_deg"] = float(np.mean([r["total_rmse_deg"] for r in rows]))
+    return out
+
+
+def format_repoimu(res: dict) -> str:
+    names = res["filters"]
+    w = max(9, *(len(n) for n in names)) + 1
+    lines = [f"RepoIMU: RMS error [deg] (9-axis; alignment: {res['alignment']})",
+             "trial / roll, pitch, yaw, total".ljust(36) + "".join(n.rjust(w) for n in names)]
+    for t, row in res["trials"].items():
+        lines.append(f"{t} ({row['samples']} samples)")
+        for a in ("roll", "pitch", "yaw"):
+            lines.append(f"  {a}".ljust(36) + "".join(f"{row[n]['rms_deg'][a]:{w}.2f}" for n in names))
+        lines.append("  total".ljust(36) + "".join(f"{row[n]['total_rmse_deg']:{w}.2f}" for n in names))
+    if res["without_truth"]:
+        lines.append(f"not scored (no Vicon truth): {', '.join(res['without_truth'])}")
+    lines.append("mean over trials")
+    for a in ("roll", "pitch", "yaw", "total_rmse_deg"):
+        lines.append(f"  {a}".ljust(36) + "".join(
+            f"{(res['mean'][n][a] if a != 'total_rmse_deg' else res['mean'][n]['total_rmse_deg']):{w}.2f}"
+            for n in names))
+    return "\n".join(lines)
+
+
 def format_broad(res: dict) -> str:
     names = res["filters"]
     w = max(9, *(len(n) for n in names)) + 1

@@ -86,7 +86,7 @@ def detect_format(path) -> str:
     if ext == ".csv" or ext == ".txt":
         if head.startswith(b"# quadest recording"):
             return "quadest"
-        if head.startswith(b"Time (s);"):
+        if head.startswith((b"Time (s);", b"Time;Vicon Orientation")):  # RepoIMU's two header variants
             return "repoimu"
         first = head.split(b"\n")[0].decode("utf-8", "replace")
         if first.startswith("t,gyr_x"):

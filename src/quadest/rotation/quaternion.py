@@ -7,7 +7,11 @@ quaternion ``(4,)`` / vector ``(3,)`` or a stack ``(N, 4)`` / ``(N, 3)`` and bro
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-_GIMBAL_EPS = 1e-9  # |sin(pitch)| above 1 - eps is treated as gimbal lock
+_GIMBAL_EPS = 1e-14
+"""|sin(pitch)| above 1 − eps is treated as gimbal lock: pitch within √(2 eps) ≈ 1.4e-7 rad of ±90°
+(snapping it costs at most that); outside, roll and yaw come from entries of size cos(pitch) ≥
+1.4e-7, so their rounding error stays below about 1e-9 rad. (1e-9 snapped pitches up to 4.5e-5 rad
+away, which a property test found: 1.9e-6 rad of round-trip error.)"""
 
 
 def _as_float(a):
