@@ -211,3 +211,16 @@ def test_a_flown_recording_shows_its_rotor_speeds(browser, tmp_path, capsys):
     assert main(["report", str(csv), "--rotors", str(tmp_path / "nope.parquet"), "-o", str(tmp_path / "x.html")]) == 2
     err = capsys.readouterr().err
     assert "--rotors" in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_report_never_overwrites_an_input(reports, capsys):
+    """--report and -o naming the recording are refused in one line, the recording untouched."""
+    before = (reports / "flight.csv").read_bytes()
+    for argv in (["compare", "--recording", str(reports / "flight.csv"), "--filters", "madgwick", "--no-timing",
+                  "--report", str(reports / "flight.csv")],
+                 ["report", str(reports / "flight.csv"), "-o", str(reports / "flight.csv")]):
+        capsys.readouterr()
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1, err
+    assert (reports / "flight.csv").read_bytes() == before

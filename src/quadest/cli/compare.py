@@ -125,9 +125,8 @@ def cmd_reproduce(args):
     if args.json:
         write_json(args.json, result)
     if args.report:
-        rec, results, _, title = R.first_seed_estimates(args.paper, result)
-        params = {"afckf": {k: result["calibration"][k] for k in ("omega1", "omega2")}} if args.paper == "afckf" else {}
-        write_report_for(rec, list(results), params, args.report, f"quadest reproduce {args.paper}: {title}")
+        rec, names, params, _, title = R.first_seed_flight(args.paper, result)
+        write_report_for(rec, names, params, args.report, f"quadest reproduce {args.paper}: {title}")
     if args.plot_dir:
         from quadest.plot import plot_errors, plot_recording
 

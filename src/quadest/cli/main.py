@@ -38,8 +38,8 @@ def build_parser():
 
 
 # options that name files a command reads, and the options of files it writes
-INPUT_OPTIONS = ("file", "recording", "recordings", "data", "calibration", "aero", "config")
-OUTPUT_OPTIONS = {"output": "-o", "out": "-o", "json": "--json", "plot": "--plot"}
+INPUT_OPTIONS = ("file", "recording", "recordings", "data", "calibration", "aero", "config", "rotors")
+OUTPUT_OPTIONS = {"output": "-o", "out": "-o", "json": "--json", "plot": "--plot", "report": "--report"}
 
 
 def _paths(value):

@@ -29,6 +29,7 @@ from quadest.control import Failure
 from quadest.evaluation.metrics import AXES
 from quadest.evaluation.runner import estimate, score
 from quadest.flight import FlightParams, fly, fly_many, resample
+from quadest.flight.common import mean_present
 from quadest.records import check, describe, param
 from quadest.sim import build_config
 
@@ -221,10 +222,7 @@ def in_loop_table(runs: list[dict]) -> list[dict]:
     """Per variant and estimator: runs, how many stayed up (and settled), the position RMS once
     settled, the attitude and tilt error in the loop after the loss, and the tilt error of the
     same estimator over the truth's flight (offline)."""
-
-    def mean(values):
-        values = [v for v in values if v is not None]
-        return float(np.mean(values)) if values else None
+    mean = mean_present
 
     rows = []
     for variant in dict.fromkeys(r["variant"] for r in runs):

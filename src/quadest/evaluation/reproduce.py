@@ -207,27 +207,32 @@ def reproduce_qukf(seeds=range(1, 6), progress: bool = False, duration: float = 
     return out
 
 
-def first_seed_estimates(paper: str, result: dict):
-    """The first seed's flight of a reproduction and every filter's estimate on it, for the
-    error plots: ``(rec, {label: FilterResult}, t_from, title)``."""
+def first_seed_flight(paper: str, result: dict):
+    """The first seed's flight of a reproduction and what runs on it:
+    ``(rec, names, params, t_from, title)``."""
     seed = result["seeds"][0]
-    if paper == "afckf" and result.get("mode") == "flown":
-        p = FL.FlownAfckfParams(**result["params"])
-        rec = FL.flown_flight("damaged-rotor", seed, p).recording
-        params = {"afckf": {k: result["calibration"][k] for k in ("omega1", "omega2")}}
-        return (rec, estimate_all(rec, ["madgwick", "complementary", "kalman", "afckf"], params), p.failure_s,
-                f"flown rotor loss / {p.vehicle} / seed {seed}")
     if paper == "afckf":
-        scen, preset, t_from, duration = "damaged-rotor", "bebop2", build_config("bebop2").damaged.failure_s, None
         names = ["madgwick", "complementary", "kalman", "afckf"]
         params = {"afckf": {k: result["calibration"][k] for k in ("omega1", "omega2")}}
+        if result.get("mode") == "flown":
+            p = FL.FlownAfckfParams(**result["params"])
+            return (FL.flown_flight("damaged-rotor", seed, p).recording, names, params, p.failure_s,
+                    f"flown rotor loss / {p.vehicle} / seed {seed}")
+        scen, preset, t_from, duration = "damaged-rotor", "bebop2", build_config("bebop2").damaged.failure_s, None
     elif paper == "qukf":
         scen, preset, t_from, duration = "nominal", "lowcost-20hz", None, 30.0
         names, params = ["qukf", "ekf", "complementary"], {}
     else:
         raise ValueError(f"no error plots for {paper!r}")
-    rec = simulate(scen, preset, seed=seed, duration=duration)
-    return rec, estimate_all(rec, names, params), t_from, f"{scen} / {preset} / seed {seed}"
+    return (simulate(scen, preset, seed=seed, duration=duration), names, params, t_from,
+            f"{scen} / {preset} / seed {seed}")
+
+
+def first_seed_estimates(paper: str, result: dict):
+    """The first seed's flight of a reproduction and every filter's estimate on it, for the
+    error plots: ``(rec, {label: FilterResult}, t_from, title)``."""
+    rec, names, params, t_from, title = first_seed_flight(paper, result)
+    return rec, estimate_all(rec, names, params), t_from, title
 
 
 def format_reproduction(paper: str, result: dict) -> str:

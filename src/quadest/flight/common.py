@@ -160,6 +160,12 @@ def angle_errors(q_true, q_est):
     return total, tilt
 
 
+def mean_present(values):
+    """The mean of the values that are not None (None when there are none)."""
+    values = [v for v in values if v is not None]
+    return float(np.mean(values)) if values else None
+
+
 def rms(v):
     return float(np.sqrt(np.mean(np.square(v)))) if len(v) else None
 

@@ -18,8 +18,8 @@ from quadest.control.ftc import relaxed_hover
 from quadest.errors import UsageError
 from quadest.filters import FILTERS, Estimator, make_filter
 from quadest.filters.base import _declination_quat
-from quadest.flight.common import (SIM_RATE_HZ, Flight, FlightParams, angle_errors, barometer, position_gain, rms,
-                                   sensors_for)
+from quadest.flight.common import (SIM_RATE_HZ, Flight, FlightParams, angle_errors, barometer, mean_present,
+                                   position_gain, rms, sensors_for)
 from quadest.filters.peers import STREAMING_PEERS, available_peers, run_peer, stream_peer
 from quadest.flight.loop import ESTIMATE_NAN, OK, STATUS, Loop, closed_loop, no_estimator, step_act, step_sense
 from quadest.flight.throw import ThrowParams, fly_throw
@@ -337,10 +337,7 @@ def campaign_table(summaries: list[dict]) -> list[dict]:
     for name in dict.fromkeys(s["estimator"] for s in summaries):
         runs = [s for s in summaries if s["estimator"] == name]
         ok = [s for s in runs if s["status"] == "survived"]
-
-        def mean(values):
-            values = [v for v in values if v is not None]
-            return float(np.mean(values)) if values else None
+        mean = mean_present
 
         rows.append({
             "estimator": name, "runs": len(runs), "survived": len(ok),
