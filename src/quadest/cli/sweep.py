@@ -11,8 +11,8 @@ from quadest.flight import CONTROLLERS, DEFAULT_DURATION
 from quadest.flight import SCENARIOS as FLY_SCENARIOS
 from quadest.models import VEHICLE_PRESETS, vehicle_preset
 from quadest.sim import PRESETS, SCENARIOS
-from quadest.sweep import (build_runs, file_sources, flown_sources, format_selection, parse_grid, run_sweep,
-                           sim_sources, tune)
+from quadest.sweep import (build_runs, file_sources, flown_sources, format_selection, format_split, parse_grid,
+                           run_sweep, sim_sources, tune)
 
 
 def _flown_sources(args):
@@ -82,9 +82,9 @@ def cmd_sweep(args):
 def cmd_tune(args):
     runs = _sweep_runs(args, args.filter)
     _announce(args, runs)
-    sel, res = tune(runs, args.out, args.filter, args.metric, **_engine(args))
+    sel, res = tune(runs, args.out, args.filter, args.metric, split=args.split, **_engine(args))
     _report(args, res)
-    say(format_selection(sel))
+    say(format_split(sel) if args.split else format_selection(sel))
     if args.json:
         write_json(args.json, {**sel, "sweep": res})
     return 0
@@ -144,5 +144,8 @@ def add_parsers(sub):
     tu.add_argument("--metric", default="total_rmse_deg",
                     choices=["total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg", "roll_rms_deg",
                              "pitch_rms_deg", "yaw_rms_deg"], help="metric to minimise (default: total_rmse_deg)")
+    tu.add_argument("--split", action="store_true",
+                    help="cross-validate: choose on one half of the trials (sorted, alternately), report the mean "
+                         "on the other half it never saw, and the reverse")
     _add_sweep_args(tu)
     tu.set_defaults(func=cmd_tune)

@@ -71,8 +71,9 @@ CASES = {
 }
 """The flown cases: the flight (``quadest fly`` scenario) and whether rotor ``rotor`` is lost."""
 
-FILTERS = ["madgwick", "complementary", "kalman", "afckf", "afckf"]
-LABELS = ["madgwick", "complementary", "kalman", "afckf", "afckf-nocal"]
+FILTERS = ["madgwick", "complementary", "kalman", "afckf", "afckf", "robust"]
+LABELS = ["madgwick", "complementary", "kalman", "afckf", "afckf-nocal", "robust"]
+"""The paper's four filters, the AFCKF without its calibration, and quadest's own (``robust``)."""
 
 
 def flown_flight(case: str, seed: int, p: FlownAfckfParams | None = None, config=None):
@@ -188,7 +189,7 @@ def format_ablations(rows: list[dict]) -> str:
 
 
 # -- in the loop -----------------------------------------------------------------------------------------
-IN_LOOP_ESTIMATORS = ["truth", "afckf", "kalman", "madgwick", "complementary", "qukf", "ekf", "mahony"]
+IN_LOOP_ESTIMATORS = ["truth", "robust", "afckf", "kalman", "madgwick", "complementary", "qukf", "ekf", "mahony"]
 """truth first (the reference flight each estimator is also run over offline), then quadest's filters."""
 
 IN_LOOP_VARIANTS = [

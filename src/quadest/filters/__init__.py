@@ -12,8 +12,9 @@ from quadest.filters.kalman import Kalman
 from quadest.filters.madgwick import Madgwick
 from quadest.filters.mahony import Mahony
 from quadest.filters.qukf import Qukf
+from quadest.filters.robust import Robust
 
-FILTERS = {cls.name: cls for cls in (Afckf, Qukf, Ekf, Madgwick, Mahony, Complementary, Kalman)}
+FILTERS = {cls.name: cls for cls in (Robust, Afckf, Qukf, Ekf, Madgwick, Mahony, Complementary, Kalman)}
 
 
 def make_filter(name: str, **kwargs) -> Estimator:
@@ -24,4 +25,4 @@ def make_filter(name: str, **kwargs) -> Estimator:
 
 
 __all__ = ["FILTERS", "Estimator", "FilterResult", "make_filter", "Afckf", "Complementary", "Ekf", "Kalman",
-           "Madgwick", "Mahony", "Qukf"]
+           "Madgwick", "Mahony", "Qukf", "Robust"]

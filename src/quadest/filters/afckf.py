@@ -58,7 +58,7 @@ import numpy as np
 from numba import njit
 
 from quadest.conventions import GRAVITY
-from quadest.filters.base import Estimator, P, Params, params_record
+from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
 from quadest.filters.common import (
     BASE,
     YAW_PENDING,
@@ -125,8 +125,9 @@ class AfckfParams(Params):
     gravity: float = P(GRAVITY, "m/s²", "|g| of eq 15", "standard gravity", bounds="(0, 100]")
 
 
-Record = params_record(AfckfParams)
+PR = Record = params_record(AfckfParams)
 Coefficients = namedtuple("Coefficients", ["lam_a", "sa_g", "rho", "lam_m"])
+CO = coefficient_offsets(Coefficients)
 
 
 def coefficients(p: AfckfParams) -> Coefficients:
@@ -194,8 +195,8 @@ def fuzzy_gain(rho, lam_m, w_abs, w_sat, th_m, th_w, k1, k2, k3, k4):
 def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
-    use_mag = p.use_mag
-    om1, om2, beta, sg, grav = p.omega1, p.omega2, p.beta, p.gyro_std, p.gravity
+    use_mag = p[PR.use_mag] != 0.0
+    om1, om2, beta, sg, grav = p[PR.omega1], p[PR.omega2], p[PR.beta], p[PR.gyro_std], p[PR.gravity]
     for i in range(7):
         diag[i] = 0.0
     pending = x[YAW_PENDING] != 0.0
@@ -204,7 +205,7 @@ def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
     if x[ISTART] == 0.0 or (pending and x[YAW_PENDING] == 0.0):
         # channels start from the initial attitude (or the heading just set by the magnetometer)
         x[IQ:IQ + 4] = _to_up(x[0:4])
-        P0 = np.eye(4) * p.p0
+        P0 = np.eye(4) * p[PR.p0]
         x[IP:IP + 16] = P0.ravel()
         x[IPSI] = q_to_euler(x[0:4])[2]
         s0, c0 = np.sin(x[IPSI]), np.cos(x[IPSI])
@@ -237,7 +238,7 @@ def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
         a1 = (acc[1] - wz2 * om2) / grav
         a2 = acc[2] / grav
         xi_a = np.sqrt(a0 * a0 + a1 * a1 + a2 * a2) - 1.0  # eq 36
-        lam_a = c.lam_a  # eq 38, corrected
+        lam_a = c[CO.lam_a]  # eq 38, corrected
         # B. eqs 21-24: one gradient-descent step, from the gyro prediction q_ω,t (eq 23
         # corrected, see the module doc); f_g of eq 21 and J_g of eq 22 at q_ω
         f0, f1, f2, J0, J1, J2 = gravity_objective(pw, px, py, pz, a0, a1, a2)
@@ -249,7 +250,7 @@ def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
         mu = beta * qdot_norm * dt  # eq 24
         if abs(xi_a) <= lam_a and gn > 0.0 and mu > 0.0:
             # eq 33, corrected: R = μ²/‖∇f‖² J_gᵀ (Σ_acc/g)² J_g; M = P⁻ + R
-            sa_g = c.sa_g
+            sa_g = c[CO.sa_g]
             cr = mu * mu / (gn * gn) * sa_g * sa_g
             W = np.empty(48)  # scratch: M, its inverse, K
             M = W[0:16].reshape((4, 4))
@@ -279,7 +280,7 @@ def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
             r_off = 0.0
             # D. eqs 40-42: bias by integral feedback (sign corrected), from the measured and
             # predicted up directions a_cor and v̂ = Rᵀ ĝ (v̂ = f_g + a_cor)
-            rho = c.rho
+            rho = c[CO.rho]
             vx, vy, vz = f0 + a0, f1 + a1, f2 + a2
             x[IB] -= rho * (a1 * vz - a2 * vy) * dt
             x[IB + 1] -= rho * (a2 * vx - a0 * vz) * dt
@@ -308,12 +309,12 @@ def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
     if use_mag and finite3(mag) and norm3(mag) > 0.0:
         mn = norm3(mag)
         if x[IMREF] == 0.0:
-            x[IMREF] = p.mag_norm if p.mag_norm > 0.0 else mn
-        lam_m = c.lam_m  # eq 49
+            x[IMREF] = p[PR.mag_norm] if p[PR.mag_norm] > 0.0 else mn
+        lam_m = c[CO.lam_m]  # eq 49
         rho_m = min(abs(mn - x[IMREF]), lam_m)  # eq 50 (text's definition)
-        w_abs = min(abs(gyr[2]) if finite3(gyr) else 0.0, p.omega_sat)
-        kappa = fuzzy_gain(rho_m, lam_m, w_abs, p.omega_sat, p.theta_m, p.theta_w, p.kappa_1, p.kappa_2, p.kappa_3,
-                           p.kappa_4)
+        w_abs = min(abs(gyr[2]) if finite3(gyr) else 0.0, p[PR.omega_sat])
+        kappa = fuzzy_gain(rho_m, lam_m, w_abs, p[PR.omega_sat], p[PR.theta_m], p[PR.theta_w], p[PR.kappa_1],
+                           p[PR.kappa_2], p[PR.kappa_3], p[PR.kappa_4])
         roll = np.arctan2(r21, r22)
         pitch = np.arcsin(min(1.0, max(-1.0, -r20)))
         psi_m = mag_heading(mag, roll, pitch)  # eqs 44-45, corrected (ν: declination of the run)
@@ -325,7 +326,7 @@ def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
     x[IBUF + head] = np.sin(psi)
     x[IBUF + WMAX + head] = np.cos(psi)
     x[IHEAD] = (head + 1) % WMAX
-    win = int(round(min(p.iota, WMAX) * np.exp(-abs(psi_dot))))
+    win = int(round(min(p[PR.iota], WMAX) * np.exp(-abs(psi_dot))))
     win = max(1, min(win, WMAX))
     ss = 0.0
     cs = 0.0

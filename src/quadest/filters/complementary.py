@@ -54,7 +54,7 @@ class ComplementaryParams(Params):
     gravity: float = P(GRAVITY, "m/s²", "gravity used for the magnitude error", "standard gravity", bounds="(0, 100]")
 
 
-Record = params_record(ComplementaryParams)
+PR = Record = params_record(ComplementaryParams)
 
 
 @njit(cache=True)
@@ -83,10 +83,11 @@ def _conj_mul(d0, d1, d2, d3, q0, q1, q2, q3):
 def complementary_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
-    use_mag = p.use_mag
-    g_acc, g_mag, adaptive, t1, t2, thr = p.gain_acc, p.gain_mag, p.adaptive, p.t1, p.t2, p.threshold
-    bias_on, b_alpha, s_acc, s_rate, s_delta, grav = (p.bias_estimation, p.bias_alpha, p.steady_acc, p.steady_rate,
-                                                      p.steady_delta, p.gravity)
+    use_mag = p[PR.use_mag] != 0.0
+    g_acc, g_mag, adaptive = p[PR.gain_acc], p[PR.gain_mag], p[PR.adaptive] != 0.0
+    t1, t2, thr = p[PR.t1], p[PR.t2], p[PR.threshold]
+    bias_on, b_alpha, s_acc = p[PR.bias_estimation] != 0.0, p[PR.bias_alpha], p[PR.steady_acc]
+    s_rate, s_delta, grav = p[PR.steady_rate], p[PR.steady_delta], p[PR.gravity]
     diag[0], diag[1], diag[2], diag[3] = 0.0, x[B], x[B + 1], x[B + 2]
     if not prepare(x, acc, mag, use_mag):
         return

@@ -29,14 +29,14 @@ class EkfParams(QukfParams):
     """The QUKF's parameters; λ, α and β are unused."""
 
 
-Record = params_record(EkfParams)
+PR = Record = params_record(EkfParams)
 
 
 @njit(cache=True, fastmath=FASTMATH)
 def ekf_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
-    use_mag = p.use_mag
+    use_mag = p[PR.use_mag] != 0.0
     diag[0] = 0.0
     if not prepare(x, acc, mag, use_mag):
         return

@@ -30,7 +30,7 @@ import numpy as np
 from numba import njit
 
 from quadest.conventions import GRAVITY
-from quadest.filters.base import Estimator, P, Params, params_record
+from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
 from quadest.filters.common import BASE, admit, finite3, layout, norm3, prepare
 from quadest.filters.linalg import inv_spd, mm, mm_t, mv
 from quadest.rotation.kernels import FASTMATH, qexp, qexp_right, rot_matrix, skew
@@ -69,8 +69,9 @@ class KalmanParams(Params):
                       "chosen: 0.01 rad/s, a turn-on bias of a MEMS gyro", bounds="[0, 1]")
 
 
-Record = params_record(KalmanParams)
+PR = Record = params_record(KalmanParams)
 Coefficients = namedtuple("Coefficients", ["r_acc", "r_mag"])
+CO = coefficient_offsets(Coefficients)
 
 
 def coefficients(p: KalmanParams) -> Coefficients:
@@ -105,8 +106,8 @@ def _update(x, P, r, H, Rm, v_free, constrain):
 def kalman_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
-    use_mag = p.use_mag
-    sg, sb, sd, tau, grav = p.gyro_noise, p.bias_rw, p.dist_std, p.dist_tau_s, p.gravity
+    use_mag = p[PR.use_mag] != 0.0
+    sg, sb, sd, tau, grav = p[PR.gyro_noise], p[PR.bias_rw], p[PR.dist_std], p[PR.dist_tau_s], p[PR.gravity]
     diag[0] = diag[4] = 0.0
     if not prepare(x, acc, mag, use_mag):
         return
@@ -140,7 +141,7 @@ def kalman_step(x, p, c, gyr, acc, mag, dt, diag):
         # quadest's extension for 6-axis use (docs/estimators.md): without a magnetometer the
         # heading and the bias about the vertical are unobservable, and the accelerometer must
         # not correct them through their correlation with tilt (it drove the heading away)
-        _update(x, P, r, H, np.eye(3) * c.r_acc, v, not use_mag or x[INORM] == 0.0)
+        _update(x, P, r, H, np.eye(3) * c[CO.r_acc], v, not use_mag or x[INORM] == 0.0)
         diag[0] = 1.0
     # -- magnetometer: m/|m_ref| = Rᵀ (m_ref + d) ----------------------------------------------
     if use_mag and finite3(mag) and norm3(mag) > 0.0:
@@ -166,7 +167,7 @@ def kalman_step(x, p, c, gyr, acc, mag, dt, diag):
             H = np.zeros((3, 9))
             H[:, 0:3] = skew(h)
             H[:, 6:9] = R.T
-            _update(x, P, r, H, np.eye(3) * c.r_mag, h, False)
+            _update(x, P, r, H, np.eye(3) * c[CO.r_mag], h, False)
             diag[4] = 1.0
     x[IP:IP + 81] = (0.5 * (P + P.T)).ravel()
     diag[1], diag[2], diag[3] = x[IB], x[IB + 1], x[IB + 2]

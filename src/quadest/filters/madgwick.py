@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from quadest.filters.base import Estimator, P, Params, params_record
+from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
 from quadest.filters.common import BASE, admit, finite3, gravity_objective, norm3, prepare
 from quadest.rotation.kernels import normalize_s, qdot_s, rotate_s
 
@@ -32,8 +32,9 @@ class MadgwickParams(Params):
                         "Madgwick 2010 report / reference implementation", bounds="[0, 10]")
 
 
-Record = params_record(MadgwickParams)
+PR = Record = params_record(MadgwickParams)
 Coefficients = namedtuple("Coefficients", ["beta"])
+CO = coefficient_offsets(Coefficients)
 
 
 def coefficients(params: MadgwickParams) -> Coefficients:
@@ -45,11 +46,11 @@ def coefficients(params: MadgwickParams) -> Coefficients:
 def madgwick_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
-    use_mag = p.use_mag
+    use_mag = p[PR.use_mag] != 0.0
     diag[0] = 0.0
     if not prepare(x, acc, mag, use_mag):
         return
-    beta = c.beta
+    beta = c[CO.beta]
     # the paper's z-up frame: q' = q_F ⊗ q_nb = [−x, w, −z, y]
     qw, qx, qy, qz = -x[1], x[0], -x[3], x[2]
     # eq 12: q̇_ω = ½ q ⊗ [0, ω]

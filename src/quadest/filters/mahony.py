@@ -33,15 +33,15 @@ class MahonyParams(Params):
                    "Mahony et al. 2008, experiments (k_I = 0.3)", bounds="[0, 1e3]")
 
 
-Record = params_record(MahonyParams)
+PR = Record = params_record(MahonyParams)
 
 
 @njit(cache=True)
 def mahony_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
-    use_mag = p.use_mag
-    kp, ki = p.k_p, p.k_i
+    use_mag = p[PR.use_mag] != 0.0
+    kp, ki = p[PR.k_p], p[PR.k_i]
     diag[0], diag[1], diag[2], diag[3] = x[B], x[B + 1], x[B + 2], 0.0
     if not prepare(x, acc, mag, use_mag):
         return

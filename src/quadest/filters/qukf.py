@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from quadest.filters.base import Estimator, P, Params, params_record
+from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
 from quadest.filters.common import BASE, admit, finite3, layout, omega_matrix, prepare
 from quadest.filters.linalg import inv_spd_into
 from quadest.filters.quatmeas import measurement_quaternion
@@ -48,8 +48,9 @@ class QukfParams(Params):
                               "quadest: keeps the paper's time constants at any rate (module doc)")
 
 
-Record = params_record(QukfParams)
+PR = Record = params_record(QukfParams)
 Coefficients = namedtuple("Coefficients", ["wm0", "wc0", "wi", "T"])
+CO = coefficient_offsets(Coefficients)
 
 
 def coefficients(p: QukfParams) -> Coefficients:
@@ -65,9 +66,9 @@ def coefficients(p: QukfParams) -> Coefficients:
 def noise(p, c, dt):
     """Per-step process and measurement noise (the paper's S and R; Q and R here) at interval
     dt (module doc)."""
-    if p.scale_with_rate and dt > 0.0:
-        return p.s * dt / c.T, p.r * c.T / dt
-    return p.s, p.r
+    if p[PR.scale_with_rate] != 0.0 and dt > 0.0:
+        return p[PR.s] * dt / c[CO.T], p[PR.r] * c[CO.T] / dt
+    return p[PR.s], p[PR.r]
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -132,7 +133,7 @@ def _ut_cov(A, ma, B, mb, w0, wi, C):
 def qukf_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
-    use_mag = p.use_mag
+    use_mag = p[PR.use_mag] != 0.0
     diag[0] = 0.0
     if not prepare(x, acc, mag, use_mag):
         return
@@ -151,9 +152,9 @@ def qukf_step(x, p, c, gyr, acc, mag, dt, diag):
     Minv = W[168:184].reshape((4, 4))
     Xp = W[184:188]
     Zh = W[188:192]
-    wm0, wc0, wi = c.wm0, c.wc0, c.wi  # eq 21, corrected (coefficients)
+    wm0, wc0, wi = c[CO.wm0], c[CO.wc0], c[CO.wi]  # eq 21, corrected (coefficients)
     # eq 20: 2n + 1 sigma points; eq 22: through the process model F = I + T/2 Ω(ω)
-    _chol_scaled(P, n + p.lam, L)
+    _chol_scaled(P, n + p[PR.lam], L)
     _sigma(x[0:4], L, sig)
     if finite3(gyr):
         F = omega_matrix(gyr, dt)
@@ -169,7 +170,7 @@ def qukf_step(x, p, c, gyr, acc, mag, dt, diag):
         Pp[i, i] += Q
     z, ok = measurement_quaternion(acc, mag, Xp, use_mag)
     if ok:
-        _chol_scaled(Pp, n + p.lam, L)
+        _chol_scaled(Pp, n + p[PR.lam], L)
         _sigma(Xp, L, sig)  # eq 25; eq 26: Z_i = H X̃_i = X̃_i
         _ut_mean(sig, wm0, wi, Zh)  # eq 27
         _ut_cov(sig, Zh, sig, Zh, wc0, wi, Pzz)  # eq 28
