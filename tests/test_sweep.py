@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from quadest.cli.main import main
-from quadest.sweep import ResultStore, build_runs, parse_grid, run_id, run_one, run_sweep, select, sim_sources
+from quadest.sweep import (ResultStore, build_runs, halves, parse_grid, run_id, run_one, run_sweep, select,
+                           sim_sources, split_select)
 from quadest.sweep.runs import parse_values
 
 BIN = Path(sys.executable).parent
@@ -102,6 +103,29 @@ def test_tune_picks_trial_agnostic_and_per_trial(tmp_path):
     for src, v in sel["per_trial"].items():
         assert v["total_rmse_deg"] == min(r["total_rmse_deg"] for r in rows if r["source"] == src)
     assert sel["per_trial_mean"] <= sel["trial_agnostic"]["total_rmse_deg"] + 1e-12
+
+
+def test_split_selection_never_sees_the_half_it_reports():
+    """--split: each fold's parameters are the best on its own half, and its reported mean is
+    over the other half only. A table built so that the halves disagree shows both: set a is
+    best on the even trials, set b on the odd ones; each fold reports the other set's worse
+    score on the half it did not choose on."""
+    import pyarrow as pa
+
+    trials = [f"t{k:02d}" for k in range(6)]
+    even, odd = halves(trials)
+    assert even == ["t00", "t02", "t04"] and odd == ["t01", "t03", "t05"]
+    score = {('{"k": 1}', t): (1.0 if t in even else 3.0) for t in trials}
+    score.update({('{"k": 2}', t): (2.0 if t in even else 2.5) for t in trials})
+    rows = [{"filter": "f", "status": "ok", "params": p, "source": t, "total_rmse_deg": v}
+            for (p, t), v in score.items()]
+    sel = split_select(pa.Table.from_pylist(rows), "f")
+    a, b = sel["folds"]
+    assert a["params"] == {"k": 1} and a["tuned_mean"] == 1.0 and a["held_out_mean"] == 3.0
+    assert b["params"] == {"k": 2} and b["tuned_mean"] == 2.5 and b["held_out_mean"] == 2.0
+    assert a["held_out_trials"] == odd and b["held_out_trials"] == even
+    assert {tuple(r["params"].values()): (r["mean_A"], r["mean_B"]) for r in sel["sets"]} == {(1,): (1.0, 3.0),
+                                                                                              (2,): (2.0, 2.5)}
 
 
 def test_sweep_defaults_to_a_local_cluster(tmp_path, capsys):

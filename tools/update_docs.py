@@ -8,6 +8,7 @@ parameter records, and result tables (``results-*``) from the JSON the benchmark
 is out of date.
 """
 import json
+import math
 import re
 import sys
 from pathlib import Path
@@ -291,8 +292,16 @@ def _afckf_table(r, cases) -> str:
             rows.append([f"{label}, {a}"]
                         + [f"{r['cases'][case][n]['rms_deg'][a]:.2f}" + (f" ({p[n][a]:.2f})" if n in p else "")
                            for n in AFCKF_NAMES]
-                        + [f"{r['cases'][case]['afckf-nocal']['rms_deg'][a]:.2f}"])
-    return _table([""] + AFCKF_NAMES + ["afckf uncalibrated"], rows)
+                        + [f"{r['cases'][case][n]['rms_deg'][a]:.2f}" for n in _extra(r['cases'][case])])
+    return _table([""] + AFCKF_NAMES + [EXTRA_LABELS[n] for n in _extra(r["cases"][cases[0][0]])], rows)
+
+
+EXTRA_LABELS = {"afckf-nocal": "afckf uncalibrated", "robust": "robust (quadest's own)"}
+
+
+def _extra(results: dict) -> list:
+    """The columns beyond the paper's filters a result has: the uncalibrated AFCKF, quadest's own."""
+    return [n for n in EXTRA_LABELS if n in results]
 
 
 def results_afckf() -> str:
@@ -323,11 +332,11 @@ def results_afckf_flights() -> str:
 def results_afckf_ablations() -> str:
     """README and docs/estimators.md: the ablation table."""
     r = _load("afckf")
-    names = AFCKF_NAMES + ["afckf-nocal"]
+    names = AFCKF_NAMES + _extra(r["ablations"][0])
     rows = [[row["change"]] + [" / ".join(f"{row[n][a]:.1f}" for a in ("roll", "pitch", "yaw")) for n in names]
             for row in r["ablations"]]
     seeds = r["seeds"]
-    return (_table(["one change", *names[:-1], "afckf uncalibrated"], rows)
+    return (_table(["one change", *AFCKF_NAMES, *(EXTRA_LABELS[n] for n in names[len(AFCKF_NAMES):])], rows)
             + f"\n\nRoll / pitch / yaw RMS error in degrees from the loss on, the flown rotor loss from hover, mean "
               f"over seeds {seeds[0]}-{seeds[-1]} (`quadest reproduce afckf --ablations`, docs/results/afckf.json).")
 
@@ -361,6 +370,91 @@ def results_afckf_prescribed() -> str:
               f"docs/results/afckf-prescribed.json).")
 
 
+def results_split() -> str:
+    """docs/estimators.md: BROAD split in halves, tuned on one and reported on the other."""
+    rows = []
+    for name in ("robust", "kalman", "vqf"):
+        sp = _load(f"split-{name}")
+        by = {f["held_out"]: f for f in sp["folds"]}
+        grid = "its defaults (not tuned)" if sp["parameter_sets"] == 1 else f"{sp['parameter_sets']} sets"
+        rows.append([name, grid] + [f"{by[h]['held_out_mean']:.2f} (tuned on {by[h]['tuned_on']}: "
+                                    f"{_params(by[h]['params'])}; {by[h]['tuned_mean']:.2f} there)" for h in "AB"])
+    sp = _load("split-robust")
+    from quadest.filters.robust import RobustParams
+
+    d = RobustParams()
+    row = next(r for r in sp["sets"] if all(math.isclose(getattr(d, k), v, rel_tol=1e-3) for k, v in r["params"].items()))
+    rows.append(["robust, defaults", _params(row["params"]), f"{row['mean_A']:.2f}", f"{row['mean_B']:.2f}"])
+    h = sp["halves"]
+    return (_table(["filter", "grid", "held-out half A", "held-out half B"], rows)
+            + f"\n\nBROAD total RMSE (°), mean over a half. A: {', '.join(t[:2] for t in h['A'])}; "
+              f"B: {', '.join(t[:2] for t in h['B'])} (trial numbers). `quadest tune NAME --data ../shared/data/broad "
+              "--split --grid ...` (docs/results/split-*.json; robust's grid: tau_mag 5-40 s x bias_motion_std "
+              "0.05-0.8 °/s, tau_acc 4 s; the Kalman filter's: lin_acc x mag_noise x dist_tau_s).")
+
+
+def _params(p: dict) -> str:
+    if not p:
+        return "defaults"
+    deg = {"bias_motion_std"}
+    return ", ".join(f"{k} {math.degrees(v):.2g} °/s" if k in deg else f"{k} {v:g}" for k, v in p.items())
+
+
+def results_robust_targets() -> str:
+    """docs/estimators.md and README: issue #15's targets, measured."""
+    broad, flights, repo, speed = _load("broad"), _load("flights"), _load("repoimu"), _load("speed")
+    pres, flown, loop = _load("afckf-prescribed"), _load("afckf"), _load("afckf-in-loop")
+    rows = []
+
+    def row(what, ours, theirs, met):
+        rows.append([what, ours, theirs, "yes" if met else "**no**"])
+
+    b = broad["groups"]["all_trials"]
+    row("BROAD, 12 trials, total RMSE (in-sample for two parameters)", f"{b['robust']['total_rmse_deg']:.2f}",
+        f"VQF {b['vqf']['total_rmse_deg']:.2f}", b["robust"]["total_rmse_deg"] <= b["vqf"]["total_rmse_deg"])
+    sr, sv = _load("split-robust"), _load("split-vqf")
+    for f in sr["folds"]:
+        v = next(g for g in sv["folds"] if g["held_out"] == f["held_out"])
+        row(f"BROAD split, held-out half {f['held_out']}", f"{f['held_out_mean']:.2f}", f"VQF {v['held_out_mean']:.2f}",
+            f["held_out_mean"] <= v["held_out_mean"])
+    fm = flights["mean"]
+    row("flights (DIDO, Blackbird), roll / pitch RMS", f"{fm['robust']['roll']:.2f} / {fm['robust']['pitch']:.2f}",
+        f"VQF {fm['vqf']['roll']:.2f} / {fm['vqf']['pitch']:.2f}",
+        fm["robust"]["roll"] <= fm["vqf"]["roll"] and fm["robust"]["pitch"] <= fm["vqf"]["pitch"])
+    rm = repo["mean"]
+    row("RepoIMU, roll / pitch / yaw, total", f"{_rpy(rm['robust'])}, {rm['robust']['total_rmse_deg']:.2f}",
+        f"VQF {_rpy(rm['vqf'])}, {rm['vqf']['total_rmse_deg']:.2f}",
+        all(rm["robust"][a] <= rm["vqf"][a] for a in ("roll", "pitch", "yaw", "total_rmse_deg")))
+
+    def sim_row(label, res, case, other):
+        ours, theirs = res["cases"][case]["robust"]["rms_deg"], res["cases"][case][other]["rms_deg"]
+        row(label, _rpy(ours), f"{other} {_rpy(theirs)}", all(ours[a] <= theirs[a] for a in ours))
+
+    sim_row("damaged rotor, prescribed (gyro clips at ±1000 °/s in the spin)", pres, "damaged-rotor", "afckf")
+    sim_row("damaged rotor, flown", flown, "damaged-rotor", "afckf")
+    clip = next(r for r in flown["ablations"] if r["change"].startswith("gyro range ±500"))
+    row("damaged rotor, flown, gyro ±500 °/s (clipping)", _rpy(clip["robust"]), f"afckf {_rpy(clip['afckf'])}",
+        all(clip["robust"][a] <= clip["afckf"][a] for a in ("roll", "pitch", "yaw")))
+    sim_row("nominal flight, prescribed", pres, "nominal", "kalman")
+    sim_row("nominal flight (the circle), flown", flown, "nominal", "kalman")
+    for variant in dict.fromkeys(r["variant"] for r in loop["table"]):
+        up = {r["estimator"]: r for r in loop["table"] if r["variant"] == variant}
+        if "robust" in up:
+            row(f"in the loop, {variant}: stayed up", f"{up['robust']['survived']}/{up['robust']['runs']}",
+                f"afckf {up['afckf']['survived']}/{up['afckf']['runs']}", up["robust"]["survived"] >= up["afckf"]["survived"])
+    ne = [pres["cases"][c]["robust"]["nees"] for c in ("damaged-rotor", "nominal")]
+    row("mean NEES, prescribed damaged rotor / nominal (3 dof)", " / ".join(f"{v:.2f}" for v in ne), "1.5-4.5",
+        all(1.5 <= v <= 4.5 for v in ne))
+    sp = speed["filters"]
+    row("batch µs/sample", f"{sp['robust']['batch_us']:.2f}", f"VQF {sp['vqf']['batch_us']:.2f}",
+        sp["robust"]["batch_us"] <= sp["vqf"]["batch_us"])
+    row("streaming µs/call", f"{sp['robust']['stream_us']:.2f}", "1.5", sp["robust"]["stream_us"] <= 1.5)
+    return (_table(["target", "robust", "against", "met"], rows)
+            + "\n\nSimulator figures: roll / pitch / yaw RMS (°), seeds 1-5, from the loss on (docs/results/"
+              "afckf*.json); real data: docs/results/broad.json, flights.json, repoimu.json, split-*.json; speed "
+              "in one run, docs/results/speed.json.")
+
+
 GENERATORS = {"simulator-params": simulator_params, "estimator-params": estimator_params,
               "recovery-params": recovery_params, "vehicle-params": vehicle_params,
               "vehicle-presets": vehicle_presets, "ftc-params": ftc_params, "flight-params": flight_params,
@@ -371,7 +465,8 @@ GENERATORS = {"simulator-params": simulator_params, "estimator-params": estimato
               "results-flights": results_flights, "results-speed": results_speed, "results-afckf": results_afckf,
               "results-afckf-flights": results_afckf_flights, "results-afckf-ablations": results_afckf_ablations,
               "results-afckf-prescribed": results_afckf_prescribed, "results-afckf-in-loop": results_afckf_in_loop,
-              "results-recovery-flown": results_recovery_flown, "results-repoimu": results_repoimu}
+              "results-recovery-flown": results_recovery_flown, "results-repoimu": results_repoimu,
+              "results-split": results_split, "results-robust-targets": results_robust_targets}
 PATTERN = re.compile(r"(<!-- generated:([a-z-]+) -->\n)(.*?)(<!-- /generated -->)", re.S)
 
 

@@ -27,7 +27,7 @@ import numpy as np
 from quadest.calibration import calibrate_centrifugal
 from quadest.control import Failure
 from quadest.evaluation.metrics import AXES
-from quadest.evaluation.runner import estimate, score
+from quadest.evaluation.runner import estimate, score_result
 from quadest.flight import FlightParams, fly, fly_many, resample
 from quadest.flight.common import mean_present
 from quadest.records import check, describe, param
@@ -111,7 +111,7 @@ def afckf_calibration_flown(p: FlownAfckfParams | None = None) -> dict:
 
 def score_filters(rec, params: dict, t_from: float) -> dict:
     """Every filter of the reproduction (:data:`LABELS`) over ``rec``, scored from ``t_from``."""
-    return {label: score(rec, estimate(rec, name, params.get(label)).q, t_from=t_from)
+    return {label: score_result(rec, estimate(rec, name, params.get(label)), t_from=t_from)
             for name, label in zip(FILTERS, LABELS)}
 
 

@@ -59,3 +59,21 @@ def summarize_errors(q_est, q_true, mask=None) -> dict:
         "heading_rmse_deg": _rms(ang["heading"]),
         "inclination_rmse_deg": _rms(ang["inclination"]),
     }
+
+
+def nees(q_est, q_true, var_tilt, var_heading, mask=None) -> float:
+    """Mean normalised estimation error squared of an estimator's reported attitude covariance
+    (diagonal in the navigation frame: ``var_tilt`` about north and about east, ``var_heading``
+    about down, rad²): ``e = Log(q_true ⊗ q_est⁻¹)``, ``NEES = (e_N² + e_E²)/var_tilt +
+    e_D²/var_heading``, 3 degrees of freedom (a consistent covariance gives 3 on average)."""
+    from scipy.spatial.transform import Rotation
+
+    q_est, q_true = np.asarray(q_est, float), np.asarray(q_true, float)
+    ok = np.isfinite(q_true).all(axis=1) & np.isfinite(q_est).all(axis=1) & (var_tilt > 0) & (var_heading > 0)
+    if mask is not None:
+        ok &= np.asarray(mask, bool)
+    if not ok.any():
+        return float("nan")
+    err = quat_mul(q_true[ok], quat_conj(q_est[ok]))
+    e = Rotation.from_quat(err[:, [1, 2, 3, 0]]).as_rotvec()
+    return float(np.mean((e[:, 0] ** 2 + e[:, 1] ** 2) / var_tilt[ok] + e[:, 2] ** 2 / var_heading[ok]))

@@ -22,7 +22,7 @@ from quadest.calibration import calibrate_centrifugal
 from quadest.evaluation import flown as FL
 from quadest.evaluation.metrics import AXES
 from quadest.evaluation.parallel import execute
-from quadest.evaluation.runner import estimate, estimate_all, score
+from quadest.evaluation.runner import estimate, estimate_all, score_result
 from quadest.evaluation.speed import time_estimator
 from quadest.filters import make_filter
 from quadest.flight.throw import ThrowParams
@@ -93,6 +93,9 @@ def _aggregate(per_seed: list[dict], names) -> dict:
             out[n][key + "_per_seed"] = {a: [s[n][key][a] for s in per_seed] for a in AXES}
         for key in ("total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg"):
             out[n][key] = float(np.mean([s[n][key] for s in per_seed]))
+        if all("nees" in s[n] for s in per_seed):
+            out[n]["nees"] = float(np.mean([s[n]["nees"] for s in per_seed]))
+            out[n]["nees_per_seed"] = [s[n]["nees"] for s in per_seed]
     return out
 
 
@@ -177,7 +180,7 @@ def _one_seed(task) -> dict:
     """One seed of a reproduction: simulate, run the filters, their errors (a picklable task)."""
     scenario, preset, seed, duration, names, labels_list, params, t_from = task
     rec = simulate(scenario, preset, seed=seed, duration=duration)
-    return {label: score(rec, estimate(rec, name, params.get(label)).q, t_from=t_from)
+    return {label: score_result(rec, estimate(rec, name, params.get(label)), t_from=t_from)
             for name, label in zip(names, labels_list)}
 
 

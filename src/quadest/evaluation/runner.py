@@ -15,7 +15,7 @@ import numpy as np
 from quadest.data.recording import Recording
 from quadest.errors import UsageError
 from quadest.evaluation.align import Alignment, fit_alignment
-from quadest.evaluation.metrics import summarize_errors
+from quadest.evaluation.metrics import nees, summarize_errors
 from quadest.filters.peers import PEERS, available_peers, run_peer
 from quadest.filters import FILTERS, FilterResult, make_filter
 
@@ -123,6 +123,18 @@ def align_estimate(rec: Recording, q, *, truth: str = "true_q", nav: str = "none
     m = evaluation_mask(rec) if mask is None else mask
     al = fit_alignment(q, getattr(rec, truth), nav=nav, body=body, mask=m, rate_hz=rec.imu_rate_hz())
     return al.apply(q), al
+
+
+def score_result(rec: Recording, res: FilterResult, *, t_from: float | None = None) -> dict:
+    """:func:`score` of a run, with the mean NEES of its reported covariance (``nees``) when the
+    estimator reports one (diagnostics ``var_tilt``, ``var_heading``) and the truth is
+    independent (``true_q``)."""
+    out = score(rec, res.q, t_from=t_from)
+    if "var_tilt" in res.diag and rec.true_q is not None:
+        # the declination rotates about down: the covariance, diagonal in NED, is unchanged by it
+        out["nees"] = nees(res.q, rec.true_q, res.diag["var_tilt"], res.diag["var_heading"],
+                           evaluation_mask(rec, t_from))
+    return out
 
 
 def score(rec: Recording, q, *, truth: str | None = None, nav: str | None = None, body: bool | None = None,

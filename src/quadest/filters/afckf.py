@@ -69,6 +69,7 @@ from quadest.filters.common import (
     mag_heading,
     norm3,
     prepare,
+    publish,
     q_to_euler,
 )
 from quadest.filters.linalg import inv_spd_into
@@ -343,6 +344,7 @@ def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
     x[0], x[1], x[2], x[3] = ch * bw - sh * bz, ch * bx - sh * by, ch * by + sh * bx, ch * bz + sh * bw
     diag[0], diag[1], diag[2], diag[3] = kappa, mu, r_off, float(win)
     diag[4], diag[5], diag[6] = x[IB], x[IB + 1], x[IB + 2]
+    publish(x)
 
 
 @njit(cache=True)

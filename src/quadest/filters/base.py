@@ -32,7 +32,7 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 
 from quadest.errors import UsageError
-from quadest.filters.common import BASE, INIT, RESTARTS, SKIPPED, T_LAST
+from quadest.filters.common import BASE, DECL, INIT, Q_OUT, RESTARTS, SKIPPED, T_LAST
 from quadest.records import check, describe, param
 from quadest.rotation import quat_mul, quat_to_euler
 from quadest.rotation.kernels import qmul
@@ -153,7 +153,6 @@ class Estimator:
         self._p = pack(values[f] for f in self.Record._fields)  # read by name in compiled code
         self._c = pack(type(self).coefficients(replace(params, **values)))  # derived once, not every step
         self.declination = float(declination)
-        self._dq = _declination_quat(self.declination) if self.declination != 0.0 else None
         self._call_step = self._first_step
         self._q0 = None if q0 is None else np.asarray(q0, float) / np.linalg.norm(q0)
         self._diag = np.zeros(max(1, len(self.diag_names)))
@@ -175,8 +174,14 @@ class Estimator:
             x[0:4] = quat_mul(_declination_quat(-self.declination), self._q0)
             x[INIT] = 1.0
         self._init_state(x)
+        self._set_declination(x)
         self._x = x
-        self._qv = x[0:4]  # a view of the attitude (the streaming output copies it)
+        self._qv = x[Q_OUT:Q_OUT + 4]  # a view of the published attitude (the streaming output copies it)
+
+    def _set_declination(self, x):
+        """The declination's half-angle cosine and sine, and the published attitude from them."""
+        x[DECL], x[DECL + 1] = math.cos(0.5 * self.declination), math.sin(0.5 * self.declination)
+        x[Q_OUT:Q_OUT + 4] = qmul(np.array([x[DECL], 0.0, 0.0, x[DECL + 1]]), x[0:4])
 
     def _restart(self):
         """Start again from the next samples (after a gap): the attitude is initialised from the
@@ -184,6 +189,7 @@ class Estimator:
         x = np.zeros(self.state_size)
         x[0] = 1.0
         self._init_state(x)
+        self._set_declination(x)
         x[SKIPPED], x[RESTARTS], x[T_LAST] = self._x[SKIPPED], self._x[RESTARTS] + 1.0, self._x[T_LAST]
         self._x[:] = x
 
@@ -206,17 +212,12 @@ class Estimator:
         if x.shape != (self.state_size,):
             raise ValueError(f"{self.name}: state must have shape ({self.state_size},), got {x.shape}")
         self._x = x.copy()
-        self._qv = self._x[0:4]
+        self._qv = self._x[Q_OUT:Q_OUT + 4]
 
     @property
     def q(self) -> np.ndarray:
         """Current attitude ``q_nb`` in the geographic NED frame."""
-        return self._out(self._x[0:4])
-
-    def _out(self, q):
-        if self._dq is None:
-            return q.copy()
-        return qmul(self._dq, q)
+        return self._qv.copy()
 
     # -- use ------------------------------------------------------------------------------
     def update(self, gyr, acc, mag=None, *, dt: float) -> np.ndarray:
@@ -245,9 +246,7 @@ class Estimator:
         elif not (type(mag) is _ND and mag.dtype is _F8 and mag.strides == _ST and len(mag) == 3):
             mag = _vec3(mag)
         self._call_step(self._x, self._p, self._c, gyr, acc, mag, dt, self._diag)
-        if self._dq is None:
-            return self._qv.copy()
-        return qmul(self._dq, self._qv)
+        return self._qv.copy()  # the step published it in the geographic frame
 
     def __getstate__(self):  # the compiled entry point is found again after unpickling
         state = dict(self.__dict__)
@@ -258,7 +257,7 @@ class Estimator:
     def __setstate__(self, state):
         self.__dict__.update(state)
         self._call_step = self._first_step
-        self._qv = self._x[0:4]
+        self._qv = self._x[Q_OUT:Q_OUT + 4]
 
     def _first_step(self, *args):
         """The first streaming call goes through numba's dispatcher (which compiles or loads the

@@ -3,7 +3,10 @@
 State arrays of every estimator start with the same slots (:data:`COMMON`): ``x[0:4]`` the
 attitude ``q_nb``, ``x[INIT]`` 1 once the attitude has been initialised, ``x[YAW_PENDING]`` 1
 while the heading still waits for a first magnetometer sample, ``x[T_LAST]`` the timestamp of
-the last sample of a batch run (NaN before; lets a run resume exactly). Each estimator's own
+the last sample of a batch run (NaN before; lets a run resume exactly), ``x[DECL:DECL + 2]`` the
+cosine and sine of half the declination and ``x[Q_OUT:Q_OUT + 4]`` the attitude in the geographic
+frame, written by :func:`publish` at the end of every step (streaming returns it without any
+further arithmetic in Python). Each estimator's own
 state follows from ``x[BASE]``, declared once with :func:`layout`.
 """
 from collections import namedtuple
@@ -28,15 +31,29 @@ def layout(*slots, start: int = 0):
     return namedtuple("Layout", names + ["end"])(*offsets, at)
 
 
-COMMON = layout(("q", 4), ("init", 1), ("yaw_pending", 1), ("t_last", 1), ("skipped", 1), ("restarts", 1))
+COMMON = layout(("q", 4), ("init", 1), ("yaw_pending", 1), ("t_last", 1), ("skipped", 1), ("restarts", 1),
+                ("decl", 2), ("q_out", 4))
 INIT, YAW_PENDING, T_LAST, BASE = COMMON.init, COMMON.yaw_pending, COMMON.t_last, COMMON.end
 SKIPPED, RESTARTS = COMMON.skipped, COMMON.restarts
+DECL, Q_OUT = COMMON.decl, COMMON.q_out
 
 # Beyond these a value is not a measurement (docs/reliability.md): the sample is skipped.
 RATE_LIMIT = 1e3  # rad/s, gyroscope (MEMS gyroscopes end near 35 rad/s)
 ACC_LIMIT = 1e4  # m/s², accelerometer (about 1000 g)
 MAG_LIMIT = 1e9  # magnetometer, any unit (the earth's field is 5e4 nT)
 DT_LIMIT = 1e3  # s, one interval
+
+
+@njit(cache=True, inline="always")
+def publish(x):
+    """The end of every step: ``x[Q_OUT] = Rz(declination) ⊗ x[0:4]`` (the magnetic frame's
+    attitude in the geographic frame; ``[c, 0, 0, s] ⊗ q``)."""
+    c, s = x[DECL], x[DECL + 1]
+    w, a, b, d = x[0], x[1], x[2], x[3]
+    x[Q_OUT] = c * w - s * d
+    x[Q_OUT + 1] = c * a - s * b
+    x[Q_OUT + 2] = c * b + s * a
+    x[Q_OUT + 3] = c * d + s * w
 
 
 @njit(cache=True, inline="always")

@@ -26,7 +26,7 @@ from numba import njit
 
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, P, Params, params_record
-from quadest.filters.common import BASE, admit, finite3, layout, norm3, prepare
+from quadest.filters.common import BASE, admit, finite3, layout, norm3, prepare, publish
 from quadest.rotation.kernels import normalize_s, qdot_s, rotate_s
 
 S = layout(("bias", 3), ("gyr_prev", 3), ("have_prev", 1), start=BASE)
@@ -141,6 +141,7 @@ def complementary_step(x, p, c, gyr, acc, mag, dt, diag):
                 qw, qx, qy, qz = _conj_mul(d0, d1, d2, d3, qw, qx, qy, qz)
     x[0], x[1], x[2], x[3] = normalize_s(qw, qx, qy, qz)
     diag[1], diag[2], diag[3] = x[B], x[B + 1], x[B + 2]
+    publish(x)
 
 @njit(cache=True)
 def complementary_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):

@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit
 
 from quadest.filters.base import Estimator, params_record
-from quadest.filters.common import admit, finite3, omega_matrix, prepare
+from quadest.filters.common import admit, finite3, omega_matrix, prepare, publish
 from quadest.filters.linalg import inv_spd, mm, mm_t, mv
 from quadest.filters.quatmeas import measurement_quaternion
 from quadest.filters.qukf import PB, QukfParams, S, coefficients, noise
@@ -56,6 +56,7 @@ def ekf_step(x, p, c, gyr, acc, mag, dt, diag):
     x[0:4] = X / np.sqrt(np.sum(X * X))
     x[PB:PB + 16] = (0.5 * (P + P.T)).ravel()
     diag[1] = np.trace(P)
+    publish(x)
 
 
 @njit(cache=True, fastmath=FASTMATH)

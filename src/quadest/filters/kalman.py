@@ -31,7 +31,7 @@ from numba import njit
 
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
-from quadest.filters.common import BASE, admit, finite3, layout, norm3, prepare
+from quadest.filters.common import BASE, admit, finite3, layout, norm3, prepare, publish
 from quadest.filters.linalg import inv_spd, mm, mm_t, mv
 from quadest.rotation.kernels import FASTMATH, qexp, qexp_right, rot_matrix, skew
 
@@ -172,6 +172,7 @@ def kalman_step(x, p, c, gyr, acc, mag, dt, diag):
     x[IP:IP + 81] = (0.5 * (P + P.T)).ravel()
     diag[1], diag[2], diag[3] = x[IB], x[IB + 1], x[IB + 2]
     diag[5] = norm3(x[ID:ID + 3])
+    publish(x)
 
 
 @njit(cache=True, fastmath=FASTMATH)

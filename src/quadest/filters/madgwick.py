@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit
 
 from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
-from quadest.filters.common import BASE, admit, finite3, gravity_objective, norm3, prepare
+from quadest.filters.common import BASE, admit, finite3, gravity_objective, norm3, prepare, publish
 from quadest.rotation.kernels import normalize_s, qdot_s, rotate_s
 
 
@@ -93,6 +93,7 @@ def madgwick_step(x, p, c, gyr, acc, mag, dt, diag):
     # eq 13: q_t = q_{t−1} + q̇ Δt, normalised; back to NED: q_nb = q_F* ⊗ q' = [q'x, −q'w, q'z, −q'y]
     q0, q1, q2, q3 = normalize_s(qw + d0 * dt, qx + d1 * dt, qy + d2 * dt, qz + d3 * dt)
     x[0], x[1], x[2], x[3] = q1, -q0, q3, -q2
+    publish(x)
 
 
 @njit(cache=True)

@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit
 
 from quadest.filters.base import Estimator, P, Params, params_record
-from quadest.filters.common import BASE, admit, finite3, layout, norm3, prepare
+from quadest.filters.common import BASE, admit, finite3, layout, norm3, prepare, publish
 from quadest.rotation.kernels import normalize_s, qdot_s, rotate_inv_s, rotate_s
 
 S = layout(("bias", 3), start=BASE)  # gyro bias estimate
@@ -82,6 +82,7 @@ def mahony_step(x, p, c, gyr, acc, mag, dt, diag):
     d0, d1, d2, d3 = qdot_s(qw, qx, qy, qz, w0, w1, w2)
     x[0], x[1], x[2], x[3] = normalize_s(qw + dt * d0, qx + dt * d1, qy + dt * d2, qz + dt * d3)
     diag[0], diag[1], diag[2] = x[B], x[B + 1], x[B + 2]
+    publish(x)
 
 
 @njit(cache=True)

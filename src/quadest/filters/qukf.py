@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 
 from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
-from quadest.filters.common import BASE, admit, finite3, layout, omega_matrix, prepare
+from quadest.filters.common import BASE, admit, finite3, layout, omega_matrix, prepare, publish
 from quadest.filters.linalg import inv_spd_into
 from quadest.filters.quatmeas import measurement_quaternion
 from quadest.rotation.kernels import FASTMATH
@@ -204,6 +204,7 @@ def qukf_step(x, p, c, gyr, acc, mag, dt, diag):
     for i in range(4):
         x[i] = Xp[i] / nq
     diag[1] = tr
+    publish(x)
 
 
 @njit(cache=True, fastmath=FASTMATH)

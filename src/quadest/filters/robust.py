@@ -93,7 +93,7 @@ from numba import njit
 
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
-from quadest.filters.common import BASE, INIT, admit, layout
+from quadest.filters.common import BASE, INIT, admit, layout, publish
 from quadest.rotation.kernels import FASTMATH, normalize_s, rotate_s
 
 DEG = math.pi / 180.0
@@ -599,6 +599,7 @@ def robust_step(x, p, c, gyr, acc, mag, dt, diag):
     diag[6] = x[S.Pt]
     diag[7] = x[S.Ph]
     diag[8] = mupd
+    publish(x)
 
 
 @njit(cache=True, fastmath=FASTMATH)

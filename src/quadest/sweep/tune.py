@@ -73,7 +73,11 @@ def split_select(table, filter_name: str, metric: str = "total_rmse_deg") -> dic
         folds.append({"tuned_on": name, "tuned_on_trials": tune_on, "params": json.loads(best),
                       "tuned_mean": mean[best], "held_out": "B" if name == "A" else "A", "held_out_trials": held,
                       "held_out_mean": float(np.mean([complete[best][s] for s in held]))})
-    return {"filter": filter_name, "metric": metric, "parameter_sets": len(complete), "folds": folds}
+    sets = sorted(({"params": json.loads(p), "mean_A": float(np.mean([v[s] for s in a])),
+                    "mean_B": float(np.mean([v[s] for s in b])), "mean": float(np.mean([v[s] for s in a + b]))}
+                   for p, v in complete.items()), key=lambda r: r["mean"])
+    return {"filter": filter_name, "metric": metric, "parameter_sets": len(complete), "folds": folds,
+            "halves": {"A": a, "B": b}, "sets": sets}
 
 
 def format_split(sel: dict) -> str:
