@@ -78,9 +78,12 @@ What VQF lacks and a quadcopter needs (quadest's additions):
     ``P_θ ← (1 − k)² (P_θ + (σ_g² + τ_acc tr(P_b) / 3) Δt) + k² R_a (1 + 2 τ_c / Δt)`` with
     ``k = 1 − exp(−Δt / τ_acc)``, ``R_a`` the low-passed squared angle between the raw specific
     force and the vertical (the accelerometer's direction noise, adaptive) and ``τ_c`` the
-    correlation time of unmodelled accelerations (``acc_corr_s``); the same form for ``P_ψ``
-    with the magnetometer's squared heading innovation. Without a magnetometer ``P_ψ`` is
-    ``π²/3`` (heading unknown, uniform).
+    correlation time of unmodelled accelerations (``acc_corr_s``). The heading's the same way
+    with the magnetometer's squared heading innovation for ``R_a``, no correlation term,
+    ``τ_ψ,eff`` for ``τ_acc`` and the variance of the heading's drift rate for ``tr(P_b) / 3``:
+    the vertical bias's ``h P_b hᵀ``, plus ``(scale_max |lp(ω_D)|)²`` for the spin's
+    scale-factor drift, plus ``(clip_rate_err |lp(ω_D)|)²`` while an axis is clipped. Without a
+    magnetometer ``P_ψ`` is ``π²/3`` (heading unknown, uniform).
 """
 from __future__ import annotations
 
@@ -170,7 +173,8 @@ class RobustParams(Params):
                                "0.2 and 0.8 °/s; the smaller one (the simulator's flights need the bias in motion)",
                                bounds="(0, 1]")
     bias_gain: float = P(0.25, "-", "largest gain of the bias loop closed by the inclination correction, in units "
-                         "of Δt/τ_acc (0.25: critically damped)", "quadest: critical damping", bounds="(0, 0.25]")
+                         "of Δt/τ_acc (0.25: critically damped; more rings)", "quadest: critical damping (eq R3b)",
+                         bounds="(0, 1]")
     bias_heading_std: float = P(0.2 * DEG, "rad/s", "noise of the bias measurement from the heading correction, "
                                 "per τ_ψ", "chosen: as bias_motion_std", bounds="(0, 1]")
     bias_rest_std: float = P(0.03 * DEG, "rad/s", "noise of the bias measurement at rest",
