@@ -172,6 +172,14 @@ def test_fly_writes_runs_that_every_command_reads(tmp_path, capsys):
     code, text, _ = run(capsys, "estimate", run0["files"]["recording"], "--filter", "madgwick",
                         "-o", str(tmp_path / "q.csv"))
     assert code == 0
+    # robust's reported covariance comes out with --diagnostics
+    code, text, _ = run(capsys, "estimate", run0["files"]["recording"], "--filter", "robust", "--diagnostics",
+                        "-o", str(tmp_path / "r.parquet"))
+    cols = pq.read_table(tmp_path / "r.parquet").column_names
+    assert code == 0 and {"diag_var_tilt", "diag_var_heading", "diag_bias_z"} <= set(cols) and "diag_var_tilt" in text
+    code, _, err = run(capsys, "estimate", run0["files"]["recording"], "--filter", "vqf", "--diagnostics",
+                       "-o", str(tmp_path / "v.csv"))
+    assert code == 2 and "reports no per-sample diagnostics" in err and len(err.strip().splitlines()) == 1
 
 
 @pytest.mark.parametrize("argv, match", [

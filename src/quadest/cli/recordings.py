@@ -68,8 +68,13 @@ def cmd_estimate(args):
     e = quat_to_euler(q)
     cols = {"t": rec.t, "q_w": q[:, 0], "q_x": q[:, 1], "q_y": q[:, 2], "q_z": q[:, 3],
             "roll": e[:, 0], "pitch": e[:, 1], "yaw": e[:, 2]}
+    if args.diagnostics:
+        if not res.diag:
+            raise CliError(f"--diagnostics: {args.filter} reports no per-sample diagnostics")
+        cols.update({f"diag_{k}": v for k, v in res.diag.items()})
     write_table(cols, Path(args.output))
-    say(f"{args.filter}: {len(rec)} samples -> {args.output} (t, q_w, q_x, q_y, q_z, roll, pitch, yaw; rad)")
+    extra = f", diag_{', diag_'.join(res.diag)}" if args.diagnostics else ""
+    say(f"{args.filter}: {len(rec)} samples -> {args.output} (t, q_w, q_x, q_y, q_z, roll, pitch, yaw; rad{extra})")
     if args.report:
         write_report_for(rec, [args.filter], {args.filter: kw}, args.report,
                          f"quadest estimate: {args.filter} on {Path(args.file).name}")
@@ -197,6 +202,9 @@ def add_parsers(sub):
                     help="estimator: quadest's, or a peer with quadest[peers] installed")
     es.add_argument("-o", "--output", required=True, metavar="OUT", help=".csv or .parquet")
     es.add_argument("--param", action="append", metavar="FILTER.NAME=VALUE", help="estimator parameter")
+    es.add_argument("--diagnostics", action="store_true",
+                    help="also write the estimator's per-sample diagnostics as diag_* columns (robust: its reported "
+                         "error variances var_tilt and var_heading in rad², the bias, rest, disturbance, clipping)")
     es.add_argument("--declination-deg", type=float, default=None,
                     help="magnetic declination (default: from a simulation's metadata, else 0)")
     add_calibration_arg(es)
