@@ -19,11 +19,20 @@ def default_names(include_peers: bool = True) -> list[str]:
     return list(FILTERS) + (available_peers() if include_peers else [])
 
 
-def _files(data_dir, pattern):
+def _folder(data_dir) -> Path:
     d = Path(data_dir)
     if not d.is_dir():
         raise ValueError(f"{data_dir}: no such folder")
-    return sorted(d.glob(pattern))
+    return d
+
+
+def _files(data_dir, pattern):
+    return sorted(_folder(data_dir).glob(pattern))
+
+
+def _axis_means(rows) -> dict:
+    """Mean over recordings of each axis's RMS error (degrees)."""
+    return {a: float(np.mean([r["rms_deg"][a] for r in rows])) for a in ("roll", "pitch", "yaw")}
 
 
 METRICS = ("total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg")
@@ -65,11 +74,8 @@ def benchmark_broad(data_dir, names=None, *, trials: str = "*", nav: str = "none
 
 def find_flights(data_dir) -> list[Path]:
     """DIDO HDF5 files and Blackbird folders anywhere under ``data_dir``."""
-    d = Path(data_dir)
-    if not d.is_dir():
-        raise ValueError(f"{data_dir}: no such folder")
     found = []
-    for p in sorted(d.rglob("*")):
+    for p in sorted(_folder(data_dir).rglob("*")):
         if p.is_dir() and (p / "data.hdf5").is_file() and (p / "stamped_groundtruth_imu.txt").is_file():
             found.append(p)
         elif p.is_file() and p.suffix.lower() in (".hdf5", ".h5") and p.name != "data.hdf5":
@@ -105,18 +111,15 @@ def benchmark_flights(data_dir, names=None, *, nav: str = "heading", progress: b
     bar.close()
     for n in names:
         rows = [v[n] for v in out["flights"].values()]
-        out["mean"][n] = {a: float(np.mean([r["rms_deg"][a] for r in rows])) for a in ("roll", "pitch", "yaw")}
+        out["mean"][n] = _axis_means(rows)
         out["mean"][n]["inclination_rmse_deg"] = float(np.mean([r["inclination_rmse_deg"] for r in rows]))
     return out
 
 
 def find_repoimu(data_dir) -> list[Path]:
     """RepoIMU trials (their ``;``-separated CSV files) anywhere under ``data_dir``."""
-    d = Path(data_dir)
-    if not d.is_dir():
-        raise ValueError(f"{data_dir}: no such folder")
     found = []
-    for p in sorted(d.rglob("*.csv")):
+    for p in sorted(_folder(data_dir).rglob("*.csv")):
         try:
             if detect_format(p) == "repoimu":
                 found.append(p)
@@ -153,7 +156,7 @@ def benchmark_repoimu(data_dir, names=None, *, progress: bool = False) -> dict:
     bar.close()
     for n in names:
         rows = [v[n] for v in out["trials"].values()]
-        out["mean"][n] = {a: float(np.mean([r["rms_deg"][a] for r in rows])) for a in ("roll", "pitch", "yaw")}
+        out["mean"][n] = _axis_means(rows)
         out["mean"][n]["total_rmse_deg"] = float(np.mean([r["total_rmse_deg"] for r in rows]))
     return out
 

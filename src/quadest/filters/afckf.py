@@ -61,6 +61,7 @@ from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
 from quadest.filters.common import (
     BASE,
+    Q_OUT,
     YAW_PENDING,
     admit,
     finite3,
@@ -71,6 +72,7 @@ from quadest.filters.common import (
     prepare,
     publish,
     q_to_euler,
+    wrap_angle,
 )
 from quadest.filters.linalg import inv_spd_into
 from quadest.rotation.kernels import FASTMATH, normalize_s, qdot_s
@@ -139,11 +141,6 @@ def coefficients(p: AfckfParams) -> Coefficients:
         rho=math.sqrt(0.75) * p.omega_d,  # eq 42: ρ = √(3/4) ω_d
         lam_m=p.alpha_m * math.sqrt(3.0) * p.mag_std,  # eq 49: λ_m
     )
-
-
-@njit(cache=True)
-def _wrap(a):
-    return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
 @njit(cache=True)
@@ -319,8 +316,8 @@ def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
         roll = np.arctan2(r21, r22)
         pitch = np.arcsin(min(1.0, max(-1.0, -r20)))
         psi_m = mag_heading(mag, roll, pitch)  # eqs 44-45, corrected (ν: declination of the run)
-        psi = psi + kappa * _wrap(psi_m - psi)  # eq 46 on the circle
-    psi = _wrap(psi)
+        psi = psi + kappa * wrap_angle(psi_m - psi)  # eq 46 on the circle
+    psi = wrap_angle(psi)
     x[IPSI] = psi
     # eqs 52-53: adaptive-window moving average on the circle
     head = int(x[IHEAD])
@@ -339,7 +336,7 @@ def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
     # output: roll and pitch of the Kalman channel, yaw of the yaw channel — the Kalman
     # channel's q_nb turned about the vertical by (yaw − its own yaw)
     yaw_kf = np.arctan2(2.0 * (bx * by + bw * bz), 1.0 - 2.0 * (by * by + bz * bz))
-    h = 0.5 * _wrap(yaw - yaw_kf)
+    h = 0.5 * wrap_angle(yaw - yaw_kf)
     ch, sh = np.cos(h), np.sin(h)
     x[0], x[1], x[2], x[3] = ch * bw - sh * bz, ch * bx - sh * by, ch * by + sh * bx, ch * bz + sh * bw
     diag[0], diag[1], diag[2], diag[3] = kappa, mu, r_off, float(win)
@@ -352,7 +349,7 @@ def afckf_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
         afckf_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
-        q_out[k] = x[0:4]
+        q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
 
 
 class Afckf(Estimator):

@@ -313,8 +313,6 @@ class Estimator:
         finite_t = t[np.isfinite(t)]
         if len(finite_t):
             self._x[T_LAST] = finite_t[-1]
-        if self.declination != 0.0:
-            q = quat_mul(_declination_quat(self.declination), q)
         return FilterResult(self.name, t, q, {nm: diag[:, i] for i, nm in enumerate(self.diag_names)},
                             self.params, int(self._x[SKIPPED] - skipped0), tuple(restarts))
 

@@ -57,6 +57,12 @@ def publish(x):
 
 
 @njit(cache=True, inline="always")
+def wrap_angle(a):
+    """An angle (rad) in [−π, π)."""
+    return (a + np.pi) % (2.0 * np.pi) - np.pi
+
+
+@njit(cache=True, inline="always")
 def within3(v, limit):
     """Every component finite and within ±limit."""
     return abs(v[0]) <= limit and abs(v[1]) <= limit and abs(v[2]) <= limit

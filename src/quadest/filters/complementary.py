@@ -26,7 +26,7 @@ from numba import njit
 
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, P, Params, params_record
-from quadest.filters.common import BASE, admit, finite3, layout, norm3, prepare, publish
+from quadest.filters.common import BASE, Q_OUT, admit, finite3, layout, norm3, prepare, publish
 from quadest.rotation.kernels import normalize_s, qdot_s, rotate_s
 
 S = layout(("bias", 3), ("gyr_prev", 3), ("have_prev", 1), start=BASE)
@@ -148,7 +148,7 @@ def complementary_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
         complementary_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
-        q_out[k] = x[0:4]
+        q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
 
 
 class Complementary(Estimator):

@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit
 
 from quadest.filters.base import Estimator, params_record
-from quadest.filters.common import admit, finite3, omega_matrix, prepare, publish
+from quadest.filters.common import Q_OUT, admit, finite3, omega_matrix, prepare, publish
 from quadest.filters.linalg import inv_spd, mm, mm_t, mv
 from quadest.filters.quatmeas import measurement_quaternion
 from quadest.filters.qukf import PB, QukfParams, S, coefficients, noise
@@ -64,7 +64,7 @@ def ekf_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
         ekf_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
-        q_out[k] = x[0:4]
+        q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
 
 
 class Ekf(Estimator):

@@ -31,7 +31,7 @@ from numba import njit
 
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
-from quadest.filters.common import BASE, admit, finite3, layout, norm3, prepare, publish
+from quadest.filters.common import BASE, Q_OUT, admit, finite3, layout, norm3, prepare, publish
 from quadest.filters.linalg import inv_spd, mm, mm_t, mv
 from quadest.rotation.kernels import FASTMATH, qexp, qexp_right, rot_matrix, skew
 
@@ -180,7 +180,7 @@ def kalman_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
         kalman_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
-        q_out[k] = x[0:4]
+        q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
 
 
 class Kalman(Estimator):

@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit
 
 from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
-from quadest.filters.common import BASE, admit, finite3, gravity_objective, norm3, prepare, publish
+from quadest.filters.common import BASE, Q_OUT, admit, finite3, gravity_objective, norm3, prepare, publish
 from quadest.rotation.kernels import normalize_s, qdot_s, rotate_s
 
 
@@ -101,7 +101,7 @@ def madgwick_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
         madgwick_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
-        q_out[k] = x[0:4]
+        q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
 
 
 class Madgwick(Estimator):

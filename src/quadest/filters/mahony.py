@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit
 
 from quadest.filters.base import Estimator, P, Params, params_record
-from quadest.filters.common import BASE, admit, finite3, layout, norm3, prepare, publish
+from quadest.filters.common import BASE, Q_OUT, admit, finite3, layout, norm3, prepare, publish
 from quadest.rotation.kernels import normalize_s, qdot_s, rotate_inv_s, rotate_s
 
 S = layout(("bias", 3), start=BASE)  # gyro bias estimate
@@ -90,7 +90,7 @@ def mahony_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
         mahony_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
-        q_out[k] = x[0:4]
+        q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
 
 
 class Mahony(Estimator):

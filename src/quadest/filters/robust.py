@@ -96,7 +96,7 @@ from numba import njit
 
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
-from quadest.filters.common import BASE, INIT, admit, layout, publish
+from quadest.filters.common import BASE, INIT, Q_OUT, admit, layout, publish, wrap_angle
 from quadest.rotation.kernels import FASTMATH, normalize_s, rotate_s
 
 DEG = math.pi / 180.0
@@ -244,11 +244,6 @@ def coefficients(p: RobustParams) -> Coefficients:
 def _qmul_s(a0, a1, a2, a3, b0, b1, b2, b3):
     return (a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3, a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
             a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1, a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0)
-
-
-@njit(cache=True, inline="always")
-def _wrap(a):
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 @njit(cache=True)
@@ -482,8 +477,8 @@ def robust_step(x, p, c, gyr, acc, mag, dt, diag):
             rate2 = u0 * u0 + u1 * u1 + u2 * u2
             if (not at_rest and nclip == 0 and n < 0.0
                     and p[PR.scale_max] ** 2 * rate2 <= p[PR.bias_motion_std] ** 2):
-                ang = 2.0 * math.atan2(math.sqrt(cx * cx + cy * cy), cw)
                 sn = math.sqrt(cx * cx + cy * cy)
+                ang = 2.0 * math.atan2(sn, cw)
                 sc = ang / sn / dt if sn > 1e-12 else 2.0 / dt
                 y_n, y_e = cx * sc, cy * sc  # E-frame rate of the correction, north and east
                 r = p[PR.bias_motion_std] * p[PR.bias_motion_std] * p[PR.tau_acc] / dt
@@ -576,13 +571,13 @@ def robust_step(x, p, c, gyr, acc, mag, dt, diag):
                 dm = -math.atan2(me1, me0)  # eq R2
                 x[S.mag_n] += 1.0
                 k = max(1.0 - math.exp(-mdt / tau), 1.0 / x[S.mag_n]) * gain_div
-                e = _wrap(dm - delta)
+                e = wrap_angle(dm - delta)
                 if x[S.mag_n] == 1.0:
                     ph = x[S.Rm] = 0.25  # first sample: the heading from one noisy field (0.5 rad chosen)
                 else:
                     x[S.Rm] += k_mlp * (e * e - x[S.Rm])
                     ph = (1.0 - k) ** 2 * ph + k * k * x[S.Rm]
-                delta = _wrap(delta + k * e)
+                delta = wrap_angle(delta + k * e)
                 mupd = 1.0
                 # the heading correction's rate measures the vertical drift of a bias error
                 if (p[PR.bias_from_heading] != 0.0 and x[S.mag_n] * k > 1.0 and nclip == 0 and not at_rest
@@ -611,7 +606,7 @@ def robust_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
         robust_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
-        q_out[k] = x[0:4]
+        q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
 
 
 class Robust(Estimator):
