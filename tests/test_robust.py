@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 
+from quadest.conventions import GRAVITY
 from quadest.filters import make_filter
 from quadest.filters.robust import S, UNKNOWN_HEADING_VAR, _mag_rate_terms
 from quadest.rotation import quat_conj, quat_from_rotvec, quat_mul, quat_rotate
@@ -110,13 +111,61 @@ def test_rate_from_the_field_least_squares():
     body) gives 15 rad/s from two samples 10 ms apart, up to the mid-point rule's own error: the
     chord's mid-point is ``cos(θ/2)`` inside the circle and the chord ``2 sin(θ/2)`` long, so the
     estimate is ``ω tan(θ/2) / (θ/2)`` (0.19 % high at θ = 0.15 rad)."""
-    x = np.zeros(S.end)
     w, dt = 15.0, 0.01
     m = [np.array([20.0 * math.cos(-w * t), 20.0 * math.sin(-w * t), 45.0]) for t in (0.0, dt)]
     c, d = 0.5 * (m[0] + m[1]), (m[1] - m[0]) / dt
-    _mag_rate_terms(x, 2, c[2], c[0], c[1], d[2], d[0], d[1], 0.0, 0.0, 1.0)
+    num, den = _mag_rate_terms(c[2], c[0], c[1], d[0], d[1], 0.0, 0.0)
     half = 0.5 * w * dt
-    assert x[S.mnum + 2] / x[S.mden + 2] == pytest.approx(w * math.tan(half) / half, rel=1e-9)
+    assert num / den == pytest.approx(w * math.tan(half) / half, rel=1e-9)
+
+
+def _clip_flags(true_rate, readings, dt=0.01, **kw):
+    """The clipped flag of the z axis for a body turning about z (down) at ``true_rate`` while its
+    gyro reads ``readings``; the magnetometer sees the earth's field (dip 67°) turn with it."""
+    f = make_filter("robust", **kw)
+    m_n = np.array([20.0, 0.0, 45.0])
+    psi, out = 0.0, []
+    for w, z in zip(true_rate, readings):
+        psi += w * dt
+        c, s = math.cos(psi), math.sin(psi)
+        m_b = np.array([c * m_n[0] + s * m_n[1], -s * m_n[0] + c * m_n[1], m_n[2]])
+        f.update(np.array([0.0, 0.0, z]), np.array([0.0, 0.0, -GRAVITY]), m_b, dt=dt)
+        out.append(f.get_state()[S.clipped + 2])
+    return np.array(out)
+
+
+def test_flat_top_detection_calibrated_both_signs_not_a_ramp_nor_a_steady_spin():
+    """Eq R4 and R4c's detection on readings as RepoIMU's calibration leaves them: limits of
+    +416.6 °/s and −421.6 °/s (the signs' limits differ), readings wandering by 0.2 % below them,
+    while the body turns at 10 rad/s. Each plateau is a clip once the field has shown the excess
+    (within a few samples, the field's noise learnt before), and the known limit at once the
+    next time. A ramp that sets a new
+    extreme at every sample is not; nor is a steady spin at 6 rad/s whose noisy readings form
+    a flat top at their fastest (the field shows no excess), nor a smooth peak whose quantised
+    reading repeats."""
+    rng = np.random.default_rng(1)
+    lim_p, lim_n = math.radians(416.6), -math.radians(421.6)
+    up = np.linspace(2.0, 10.0, 20)
+    lead = np.full(150, 1.0)  # the field's noise is learnt for clip_learn_tau first
+    true = np.concatenate([lead, up, np.full(30, 10.0), up[::-1], -up, np.full(30, -10.0), -up[::-1], up,
+                           np.full(30, 10.0)])
+    wander = 1.0 - 0.002 * rng.random(len(true))
+    reads = np.where(true > lim_p, lim_p * wander, np.where(true < lim_n, lim_n * wander, true))
+    flags = _clip_flags(true, reads)
+    over = (true > lim_p) | (true < lim_n)
+    assert flags[~over].sum() == 0
+    n, k = len(up), len(lead)
+    first_pos, first_neg, again = flags[k + n:k + n + 30], flags[k + 3 * n + 30:k + 3 * n + 60], flags[-30:]
+    assert first_pos[5:].all() and first_neg[5:].all() and again[1:].all(), (first_pos, first_neg, again)
+    ramp = np.linspace(5.0, 9.0, 400)  # 0.25 % per sample: flat within the spread, yet rising
+    assert _clip_flags(ramp, ramp).sum() == 0
+    steady = np.full(1000, 6.0)
+    assert _clip_flags(steady, steady + rng.normal(0.0, 0.005, 1000)).sum() == 0
+    # a smooth peak read in quantised steps (BROAD's 0.06 °/s) repeats its reading for a while
+    t = np.arange(400) * 0.01
+    peak = 4.5 + 0.5 * np.sin(0.8 * t)
+    step = math.radians(0.061)
+    assert _clip_flags(peak, np.round(peak / step) * step).sum() == 0
 
 
 def test_inclination_correction_is_the_shortest_rotation():
