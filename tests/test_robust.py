@@ -139,10 +139,9 @@ def test_flat_top_detection_calibrated_both_signs_not_a_ramp_nor_a_steady_spin()
     +416.6 °/s and −421.6 °/s (the signs' limits differ), readings wandering by 0.2 % below them,
     while the body turns at 10 rad/s. Each plateau is a clip once the field has shown the excess
     (within a few samples, the field's noise learnt before), and the known limit at once the
-    next time. A ramp that sets a new
-    extreme at every sample is not; nor is a steady spin at 6 rad/s whose noisy readings form
-    a flat top at their fastest (the field shows no excess), nor a smooth peak whose quantised
-    reading repeats."""
+    next time. A ramp that sets a new extreme at every sample is not; nor is a steady spin at
+    6 rad/s whose noisy readings form a flat top at their fastest (the field shows no excess),
+    nor a smooth peak whose quantised reading repeats."""
     rng = np.random.default_rng(1)
     lim_p, lim_n = math.radians(416.6), -math.radians(421.6)
     up = np.linspace(2.0, 10.0, 20)

@@ -359,8 +359,8 @@ def _clip_rate_update(x, p, i, num, den, wi, mdt, kl):
     second, a clean one (a hand-held stick's) followed within a sample or two.
 
     Eq R4c: on a flat top not yet confirmed a clip (``flat``), once ``V`` has been learnt for
-    ``clip_learn_tau``, the field's rate in excess of the reading, ``s (num / den − wi)`` (``s`` the reading's sign) with variance ``V / den²``, is
-    summed with inverse-variance weights; once ``Σ excess den²/V / sqrt(Σ den²/V)`` passes
+    ``clip_learn_tau``, the field's rate in excess of the reading, ``s (num / den − wi)`` (``s``
+    the reading's sign) with variance ``V / den²``, is summed with inverse-variance weights; once ``Σ excess den²/V / sqrt(Σ den²/V)`` passes
     ``clip_confirm`` standard errors, and the weighted mean excess the top's spread
     (``clip_flat``), the top's level is the axis's limit for that sign."""
     if x[S.gclip + i] == 0.0:
@@ -676,11 +676,12 @@ def robust_step(x, p, c, gyr, acc, mag, dt, diag):
     # eq R7: a sustained spin drifts the heading by the scale-factor error times its rate
     spin = abs(x[S.spin])
     tau = p[PR.tau_mag] / (1.0 + max(0.0, spin - p[PR.spin_min]) / p[PR.spin_rate])
+    # a clipped axis's rate error turns the heading by its share about down (the cosine between
+    # the axis and down, squared): a spin's vertical axis fully, a stick's horizontal one not at
+    # all (there it is the tilt that errs, and the field's heading with it)
+    s0, s1, s2 = h20 * h20 * x[S.clipped], h21 * h21 * x[S.clipped + 1], h22 * h22 * x[S.clipped + 2]
     if nclip:
-        # a clipped axis's rate error turns the heading by its share about down (the cosine
-        # between the axis and down, squared): a spin's vertical axis fully, a stick's horizontal
-        # one not at all (there it is the tilt that errs, and the field's heading with it)
-        share = h20 * h20 * x[S.clipped] + h21 * h21 * x[S.clipped + 1] + h22 * h22 * x[S.clipped + 2]
+        share = s0 + s1 + s2
         if share > 0.0:
             tau = min(tau, p[PR.clip_heading_tau] / min(1.0, share))
     ph = x[S.Ph]
@@ -692,8 +693,7 @@ def robust_step(x, p, c, gyr, acc, mag, dt, diag):
                + h22 * (x[S.Pb + 6] * h20 + x[S.Pb + 7] * h21 + x[S.Pb + 8] * h22))
         drift2 = pbv + (p[PR.scale_max] * spin) ** 2
         if nclip:  # a clipped axis's rate error (its variance from eq R4b) seen about down
-            drift2 += (h20 * h20 * x[S.Pw] * x[S.clipped] + h21 * h21 * x[S.Pw + 1] * x[S.clipped + 1]
-                       + h22 * h22 * x[S.Pw + 2] * x[S.clipped + 2])
+            drift2 += s0 * x[S.Pw] + s1 * x[S.Pw + 1] + s2 * x[S.Pw + 2]
         ph += (c[CO.sg2] + tau * drift2) * dt
     delta = x[S.delta]
     mupd = 0.0
