@@ -179,6 +179,61 @@ def test_inclination_correction_is_the_shortest_rotation():
     assert abs(math.atan2(fwd[1], fwd[0])) < abs(math.atan2(f[1], f[0]))  # no spurious heading
 
 
+def _onset(turning=0.0, theta_deg=9.0, still=0.02, ramp=0.1, duration=2.0, rate=500.0, seed=0):
+    """A vehicle still and level for ``still`` s that then pitches by ``theta_deg`` over
+    ``ramp`` s and holds, its thrust along body z keeping the height (``f_b = [0, 0, −g/cos θ]``:
+    a sustained horizontal acceleration of g tan θ); the bebop2 preset's noise (gyro 0.01 rad/s,
+    accelerometer 0.25 m/s² a sample at 500 Hz). ``turning`` adds a constant body-z rate to the
+    gyro readings (rad/s) for a start that is not still."""
+    rng = np.random.default_rng(seed)
+    n = int(duration * rate)
+    t = np.arange(n) / rate
+    th = math.radians(theta_deg) * np.clip((t - still) / ramp, 0.0, 1.0)
+    rate_y = np.where((t >= still) & (t < still + ramp), math.radians(theta_deg) / ramp, 0.0)
+    gyr = np.c_[np.zeros(n), rate_y, np.full(n, turning)] + rng.normal(0.0, 0.01, (n, 3))
+    acc = np.c_[np.zeros(n), np.zeros(n), -GRAVITY / np.cos(th)] + rng.normal(0.0, 0.25, (n, 3))
+    q = np.c_[np.cos(th / 2), np.zeros(n), np.sin(th / 2), np.zeros(n)]
+    return t, gyr, acc, q
+
+
+def test_initial_averaging_ends_at_a_sustained_acceleration():
+    """Eq R8: a start that is still and then accelerates for good. The running mean would take
+    the tilted thrust for the vertical (9° off after 2 s); the averaging ends once the recent
+    specific force leaves the mean by 0.5 m/s² (2.9°), and the low-pass starts from the mean
+    as it was before, which holds at most the ramp's first half (4.5°); τ_acc (4 s) then adds
+    under 0.5° by 2 s."""
+    t, gyr, acc, q = _onset()
+    tilt = {}
+    for name, kw in (("on", {}), ("off", {"init_acc": 1e6})):
+        est = make_filter("robust", **kw)
+        res = est.run(t=t, gyr=gyr, acc=acc)
+        e = _rotvec_error(q, res.q)
+        tilt[name] = np.degrees(np.hypot(e[:, 0], e[:, 1]))
+        assert est.get_state()[S.moved] == (1.0 if name == "on" else 0.0)
+    late = t >= 0.5
+    assert tilt["on"][late].max() < 4.5, tilt["on"][late].max()
+    assert tilt["off"][-1] > 7.0, tilt["off"][-1]
+
+
+def test_initial_averaging_kept_in_hover_noise_and_for_a_start_in_motion():
+    """Eq R8 needs a still start and a change beyond the noise: a level, still vehicle with the
+    bebop2 preset's noise and a 1 m/s² vibration at 90 Hz on every axis averages for its full
+    τ_acc (4 s), and so does a log that begins turning (17 °/s at its first sample, above the
+    rest bound of 6.9 °/s), whose first samples are no still reference, even with the same
+    sustained acceleration."""
+    t, gyr, acc, _ = _onset(theta_deg=0.0, duration=5.0)
+    acc = acc + np.sin(2 * math.pi * 90.0 * t)[:, None] * np.ones(3)
+    est = make_filter("robust")
+    est.run(t=t, gyr=gyr, acc=acc)
+    x = est.get_state()
+    assert x[S.moved] == 0.0 and x[S.mean_n] == -1.0  # ended by time, not by an acceleration
+    t, gyr, acc, _ = _onset(turning=0.3)
+    est = make_filter("robust")
+    est.run(t=t, gyr=gyr, acc=acc)
+    x = est.get_state()
+    assert x[S.moved] == -1.0 and x[S.mean_n] == len(t)  # still averaging after 2 s
+
+
 def test_lever_arm_removes_the_centripetal_acceleration():
     """Eq (7): an IMU 3 cm from the centre of gravity of a level vehicle spinning at 15 rad/s
     reads a centripetal 6.75 m/s² (34° of apparent tilt on the first sample); given the lever
@@ -261,3 +316,21 @@ def test_six_axis_reports_an_unknown_heading():
     rec = simulate("hover", "bebop2", seed=8, duration=5.0)
     res = make_filter("robust", use_mag=False).run(rec)
     assert np.all(res.diag["var_heading"] == UNKNOWN_HEADING_VAR)
+
+
+def test_estimate_runs_robust_by_default(tmp_path):
+    """``quadest estimate FILE -o OUT`` without ``--filter`` writes ``robust``'s attitude, the
+    same as the library's batch run (Parquet keeps float64 exactly)."""
+    import pyarrow.parquet as pq
+
+    from quadest import save_recording
+    from quadest.cli.main import main
+
+    rec = simulate("hover", "bebop2", seed=5, duration=3.0)
+    src, out = tmp_path / "f.parquet", tmp_path / "att.parquet"
+    save_recording(rec, src)
+    assert main(["estimate", str(src), "-o", str(out)]) == 0
+    t = pq.read_table(out)
+    q = np.column_stack([t.column(c).to_numpy() for c in ("q_w", "q_x", "q_y", "q_z")])
+    ref = make_filter("robust", declination=rec.declination).run(rec).q
+    assert np.allclose(q, ref, atol=1e-12)

@@ -198,8 +198,9 @@ def add_parsers(sub):
                         description="Run an estimator over a recording (any supported format) and write t, q_w, "
                                     "q_x, q_y, q_z, roll, pitch, yaw (radians) to .csv or .parquet.")
     es.add_argument("file", type=Path, help="recording: any supported format (docs/readers.md)")
-    es.add_argument("--filter", required=True, choices=list(FILTERS) + list(PEERS),
-                    help="estimator: quadest's, or a peer with quadest[peers] installed")
+    es.add_argument("--filter", default="robust", choices=list(FILTERS) + list(PEERS),
+                    help="estimator: quadest's, or a peer with quadest[peers] installed (default: robust, "
+                         "quadest's own; docs/estimators.md)")
     es.add_argument("-o", "--output", required=True, metavar="OUT", help=".csv or .parquet")
     es.add_argument("--param", action="append", metavar="FILTER.NAME=VALUE", help="estimator parameter")
     es.add_argument("--diagnostics", action="store_true",

@@ -17,7 +17,8 @@ conventions (NED / FRD, ``q_nb``):
 3. **Heading as a separate offset** about the down axis, ``q_nb = Rz(δ) ⊗ q_EI ⊗ q_Ib``: the
    magnetometer in E, ``m_E = R(q_EI ⊗ q_Ib) m``, gives ``δ_m = −atan2(m_E,y, m_E,x)`` (eq R2),
    and ``δ ← δ + k wrap(δ_m − δ)`` with ``k = max(1 − exp(−Δt_m / τ_ψ), 1 / n)`` (the first n
-   samples are averaged, so the start converges at once). The same filter gives the 6-axis
+   samples are averaged, so the start converges at once, until eq R8 ends the averaging:
+   item 11). The same filter gives the 6-axis
    attitude (δ held) and the 9-axis one; the magnetometer never tilts the estimate.
 4. **Gyro bias** by a small Kalman filter on ``b`` (body, 3 states, covariance ``P_b``):
    - at rest (every sample of gyro and accelerometer within ``rest_gyr`` / ``rest_acc`` of
@@ -95,6 +96,23 @@ What VQF lacks and a quadcopter needs (quadest's additions):
     the vertical bias's ``h P_b hᵀ``, plus ``(scale_max |lp(ω_D)|)²`` for the spin's
     scale-factor drift, plus a clipped axis's rate variance (eq R4b) seen about down. Without a
     magnetometer ``P_ψ`` is ``π²/3`` (heading unknown, uniform).
+11. **The initial averaging ends at a sustained acceleration** (eq R8). Items 2 and 3 average
+    their first samples (a running mean for ``τ_acc``, ``1 / n`` for ``τ_ψ``), which assumes
+    no acceleration lasts. A vehicle that starts still and then accelerates for seconds (a
+    circle flown from hover: 9° of centripetal tilt within 0.25 s) would put that
+    acceleration into the mean, and its tilt error through the field's dip into the heading
+    (67°: 12° of heading). So while averaging, the specific force's mean over the last
+    ``init_tau``, ``s`` (a running mean for the first ``init_tau``), is compared with the mean
+    so far, ``ȳ``: once ``‖s − ȳ‖² > max(init_acc², 16.3 σ² (k/(2 − k) + 1/n))`` (σ² the
+    per-sample noise of ``f_I`` from successive differences, ``var(f_k − f_k−1) = 2 σ²``;
+    ``k/(2 − k)`` and ``1/n`` the variances of the two means in units of σ²; 16.3 the 99.9 %
+    point of χ² with 3 degrees of freedom), both averagings end: the inclination's low-pass
+    starts at the mean as it was when ``‖s − ȳ‖`` was last within half the threshold (before
+    the acceleration began) and the heading continues with ``1 − exp(−Δt_m / τ_ψ)``. Only a
+    start that is still has such a reference: if the first gyro sample exceeds the rest
+    detection's bound (``√3 (bias_clip + rest_gyr)``, 6.9 °/s) the averaging runs its course
+    (a log that begins in flight: Blackbird's val segment, 27° off at its first sample,
+    converges within 2 s by the averaging and within 8 s without it).
 """
 from __future__ import annotations
 
@@ -120,12 +138,17 @@ S = layout(("qg", 4),  # q_Ib: gyro strapdown, body -> almost-inertial frame I
            ("lpy", 3),  # the low-pass output (f_I filtered)
            ("mean_n", 1),  # samples in the initial averaging (until τ_acc has passed)
            ("coef_dt", 1),  # Δt the cached coefficients were computed for
-           ("coef", 8),  # b0, a1, a2, k_acc, k_rest, k_mag_lp, spare, spare
+           ("coef", 8),  # b0, a1, a2, k_acc, k_rest, k_mag_lp, k_init, spare
            ("bias", 3),  # gyro bias, body, rad/s
            ("Pb", 9),  # its covariance, row-major
            ("rest_g", 3), ("rest_a", 3),  # low-passed gyro and accelerometer for rest detection
            ("rest_t", 1),  # time at rest so far, s
            ("mag_n", 1),  # magnetometer updates so far (initial averaging of the heading)
+           ("moved", 1),  # 1: the initial averaging ended at an acceleration (eq R8); -1: started turning
+           ("ys", 3),  # f_I low-passed over init_tau during the initial averaging
+           ("fprev", 3),  # the previous f_I (its noise from successive differences)
+           ("yok", 3),  # the mean when the recent specific force was last within half the threshold
+           ("fvar", 1),  # mean square of f_I's noise, summed over the axes (m²/s⁴)
            ("mag_dt", 1),  # time since the last magnetometer sample, s
            ("ref", 2),  # reference field norm (magnetometer's unit) and dip (rad); norm 0: not set
            ("cur", 2),  # low-passed current norm and dip
@@ -263,6 +286,11 @@ class RobustParams(Params):
     lever_z: float = P(0.0, "m", "IMU position from the centre of gravity, down", "chosen: unknown, none",
                        bounds="[-10, 10]")
     mag_latency_s: float = P(0.0, "s", "age of a magnetometer sample", "chosen: unknown, none", bounds="[0, 1]")
+    init_tau: float = P(0.05, "s", "the initial averaging: time constant of the recent specific force compared with "
+                        "its mean (eq R8)", "chosen: a maneuver's onset within a few tens of ms, the noise averaged "
+                        "over 25 samples at 500 Hz", bounds="(0, 100]")
+    init_acc: float = P(0.5, "m/s²", "the initial averaging ends once the recent specific force leaves its mean by "
+                        "this much (eq R8)", "chosen: VQF's rest threshold (rest_acc)", bounds="[0, 1e6]")
     gravity: float = P(GRAVITY, "m/s²", "gravity", "standard gravity", bounds="(0, 100]")
 
 
@@ -298,6 +326,7 @@ def _coefficients(x, p, dt):
     x[S.coef + 3] = 1.0 - math.exp(-dt / p[PR.tau_acc])  # first-order equivalent gain
     x[S.coef + 4] = 1.0 - math.exp(-dt / p[PR.rest_tau])
     x[S.coef + 5] = 1.0 - math.exp(-dt / p[PR.mag_lp_tau])
+    x[S.coef + 6] = 1.0 - math.exp(-dt / p[PR.init_tau])
 
 
 @njit(cache=True, inline="always")
@@ -620,7 +649,31 @@ def robust_step(x, p, c, gyr, acc, mag, dt, diag):
             y1 = x[S.lpy + 1] + (fI1 - x[S.lpy + 1]) / n
             y2 = x[S.lpy + 2] + (fI2 - x[S.lpy + 2]) / n
             kk = max(k_acc, 1.0 / n)
-            if n * dt >= p[PR.tau_acc]:
+            # eq R8 (item 11): the averaging assumes no sustained acceleration; the specific
+            # force's mean over the last init_tau leaving the mean so far by more than init_acc
+            # and than its noise allows (χ²(3) at 99.9 %: 16.3 times the variance of the
+            # difference) ends it, for a start that was still
+            ks = max(x[S.coef + 6], 1.0 / n)
+            x[S.ys] += ks * (fI0 - x[S.ys])
+            x[S.ys + 1] += ks * (fI1 - x[S.ys + 1])
+            x[S.ys + 2] += ks * (fI2 - x[S.ys + 2])
+            if n > 1.0:  # successive differences: var(f_k - f_k-1) = 2 σ²
+                e0, e1, e2 = fI0 - x[S.fprev], fI1 - x[S.fprev + 1], fI2 - x[S.fprev + 2]
+                x[S.fvar] += (0.5 * (e0 * e0 + e1 * e1 + e2 * e2) - x[S.fvar]) / (n - 1.0)
+            x[S.fprev], x[S.fprev + 1], x[S.fprev + 2] = fI0, fI1, fI2
+            if n == 1.0 and gyr[0] ** 2 + gyr[1] ** 2 + gyr[2] ** 2 > 3.0 * (p[PR.bias_clip] + p[PR.rest_gyr]) ** 2:
+                x[S.moved] = -1.0  # started turning: no still reference, the whole averaging
+            # against the mean as it was when the recent force last agreed with it (within half
+            # the threshold): a slow onset, which the mean would follow, still shows in full
+            dy0, dy1, dy2 = x[S.ys] - x[S.yok], x[S.ys + 1] - x[S.yok + 1], x[S.ys + 2] - x[S.yok + 2]
+            dev2 = dy0 * dy0 + dy1 * dy1 + dy2 * dy2
+            thr2 = max(p[PR.init_acc] * p[PR.init_acc], 16.3 * x[S.fvar] * (ks / (2.0 - ks) + 1.0 / n))
+            if n == 1.0 or dev2 <= 0.25 * thr2:
+                x[S.yok], x[S.yok + 1], x[S.yok + 2] = y0, y1, y2
+            elif x[S.moved] == 0.0 and dev2 > thr2:
+                x[S.moved] = 1.0  # the low-pass starts from the mean before the acceleration
+                y0, y1, y2 = x[S.yok], x[S.yok + 1], x[S.yok + 2]
+            if n * dt >= p[PR.tau_acc] or x[S.moved] > 0.0:
                 n = -1.0
                 for i, yi in enumerate((y0, y1, y2)):  # the low-pass starts in steady state at the mean
                     x[S.lp + 2 * i] = yi - b0 * yi
@@ -749,7 +802,10 @@ def robust_step(x, p, c, gyr, acc, mag, dt, diag):
             if gain_div > 0.0 and mh > 0.0:
                 dm = -math.atan2(me1, me0)  # eq R2
                 x[S.mag_n] += 1.0
-                k = max(1.0 - math.exp(-mdt / tau), 1.0 / x[S.mag_n]) * gain_div
+                k = 1.0 - math.exp(-mdt / tau)
+                if x[S.moved] <= 0.0 or x[S.mag_n] == 1.0:
+                    k = max(k, 1.0 / x[S.mag_n])
+                k *= gain_div
                 e = wrap_angle(dm - delta)
                 if x[S.mag_n] == 1.0:
                     ph = x[S.Rm] = 0.25  # first sample: the heading from one noisy field (0.5 rad chosen)
@@ -759,7 +815,8 @@ def robust_step(x, p, c, gyr, acc, mag, dt, diag):
                 delta = wrap_angle(delta + k * e)
                 mupd = 1.0
                 # the heading correction's rate measures the vertical drift of a bias error
-                if (p[PR.bias_from_heading] != 0.0 and x[S.mag_n] * k > 1.0 and nclip == 0 and not at_rest
+                steady = x[S.mag_n] * k > 1.0 or x[S.moved] > 0.0
+                if (p[PR.bias_from_heading] != 0.0 and steady and nclip == 0 and not at_rest
                         and x[S.disturbed] == 0.0):  # steady state only: not the initial averaging (k = 1/n)
                     r = p[PR.bias_heading_std] * p[PR.bias_heading_std] * tau / mdt
                     _bias_update(x, h20, h21, h22, -(k * e) / mdt, r, clip_b, 0.25 * k)
