@@ -618,9 +618,9 @@ def robust_step(x, p, c, gyr, acc, mag, dt, diag):
     # every sample must be within the thresholds (as VQF's): a mean square would take a slow
     # translation for rest (BROAD's trial 11: 1.1° -> 2.6°)
     rg0, rg1, rg2 = x[S.rest_g], x[S.rest_g + 1], x[S.rest_g + 2]
+    rest_rate2 = 3.0 * (p[PR.bias_clip] + p[PR.rest_gyr]) ** 2  # the largest squared rate at rest
     still = (dg <= p[PR.rest_gyr] * p[PR.rest_gyr] and da <= p[PR.rest_acc] * p[PR.rest_acc]
-             and nclip == 0
-             and rg0 * rg0 + rg1 * rg1 + rg2 * rg2 <= 3.0 * (p[PR.bias_clip] + p[PR.rest_gyr]) ** 2)
+             and nclip == 0 and rg0 * rg0 + rg1 * rg1 + rg2 * rg2 <= rest_rate2)
     x[S.rest_t] = x[S.rest_t] + dt if still else 0.0
     at_rest = x[S.rest_t] >= p[PR.rest_time]
     # bias covariance: random walk; the variance capped at the initial one (the vertical axis is
@@ -653,26 +653,28 @@ def robust_step(x, p, c, gyr, acc, mag, dt, diag):
             # force's mean over the last init_tau leaving the mean so far by more than init_acc
             # and than its noise allows (χ²(3) at 99.9 %: 16.3 times the variance of the
             # difference) ends it, for a start that was still
-            ks = max(x[S.coef + 6], 1.0 / n)
-            x[S.ys] += ks * (fI0 - x[S.ys])
-            x[S.ys + 1] += ks * (fI1 - x[S.ys + 1])
-            x[S.ys + 2] += ks * (fI2 - x[S.ys + 2])
-            if n > 1.0:  # successive differences: var(f_k - f_k-1) = 2 σ²
-                e0, e1, e2 = fI0 - x[S.fprev], fI1 - x[S.fprev + 1], fI2 - x[S.fprev + 2]
-                x[S.fvar] += (0.5 * (e0 * e0 + e1 * e1 + e2 * e2) - x[S.fvar]) / (n - 1.0)
-            x[S.fprev], x[S.fprev + 1], x[S.fprev + 2] = fI0, fI1, fI2
-            if n == 1.0 and gyr[0] ** 2 + gyr[1] ** 2 + gyr[2] ** 2 > 3.0 * (p[PR.bias_clip] + p[PR.rest_gyr]) ** 2:
+            if n == 1.0 and gyr[0] ** 2 + gyr[1] ** 2 + gyr[2] ** 2 > rest_rate2:
                 x[S.moved] = -1.0  # started turning: no still reference, the whole averaging
-            # against the mean as it was when the recent force last agreed with it (within half
-            # the threshold): a slow onset, which the mean would follow, still shows in full
-            dy0, dy1, dy2 = x[S.ys] - x[S.yok], x[S.ys + 1] - x[S.yok + 1], x[S.ys + 2] - x[S.yok + 2]
-            dev2 = dy0 * dy0 + dy1 * dy1 + dy2 * dy2
-            thr2 = max(p[PR.init_acc] * p[PR.init_acc], 16.3 * x[S.fvar] * (ks / (2.0 - ks) + 1.0 / n))
-            if n == 1.0 or dev2 <= 0.25 * thr2:
-                x[S.yok], x[S.yok + 1], x[S.yok + 2] = y0, y1, y2
-            elif x[S.moved] == 0.0 and dev2 > thr2:
-                x[S.moved] = 1.0  # the low-pass starts from the mean before the acceleration
-                y0, y1, y2 = x[S.yok], x[S.yok + 1], x[S.yok + 2]
+            if x[S.moved] == 0.0:
+                k_init = x[S.coef + 6]
+                ks = max(k_init, 1.0 / n)
+                x[S.ys] += ks * (fI0 - x[S.ys])
+                x[S.ys + 1] += ks * (fI1 - x[S.ys + 1])
+                x[S.ys + 2] += ks * (fI2 - x[S.ys + 2])
+                if n > 1.0:  # successive differences: var(f_k - f_k-1) = 2 σ²
+                    e0, e1, e2 = fI0 - x[S.fprev], fI1 - x[S.fprev + 1], fI2 - x[S.fprev + 2]
+                    x[S.fvar] += (0.5 * (e0 * e0 + e1 * e1 + e2 * e2) - x[S.fvar]) / (n - 1.0)
+                x[S.fprev], x[S.fprev + 1], x[S.fprev + 2] = fI0, fI1, fI2
+                # against the mean as it was when the recent force last agreed with it (within
+                # half the threshold): a slow onset, which the mean would follow, still shows in full
+                dy0, dy1, dy2 = x[S.ys] - x[S.yok], x[S.ys + 1] - x[S.yok + 1], x[S.ys + 2] - x[S.yok + 2]
+                dev2 = dy0 * dy0 + dy1 * dy1 + dy2 * dy2
+                thr2 = max(p[PR.init_acc] * p[PR.init_acc], 16.3 * x[S.fvar] * (ks / (2.0 - ks) + 1.0 / n))
+                if n == 1.0 or dev2 <= 0.25 * thr2:
+                    x[S.yok], x[S.yok + 1], x[S.yok + 2] = y0, y1, y2
+                elif dev2 > thr2:
+                    x[S.moved] = 1.0  # the low-pass starts from the mean before the acceleration
+                    y0, y1, y2 = x[S.yok], x[S.yok + 1], x[S.yok + 2]
             if n * dt >= p[PR.tau_acc] or x[S.moved] > 0.0:
                 n = -1.0
                 for i, yi in enumerate((y0, y1, y2)):  # the low-pass starts in steady state at the mean
