@@ -13,7 +13,7 @@ $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
-$(VENV)/.installed: pyproject.toml | $(BIN)/python
+$(VENV)/.installed: pyproject.toml setup.py src/quadest/filters/_stream.c | $(BIN)/python
 	@echo "==> installing quadest and its dependencies into $(VENV)"
 	$(BIN)/python -m pip install --quiet -e .
 	@touch $@
@@ -33,6 +33,7 @@ test: $(VENV)/.installed-test
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache
+	find src -name '*.so' -delete  # the streaming extension, built in place by the editable install
 
 # compiled code is cached per hash of the source (src/quadest/_cache.py), so an edit never
 # reuses stale machine code; this removes every cached folder

@@ -27,6 +27,7 @@ from quadest.evaluation import reproduce as R
 from quadest.evaluation.compare import compare, format_tables, parse_params
 from quadest.evaluation.runner import estimator_names, filter_notes
 from quadest.evaluation.speed import benchmark_speed
+from quadest.filters.base import STREAM_C
 from quadest.filters import FILTERS
 from quadest.flight import fly
 from quadest.flight.throw import ThrowParams
@@ -232,8 +233,10 @@ def cmd_benchmark(args):
     names = estimator_names(args.filters, all_includes_peers=True)
     if args.what == "speed":
         say(f"µs per sample on {args.duration:g} s of a simulated damaged-rotor flight (bebop2), one core; "
-            "batch: best of 3 after a warm-up; streaming: update() called from Python. Peers: their "
-            "whole-recording call (the same Python loop per sample for imufusion and ahrs)")
+            "batch: best of 3 after a warm-up; streaming: update() called from Python ("
+            + ("in C: the extension _stream" if STREAM_C else "through Python: the C extension _stream is not "
+               "built here, reinstall with a C compiler")
+            + "). Peers: their whole-recording call (the same Python loop per sample for imufusion and ahrs)")
         say(f"{'filter':<15}{'batch':>10}{'streaming':>12}")
         res = benchmark_speed(names, args.duration,
                               on_result=lambda n, r: say(f"{n:<15}{r['batch_us']:>10.3f}{r['stream_us']:>12.2f}"))

@@ -9,6 +9,7 @@ import numpy as np
 
 from quadest.filters.peers import run_peer
 from quadest.filters import FILTERS, make_filter
+from quadest.filters.base import STREAM_C
 from quadest.recovery.logic import RecoveryParams, _run_bank, shortest_arc
 from quadest.recovery.sphere import spread_points
 from quadest.rotation.frames import vec_frd_to_flu
@@ -110,4 +111,5 @@ def benchmark_speed(names, duration: float = 60.0, on_result=None) -> dict:
             out[name] = _peer_speed(name, rec)
         if on_result is not None:
             on_result(name, out[name])
-    return {"samples": len(rec), "filters": out, "recovery_bank_40_us": time_bank(40)}
+    return {"samples": len(rec), "filters": out, "recovery_bank_40_us": time_bank(40),
+            "streaming_in_c": STREAM_C}

@@ -55,7 +55,7 @@ from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import carray, njit
 
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
@@ -352,6 +352,16 @@ def afckf_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
         q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
 
 
+def afckf_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
+    """Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address)."""
+    try:
+        afckf_step(carray(x, nx), carray(p, n_p), carray(c, nc), carray(gyr, 3), carray(acc, 3), carray(mag, 3),
+                   dt, carray(diag, nd))
+    except Exception:  # noqa: BLE001 -- a C callback cannot raise: the C call does, from the status
+        return 1
+    return 0
+
+
 class Afckf(Estimator):
     """The AFCKF. Diagnostics per sample: the fuzzy gain ``kappa``, the step ``mu``,
     ``r_off`` (1 when the measurement noise was switched off), the averaging ``window`` and the
@@ -365,3 +375,4 @@ class Afckf(Estimator):
     diag_names = ("kappa", "mu", "r_off", "window", "bias_x", "bias_y", "bias_z")
     step = staticmethod(afckf_step)
     batch = staticmethod(afckf_run)
+    stream = staticmethod(afckf_stream)

@@ -12,11 +12,13 @@ An estimator module defines (docs/developing.md, adding an estimator):
 - its state layout (:func:`quadest.filters.common.layout`), the names of its per-sample
   diagnostics;
 - a compiled ``step(x, p, c, gyr, acc, mag, dt, diag)`` that is its single implementation, a
-  compiled ``batch`` loop that calls that step for every sample, and a subclass of
-  :class:`Estimator`.
+  compiled ``batch`` loop that calls that step for every sample, a ``stream`` function that
+  calls the step on raw buffers (compiled as a C callback on first streaming use,
+  :func:`stream_address`), and a subclass of :class:`Estimator`.
 
-Streaming ``update`` calls the step once; batch ``run`` calls the loop. (Each module has its own
-four-line loop: numba cannot cache one loop that takes the step as an argument.)
+Streaming ``update`` calls the step once (from C where the extension ``_stream`` is built:
+:data:`STREAM_C`); batch ``run`` calls the loop. (Each module has its own four-line loop and
+stream function: numba cannot cache one that takes the step as an argument.)
 
 Conventions (:mod:`quadest.conventions`): ``q_nb`` scalar first, NED/FRD, SI units. Estimators
 work in the magnetic NED frame (x towards magnetic north); ``declination`` (rad, east positive)
@@ -30,6 +32,7 @@ from collections import namedtuple
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
+from numba import cfunc, types
 
 from quadest.errors import UsageError
 from quadest.filters.common import BASE, DECL, INIT, Q_OUT, RESTARTS, SKIPPED, T_LAST
@@ -130,6 +133,7 @@ class Estimator:
     diag_names: tuple = ()
     step = None
     batch = None
+    stream = None
 
     def __init__(self, params: Params | None = None, *, q0=None, declination: float = 0.0,
                  max_gap_s: float | None = None, **overrides):
@@ -144,10 +148,8 @@ class Estimator:
         check(params, self.name)
         if not math.isfinite(declination):
             raise UsageError(f"{self.name}: declination must be a finite angle in rad, got {float(declination)!r}")
-        if max_gap_s is not None and not (math.isfinite(max_gap_s) and max_gap_s > 0):
-            raise UsageError(f"{self.name}: max_gap_s must be a positive number of seconds, got {max_gap_s!r}")
+        self._s = np.array([0.01, STREAM_GAP_S])  # streaming: the last interval, the longest (C reads both)
         self.max_gap_s = max_gap_s
-        self._dt_prev = 0.01
         self.params = params
         values = params.values()
         self._p = pack(values[f] for f in self.Record._fields)  # read by name in compiled code
@@ -177,6 +179,7 @@ class Estimator:
         self._set_declination(x)
         self._x = x
         self._qv = x[Q_OUT:Q_OUT + 4]  # a view of the published attitude (the streaming output copies it)
+        self.__dict__.pop("update", None)  # the C call held the old state: made again at the next update
 
     def _set_declination(self, x):
         """The declination's half-angle cosine and sine, and the published attitude from them."""
@@ -213,6 +216,21 @@ class Estimator:
             raise ValueError(f"{self.name}: state must have shape ({self.state_size},), got {x.shape}")
         self._x = x.copy()
         self._qv = self._x[Q_OUT:Q_OUT + 4]
+        self.__dict__.pop("update", None)  # the C call held the old state: made again at the next update
+
+    @property
+    def max_gap_s(self) -> float | None:
+        """Streaming: an interval longer than this (s) is a gap after which the estimator starts
+        again from the sensors; None: :data:`STREAM_GAP_S`. In batch use, None means ten nominal
+        intervals and at least :data:`GAP_MIN_S`."""
+        return self._max_gap_s
+
+    @max_gap_s.setter
+    def max_gap_s(self, value):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise UsageError(f"{self.name}: max_gap_s must be a positive number of seconds, got {value!r}")
+        self._max_gap_s = value
+        self._s[1] = value or STREAM_GAP_S
 
     @property
     def q(self) -> np.ndarray:
@@ -227,16 +245,20 @@ class Estimator:
         (:attr:`skipped`); after a gap longer than ``max_gap_s`` (default
         ``STREAM_GAP_S``) the estimator starts again from the sensors (:attr:`restarts`).
 
-        The common case (an interval within the gap, three contiguous float64 vectors) costs
-        a few attribute tests before the compiled step: each check below is what a wrong input
-        would otherwise turn into wrong memory reads in compiled code."""
-        if not 0.0 < dt <= (self.max_gap_s or STREAM_GAP_S):
+        This method is the rules; after the first call, the object's ``update`` is the C call
+        of the extension ``_stream`` (where it is built, :data:`STREAM_C`), which does the
+        common case (a float interval within the gap, three contiguous native float64 vectors,
+        the magnetometer's may be None) itself and hands every other call to this method with
+        the same arguments. Each check below is what a wrong input would otherwise turn into
+        wrong memory reads in compiled code."""
+        s = self._s
+        if not 0.0 < dt <= s[1]:
             if dt > 0.0:  # a gap: start again; the first sample after it spans a nominal interval
                 self._restart()
-                dt = self._dt_prev
+                dt = s[0]
             dt = float(dt)  # refuses what is not a number; NaN and ≤ 0 are skipped by the step
         else:
-            self._dt_prev = dt
+            s[0] = dt
         if not (type(gyr) is _ND and gyr.dtype is _F8 and gyr.strides == _ST and len(gyr) == 3):
             gyr = _vec3(gyr)
         if not (type(acc) is _ND and acc.dtype is _F8 and acc.strides == _ST and len(acc) == 3):
@@ -246,12 +268,23 @@ class Estimator:
         elif not (type(mag) is _ND and mag.dtype is _F8 and mag.strides == _ST and len(mag) == 3):
             mag = _vec3(mag)
         self._call_step(self._x, self._p, self._c, gyr, acc, mag, dt, self._diag)
+        if "update" not in self.__dict__ and STREAM_C:
+            self._stream_from_c()
         return self._qv.copy()  # the step published it in the geographic frame
 
-    def __getstate__(self):  # the compiled entry point is found again after unpickling
+    def _stream_from_c(self):
+        """Make the object's ``update`` the C call on this state (:mod:`._stream`); the class's
+        ``update`` stays its fallback for every call out of the common case."""
+        address = stream_address(type(self))
+        if address:
+            self.update = _Stream(address, self._x, self._p, self._c, self._diag, self._s, Q_OUT,
+                                  type(self).update.__get__(self))
+
+    def __getstate__(self):  # the compiled entry point and the C call are made again after unpickling
         state = dict(self.__dict__)
         state["_call_step"] = None
         state.pop("_qv", None)  # a view of _x, made again after unpickling
+        state.pop("update", None)
         return state
 
     def __setstate__(self, state):
@@ -315,6 +348,32 @@ class Estimator:
             self._x[T_LAST] = finite_t[-1]
         return FilterResult(self.name, t, q, {nm: diag[:, i] for i, nm in enumerate(self.diag_names)},
                             self.params, int(self._x[SKIPPED] - skipped0), tuple(restarts))
+
+
+try:
+    from quadest.filters._stream import Stream as _Stream
+except ImportError:  # built without a C compiler: streaming runs through Estimator.update
+    _Stream = None
+STREAM_C = _Stream is not None
+"""Whether streaming ``update`` runs through the C extension ``_stream`` (built at install time
+where a C compiler is found; else the Python path, about a microsecond slower per call)."""
+
+_F8P = types.CPointer(types.float64)
+STREAM_SIGNATURE = types.int64(_F8P, types.intp, _F8P, types.intp, _F8P, types.intp, _F8P, _F8P, _F8P,
+                              types.float64, _F8P, types.intp)
+"""``stream(x, nx, p, np, c, nc, gyr, acc, mag, dt, diag, nd) -> status``: an estimator's step
+on raw buffers with their lengths (the vectors have three values), as the C call invokes it;
+status 1 if the step raised (a C callback cannot pass an exception on: the C call raises)."""
+_STREAM_ADDRESSES: dict = {}
+
+
+def stream_address(cls) -> int:
+    """The address of ``cls.stream`` compiled as a C callback (numba ``cfunc``, cached on disk
+    like every compiled function); 0 for a class without one. Compiled once per class."""
+    if cls not in _STREAM_ADDRESSES:
+        fn = cls.stream  # a plain function (a staticmethod seen through the class)
+        _STREAM_ADDRESSES[cls] = 0 if fn is None else cfunc(STREAM_SIGNATURE, cache=True)(fn).address
+    return _STREAM_ADDRESSES[cls]
 
 
 _NAN3 = np.full(3, np.nan)

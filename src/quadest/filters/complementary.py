@@ -22,7 +22,7 @@ adaptive gain.
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import carray, njit
 
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, P, Params, params_record
@@ -151,6 +151,16 @@ def complementary_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
         q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
 
 
+def complementary_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
+    """Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address)."""
+    try:
+        complementary_step(carray(x, nx), carray(p, n_p), carray(c, nc), carray(gyr, 3), carray(acc, 3), carray(mag, 3),
+                           dt, carray(diag, nd))
+    except Exception:  # noqa: BLE001 -- a C callback cannot raise: the C call does, from the status
+        return 1
+    return 0
+
+
 class Complementary(Estimator):
     """Valenti's complementary filter. Diagnostics: the accelerometer gain used (``alpha``, 0
     when no correction) and the bias estimate ``bias_x/y/z`` (rad/s)."""
@@ -162,3 +172,4 @@ class Complementary(Estimator):
     diag_names = ("alpha", "bias_x", "bias_y", "bias_z")
     step = staticmethod(complementary_step)
     batch = staticmethod(complementary_run)
+    stream = staticmethod(complementary_stream)

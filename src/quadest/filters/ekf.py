@@ -14,7 +14,7 @@ paper reports the QUKF 0.2° more accurate than the EKF; on the simulator they c
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import carray, njit
 
 from quadest.filters.base import Estimator, params_record
 from quadest.filters.common import Q_OUT, admit, finite3, omega_matrix, prepare, publish
@@ -67,6 +67,16 @@ def ekf_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
         q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
 
 
+def ekf_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
+    """Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address)."""
+    try:
+        ekf_step(carray(x, nx), carray(p, n_p), carray(c, nc), carray(gyr, 3), carray(acc, 3), carray(mag, 3),
+                 dt, carray(diag, nd))
+    except Exception:  # noqa: BLE001 -- a C callback cannot raise: the C call does, from the status
+        return 1
+    return 0
+
+
 class Ekf(Estimator):
     """The QUKF paper's EKF. Diagnostics: ``updated`` and ``trace_p``."""
 
@@ -78,6 +88,7 @@ class Ekf(Estimator):
     diag_names = ("updated", "trace_p")
     step = staticmethod(ekf_step)
     batch = staticmethod(ekf_run)
+    stream = staticmethod(ekf_stream)
 
     def _init_state(self, x):
         x[PB:PB + 16] = (np.eye(4) * self.params.p0).ravel()

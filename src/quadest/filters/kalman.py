@@ -27,7 +27,7 @@ from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import carray, njit
 
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
@@ -183,6 +183,16 @@ def kalman_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
         q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
 
 
+def kalman_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
+    """Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address)."""
+    try:
+        kalman_step(carray(x, nx), carray(p, n_p), carray(c, nc), carray(gyr, 3), carray(acc, 3), carray(mag, 3),
+                    dt, carray(diag, nd))
+    except Exception:  # noqa: BLE001 -- a C callback cannot raise: the C call does, from the status
+        return 1
+    return 0
+
+
 class Kalman(Estimator):
     """Roetenberg's filter. Diagnostics: ``acc_update``, the bias ``bias_x/y/z`` (rad/s),
     ``mag_update`` and the disturbance magnitude ``disturbance`` (reference-field units)."""
@@ -195,6 +205,7 @@ class Kalman(Estimator):
     diag_names = ("acc_update", "bias_x", "bias_y", "bias_z", "mag_update", "disturbance")
     step = staticmethod(kalman_step)
     batch = staticmethod(kalman_run)
+    stream = staticmethod(kalman_stream)
 
     def _init_state(self, x):
         p = self.params

@@ -15,7 +15,7 @@ from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import carray, njit
 
 from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
 from quadest.filters.common import BASE, Q_OUT, admit, finite3, gravity_objective, norm3, prepare, publish
@@ -104,6 +104,16 @@ def madgwick_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
         q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
 
 
+def madgwick_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
+    """Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address)."""
+    try:
+        madgwick_step(carray(x, nx), carray(p, n_p), carray(c, nc), carray(gyr, 3), carray(acc, 3), carray(mag, 3),
+                      dt, carray(diag, nd))
+    except Exception:  # noqa: BLE001 -- a C callback cannot raise: the C call does, from the status
+        return 1
+    return 0
+
+
 class Madgwick(Estimator):
     """Madgwick's filter. Diagnostic ``correction``: 0 none, 1 accelerometer, 2 accelerometer
     and magnetometer."""
@@ -116,3 +126,4 @@ class Madgwick(Estimator):
     diag_names = ("correction",)
     step = staticmethod(madgwick_step)
     batch = staticmethod(madgwick_run)
+    stream = staticmethod(madgwick_stream)

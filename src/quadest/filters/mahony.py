@@ -14,7 +14,7 @@ north along y), so its output equals ours after ``q_ned = q_T ⊗ q_enu`` (teste
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import carray, njit
 
 from quadest.filters.base import Estimator, P, Params, params_record
 from quadest.filters.common import BASE, Q_OUT, admit, finite3, layout, norm3, prepare, publish
@@ -93,6 +93,16 @@ def mahony_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
         q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
 
 
+def mahony_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
+    """Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address)."""
+    try:
+        mahony_step(carray(x, nx), carray(p, n_p), carray(c, nc), carray(gyr, 3), carray(acc, 3), carray(mag, 3),
+                    dt, carray(diag, nd))
+    except Exception:  # noqa: BLE001 -- a C callback cannot raise: the C call does, from the status
+        return 1
+    return 0
+
+
 class Mahony(Estimator):
     """Mahony's explicit complementary filter. Diagnostics: the bias estimate ``bias_x/y/z``
     (rad/s) and ``correction`` (0 none, 1 accelerometer, 2 with magnetometer)."""
@@ -104,3 +114,4 @@ class Mahony(Estimator):
     diag_names = ("bias_x", "bias_y", "bias_z", "correction")
     step = staticmethod(mahony_step)
     batch = staticmethod(mahony_run)
+    stream = staticmethod(mahony_stream)

@@ -20,7 +20,7 @@ from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import carray, njit
 
 from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
 from quadest.filters.common import BASE, Q_OUT, admit, finite3, layout, omega_matrix, prepare, publish
@@ -215,6 +215,16 @@ def qukf_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
         q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
 
 
+def qukf_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
+    """Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address)."""
+    try:
+        qukf_step(carray(x, nx), carray(p, n_p), carray(c, nc), carray(gyr, 3), carray(acc, 3), carray(mag, 3),
+                  dt, carray(diag, nd))
+    except Exception:  # noqa: BLE001 -- a C callback cannot raise: the C call does, from the status
+        return 1
+    return 0
+
+
 class Qukf(Estimator):
     """QUKF. Diagnostics: ``updated`` (1 when a measurement was fused) and ``trace_p``."""
 
@@ -226,6 +236,7 @@ class Qukf(Estimator):
     diag_names = ("updated", "trace_p")
     step = staticmethod(qukf_step)
     batch = staticmethod(qukf_run)
+    stream = staticmethod(qukf_stream)
 
     def _init_state(self, x):
         x[PB:PB + 16] = (np.eye(4) * self.params.p0).ravel()

@@ -121,7 +121,7 @@ from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import carray, njit
 
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
@@ -847,6 +847,16 @@ def robust_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
         q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
 
 
+def robust_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
+    """Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address)."""
+    try:
+        robust_step(carray(x, nx), carray(p, n_p), carray(c, nc), carray(gyr, 3), carray(acc, 3), carray(mag, 3),
+                    dt, carray(diag, nd))
+    except Exception:  # noqa: BLE001 -- a C callback cannot raise: the C call does, from the status
+        return 1
+    return 0
+
+
 class Robust(Estimator):
     """quadest's own estimator. Diagnostics: ``rest`` (1 at rest), ``mag_disturbed``,
     ``clipped_axes``, the bias ``bias_x/y/z`` (rad/s), the reported error variances ``var_tilt``
@@ -862,6 +872,7 @@ class Robust(Estimator):
                   "var_heading", "mag_update")
     step = staticmethod(robust_step)
     batch = staticmethod(robust_run)
+    stream = staticmethod(robust_stream)
 
     def _init_state(self, x):
         p = self.params
