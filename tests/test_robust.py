@@ -58,6 +58,24 @@ def test_bias_converges_in_motion():
     assert abs(off.diag["bias_z"][-1] - BIAS[2]) > 3 * abs(b[2] - BIAS[2])
 
 
+def test_vertical_bias_loop_has_the_damping_it_is_given():
+    """Eq R3b for the heading's row: the bias loop closed by the heading correction obeys
+    ``e'' + e'/τ + g e/τ² = 0`` (g = bias_heading_gain, τ = τ_ψ = 15 s), from the end of the
+    heading's initial averaging (≈ τ_ψ in a hover). Default g = 1: damping 0.5, so 45 s later
+    (ω_n t = 3) the error is within 20 % of its start and it overshoots by at most 16 % (the
+    second-order overshoot e^(−πζ/√(1−ζ²)) = 0.163; bound 25 % for the noise). g = 0.25:
+    critically damped at ω = 1/(2τ), (1 + ωt) e^(−ωt) = 0.56 of the start left at 45 s (bound
+    0.35)."""
+    rec = _biased("hover", 3, 90.0)
+    t60 = np.searchsorted(rec.t, 60.0)
+    b0 = BIAS[2]
+    err = make_filter("robust").run(rec).diag["bias_z"] - b0
+    assert abs(err[t60]) < 0.2 * b0, math.degrees(err[t60])
+    assert np.abs(err[t60:]).max() < 0.25 * b0, math.degrees(np.abs(err[t60:]).max())
+    slow = make_filter("robust", bias_heading_gain=0.25).run(rec).diag["bias_z"] - b0
+    assert abs(slow[t60]) > 0.35 * b0, math.degrees(slow[t60])
+
+
 def test_magnetic_disturbance_is_rejected():
     """A magnet brought near for 15 s (a 15 µT field in the navigation frame: the norm and dip
     leave their thresholds) turns the magnetometer's heading by about 20°; rejected, the heading
