@@ -161,3 +161,18 @@ def test_an_exception_in_the_compiled_step_is_raised_not_swallowed():
         Stream(fn.address, x[::2], np.zeros(1), np.zeros(1), np.zeros(1), s, 0, print)
     with pytest.raises(ValueError, match="q_off"):
         Stream(fn.address, x, np.zeros(1), np.zeros(1), np.zeros(1), s, 6, print)
+
+
+def test_an_estimator_without_a_stream_function_streams_through_python(flight):
+    """A class that sets no ``stream`` (an estimator being written) still streams, through the
+    Python path, with the same results."""
+    from quadest.filters.madgwick import Madgwick
+
+    class Plain(Madgwick):
+        stream = None
+
+    a, b = Madgwick(), Plain()
+    for k in range(50):
+        args = (flight.gyr[k], flight.acc[k], flight.mag[k])
+        np.testing.assert_array_equal(a.update(*args, dt=0.002), b.update(*args, dt=0.002))
+    assert "update" in a.__dict__ and "update" not in b.__dict__

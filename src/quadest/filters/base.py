@@ -122,8 +122,9 @@ def _declination_quat(declination):
 
 class Estimator:
     """Base class: subclasses set ``name``, ``Params``, ``Record``, ``state_size``,
-    ``diag_names``, ``step`` and ``batch`` (compiled functions), optionally ``coefficients``,
-    and may override :meth:`_init_state`."""
+    ``diag_names``, ``step`` and ``batch`` (compiled functions), ``stream`` (the step on raw
+    buffers, for the C call; without it streaming runs through Python), optionally
+    ``coefficients``, and may override :meth:`_init_state`."""
 
     name = "estimator"
     Params = Params
