@@ -365,16 +365,17 @@ STREAM_SIGNATURE = types.int64(_F8P, types.intp, _F8P, types.intp, _F8P, types.i
 """``stream(x, nx, p, np, c, nc, gyr, acc, mag, dt, diag, nd) -> status``: an estimator's step
 on raw buffers with their lengths (the vectors have three values), as the C call invokes it;
 status 1 if the step raised (a C callback cannot pass an exception on: the C call raises)."""
-_STREAM_ADDRESSES: dict = {}
+_STREAM_CFUNCS: dict = {}  # class -> its compiled stream function (kept: its machine code must outlive the C calls)
 
 
 def stream_address(cls) -> int:
     """The address of ``cls.stream`` compiled as a C callback (numba ``cfunc``, cached on disk
     like every compiled function); 0 for a class without one. Compiled once per class."""
-    if cls not in _STREAM_ADDRESSES:
+    if cls not in _STREAM_CFUNCS:
         fn = cls.stream  # a plain function (a staticmethod seen through the class)
-        _STREAM_ADDRESSES[cls] = 0 if fn is None else cfunc(STREAM_SIGNATURE, cache=True)(fn).address
-    return _STREAM_ADDRESSES[cls]
+        _STREAM_CFUNCS[cls] = None if fn is None else cfunc(STREAM_SIGNATURE, cache=True)(fn)
+    compiled = _STREAM_CFUNCS[cls]
+    return 0 if compiled is None else compiled.address
 
 
 _NAN3 = np.full(3, np.nan)
