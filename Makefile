@@ -6,7 +6,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 OUT    ?= demo-output
 
-.PHONY: demo test install clean clean-cache
+.PHONY: demo test lint install clean clean-cache
 
 $(BIN)/python:
 	@echo "==> creating virtual environment $(VENV)"
@@ -31,11 +31,16 @@ demo: $(VENV)/.installed
 test: $(VENV)/.installed-test
 	$(BIN)/python -m pytest
 
+# ruff's lint and format check over the whole tree (the configuration is in pyproject.toml)
+lint: $(VENV)/.installed-test
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache
 	find src -name '*.so' -delete  # the streaming extension, built in place by the editable install
 
-# compiled code is cached per hash of the source (src/quadest/_cache.py), so an edit never
+# compiled code is cached per hash of the source (src/quadest/_jit.py), so an edit never
 # reuses stale machine code; this removes every cached folder
 clean-cache:
 	rm -rf $${XDG_CACHE_HOME:-$$HOME/.cache}/quadest/numba

@@ -1,4 +1,5 @@
 """Alignment, the peers' frame conversions, and the benchmark commands (issue #5)."""
+
 import json
 import os
 from pathlib import Path
@@ -28,17 +29,17 @@ def test_alignment_recovers_known_rotations(nav, body):
     """q_true = q_nav ⊗ q_est ⊗ q_body with 0.5° of noise on the estimate: both rotations come back
     within 0.1°, and the aligned estimate's error is the noise."""
     q_true = _random_walk_attitude()
-    q_nav = (Rotation.from_euler("z", 37, degrees=True) if nav == "heading"
-             else Rotation.from_rotvec([0.05, -0.08, 1.2])).as_quat(scalar_first=True)
+    q_nav = (
+        Rotation.from_euler("z", 37, degrees=True) if nav == "heading" else Rotation.from_rotvec([0.05, -0.08, 1.2])
+    ).as_quat(scalar_first=True)
     q_body = Rotation.from_rotvec([0.8, -1.2, 2.5] if body else [0, 0, 0]).as_quat(scalar_first=True)
     noise = Rotation.from_rotvec(np.random.default_rng(1).normal(0, np.radians(0.5) / np.sqrt(3), (3000, 3)))
-    q_est = quat_mul(quat_mul(quat_mul(quat_conj(q_nav), q_true), quat_conj(q_body)),
-                     noise.as_quat(scalar_first=True))
+    q_est = quat_mul(quat_mul(quat_mul(quat_conj(q_nav), q_true), quat_conj(q_body)), noise.as_quat(scalar_first=True))
     al = fit_alignment(q_est, q_true, nav=nav, body=body, rate_hz=100.0)
     assert np.degrees(angle_between(al.q_nav, q_nav)) < 0.1
     assert np.degrees(angle_between(al.q_body, q_body)) < 0.1
     err = np.degrees(angle_between(al.apply(q_est), q_true))
-    assert np.sqrt(np.mean(err ** 2)) < 0.6
+    assert np.sqrt(np.mean(err**2)) < 0.6
     if nav == "heading":
         assert al.describe()["heading_offset_deg"] == pytest.approx(37.0, abs=0.1)
 
@@ -61,8 +62,15 @@ def test_mean_quat_is_sign_invariant():
 
 
 # -- peers --------------------------------------------------------------------------------------------------
-PEERS_9 = {"vqf": 3.0, "vqf-offline": 3.0, "imufusion": 5.0, "ahrs-madgwick": 5.0, "ahrs-mahony": 6.0,
-           "ahrs-ekf": 6.0, "ahrs-aqua": 20.0}
+PEERS_9 = {
+    "vqf": 3.0,
+    "vqf-offline": 3.0,
+    "imufusion": 5.0,
+    "ahrs-madgwick": 5.0,
+    "ahrs-mahony": 6.0,
+    "ahrs-ekf": 6.0,
+    "ahrs-aqua": 20.0,
+}
 
 
 @pytest.fixture(scope="module")
@@ -108,8 +116,9 @@ def broad_dir(tmp_path_factory):
     d = tmp_path_factory.mktemp("broad")
     trials = {}
     for k, seed in enumerate((21, 22)):
-        rec = simulate("nominal", "bebop2", seed=seed, duration=15.0,
-                       overrides={"imu.rate_hz": 200.0, "mag.rate_hz": 200.0})
+        rec = simulate(
+            "nominal", "bebop2", seed=seed, duration=15.0, overrides={"imu.rate_hz": 200.0, "mag.rate_hz": 200.0}
+        )
         name = f"0{k + 1}_undisturbed_test_{'AB'[k]}"
         write_broad(d / f"{name}.hdf5", rec)
         trials[name] = {"description": "", "groups": ["all_trials", "undisturbed", "slow" if k == 0 else "fast"]}
@@ -119,8 +128,9 @@ def broad_dir(tmp_path_factory):
 
 def test_benchmark_broad_json_layout(broad_dir, tmp_path, capsys):
     out = tmp_path / "b.json"
-    assert main(["benchmark", "broad", "--data", str(broad_dir), "--filters", "madgwick,kalman",
-                 "--json", str(out)]) == 0
+    assert (
+        main(["benchmark", "broad", "--data", str(broad_dir), "--filters", "madgwick,kalman", "--json", str(out)]) == 0
+    )
     text = capsys.readouterr().out
     assert "group means" in text and "01_undisturbed_test_A" in text
     res = json.loads(out.read_text())
@@ -176,8 +186,7 @@ def test_real_broad_benchmark_one_trial(tmp_path):
 @needs_data
 def test_real_flights_benchmark(tmp_path, capsys):
     out = tmp_path / "f.json"
-    assert main(["benchmark", "flights", "--data", str(DATA), "--filters", "madgwick,afckf",
-                 "--json", str(out)]) == 0
+    assert main(["benchmark", "flights", "--data", str(DATA), "--filters", "madgwick,afckf", "--json", str(out)]) == 0
     res = json.loads(out.read_text())
     assert len(res["flights"]) == 5  # three DIDO flights and two Blackbird splits
     for n in ("madgwick", "afckf"):
@@ -189,8 +198,21 @@ def test_real_repoimu_benchmark(tmp_path):
     """`benchmark repoimu` (issue #15 asks for RepoIMU in a benchmark): every trial in the shared
     copy, each filter's errors after the reader's alignment, means over the trials."""
     out = tmp_path / "r.json"
-    assert main(["benchmark", "repoimu", "--data", str(DATA / "repoimu"), "--filters", "madgwick,kalman",
-                 "--json", str(out)]) == 0
+    assert (
+        main(
+            [
+                "benchmark",
+                "repoimu",
+                "--data",
+                str(DATA / "repoimu"),
+                "--filters",
+                "madgwick,kalman",
+                "--json",
+                str(out),
+            ]
+        )
+        == 0
+    )
     res = json.loads(out.read_text())
     # four T-stick and two pendulum trials (both of RepoIMU's header variants); the static one has no truth
     assert len(res["trials"]) == 5 and res["without_truth"] == ["TStick/TStick_Test01_Static"]
@@ -199,13 +221,26 @@ def test_real_repoimu_benchmark(tmp_path):
         # trials are 9-84° for every filter, VQF included: docs/readers.md)
         for trial in ("TStick/TStick_Test02_Trial1", "TStick/TStick_Test08_Trial1"):
             assert res["trials"][trial][n]["total_rmse_deg"] < 3.0
-        assert res["mean"][n]["roll"] == pytest.approx(np.mean([t[n]["rms_deg"]["roll"] for t in res["trials"].values()]))
+        assert res["mean"][n]["roll"] == pytest.approx(
+            np.mean([t[n]["rms_deg"]["roll"] for t in res["trials"].values()])
+        )
 
 
 @needs_data
 def test_real_repoimu_alignment_is_reported(capsys):
-    assert main(["compare", "--recording", str(DATA / "repoimu/TStick/TStick_Test02_Trial1.csv"),
-                 "--filters", "madgwick", "--no-timing"]) == 0
+    assert (
+        main(
+            [
+                "compare",
+                "--recording",
+                str(DATA / "repoimu/TStick/TStick_Test02_Trial1.csv"),
+                "--filters",
+                "madgwick",
+                "--no-timing",
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "alignment removed for madgwick: heading" in out and "body rotation" in out
 

@@ -1,15 +1,24 @@
 """Calibration (issue #6): each fit against the errors the simulator put in, the refusals, and the
 file/apply path. Targets from the issue; bebop2 preset; the motions are the simulator's
 calibration scenarios (docs/calibration.md)."""
+
 import json
 
 import numpy as np
 import pytest
 
 from quadest import save_recording
-from quadest.calibration import (Calibration, apply_calibrations, calibrate, calibrate_accel,
-                                 calibrate_centrifugal, calibrate_gyro, calibrate_mag, load_calibration,
-                                 static_segments)
+from quadest.calibration import (
+    Calibration,
+    apply_calibrations,
+    calibrate,
+    calibrate_accel,
+    calibrate_centrifugal,
+    calibrate_gyro,
+    calibrate_mag,
+    load_calibration,
+    static_segments,
+)
 from quadest.cli.main import main
 from quadest.sim import simulate
 
@@ -74,12 +83,20 @@ def test_accel_many_position_targets():
     take the norm fit. Norms fix T only up to a rotation, so T·M must be orthogonal: its
     singular values within 0.2 % of 1."""
     over = {**ACC_ERRORS, "calibration.six_tilt_deg": 35.0, "acc.bias_rw_std": 0.0}
-    recs = [simulate("six-position", "bebop2", seed=s, overrides={**over, "acc.bias": [0.1, -0.2, 0.15],
-                                                                   "acc.scale": [0.01, -0.008, 0.012],
-                                                                   "acc.misalignment": [[0, 0.004, -0.003],
-                                                                                        [0.002, 0, 0.005],
-                                                                                        [-0.004, 0.003, 0]]})
-            for s in (11, 12)]
+    recs = [
+        simulate(
+            "six-position",
+            "bebop2",
+            seed=s,
+            overrides={
+                **over,
+                "acc.bias": [0.1, -0.2, 0.15],
+                "acc.scale": [0.01, -0.008, 0.012],
+                "acc.misalignment": [[0, 0.004, -0.003], [0.002, 0, 0.005], [-0.004, 0.003, 0]],
+            },
+        )
+        for s in (11, 12)
+    ]
     cal = calibrate_accel(recs)
     assert cal.quality["method"] == "many-position" and cal.quality["positions"] == 12
     assert np.abs(np.array(cal.values["bias"]) - [0.1, -0.2, 0.15]).max() < 0.02
@@ -134,8 +151,7 @@ def test_centrifugal_constants_within_5_percent():
     ideal = calibrate_centrifugal([simulate("damaged-rotor", "bebop2", seed=1000, ideal=True)])
     for k in ("omega1", "omega2"):
         assert noisy.values[k] == pytest.approx(ideal.values[k], rel=0.05)
-    assert noisy.filter_params() == {"afckf": {"omega1": noisy.values["omega1"],
-                                               "omega2": noisy.values["omega2"]}}
+    assert noisy.filter_params() == {"afckf": {"omega1": noisy.values["omega1"], "omega2": noisy.values["omega2"]}}
 
 
 def test_centrifugal_refuses_no_spin():
@@ -194,8 +210,7 @@ def test_calibrate_and_use_from_the_command_line(tmp_path, capsys):
     save_recording(simulate("rest", "bebop2", seed=4, duration=10.0), rest)
     save_recording(simulate("six-position", "bebop2", seed=4, overrides=ACC_ERRORS), six)
     save_recording(simulate("figure-eight", "bebop2", seed=4, duration=30.0, overrides=MAG_ERRORS), fig8)
-    save_recording(simulate("nominal", "bebop2", seed=4, duration=10.0, overrides={**ACC_ERRORS, **MAG_ERRORS}),
-                   flight)
+    save_recording(simulate("nominal", "bebop2", seed=4, duration=10.0, overrides={**ACC_ERRORS, **MAG_ERRORS}), flight)
     for kind, src in (("gyro", rest), ("accel", six), ("mag", fig8)):
         assert main(["calibrate", kind, str(src), "-o", str(tmp_path / f"{kind}.json")]) == 0
         out = capsys.readouterr().out
@@ -205,9 +220,16 @@ def test_calibrate_and_use_from_the_command_line(tmp_path, capsys):
     assert main(["estimate", str(flight), "--filter", "madgwick", "-o", str(est), *cals]) == 0
     header = est.read_text().splitlines()[0]
     assert header == "t,q_w,q_x,q_y,q_z,roll,pitch,yaw"
-    assert main(["compare", "--recording", str(flight), "--filters", "madgwick", "--json", str(tmp_path / "c.json"), *cals]) == 0
+    assert (
+        main(
+            ["compare", "--recording", str(flight), "--filters", "madgwick", "--json", str(tmp_path / "c.json"), *cals]
+        )
+        == 0
+    )
     with_cal = json.loads((tmp_path / "c.json").read_text())
-    assert main(["compare", "--recording", str(flight), "--filters", "madgwick", "--json", str(tmp_path / "n.json")]) == 0
+    assert (
+        main(["compare", "--recording", str(flight), "--filters", "madgwick", "--json", str(tmp_path / "n.json")]) == 0
+    )
     without = json.loads((tmp_path / "n.json").read_text())
     # 40 % hard iron ruins the heading unless the calibration removes it
     yaw = lambda d: d["filters"]["madgwick"]["rms_deg"]["yaw"]  # noqa: E731
@@ -223,8 +245,18 @@ def test_command_refuses_mismatched_calibration(tmp_path, capsys):
     d["unit"] = "gauss"
     (tmp_path / "m.json").write_text(json.dumps(d))
     capsys.readouterr()
-    code = main(["estimate", str(fig8), "--filter", "afckf", "-o", str(tmp_path / "o.csv"),
-                 "--calibration", str(tmp_path / "m.json")])
+    code = main(
+        [
+            "estimate",
+            str(fig8),
+            "--filter",
+            "afckf",
+            "-o",
+            str(tmp_path / "o.csv"),
+            "--calibration",
+            str(tmp_path / "m.json"),
+        ]
+    )
     err = capsys.readouterr().err
     assert code != 0 and "made for mag in gauss" in err and len(err.strip().splitlines()) == 1
     code = main(["calibrate", "accel", str(fig8), "-o", str(tmp_path / "a.json")])
@@ -234,8 +266,7 @@ def test_command_refuses_mismatched_calibration(tmp_path, capsys):
 
 def test_recover_takes_calibration(tmp_path, capsys):
     throw = tmp_path / "throw.parquet"
-    save_recording(simulate("throw", "fma", seed=3, duration=3.0, overrides={"gyro.bias": [0.02, -0.01, 0.015]}),
-                   throw)
+    save_recording(simulate("throw", "fma", seed=3, duration=3.0, overrides={"gyro.bias": [0.02, -0.01, 0.015]}), throw)
     cal = Calibration("gyro", "rad/s", {"bias": [0.02, -0.01, 0.015]})
     cal.save(tmp_path / "g.json")
     assert main(["recover", str(throw), "--calibration", str(tmp_path / "g.json")]) == 0

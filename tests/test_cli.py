@@ -1,4 +1,5 @@
 """The command line, run in-process and headless."""
+
 import subprocess
 import sys
 
@@ -16,10 +17,25 @@ def run(capsys, *argv):
 
 
 def test_help_and_version(capsys):
-    for argv in (["--help"], ["simulate", "--help"], ["info", "--help"], ["demo", "--help"], ["sweep", "--help"],
-                 ["tune", "--help"], ["benchmark", "--help"], ["calibrate", "--help"], ["estimate", "--help"],
-                 ["compare", "--help"], ["reproduce", "--help"], ["recover", "--help"], ["fit-aero", "--help"], ["fly", "--help"],
-                 ["data", "--help"], ["data", "fetch", "--help"], ["report", "--help"]):
+    for argv in (
+        ["--help"],
+        ["simulate", "--help"],
+        ["info", "--help"],
+        ["demo", "--help"],
+        ["sweep", "--help"],
+        ["tune", "--help"],
+        ["benchmark", "--help"],
+        ["calibrate", "--help"],
+        ["estimate", "--help"],
+        ["compare", "--help"],
+        ["reproduce", "--help"],
+        ["recover", "--help"],
+        ["fit-aero", "--help"],
+        ["fly", "--help"],
+        ["data", "--help"],
+        ["data", "fetch", "--help"],
+        ["report", "--help"],
+    ):
         with pytest.raises(SystemExit) as e:
             main(argv)
         assert e.value.code == 0
@@ -32,8 +48,24 @@ def test_help_and_version(capsys):
 def test_simulate_info_and_plot(tmp_path, capsys):
     out = tmp_path / "r.parquet"
     png = tmp_path / "r.png"
-    code, text, _ = run(capsys, "simulate", "--scenario", "damaged-rotor", "--preset", "bebop2", "--seed", "2",
-                        "--duration", "8", "--set", "gyro.noise_std=0.02", "-o", str(out), "--plot", str(png))
+    code, text, _ = run(
+        capsys,
+        "simulate",
+        "--scenario",
+        "damaged-rotor",
+        "--preset",
+        "bebop2",
+        "--seed",
+        "2",
+        "--duration",
+        "8",
+        "--set",
+        "gyro.noise_std=0.02",
+        "-o",
+        str(out),
+        "--plot",
+        str(png),
+    )
     assert code == 0 and "gyroscope saturated" in text
     rec = load_recording(out)
     assert rec.meta["config"]["gyro"]["noise_std"] == 0.02 and rec.meta["seed"] == 2
@@ -57,10 +89,12 @@ def test_list_params(capsys):
 
 
 def test_errors_are_one_line(tmp_path, capsys):
-    for argv in (["simulate", "--set", "gyro.nope=1", "-o", str(tmp_path / "x.csv")],
-                 ["simulate", "--set", "novalue", "-o", str(tmp_path / "x.csv")],
-                 ["simulate"],
-                 ["info", str(tmp_path / "missing.csv")]):
+    for argv in (
+        ["simulate", "--set", "gyro.nope=1", "-o", str(tmp_path / "x.csv")],
+        ["simulate", "--set", "novalue", "-o", str(tmp_path / "x.csv")],
+        ["simulate"],
+        ["info", str(tmp_path / "missing.csv")],
+    ):
         code, _, err = run(capsys, *argv)
         assert code == (1 if argv[0] == "info" else 2)  # 2: an option is wrong; 1: the data is
         assert err.count("\n") == 1 and err.startswith("quadest ") and "Traceback" not in err
@@ -85,13 +119,31 @@ def test_console_script_entry_point():
 
 def test_compare_prints_tables_json_and_plots(tmp_path, capsys):
     out = tmp_path / "c.json"
-    code, text, _ = run(capsys, "compare", "--scenario", "damaged-rotor", "--seed", "2", "--duration", "8",
-                        "--filters", "afckf,madgwick", "--from", "5", "--param", "afckf.beta=2",
-                        "--json", str(out), "--plot-dir", str(tmp_path / "plots"))
+    code, text, _ = run(
+        capsys,
+        "compare",
+        "--scenario",
+        "damaged-rotor",
+        "--seed",
+        "2",
+        "--duration",
+        "8",
+        "--filters",
+        "afckf,madgwick",
+        "--from",
+        "5",
+        "--param",
+        "afckf.beta=2",
+        "--json",
+        str(out),
+        "--plot-dir",
+        str(tmp_path / "plots"),
+    )
     assert code == 0
     for title in ("RMS error [deg]", "variance [deg²]", "mean absolute error [deg]", "execution time"):
         assert title in text
     import json
+
     rep = json.loads(out.read_text())
     assert set(rep["filters"]) == {"afckf", "madgwick"}
     for key in ("rms_deg", "var_deg2", "mae_deg"):
@@ -101,8 +153,11 @@ def test_compare_prints_tables_json_and_plots(tmp_path, capsys):
 
 
 def test_compare_refuses_bad_arguments(tmp_path, capsys):
-    for argv in (["compare", "--filters", "nope"], ["compare", "--param", "afckf"],
-                 ["compare", "--param", "afckf.beta=x"]):
+    for argv in (
+        ["compare", "--filters", "nope"],
+        ["compare", "--param", "afckf"],
+        ["compare", "--param", "afckf.beta=x"],
+    ):
         code, _, err = run(capsys, *argv, "--no-timing", "--duration", "2")
         assert code == 2 and err.count("\n") == 1
 
@@ -117,7 +172,9 @@ def test_reproduce_qukf_and_benchmark(tmp_path, capsys):
 def test_recovery_commands(tmp_path, capsys):
     throw = tmp_path / "throw.csv"
     assert run(capsys, "simulate", "--scenario", "throw", "--preset", "fma", "--seed", "5", "-o", str(throw))[0] == 0
-    code, text, _ = run(capsys, "recover", str(throw), "--json", str(tmp_path / "r.json"), "--plot", str(tmp_path / "r.png"))
+    code, text, _ = run(
+        capsys, "recover", str(throw), "--json", str(tmp_path / "r.json"), "--plot", str(tmp_path / "r.png")
+    )
     assert code == 0 and "nominal" in text and "errors against truth" in text
     assert (tmp_path / "r.png").stat().st_size > 10_000
     aero = tmp_path / "aero.json"
@@ -129,10 +186,21 @@ def test_recovery_commands(tmp_path, capsys):
     run(capsys, "simulate", "--scenario", "hover", "--preset", "fma", "--duration", "5", "-o", str(hover))
     code, text, _ = run(capsys, "recover", str(hover))
     assert code == 0 and "no throw detected" in text
-    code, text, _ = run(capsys, "reproduce", "recovery", "--prescribed", "--throws", "4", "--json",
-                        str(tmp_path / "rr.json"), "--plot-dir", str(tmp_path / "plots"))
+    code, text, _ = run(
+        capsys,
+        "reproduce",
+        "recovery",
+        "--prescribed",
+        "--throws",
+        "4",
+        "--json",
+        str(tmp_path / "rr.json"),
+        "--plot-dir",
+        str(tmp_path / "plots"),
+    )
     assert code == 0 and "gravity error median" in text
     import json
+
     rep = json.loads((tmp_path / "rr.json").read_text())
     for case in ("true", "fitted", "perturbed"):
         for key in ("converged_share", "t_converge_s", "gravity_err_deg", "vel_err_mps"):
@@ -140,6 +208,7 @@ def test_recovery_commands(tmp_path, capsys):
     assert (tmp_path / "plots" / "recovery" / "errors_histogram.png").is_file()
     # a recording without a simulation's model needs --aero: one clear line
     from quadest import Recording, save_recording
+
     plain = tmp_path / "plain.csv"
     save_recording(Recording(t=np.arange(10) * 0.01, gyr=np.zeros((10, 3)), acc=np.tile([0, 0, -9.8], (10, 1))), plain)
     code, _, err = run(capsys, "recover", str(plain))
@@ -155,8 +224,20 @@ def test_fly_writes_runs_that_every_command_reads(tmp_path, capsys):
     import pyarrow.parquet as pq
 
     out = tmp_path / "fly"
-    code, text, _ = run(capsys, "fly", "--scenario", "rotor-loss", "--estimator", "truth", "--seeds", "1",
-                        "--duration", "6", "-o", str(out))
+    code, text, _ = run(
+        capsys,
+        "fly",
+        "--scenario",
+        "rotor-loss",
+        "--estimator",
+        "truth",
+        "--seeds",
+        "1",
+        "--duration",
+        "6",
+        "-o",
+        str(out),
+    )
     assert code == 0 and "1 of 1 runs survived" in text and "spin" in text
     summary = json.loads((out / "summary.json").read_text())
     run0 = summary["runs"][0]
@@ -166,33 +247,66 @@ def test_fly_writes_runs_that_every_command_reads(tmp_path, capsys):
     table = pq.read_table(run0["files"]["flight"])
     assert table.num_rows == 3000 and "rotor0_cmd" in table.column_names and "est_qw" in table.column_names
     assert open(run0["files"]["plot"], "rb").read(4) == b"\x89PNG"
-    code, text, _ = run(capsys, "fly", "--scenario", "rotor-loss", "--controller", "se3", "--estimator", "truth",
-                        "--duration", "6", "--no-plot", "-o", str(out))
+    code, text, _ = run(
+        capsys,
+        "fly",
+        "--scenario",
+        "rotor-loss",
+        "--controller",
+        "se3",
+        "--estimator",
+        "truth",
+        "--duration",
+        "6",
+        "--no-plot",
+        "-o",
+        str(out),
+    )
     assert code == 0 and "crashed" in text and "0 of 1 runs survived" in text
-    code, text, _ = run(capsys, "estimate", run0["files"]["recording"], "--filter", "madgwick",
-                        "-o", str(tmp_path / "q.csv"))
+    code, text, _ = run(
+        capsys, "estimate", run0["files"]["recording"], "--filter", "madgwick", "-o", str(tmp_path / "q.csv")
+    )
     assert code == 0
     # robust's reported covariance comes out with --diagnostics
-    code, text, _ = run(capsys, "estimate", run0["files"]["recording"], "--filter", "robust", "--diagnostics",
-                        "-o", str(tmp_path / "r.parquet"))
+    code, text, _ = run(
+        capsys,
+        "estimate",
+        run0["files"]["recording"],
+        "--filter",
+        "robust",
+        "--diagnostics",
+        "-o",
+        str(tmp_path / "r.parquet"),
+    )
     cols = pq.read_table(tmp_path / "r.parquet").column_names
     assert code == 0 and {"diag_var_tilt", "diag_var_heading", "diag_bias_z"} <= set(cols) and "diag_var_tilt" in text
-    code, _, err = run(capsys, "estimate", run0["files"]["recording"], "--filter", "vqf", "--diagnostics",
-                       "-o", str(tmp_path / "v.csv"))
+    code, _, err = run(
+        capsys,
+        "estimate",
+        run0["files"]["recording"],
+        "--filter",
+        "vqf",
+        "--diagnostics",
+        "-o",
+        str(tmp_path / "v.csv"),
+    )
     assert code == 2 and "reports no per-sample diagnostics" in err and len(err.strip().splitlines()) == 1
 
 
-@pytest.mark.parametrize("argv, match", [
-    (["--failure", "x@2"], "--failure expects"),
-    (["--failure", "7@2"], "rotor 7 does not exist"),
-    (["--failure", "0@99"], "outside the run"),
-    (["--failure", "0@1:0.5:1e-6:2"], "--failure expects"),
-    (["--failure", "0@1:1"], "efficiency must be in [0, 1)"),
-    (["--failure", "0@1:0.9:-1e-6"], "imbalance must be between"),
-    (["--failure", "0@1:0.9:5"], "imbalance must be between"),
-    (["--seeds", "a-b"], "--seeds expects"),
-    (["--preset", "lowcost-20hz"], "position sensor"),
-])
+@pytest.mark.parametrize(
+    "argv, match",
+    [
+        (["--failure", "x@2"], "--failure expects"),
+        (["--failure", "7@2"], "rotor 7 does not exist"),
+        (["--failure", "0@99"], "outside the run"),
+        (["--failure", "0@1:0.5:1e-6:2"], "--failure expects"),
+        (["--failure", "0@1:1"], "efficiency must be in [0, 1)"),
+        (["--failure", "0@1:0.9:-1e-6"], "imbalance must be between"),
+        (["--failure", "0@1:0.9:5"], "imbalance must be between"),
+        (["--seeds", "a-b"], "--seeds expects"),
+        (["--preset", "lowcost-20hz"], "position sensor"),
+    ],
+)
 def test_fly_refuses_bad_options_in_one_line(tmp_path, capsys, argv, match):
     code, _, err = run(capsys, "fly", "--estimator", "truth", "--duration", "3", "-o", str(tmp_path / "f"), *argv)
     assert code == 2 and match in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
@@ -206,8 +320,21 @@ def test_fly_a_throw_with_the_recovery_and_the_oracle(tmp_path, capsys):
     import pyarrow.parquet as pq
 
     out = tmp_path / "throws"
-    code, text, _ = run(capsys, "fly", "--scenario", "throw", "--estimator", "all", "--seeds", "0", "--duration",
-                        "11", "--no-plot", "-o", str(out))
+    code, text, _ = run(
+        capsys,
+        "fly",
+        "--scenario",
+        "throw",
+        "--estimator",
+        "all",
+        "--seeds",
+        "0",
+        "--duration",
+        "11",
+        "--no-plot",
+        "-o",
+        str(out),
+    )
     assert code == 0 and "recovered" in text and "gravity err" in text, text
     runs = json.loads((out / "summary.json").read_text())["runs"]
     assert [r["estimator"] for r in runs] == ["truth", "recovery"] and all(r["recovered"] for r in runs)
@@ -217,13 +344,16 @@ def test_fly_a_throw_with_the_recovery_and_the_oracle(tmp_path, capsys):
     assert code == 2 and "--estimator" in err
 
 
-@pytest.mark.parametrize("argv, match", [
-    (["reproduce", "qukf", "--ablations"], "are for reproduce afckf"),
-    (["reproduce", "afckf", "--prescribed", "--ablations"], "leave out --prescribed"),
-    (["reproduce", "afckf", "--any-direction"], "--any-direction is for reproduce recovery"),
-    (["reproduce", "recovery", "--in-loop"], "are for reproduce afckf"),
-    (["reproduce", "recovery", "--prescribed", "--any-direction"], "leave out --prescribed"),
-])
+@pytest.mark.parametrize(
+    "argv, match",
+    [
+        (["reproduce", "qukf", "--ablations"], "are for reproduce afckf"),
+        (["reproduce", "afckf", "--prescribed", "--ablations"], "leave out --prescribed"),
+        (["reproduce", "afckf", "--any-direction"], "--any-direction is for reproduce recovery"),
+        (["reproduce", "recovery", "--in-loop"], "are for reproduce afckf"),
+        (["reproduce", "recovery", "--prescribed", "--any-direction"], "leave out --prescribed"),
+    ],
+)
 def test_reproduce_refuses_options_that_do_not_fit(capsys, argv, match):
     code, _, err = run(capsys, *argv)
     assert code == 2 and match in err and len(err.strip().splitlines()) == 1, err
@@ -232,10 +362,20 @@ def test_reproduce_refuses_options_that_do_not_fit(capsys, argv, match):
 def test_reproduce_recovery_flies_the_throws(tmp_path, capsys):
     """reproduce recovery (flown): throws of the rotor-level vehicle, the bank in the loop, then
     a hover; the table beside the paper's and the JSON with every run."""
-    code, text, _ = run(capsys, "reproduce", "recovery", "--throws", "2", "--json", str(tmp_path / "r.json"),
-                        "--plot-dir", str(tmp_path / "p"))
+    code, text, _ = run(
+        capsys,
+        "reproduce",
+        "recovery",
+        "--throws",
+        "2",
+        "--json",
+        str(tmp_path / "r.json"),
+        "--plot-dir",
+        str(tmp_path / "p"),
+    )
     assert code == 0 and "recovered to hover" in text and "paper: 16 of 32" in text
     import json
+
     r = json.loads((tmp_path / "r.json").read_text())
     case = r["cases"]["upward"]
     assert case["throws"] == 2 and len(case["runs"]) == 2 and case["detected"] == 2

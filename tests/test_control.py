@@ -1,4 +1,5 @@
 """The SE(3) controller flying the vehicle model on the true state (issue #13, part 2)."""
+
 import numpy as np
 import pytest
 
@@ -84,8 +85,9 @@ def test_a_flown_recording_is_read_by_every_estimator(tmp_path):
     back = load_recording(save_recording(rec, tmp_path / "flown.csv"))  # with the unit checks
     assert len(back) == len(rec)
     for name in ("madgwick", "kalman", "afckf"):
-        r = summarize_errors(make_filter(name, declination=rec.declination).run(rec).q, rec.true_q,
-                             rec.t > 5.0)["rms_deg"]
+        r = summarize_errors(make_filter(name, declination=rec.declination).run(rec).q, rec.true_q, rec.t > 5.0)[
+            "rms_deg"
+        ]
         assert r["roll"] < 3.0 and r["pitch"] < 3.0, (name, r)
 
 
@@ -100,14 +102,15 @@ def test_rotor_failures_are_events_whose_outcome_is_physics():
     from quadest.control import Failure
 
     x0 = P.hover_state()
-    states, _, eta = fly_se3(x0, hover_reference(6000), failure=Failure(rotor=0, time_s=2.0, efficiency=0.7),
-                             return_eta=True)
+    states, _, eta = fly_se3(
+        x0, hover_reference(6000), failure=Failure(rotor=0, time_s=2.0, efficiency=0.7), return_eta=True
+    )
     assert eta[1999, 0] == 1.0 and eta[2000, 0] == 0.7
     g = SE3Params()
     dT = 0.3 * P.mass_kg * P.gravity / 4  # the thrust the damaged rotor no longer gives
     arm = np.abs(np.asarray(P.rotor_pos)[0, 0])
     lateral = P.gravity * (dT * arm / (P.inertia[0] * g.k_R)) / g.k_p[0]  # tilt needed for the moment
-    offset = np.sqrt(2 * lateral ** 2 + (dT / (P.mass_kg * g.k_p[2])) ** 2)
+    offset = np.sqrt(2 * lateral**2 + (dT / (P.mass_kg * g.k_p[2])) ** 2)
     assert np.linalg.norm(states[-1, 0:3]) < 2 * offset
     assert np.degrees(angle_between(states[-1, 6:10], np.array([1.0, 0, 0, 0]))) < 5.0
     states, cmd = fly_se3(x0, hover_reference(4000), failure=Failure(rotor=0, time_s=1.0))
@@ -115,11 +118,14 @@ def test_rotor_failures_are_events_whose_outcome_is_physics():
     assert np.abs(states[2000:, 10:13]).max() > 10.0 and states[-1, 2] > 2.0  # tumbling, fallen over 2 m
 
 
-@pytest.mark.parametrize("failure, match", [
-    (dict(rotor=4, time_s=1.0), "rotor 4 does not exist"),
-    (dict(rotor=0, time_s=9.0), "outside the run"),
-    (dict(rotor=0, time_s=0.5, efficiency=1.5), "efficiency must be in"),
-])
+@pytest.mark.parametrize(
+    "failure, match",
+    [
+        (dict(rotor=4, time_s=1.0), "rotor 4 does not exist"),
+        (dict(rotor=0, time_s=9.0), "outside the run"),
+        (dict(rotor=0, time_s=0.5, efficiency=1.5), "efficiency must be in"),
+    ],
+)
 def test_impossible_failures_are_refused(failure, match):
     from quadest.control import Failure
 

@@ -1,5 +1,6 @@
 """quadest's vehicle and SE(3) controller against RotorPy, a simulator no one here wrote (issue
 #13, part 6): RotorPy's Hummingbird and its SE(3) gains, the same circle, flown by both."""
+
 import pytest
 
 from quadest.flight.crosscheck import crosscheck, rotorpy_available

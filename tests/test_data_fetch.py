@@ -2,6 +2,7 @@
 small files laid out like the real sources: fetch, a checksum that differs (refused, nothing
 half-written left), a download that breaks off (resumed with a range request), a dataset that is
 not there (one line saying how to get it). No test reaches outside the machine."""
+
 import hashlib
 import os
 import re
@@ -47,7 +48,7 @@ class Server:
                 self.send_header("Content-Length", str(len(body) - start))
                 self.end_headers()
                 n = server.cut.pop(self.path, None)
-                self.wfile.write(body[start:] if n is None else body[start:start + n])
+                self.wfile.write(body[start:] if n is None else body[start : start + n])
                 if n is not None:
                     self.wfile.flush()
                     self.close_connection = True
@@ -70,8 +71,9 @@ def _toy(server, files):
     for path, body in files.items():
         server.files[f"/repo/commit/{path}"] = body
         out.append(C.DataFile(path, f"{server.url}/repo/commit/{path}", hashlib.sha256(body).hexdigest(), len(body)))
-    return C.Dataset("toy", "a toy dataset", "nobody, 2026", "CC0", "bytes", f"{server.url}/repo",
-                     files=tuple(out), trials=True)
+    return C.Dataset(
+        "toy", "a toy dataset", "nobody, 2026", "CC0", "bytes", f"{server.url}/repo", files=tuple(out), trials=True
+    )
 
 
 FILES = {"01_slow_A.hdf5": os.urandom(300_000), "02_fast_B.hdf5": os.urandom(200_000), "trials.json": b'{"trials": {}}'}
@@ -140,10 +142,12 @@ def test_the_command_line(server, tmp_path, capsys, monkeypatch):
     code, text, _ = run(capsys, "data", "path", "toy")
     assert code == 0 and text.strip() == str(tmp_path / "cache" / "toy")
     # refused in one line: a dataset quadest does not fetch, an unknown one, a missing one behind --data
-    for argv, match in ((("data", "fetch", "dido"), "not fetched by quadest"),
-                        (("data", "fetch", "nope"), "unknown dataset"),
-                        (("benchmark", "broad", "--data", "broad"), "quadest data fetch broad"),
-                        (("benchmark", "flights", "--data", "all"), "quadest data fetch blackbird_clover")):
+    for argv, match in (
+        (("data", "fetch", "dido"), "not fetched by quadest"),
+        (("data", "fetch", "nope"), "unknown dataset"),
+        (("benchmark", "broad", "--data", "broad"), "quadest data fetch broad"),
+        (("benchmark", "flights", "--data", "all"), "quadest data fetch blackbird_clover"),
+    ):
         code, _, err = run(capsys, *argv)
         assert code != 0 and match in err and len(err.strip().splitlines()) == 1, (argv, err)
 

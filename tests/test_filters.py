@@ -5,6 +5,7 @@ conversion); convergence bounds on noise-free data are stated per test from the 
 (gains, time constants); recovery tests only demand finiteness and a return to the error level of
 an undisturbed run.
 """
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -15,7 +16,9 @@ from quadest.rotation import angle_between, quat_conj, quat_from_rotvec, quat_mu
 from quadest.sim import simulate
 
 ahrs = pytest.importorskip("ahrs", reason="ahrs (test extra) is needed for the cross-checks")
-from ahrs.filters import AQUA, Madgwick as AhrsMadgwick, Mahony as AhrsMahony  # noqa: E402
+from ahrs.filters import AQUA  # noqa: E402
+from ahrs.filters import Madgwick as AhrsMadgwick  # noqa: E402
+from ahrs.filters import Mahony as AhrsMahony  # noqa: E402
 
 Q_F = np.array([0.0, 1.0, 0.0, 0.0])  # NED <-> NWU (half turn about x)
 S2 = np.sqrt(0.5)
@@ -42,7 +45,9 @@ def _ahrs_loop(update, q0, rec, with_mag):
 @pytest.mark.parametrize("with_mag", [True, False])
 def test_madgwick_equals_ahrs_in_nwu(marg, with_mag):
     q0 = marg.true_q[0]
-    ours = make_filter("madgwick", q0=q0, use_mag=with_mag, beta_marg=0.1, beta_imu=0.1).run(marg.select(slice(1, None)))
+    ours = make_filter("madgwick", q0=q0, use_mag=with_mag, beta_marg=0.1, beta_imu=0.1).run(
+        marg.select(slice(1, None))
+    )
     ref = AhrsMadgwick(gain=0.1, frequency=500.0)
     # ahrs's batch path ignores q0 in the MARG form (it always starts from ecompass): use updates
     theirs = _ahrs_loop(ref.updateMARG if with_mag else ref.updateIMU, quat_mul(Q_F, q0), marg, with_mag)
@@ -53,8 +58,15 @@ def test_madgwick_equals_ahrs_in_nwu(marg, with_mag):
 def test_mahony_equals_ahrs_in_enu(marg, with_mag):
     q0 = marg.true_q[0]
     ours = make_filter("mahony", q0=q0, use_mag=with_mag).run(marg.select(slice(1, None)))
-    theirs = AhrsMahony(gyr=marg.gyr, acc=marg.acc, mag=marg.mag if with_mag else None, frequency=500.0,
-                        k_P=1.0, k_I=0.3, q0=quat_mul(quat_conj(Q_T), q0)).Q[1:]
+    theirs = AhrsMahony(
+        gyr=marg.gyr,
+        acc=marg.acc,
+        mag=marg.mag if with_mag else None,
+        frequency=500.0,
+        k_P=1.0,
+        k_I=0.3,
+        q0=quat_mul(quat_conj(Q_T), q0),
+    ).Q[1:]
     assert angle_between(quat_mul(quat_conj(Q_T), ours.q), theirs).max() < 1e-9
 
 
@@ -64,11 +76,27 @@ def test_complementary_equals_aqua(marg, with_mag, adaptive):
     """AQUA is Valenti's filter. Its documented departures, set alike here: no bias estimation;
     the adaptive gain uses Munich's normal gravity (9.8092) and ᾱ = 0.1 whatever ``alpha`` is."""
     from ahrs.filters.aqua import GRAVITY
+
     q0 = marg.true_q[0]
-    ours = make_filter("complementary", q0=q0, use_mag=with_mag, adaptive=adaptive, bias_estimation=False,
-                       gravity=GRAVITY, gain_acc=0.1 if adaptive else 0.01).run(marg.select(slice(1, None)))
-    theirs = AQUA(gyr=marg.gyr, acc=marg.acc, mag=marg.mag if with_mag else None, frequency=500.0, alpha=0.01,
-                  beta=0.01, adaptive=adaptive, q0=quat_conj(quat_mul(Q_F, q0))).Q[1:]
+    ours = make_filter(
+        "complementary",
+        q0=q0,
+        use_mag=with_mag,
+        adaptive=adaptive,
+        bias_estimation=False,
+        gravity=GRAVITY,
+        gain_acc=0.1 if adaptive else 0.01,
+    ).run(marg.select(slice(1, None)))
+    theirs = AQUA(
+        gyr=marg.gyr,
+        acc=marg.acc,
+        mag=marg.mag if with_mag else None,
+        frequency=500.0,
+        alpha=0.01,
+        beta=0.01,
+        adaptive=adaptive,
+        q0=quat_conj(quat_mul(Q_F, q0)),
+    ).Q[1:]
     # AQUA carries Valenti's q = q_bn; ours is q_nb
     assert angle_between(quat_mul(Q_F, ours.q), quat_conj(theirs)).max() < 1e-9
 
@@ -85,8 +113,14 @@ BOUND_DEG = {"qukf": 0.5, "ekf": 0.5, "madgwick": 0.5, "mahony": 1.5, "complemen
 
 @pytest.fixture(scope="module")
 def calm():
-    return simulate("hover", "bebop2", seed=7, duration=90, ideal=True,
-                    overrides={"hover.gust_acc_rms": 0.0, "hover.yaw_amp_deg": 0.0})
+    return simulate(
+        "hover",
+        "bebop2",
+        seed=7,
+        duration=90,
+        ideal=True,
+        overrides={"hover.gust_acc_rms": 0.0, "hover.yaw_amp_deg": 0.0},
+    )
 
 
 def _offset(q, deg, axis):
@@ -106,6 +140,7 @@ def test_converges_on_noise_free_data(calm, name):
 def centrifugal():
     """Eq 13's constants from a separate ideal calibration flight (seed 1000)."""
     from quadest.calibration.fit import fit_centrifugal
+
     cal = simulate("damaged-rotor", "bebop2", seed=1000, ideal=True)
     o1, o2, _ = fit_centrifugal(cal.gyr[cal.t > 7.5], cal.acc[cal.t > 7.5])
     return {"omega1": o1, "omega2": o2}
@@ -222,11 +257,13 @@ def test_madgwick_and_afckf_gravity_jacobian_is_exact():
     (``common.gravity_objective``), is the derivative of the f_g they compute, and f_g is
     ``R(q)ᵀ [0, 0, 1] − a`` for unit q (checked against scipy)."""
     from quadest.filters.common import gravity_objective
+
     rng = np.random.default_rng(0)
     a = np.array([0.1, -0.2, 0.97])
 
     def f(q):
         return np.array(gravity_objective(*q, *a)[:3])
+
     for _ in range(5):
         q = rng.normal(size=4)
         J = np.array(gravity_objective(*q, *a)[3:])
@@ -240,19 +277,22 @@ def test_madgwick_and_afckf_gravity_jacobian_is_exact():
 def test_kalman_jacobians_against_finite_differences():
     """The Jacobians the Kalman step builds from the shared kernels (rot_matrix, skew,
     qexp_right: tests/test_rotation.py checks them against scipy) against finite differences."""
-    from quadest.rotation.kernels import qexp_right, rot_matrix as _rot, skew as _skew
+    from quadest.rotation.kernels import qexp_right
+    from quadest.rotation.kernels import rot_matrix as _rot
+    from quadest.rotation.kernels import skew as _skew
 
     def _qexp_mul(q, v):
         out = np.array(q, float)
         qexp_right(out, *v)
         return out
+
     rng = np.random.default_rng(1)
     eps = 1e-6
     for _ in range(5):
         q = rng.normal(size=4)
         q /= np.linalg.norm(q)
         u, d = rng.normal(size=3), 0.1 * rng.normal(size=3)
-        hm = lambda qq, dd: _rot(qq).T @ (u + dd)  # noqa: E731
+        hm = lambda qq, dd, u=u: _rot(qq).T @ (u + dd)  # noqa: E731
         ha = lambda qq: -9.81 * _rot(qq)[2, :]  # noqa: E731
         Hm = np.column_stack([(hm(_qexp_mul(q, e), d) - hm(_qexp_mul(q, -e), d)) / (2 * eps) for e in np.eye(3) * eps])
         Hd = np.column_stack([(hm(q, d + e) - hm(q, d - e)) / (2 * eps) for e in np.eye(3) * eps])
@@ -271,6 +311,7 @@ def test_kalman_jacobians_against_finite_differences():
 
 def test_ekf_transition_is_the_process_jacobian():
     from quadest.filters.common import omega_matrix
+
     w, dt = np.array([0.3, -1.2, 15.0]), 0.002
     q = np.array([0.9, 0.1, -0.3, 0.2])
     # q + dt/2 q ⊗ [0, ω] is linear in q: its Jacobian is the transition matrix (eq 18)
@@ -283,6 +324,7 @@ def test_afckf_process_noise_eq31():
     """q ⊗ [0, e] = Ξ(q) e, so cov(½ q ⊗ [0, e_ω] Δt) = Δt²/4 Ξ Σ² Ξᵀ (eq 31 corrected): the
     step's own ``add_process_noise`` against a Monte Carlo covariance of that noise."""
     from quadest.filters.afckf import add_process_noise, xi_rows
+
     rng = np.random.default_rng(2)
     q, e = rng.normal(size=4), rng.normal(size=3)
     np.testing.assert_allclose(np.array(xi_rows(*q)) @ e, quat_mul(q, np.concatenate([[0.0], e])), atol=1e-15)
@@ -301,8 +343,9 @@ def test_afckf_process_noise_eq31():
 def test_qukf_measurement_quaternion_is_exact_on_clean_samples():
     """Eqs 11 and 14 as corrected give the true attitude from noise-free static samples."""
     from quadest.filters.quatmeas import measurement_quaternion
-    from quadest.sim.sensors import earth_field
     from quadest.sim import build_config
+    from quadest.sim.sensors import earth_field
+
     B = earth_field(build_config("bebop2").environment)
     B_mag = np.array([np.hypot(B[0], B[1]), 0.0, B[2]])  # magnetic NED
     rng = np.random.default_rng(3)
@@ -320,6 +363,7 @@ def test_qukf_weights_sum_to_one_and_qukf_equals_ekf():
     """With the corrected eq 21 weights (the coefficients the step uses) the mean weights sum to
     one and the UT is exact for the linear model: QUKF = EKF."""
     from quadest.filters.qukf import QukfParams, coefficients
+
     for lam in (-1.0, 0.5, 2.0):
         c = coefficients(QukfParams(lam=lam))
         assert c.wm0 + 2 * 4 * c.wi == pytest.approx(1.0, abs=1e-15)
@@ -333,8 +377,9 @@ def test_afckf_bias_feedback_sign_eq40():
     """A constant gyro bias is learned with the corrected sign of eq 40 (it would run away with
     the printed one)."""
     bias = [0.02, -0.015, 0.0]
-    rec = simulate("hover", "bebop2", seed=8, duration=60, ideal=True,
-                   overrides={"gyro.bias": bias, "hover.gust_acc_rms": 0.05})
+    rec = simulate(
+        "hover", "bebop2", seed=8, duration=60, ideal=True, overrides={"gyro.bias": bias, "hover.gust_acc_rms": 0.05}
+    )
     res = make_filter("afckf", declination=DECL, omega_d=0.05).run(rec)
     est = np.array([res.diag["bias_x"][-1], res.diag["bias_y"][-1]])
     assert np.sign(est[0]) == np.sign(bias[0]) and np.sign(est[1]) == np.sign(bias[1])
@@ -351,6 +396,7 @@ def test_afckf_window_shrinks_with_yaw_rate_eq53():
 
 def test_afckf_fuzzy_gain_eqs47_51():
     from quadest.filters.afckf import fuzzy_gain, membership
+
     assert membership(0.0, 2.0, 10.0) == 0.0 and membership(2.0, 2.0, 10.0) == pytest.approx(1.0)
     assert membership(5.0, 2.0, 10.0) == pytest.approx(1.0)  # clipped
     assert membership(1.0, 2.0, 10.0) == pytest.approx((np.sqrt(10) - 1) / 9)  # convex for ϑ > 1
@@ -375,6 +421,7 @@ def test_afckf_tracks_a_spinning_vehicle_eq23(centrifugal):
 
 def test_fit_centrifugal_recovers_the_lever_arm():
     from quadest.calibration.fit import fit_centrifugal
+
     rec = simulate("damaged-rotor", "bebop2", seed=1000, ideal=True, overrides={"damaged.tilt_deg": 0.0})
     o1, o2, res = fit_centrifugal(rec.gyr[rec.t > 7.5], rec.acc[rec.t > 7.5])
     # f = ω × (ω × r): for spin about body z, the x/y specific force is −ω² r_xy
@@ -386,6 +433,7 @@ def test_fit_centrifugal_recovers_the_lever_arm():
 # -- small linear algebra --------------------------------------------------------------------------
 def test_linalg_kernels_match_numpy():
     from quadest.filters.linalg import inv_spd, inv_spd_into, mm, mm_t, mv
+
     rng = np.random.default_rng(4)
     for n in (3, 4, 9):
         A, B = rng.normal(size=(n, n)), rng.normal(size=(n, 5))

@@ -1,6 +1,7 @@
 """Flights with the estimator in the loop (issue #13): sensors sampled in the loop equal the
 batch sensor model, the fault-tolerant controller's relaxed hover (solved here independently),
 what the nominal controller does after a rotor loss, and runs that end with a status."""
+
 import numpy as np
 import pytest
 from numba import njit
@@ -35,7 +36,9 @@ def _relaxed_hover_independently(model, failed, rho):
         thrusts = np.array([0.0 if i == failed else (rho if i == far else 1.0) * t_a for i in range(4)])
         M = np.zeros(3)
         for i in range(4):
-            M += np.cross(pos[i], [0.0, 0.0, -thrusts[i]]) + np.array([0.0, 0.0, -model.spin[i] * model.kappa * thrusts[i]])
+            M += np.cross(pos[i], [0.0, 0.0, -thrusts[i]]) + np.array(
+                [0.0, 0.0, -model.spin[i] * model.kappa * thrusts[i]]
+            )
         omega = w * n
         M -= D @ omega
         force_up = thrusts.sum() * np.cos(theta) - model.mass * model.gravity
@@ -44,8 +47,9 @@ def _relaxed_hover_independently(model, failed, rho):
     best = None
     for phi0 in np.linspace(-np.pi, np.pi, 8, endpoint=False):
         for w0 in (-15.0, 15.0):
-            sol = least_squares(residual, [2.0, 0.1, phi0, w0], bounds=([0, 0, -4, -200], [20, 1.2, 4, 200]),
-                                xtol=1e-14, ftol=1e-14)
+            sol = least_squares(
+                residual, [2.0, 0.1, phi0, w0], bounds=([0, 0, -4, -200], [20, 1.2, 4, 200]), xtol=1e-14, ftol=1e-14
+            )
             if np.abs(residual(sol.x)).max() < 1e-9 and (best is None or sol.x[1] < best[1]):
                 best = sol.x
     return best
@@ -72,6 +76,7 @@ def test_the_relaxed_hover_is_the_controllers_model_solved_and_the_flight_reache
     assert s["relaxed_hover_model"]["spin_rate_rad_s"] == pytest.approx(spin_model, rel=1e-6)
     # it holds its place: a settled run circles within the settling bound
     from quadest.flight import FlightParams
+
     assert s["time_to_settle_s"] is not None and s["position_rms_settled_m"] < FlightParams().settle_m
 
 
@@ -87,6 +92,7 @@ def test_the_loop_reads_the_sensor_model_and_the_check_can_fail():
     rec, x = f.recording, f.states
     assert rec.meta["estimator"] == "madgwick" and len(rec) == 1000
     from quadest.models.multirotor import derivatives
+
     n = len(rec)
     dx, thrust = np.empty_like(x), np.empty((n, 4))
     derivatives(x, f.commands, np.ones((n, 4)), V.vehicle(), dx, thrust)
@@ -125,18 +131,23 @@ class _Diverging(Madgwick):
 
 def test_runs_end_with_a_status_not_a_traceback():
     s = fly("hover", estimator=_Diverging(), seed=0, duration=2.0).summary
-    assert s["status"] == "stopped" and "non-finite" in s["reason"] and s["end_time_s"] == pytest.approx(0.6, abs=0.005), s
+    assert (
+        s["status"] == "stopped" and "non-finite" in s["reason"] and s["end_time_s"] == pytest.approx(0.6, abs=0.005)
+    ), s
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    (dict(scenario="rotor-loss", failure=Failure(rotor=4, time_s=1.0)), "rotor 4 does not exist"),
-    (dict(scenario="rotor-loss", failure=Failure(rotor=0, time_s=20.0)), "outside the run"),
-    (dict(scenario="rotor-loss", failure=Failure(rotor=0, time_s=1.0, efficiency=0.5)), "complete rotor loss"),
-    (dict(scenario="throw-me"), "unknown scenario"),
-    (dict(scenario="hover", estimator="vqf9"), "unknown estimator"),
-    (dict(scenario="hover", controller="pid"), "unknown controller"),
-    (dict(scenario="hover", duration=-1.0), "duration"),
-])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(scenario="rotor-loss", failure=Failure(rotor=4, time_s=1.0)), "rotor 4 does not exist"),
+        (dict(scenario="rotor-loss", failure=Failure(rotor=0, time_s=20.0)), "outside the run"),
+        (dict(scenario="rotor-loss", failure=Failure(rotor=0, time_s=1.0, efficiency=0.5)), "complete rotor loss"),
+        (dict(scenario="throw-me"), "unknown scenario"),
+        (dict(scenario="hover", estimator="vqf9"), "unknown estimator"),
+        (dict(scenario="hover", controller="pid"), "unknown controller"),
+        (dict(scenario="hover", duration=-1.0), "duration"),
+    ],
+)
 def test_impossible_flights_are_refused(kwargs, match):
     with pytest.raises((UsageError, ValueError), match=match):
         fly(**kwargs)
@@ -187,6 +198,7 @@ def test_the_hand_throws_continuously_into_the_release():
     # the attitude turns about the body-fixed axis of the release rate: the relative rotation
     # from the first sample to the release is along it
     from quadest.rotation import quat_conj, quat_mul, quat_to_rotvec
+
     rv = quat_to_rotvec(quat_mul(quat_conj(x[0, 6:10]), x[-1, 6:10]))
     axis = x_rel[10:13] / np.linalg.norm(x_rel[10:13])
     assert np.linalg.norm(np.cross(rv, axis)) < 1e-9 * max(1.0, np.linalg.norm(rv))
@@ -205,8 +217,9 @@ def test_a_flown_throw_is_read_by_recover_and_its_model_is_fitted(throws):
     f = throws[0]
     res = recover(f.recording.select(slice(0, int(np.argmax(f.modes == 2)) + 5)), model)
     assert res.converge_index is not None
-    assert f.recording.t[res.converge_index] == pytest.approx(f.summary["handover_s"] + f.summary["release_s"],
-                                                              abs=1e-9)
+    assert f.recording.t[res.converge_index] == pytest.approx(
+        f.summary["handover_s"] + f.summary["release_s"], abs=1e-9
+    )
 
 
 def test_the_bank_without_its_update_keeps_the_prior():
@@ -229,6 +242,7 @@ def test_the_bank_without_its_update_keeps_the_prior():
     assert La[0] == 0.0 and np.trace(Pa[0]) > np.trace(Pb[0]) and not np.allclose(Va, Vb)
     # the prior by hand: v + dt (−ω × v + f_c(v, ω)/m + g_b), g_b = [0, 0, g] level
     from quadest.models.aero import aero_force
+
     f = aero_force(np.array([1.0, 0.0, 0.0]), w, m.A, m.B, m.C) / 0.5
     expect = np.array([1.0, 0.0, 0.0]) + 1e-3 * (-np.cross(w, [1.0, 0.0, 0.0]) + f + [0.0, 0.0, prm.gravity])
     np.testing.assert_allclose(Va[0], expect, rtol=1e-9, atol=1e-12)
@@ -266,14 +280,21 @@ def test_other_sensors_of_a_flight():
     assert f.summary["status"] == "survived" and f.recording.meta["position_sensor"] == "gnss"
     err = np.linalg.norm(f.pv_est[:, 0:3] - f.states[:, 0:3], axis=1)
     bound = 1.5 * np.linalg.norm(p.gnss_noise_m)
-    assert np.sqrt(np.mean(err ** 2)) < bound and np.abs(f.states[f.recording.t > 5.0, 0:3]).max() < bound
+    assert np.sqrt(np.mean(err**2)) < bound and np.abs(f.states[f.recording.t > 5.0, 0:3]).max() < bound
     ok = np.isfinite(f.baro)
     assert ok.sum() == pytest.approx(50 * 10, abs=1)
     resid = f.baro[ok] + f.states[ok, 2]
     assert np.std(resid) == pytest.approx(0.1, rel=0.15) and abs(np.mean(resid)) < 0.03
-    cfg = build_config("bebop2", {"mag.latency_s": 0.02, "mag.noise_std": 0.0, "mag.motor_coef": [0.0, 0.0, 0.0],
-                                  "mag.hard_iron": [0.0, 0.0, 0.0],
-                                  "mag.soft_iron": [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]})
+    cfg = build_config(
+        "bebop2",
+        {
+            "mag.latency_s": 0.02,
+            "mag.noise_std": 0.0,
+            "mag.motor_coef": [0.0, 0.0, 0.0],
+            "mag.hard_iron": [0.0, 0.0, 0.0],
+            "mag.soft_iron": [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        },
+    )
     g = fly("trajectory", estimator="madgwick", seed=1, duration=3.0, config=cfg)
     rows = np.flatnonzero(np.isfinite(g.recording.mag[:, 0]))
     rows = rows[rows >= 10]
@@ -296,8 +317,13 @@ def test_the_anti_alias_filter_in_the_batch_model_and_in_the_loop():
     resid = rec.gyr - rec.true_gyr  # the noise through the filter (the true rate is slow against 40 Hz)
     a = dlpf_alpha(40.0, 500.0)
     assert np.std(resid[100:], axis=0) == pytest.approx(np.full(3, 0.05 * np.sqrt(a / (2 - a))), rel=0.05)
-    f = fly("hover", estimator="madgwick", seed=1, duration=2.0,
-            config=build_config("bebop2", {"gyro.dlpf_hz": 40.0, "acc.dlpf_hz": 40.0}))
+    f = fly(
+        "hover",
+        estimator="madgwick",
+        seed=1,
+        duration=2.0,
+        config=build_config("bebop2", {"gyro.dlpf_hz": 40.0, "acc.dlpf_hz": 40.0}),
+    )
     assert f.summary["status"] == "survived"
 
 
@@ -309,8 +335,9 @@ def test_the_loop_reads_an_indoor_field_as_the_batch_model_does():
 
     room = build_config("bebop2", {"environment.distortion_ut": 10.0, "mag.latency_s": 0.01})
     f = fly("hover", estimator="truth", seed=2, duration=2.0, config=room)
-    plain = fly("hover", estimator="truth", seed=2, duration=2.0, config=room.with_overrides(
-        {"environment.distortion_ut": 0.0}))
+    plain = fly(
+        "hover", estimator="truth", seed=2, duration=2.0, config=room.with_overrides({"environment.distortion_ut": 0.0})
+    )
     diff = np.linalg.norm(f.recording.mag - plain.recording.mag, axis=1)
     diff = diff[np.isfinite(diff)]
     assert 5.0 < np.median(diff) < 15.0  # 10 µT at the origin; the vehicle starts within 0.5 m of it

@@ -2,6 +2,7 @@
 file or refuses it with a ValueError (ReaderError is one) naming it; never another exception, a
 hang, or a recording with NaN where a value must be. Through the command line: one line, no
 internal error."""
+
 import json
 
 import h5py
@@ -16,8 +17,9 @@ from quadest.models.aero import AeroModel
 from quadest.readers import read_recording
 from quadest.sim import build_config, simulate
 
-FUZZ = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
-                                                                        HealthCheck.too_slow])
+FUZZ = settings(
+    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow]
+)
 
 
 _ORIGINALS: dict = {}
@@ -33,8 +35,10 @@ def _originals():
 
     d = Path(tempfile.mkdtemp(prefix="quadest-fuzz-"))
     rec = simulate("hover", "bebop2", seed=3, duration=0.5)
-    out = {"csv": save_recording(rec, d / "r.csv").read_bytes(),
-           "parquet": save_recording(rec, d / "r.parquet").read_bytes()}
+    out = {
+        "csv": save_recording(rec, d / "r.csv").read_bytes(),
+        "parquet": save_recording(rec, d / "r.parquet").read_bytes(),
+    }
     with h5py.File(d / "b.hdf5", "w") as f:  # a small BROAD-like file
         f.attrs["sampling_rate"] = 100.0
         n = 200
@@ -47,9 +51,17 @@ def _originals():
     from scipy.io import savemat
 
     n = 200
-    savemat(d / "b.mat", {"sampling_rate": 100.0, "imu_gyr": np.zeros((n, 3)), "imu_acc": np.tile([0.0, 0.0, 9.81], (n, 1)),
-                          "imu_mag": np.tile([20.0, 0.0, -40.0], (n, 1)), "opt_quat": np.tile([1.0, 0, 0, 0], (n, 1)),
-                          "movement": np.ones((n, 1))})
+    savemat(
+        d / "b.mat",
+        {
+            "sampling_rate": 100.0,
+            "imu_gyr": np.zeros((n, 3)),
+            "imu_acc": np.tile([0.0, 0.0, 9.81], (n, 1)),
+            "imu_mag": np.tile([20.0, 0.0, -40.0], (n, 1)),
+            "opt_quat": np.tile([1.0, 0, 0, 0], (n, 1)),
+            "movement": np.ones((n, 1)),
+        },
+    )
     out["mat"] = (d / "b.mat").read_bytes()
     # autopilot logs, written byte by byte as tests/test_readers.py does
     from test_readers import write_dataflash, write_ulog
@@ -75,12 +87,15 @@ def _mutate(data: bytes, edits) -> bytes:
         elif kind == "insert":
             b[i:i] = bytes([value]) * (1 + value % 7)
         elif kind == "delete":
-            del b[i:i + 1 + value % 50]
+            del b[i : i + 1 + value % 50]
     return bytes(b)
 
 
-EDITS = st.lists(st.tuples(st.sampled_from(["flip", "cut", "insert", "delete"]), st.integers(0, 10**9),
-                           st.integers(0, 255)), min_size=1, max_size=4)
+EDITS = st.lists(
+    st.tuples(st.sampled_from(["flip", "cut", "insert", "delete"]), st.integers(0, 10**9), st.integers(0, 255)),
+    min_size=1,
+    max_size=4,
+)
 
 
 def _read_or_refuse(path, fmt=None):
@@ -126,14 +141,15 @@ def test_generated_csv_text_is_read_or_refused(text, tmp_path):
         pass
 
 
-JSON = st.recursive(st.none() | st.booleans() | st.floats() | st.integers() | st.text(max_size=10),
-                    lambda c: st.lists(c, max_size=4) | st.dictionaries(st.text(max_size=12), c, max_size=5),
-                    max_leaves=25)
+JSON = st.recursive(
+    st.none() | st.booleans() | st.floats() | st.integers() | st.text(max_size=10),
+    lambda c: st.lists(c, max_size=4) | st.dictionaries(st.text(max_size=12), c, max_size=5),
+    max_leaves=25,
+)
 
 
 @FUZZ
-@given(values=JSON, kind=st.sampled_from(["gyro", "accel", "mag", "centrifugal", "aero", "nope", 3]),
-       unit=JSON)
+@given(values=JSON, kind=st.sampled_from(["gyro", "accel", "mag", "centrifugal", "aero", "nope", 3]), unit=JSON)
 def test_calibration_files_are_read_or_refused(values, kind, unit, tmp_path):
     p = tmp_path / "c.json"
     p.write_text(json.dumps({"format": "quadest calibration v1", "kind": kind, "unit": unit, "values": values}))
@@ -150,8 +166,13 @@ def test_calibration_files_are_read_or_refused(values, kind, unit, tmp_path):
 @given(doc=JSON)
 def test_aero_model_files_are_read_or_refused(doc, tmp_path):
     p = tmp_path / "a.json"
-    good = {"format": "quadest aero model v1", "A": np.eye(3).tolist(), "B": np.zeros((3, 3)).tolist(),
-            "C": np.zeros((3, 10)).tolist(), "mass_kg": 0.5}
+    good = {
+        "format": "quadest aero model v1",
+        "A": np.eye(3).tolist(),
+        "B": np.zeros((3, 3)).tolist(),
+        "C": np.zeros((3, 10)).tolist(),
+        "mass_kg": 0.5,
+    }
     for d in (doc, {**good, "A": doc}, {**good, "mass_kg": doc}):
         p.write_text(json.dumps(d))
         try:
@@ -160,15 +181,22 @@ def test_aero_model_files_are_read_or_refused(doc, tmp_path):
             pass
 
 
-TOML_VALUE = st.one_of(st.integers(-10**6, 10**6), st.floats(allow_nan=False), st.booleans(),
-                       st.text(st.characters(codec="ascii", exclude_characters='"\\\n'), max_size=8).map(json.dumps),
-                       st.lists(st.floats(-10, 10), max_size=4).map(lambda v: json.dumps(v)))
+TOML_VALUE = st.one_of(
+    st.integers(-(10**6), 10**6),
+    st.floats(allow_nan=False),
+    st.booleans(),
+    st.text(st.characters(codec="ascii", exclude_characters='"\\\n'), max_size=8).map(json.dumps),
+    st.lists(st.floats(-10, 10), max_size=4).map(lambda v: json.dumps(v)),
+)
 
 
 @FUZZ
-@given(section=st.sampled_from(["gyro", "acc", "mag", "imu", "vehicle", "nope", "hover"]),
-       key=st.sampled_from(["noise_std", "rate_hz", "range", "bias", "soft_iron", "mass_kg", "nope"]),
-       value=TOML_VALUE, junk=st.text(max_size=30))
+@given(
+    section=st.sampled_from(["gyro", "acc", "mag", "imu", "vehicle", "nope", "hover"]),
+    key=st.sampled_from(["noise_std", "rate_hz", "range", "bias", "soft_iron", "mass_kg", "nope"]),
+    value=TOML_VALUE,
+    junk=st.text(max_size=30),
+)
 def test_simulator_toml_is_read_or_refused(section, key, value, junk, tmp_path):
     p = tmp_path / "c.toml"
     v = value if isinstance(value, str) else json.dumps(value)

@@ -1,4 +1,5 @@
 """The jet algebra against finite differences of its own values."""
+
 import numpy as np
 
 from quadest.sim import jets as J
@@ -13,7 +14,7 @@ def fd_check(f, t, h=1e-4, tol=1e-6):
     """f(t) -> Jet; compare d1, d2 with central differences."""
     j0, jm, jp = f(t), f(t - h), f(t + h)
     np.testing.assert_allclose(j0.d1, (jp.v - jm.v) / (2 * h), atol=tol)
-    np.testing.assert_allclose(j0.d2, (jp.v - 2 * j0.v + jm.v) / h ** 2, atol=100 * tol)
+    np.testing.assert_allclose(j0.d2, (jp.v - 2 * j0.v + jm.v) / h**2, atol=100 * tol)
 
 
 def vec(t):
@@ -30,8 +31,13 @@ def test_products_and_normalize():
 
 def test_rotation_jets_and_body_rates():
     t = np.linspace(0, 5, 40)
-    ang = lambda s: trig_jet(s, 1.1, 0.3, 2.0)
-    Rf = lambda s: J.matmul(J.rot_z(ang(s)), J.rot_axis([0.6, 0.8, 0.0], trig_jet(s, 0.5, 0.0, 1.0)))
+
+    def ang(s):
+        return trig_jet(s, 1.1, 0.3, 2.0)
+
+    def Rf(s):
+        return J.matmul(J.rot_z(ang(s)), J.rot_axis([0.6, 0.8, 0.0], trig_jet(s, 0.5, 0.0, 1.0)))
+
     fd_check(Rf, t)
     R = Rf(t)
     np.testing.assert_allclose(np.swapaxes(R.v, 1, 2) @ R.v, np.broadcast_to(np.eye(3), R.v.shape), atol=1e-14)

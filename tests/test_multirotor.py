@@ -1,6 +1,7 @@
 """The rotor-level vehicle model (issue #13, part 1), held to physics: a free rigid body keeps
 its energy and angular momentum, rotors at the hover speed hold the vehicle still, a lost rotor
 removes exactly its force and moment, inflow and motors behave as stated."""
+
 from dataclasses import replace
 
 import numpy as np
@@ -15,7 +16,7 @@ P = MultirotorParams()
 def _energy_momentum(states, p):
     J = np.asarray(p.inertia)
     v, q, w = states[:, 3:6], states[:, 6:10], states[:, 10:13]
-    energy = 0.5 * p.mass_kg * (v ** 2).sum(axis=1) + 0.5 * (J * w ** 2).sum(axis=1) - p.mass_kg * p.gravity * states[:, 2]
+    energy = 0.5 * p.mass_kg * (v**2).sum(axis=1) + 0.5 * (J * w**2).sum(axis=1) - p.mass_kg * p.gravity * states[:, 2]
     momentum = quat_rotate(q, J * w)
     return energy, momentum
 
@@ -24,8 +25,13 @@ def test_a_free_rigid_body_keeps_energy_and_angular_momentum():
     """Rotors stopped, no drag or damping, gravity on: a tumbling body with three different
     moments of inertia (the intermediate axis is unstable: a demanding case) over 10 s at 1 kHz
     keeps its mechanical energy and its angular momentum in the navigation frame to 1e-6."""
-    p = replace(P, inertia=(0.0023, 0.0031, 0.0046), body_drag=(0.0, 0.0, 0.0), damping=(0.0, 0.0, 0.0),
-                rot_drag=(0.0, 0.0, 0.0))
+    p = replace(
+        P,
+        inertia=(0.0023, 0.0031, 0.0046),
+        body_drag=(0.0, 0.0, 0.0),
+        damping=(0.0, 0.0, 0.0),
+        rot_drag=(0.0, 0.0, 0.0),
+    )
     V = p.vehicle()
     x = np.zeros(13 + p.rotors)
     x[3:6] = [1.0, 2.0, -3.0]

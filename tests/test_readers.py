@@ -1,6 +1,7 @@
 """Readers (issue #5): every format is written here from a simulated flight in that format's own
 frames and units, read back, and compared with the simulation (which is in quadest's); broken
 files give one clear line; the real samples in ../shared/data are read when present."""
+
 import os
 import struct
 from pathlib import Path
@@ -15,16 +16,16 @@ from quadest.rotation.frames import quat_ned_frd_to_enu_flu, vec_frd_to_flu, vec
 from quadest.sim import simulate
 
 DATA = Path(os.environ.get("QUADEST_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
-needs_data = pytest.mark.skipif(not DATA.is_dir(), reason=f"real recordings not found at {DATA} "
-                                                          "(set QUADEST_DATA to their folder)")
+needs_data = pytest.mark.skipif(
+    not DATA.is_dir(), reason=f"real recordings not found at {DATA} (set QUADEST_DATA to their folder)"
+)
 FLOAT32 = 2e-6  # relative precision of formats that store float32
 
 
 @pytest.fixture(scope="module")
 def flight():
     """10 s of simulated flight, magnetometer on every IMU sample, at 200 Hz."""
-    return simulate("nominal", "bebop2", seed=11, duration=10.0,
-                    overrides={"imu.rate_hz": 200.0, "mag.rate_hz": 200.0})
+    return simulate("nominal", "bebop2", seed=11, duration=10.0, overrides={"imu.rate_hz": 200.0, "mag.rate_hz": 200.0})
 
 
 def _same(rec, ref, tol=1e-9, q_tol=1e-9, fields=("gyr", "acc")):
@@ -47,9 +48,32 @@ def test_generic_csv_with_units_frames_and_order(tmp_path, flight):
     cols = np.column_stack([(flight.t + 100.0) * 1000.0, g, a, m, q])
     header = "time_ms,gx,gy,gz,ax,ay,az,mx,my,mz,qx,qy,qz,qw"
     np.savetxt(p, cols, delimiter=",", header=header, comments="", fmt="%.17g")
-    opts = ["--format", "csv", "--map", "t=time_ms", "--map", "gyr=gx,gy,gz", "--map", "acc=ax,ay,az",
-            "--map", "mag=mx,my,mz", "--map", "true_q=qx,qy,qz,qw", "--units", "t=ms", "--units", "gyr=deg/s",
-            "--units", "acc=g", "--units", "mag=gauss", "--frame", "enu-flu", "--quat-order", "xyzw"]
+    opts = [
+        "--format",
+        "csv",
+        "--map",
+        "t=time_ms",
+        "--map",
+        "gyr=gx,gy,gz",
+        "--map",
+        "acc=ax,ay,az",
+        "--map",
+        "mag=mx,my,mz",
+        "--map",
+        "true_q=qx,qy,qz,qw",
+        "--units",
+        "t=ms",
+        "--units",
+        "gyr=deg/s",
+        "--units",
+        "acc=g",
+        "--units",
+        "mag=gauss",
+        "--frame",
+        "enu-flu",
+        "--quat-order",
+        "xyzw",
+    ]
     from quadest.cli.common import read
     from quadest.cli.main import build_parser
 
@@ -84,9 +108,14 @@ def _broad_arrays(flight):
     q = quat_ned_frd_to_enu_flu(flight.true_q)
     q[:20] = np.nan  # BROAD marks missing optical samples with NaN
     move = (flight.t > 2.0) & (flight.t < 8.0)
-    return {"imu_gyr": vec_frd_to_flu(flight.gyr), "imu_acc": vec_frd_to_flu(flight.acc),
-            "imu_mag": vec_frd_to_flu(flight.mag), "opt_quat": q, "movement": move,
-            "opt_pos": np.zeros((len(flight), 3))}
+    return {
+        "imu_gyr": vec_frd_to_flu(flight.gyr),
+        "imu_acc": vec_frd_to_flu(flight.acc),
+        "imu_mag": vec_frd_to_flu(flight.mag),
+        "opt_quat": q,
+        "movement": move,
+        "opt_pos": np.zeros((len(flight), 3)),
+    }
 
 
 def write_broad(path, flight):
@@ -140,8 +169,9 @@ def test_dido_and_blackbird(tmp_path, flight):
 
     S = np.sqrt(0.5)
     q_enu_frd = quat_mul(np.array([0.0, S, S, 0.0]), flight.true_q)
-    gt = np.column_stack([flight.t + 1.5e9, vec_ned_to_enu(flight.true_pos), q_enu_frd[:, [1, 2, 3, 0]],
-                          vec_ned_to_enu(flight.true_vel)])
+    gt = np.column_stack(
+        [flight.t + 1.5e9, vec_ned_to_enu(flight.true_pos), q_enu_frd[:, [1, 2, 3, 0]], vec_ned_to_enu(flight.true_vel)]
+    )
     np.savetxt(bb / "stamped_groundtruth_imu.txt", gt, header="ts x y z qx qy qz qw", fmt="%.12f")
     assert detect_format(bb) == "blackbird"
     rec = read_recording(bb)
@@ -153,8 +183,9 @@ def test_repoimu_zero_quaternions_have_no_truth(tmp_path, flight):
     p = tmp_path / "TStick_Test99.csv"
     q = quat_ned_frd_to_enu_flu(flight.true_q)
     q[5:9] = 0.0
-    rows = np.column_stack([flight.t + 0.08, q, vec_frd_to_flu(flight.acc), vec_frd_to_flu(flight.gyr),
-                            vec_frd_to_flu(flight.mag) / 48.0])
+    rows = np.column_stack(
+        [flight.t + 0.08, q, vec_frd_to_flu(flight.acc), vec_frd_to_flu(flight.gyr), vec_frd_to_flu(flight.mag) / 48.0]
+    )
     with open(p, "w") as f:
         f.write("Time (s);Vicon Orientation;;;;IMU Acceleration;;;IMU Gyroscope;;;IMU Magnetometer;;;\n")
         f.write(";W;X;Y;Z;X;Y;Z;X;Y;Z;X;Y;Z;\n")
@@ -174,21 +205,31 @@ def _ros_msgs(ts, flight, ros1):
     for k in range(len(flight)):
         sec = 1000 + flight.t[k]
         stamp = T["builtin_interfaces/msg/Time"](sec=int(sec), nanosec=int(round((sec % 1) * 1e9)))
-        hdr = (T["std_msgs/msg/Header"](seq=k, stamp=stamp, frame_id="imu") if ros1
-               else T["std_msgs/msg/Header"](stamp=stamp, frame_id="imu"))
+        hdr = (
+            T["std_msgs/msg/Header"](seq=k, stamp=stamp, frame_id="imu")
+            if ros1
+            else T["std_msgs/msg/Header"](stamp=stamp, frame_id="imu")
+        )
         V = T["geometry_msgs/msg/Vector3"]
         w, a, m = vec_frd_to_flu(flight.gyr[k]), vec_frd_to_flu(flight.acc[k]), vec_frd_to_flu(flight.mag[k]) * 1e-6
         q = quat_ned_frd_to_enu_flu(flight.true_q[k])
         Q = T["geometry_msgs/msg/Quaternion"](x=q[1], y=q[2], z=q[3], w=q[0])
-        imu = T["sensor_msgs/msg/Imu"](header=hdr, orientation=T["geometry_msgs/msg/Quaternion"](x=0, y=0, z=0, w=1),
-                                       orientation_covariance=np.zeros(9), angular_velocity=V(x=w[0], y=w[1], z=w[2]),
-                                       angular_velocity_covariance=np.zeros(9),
-                                       linear_acceleration=V(x=a[0], y=a[1], z=a[2]),
-                                       linear_acceleration_covariance=np.zeros(9))
-        mag = T["sensor_msgs/msg/MagneticField"](header=hdr, magnetic_field=V(x=m[0], y=m[1], z=m[2]),
-                                                 magnetic_field_covariance=np.zeros(9))
-        pose = T["geometry_msgs/msg/PoseStamped"](header=hdr, pose=T["geometry_msgs/msg/Pose"](
-            position=T["geometry_msgs/msg/Point"](x=0.0, y=0.0, z=1.0), orientation=Q))
+        imu = T["sensor_msgs/msg/Imu"](
+            header=hdr,
+            orientation=T["geometry_msgs/msg/Quaternion"](x=0, y=0, z=0, w=1),
+            orientation_covariance=np.zeros(9),
+            angular_velocity=V(x=w[0], y=w[1], z=w[2]),
+            angular_velocity_covariance=np.zeros(9),
+            linear_acceleration=V(x=a[0], y=a[1], z=a[2]),
+            linear_acceleration_covariance=np.zeros(9),
+        )
+        mag = T["sensor_msgs/msg/MagneticField"](
+            header=hdr, magnetic_field=V(x=m[0], y=m[1], z=m[2]), magnetic_field_covariance=np.zeros(9)
+        )
+        pose = T["geometry_msgs/msg/PoseStamped"](
+            header=hdr,
+            pose=T["geometry_msgs/msg/Pose"](position=T["geometry_msgs/msg/Point"](x=0.0, y=0.0, z=1.0), orientation=Q),
+        )
         out.append((int(sec * 1e9), imu, mag, pose))
     return out
 
@@ -262,8 +303,13 @@ def write_ulog(path, flight, truncate_at=None):
 def _df_fmt(mid, name, fmt, cols):
     sizes = {"Q": 8, "B": 1, "f": 4, "n": 4, "N": 16, "Z": 64}
     length = 3 + sum(sizes[c] for c in fmt)
-    return (b"\xa3\x95\x80" + struct.pack("<BB", mid, length) + name.encode().ljust(4, b"\0")
-            + fmt.encode().ljust(16, b"\0") + cols.encode().ljust(64, b"\0"))
+    return (
+        b"\xa3\x95\x80"
+        + struct.pack("<BB", mid, length)
+        + name.encode().ljust(4, b"\0")
+        + fmt.encode().ljust(16, b"\0")
+        + cols.encode().ljust(64, b"\0")
+    )
 
 
 def write_dataflash(path, flight):
@@ -315,7 +361,7 @@ def test_a_damaged_dataflash_log_is_reported(tmp_path, flight):
     write_dataflash(p, flight)
     data = bytearray(p.read_bytes())
     mid = len(data) // 2
-    data[mid:mid + 300] = b"\x00" * 300
+    data[mid : mid + 300] = b"\x00" * 300
     p.write_bytes(bytes(data))
     rec = read_recording(p)
     assert 0 < len(rec) < len(flight)
@@ -362,7 +408,7 @@ def test_truncated_ulog_keeps_what_was_written(tmp_path, flight):
     write_ulog(p, flight, truncate_at=20_000)
     rec = read_recording(p)
     assert 0 < len(rec) < len(flight)
-    assert np.allclose(rec.gyr, flight.gyr[:len(rec)], rtol=FLOAT32, atol=1e-6)
+    assert np.allclose(rec.gyr, flight.gyr[: len(rec)], rtol=FLOAT32, atol=1e-6)
     assert rec.meta["ulog_corrupt"] and "cut short" in rec.meta["warnings"][0]
     whole = tmp_path / "whole.ulg"
     write_ulog(whole, flight)
@@ -376,12 +422,14 @@ def _specific_force_down(rec, q):
     return quat_rotate(q[ok], rec.acc[ok]).mean(axis=0)
 
 
-REAL = [("broad/02_undisturbed_slow_rotation_B.hdf5", "broad", "true_q", 0.1),
-        ("dido/circle_a_1.5_v_2.5_r_1.5.hdf5", "dido", "true_q", 0.15),
-        ("blackbird_clover/val", "blackbird", "true_q", 0.3),
-        ("repoimu/TStick/TStick_Test02_Trial1.csv", "repoimu", "true_q", 0.3),
-        ("px4_ulog/sample.ulg", "ulog", "ref_q", 0.2),
-        ("ardupilot/good_hover1.BIN", "dataflash", "ref_q", 0.3)]
+REAL = [
+    ("broad/02_undisturbed_slow_rotation_B.hdf5", "broad", "true_q", 0.1),
+    ("dido/circle_a_1.5_v_2.5_r_1.5.hdf5", "dido", "true_q", 0.15),
+    ("blackbird_clover/val", "blackbird", "true_q", 0.3),
+    ("repoimu/TStick/TStick_Test02_Trial1.csv", "repoimu", "true_q", 0.3),
+    ("px4_ulog/sample.ulg", "ulog", "ref_q", 0.2),
+    ("ardupilot/good_hover1.BIN", "dataflash", "ref_q", 0.3),
+]
 
 
 @needs_data
@@ -402,9 +450,10 @@ def test_real_files_are_in_quadest_conventions(rel, fmt, truth, tol, capsys):
 @needs_data
 def test_real_repoimu_rows_without_truth():
     rec = read_recording(DATA / "repoimu/TStick/TStick_Test01_Static.csv")
-    raw = np.genfromtxt(DATA / "repoimu/TStick/TStick_Test01_Static.csv", delimiter=";", skip_header=2,
-                        usecols=range(1, 5))
-    zero = (np.abs(raw).sum(axis=1) == 0)
+    raw = np.genfromtxt(
+        DATA / "repoimu/TStick/TStick_Test01_Static.csv", delimiter=";", skip_header=2, usecols=range(1, 5)
+    )
+    zero = np.abs(raw).sum(axis=1) == 0
     assert np.isnan(rec.true_q[:, 0]).sum() == zero.sum()
 
 
@@ -447,12 +496,17 @@ def test_rosbag_odometry_as_truth(tmp_path, flight):
         co = w.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=ts)
         for t_ns, imu, _, pose in _ros_msgs(ts, short, ros1=False):
             odom = T["nav_msgs/msg/Odometry"](
-                header=pose.header, child_frame_id="base_link",
+                header=pose.header,
+                child_frame_id="base_link",
                 pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose.pose, covariance=np.zeros(36)),
                 twist=T["geometry_msgs/msg/TwistWithCovariance"](
-                    twist=T["geometry_msgs/msg/Twist"](linear=T["geometry_msgs/msg/Vector3"](x=0, y=0, z=0),
-                                                        angular=T["geometry_msgs/msg/Vector3"](x=0, y=0, z=0)),
-                    covariance=np.zeros(36)))
+                    twist=T["geometry_msgs/msg/Twist"](
+                        linear=T["geometry_msgs/msg/Vector3"](x=0, y=0, z=0),
+                        angular=T["geometry_msgs/msg/Vector3"](x=0, y=0, z=0),
+                    ),
+                    covariance=np.zeros(36),
+                ),
+            )
             w.write(ci, t_ns, ts.serialize_cdr(imu, "sensor_msgs/msg/Imu"))
             w.write(co, t_ns, ts.serialize_cdr(odom, "nav_msgs/msg/Odometry"))
     rec = read_recording(path)
@@ -468,11 +522,15 @@ def test_both_repoimu_headers_are_read(tmp_path):
 
     rows = [f"{0.01 * k};1;0;0;0;0;0;9.81;0.01;0;0;0.4;0;0.9" for k in range(50)]
     a = tmp_path / "a.csv"
-    a.write_text("Time (s);Vicon Orientation;;;;IMU Acceleration;;;IMU Gyroscope;;;IMU Magnetometer;;;\n"
-                 ";W;X;Y;Z;X;Y;Z;X;Y;Z;X;Y;Z;\n" + "\n".join(r + ";" for r in rows) + "\n")
+    a.write_text(
+        "Time (s);Vicon Orientation;;;;IMU Acceleration;;;IMU Gyroscope;;;IMU Magnetometer;;;\n"
+        ";W;X;Y;Z;X;Y;Z;X;Y;Z;X;Y;Z;\n" + "\n".join(r + ";" for r in rows) + "\n"
+    )
     b = tmp_path / "b.csv"
-    b.write_text("Time;Vicon Orientation;;;;IMU Acceleration;;;IMU Gyroscope;;;IMU Magnetometer;;\n"
-                 "s;W;X;Y;Z;X;Y;Z;X;Y;Z;X;Y;Z\n" + "\n".join(rows) + "\n")
+    b.write_text(
+        "Time;Vicon Orientation;;;;IMU Acceleration;;;IMU Gyroscope;;;IMU Magnetometer;;\n"
+        "s;W;X;Y;Z;X;Y;Z;X;Y;Z;X;Y;Z\n" + "\n".join(rows) + "\n"
+    )
     ra, rb = (read_recording(p) for p in (a, b))
     assert detect_format(a) == detect_format(b) == "repoimu"
     assert len(ra) == len(rb) == 50 and np.array_equal(ra.gyr, rb.gyr) and np.array_equal(ra.true_q, rb.true_q)

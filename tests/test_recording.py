@@ -1,4 +1,5 @@
 """The Recording type: validation, files (CSV, Parquet) and summaries."""
+
 import numpy as np
 import pytest
 
@@ -21,8 +22,9 @@ def make(n=200, rate=100.0, truth=True, rng=None):
         for k in ("true_gyr", "true_pos", "true_vel", "true_acc"):
             kw[k] = rng.normal(size=(n, 3))
         kw["true_q"][5] = np.nan  # a row without truth
-    return Recording(t=t, gyr=gyr, acc=acc, mag=mag, meta={"source": "test", "units": {"mag": "uT"},
-                                                            "nested": {"a": [1, 2.5]}}, **kw)
+    return Recording(
+        t=t, gyr=gyr, acc=acc, mag=mag, meta={"source": "test", "units": {"mag": "uT"}, "nested": {"a": [1, 2.5]}}, **kw
+    )
 
 
 def raises(match, **kw):
@@ -63,8 +65,7 @@ def test_unit_mistakes_are_refused():
     raises("acc: norm 9810.0 at row 2", acc=a)
     # free fall is not a unit mistake, and the check can be switched off
     Recording(t=np.arange(20) * 0.01, gyr=np.zeros((20, 3)), acc=np.zeros((20, 3)))
-    Recording(t=np.arange(20) * 0.01, gyr=np.zeros((20, 3)), acc=np.tile([0, 0, -1.0], (20, 1)),
-              check_units=False)
+    Recording(t=np.arange(20) * 0.01, gyr=np.zeros((20, 3)), acc=np.tile([0, 0, -1.0], (20, 1)), check_units=False)
 
 
 @pytest.mark.parametrize("ext", [".csv", ".parquet"])
@@ -90,8 +91,11 @@ def test_csv_header_is_fixed(tmp_path):
     assert lines[0] == "# quadest recording v2"
     assert lines[1] == "# rows: 200" and lines[-1] == "# end: 200 rows"  # a file cut short is refused
     header = next(line for line in lines if not line.startswith("#"))
-    want = ["t"] + [c for f in ("gyr", "acc", "mag", "true_q", "true_gyr", "true_pos", "true_vel",
-                                "true_acc") for c in columns_of(f)]
+    want = ["t"] + [
+        c
+        for f in ("gyr", "acc", "mag", "true_q", "true_gyr", "true_pos", "true_vel", "true_acc")
+        for c in columns_of(f)
+    ]
     assert header.split(",") == want
     assert want[10:14] == ["true_q_w", "true_q_x", "true_q_y", "true_q_z"]
     assert want[17:20] == ["true_pos_n", "true_pos_e", "true_pos_d"]
@@ -123,8 +127,9 @@ def test_summary_rates_gaps_and_truth():
     n = len(t)
     mag = np.full((n, 3), np.nan)
     mag[::5] = 1.0
-    rec = Recording(t=t, gyr=np.zeros((n, 3)), acc=np.tile([0, 0, -9.81], (n, 1)), mag=mag,
-                    true_q=np.tile([1.0, 0, 0, 0], (n, 1)))
+    rec = Recording(
+        t=t, gyr=np.zeros((n, 3)), acc=np.tile([0, 0, -9.81], (n, 1)), mag=mag, true_q=np.tile([1.0, 0, 0, 0], (n, 1))
+    )
     s = summarize(rec)
     assert s["imu_rate_hz"] == pytest.approx(100.0)
     assert s["gaps"]["count"] == 1 and s["gaps"]["longest_s"] == pytest.approx(0.51)
@@ -142,7 +147,8 @@ def test_select_and_between():
     assert part.meta == rec.meta
 
 
-from hypothesis import given, settings, strategies as st  # noqa: E402
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
 
 finite = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False, width=64)
 
@@ -152,6 +158,7 @@ finite = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False, width=64)
 def test_csv_round_trip_property(rows, with_mag):
     import tempfile
     from pathlib import Path
+
     a = np.array(rows, float)
     n = len(a)
     mag = a[:, 6:9] if with_mag else None
@@ -183,5 +190,5 @@ def test_a_recording_cut_short_is_refused_and_v1_files_still_read(tmp_path):
     # the format before row counts
     v1 = data.replace(b"# quadest recording v2", b"# quadest recording v1").replace(b"# rows: 200\n", b"")
     p = tmp_path / "v1.csv"
-    p.write_bytes(v1[:v1.rfind(b"# end:")])
+    p.write_bytes(v1[: v1.rfind(b"# end:")])
     assert np.array_equal(load_recording(p).t, rec.t)

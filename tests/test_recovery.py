@@ -1,4 +1,5 @@
 """State-estimate recovery: sphere, aerodynamic fit, the bank of EKFs and the recovery logic."""
+
 import numpy as np
 import pytest
 
@@ -12,8 +13,9 @@ MODEL = aero_model(build_config("fma"))
 
 
 # -- hypotheses on the sphere ---------------------------------------------------------------------
-@pytest.mark.parametrize("n,angle_deg", [(4, np.degrees(np.arccos(-1 / 3))), (6, 90.0),
-                                         (12, np.degrees(np.arctan(2.0)))])
+@pytest.mark.parametrize(
+    "n,angle_deg", [(4, np.degrees(np.arccos(-1 / 3))), (6, 90.0), (12, np.degrees(np.arctan(2.0)))]
+)
 def test_platonic_arrangements(n, angle_deg):
     """Tetrahedron, octahedron, icosahedron: the known optimal spherical codes."""
     p = spread_points(n)
@@ -78,8 +80,9 @@ def test_upsilon_eq45_against_finite_differences():
     f, U = np.empty(3), np.empty((3, 3))
     _aero(v, w, MODEL.A, MODEL.B, MODEL.C, MODEL.mass_kg, f, U)
     np.testing.assert_allclose(f, MODEL.specific_force(v, w), atol=1e-12)
-    fd = np.column_stack([(MODEL.specific_force(v + h, w) - MODEL.specific_force(v - h, w)) / 2e-6
-                          for h in np.eye(3) * 1e-6])
+    fd = np.column_stack(
+        [(MODEL.specific_force(v + h, w) - MODEL.specific_force(v - h, w)) / 2e-6 for h in np.eye(3) * 1e-6]
+    )
     np.testing.assert_allclose(U, fd, atol=1e-7)
 
 
@@ -87,6 +90,7 @@ def _prior(v, q_ref, delta, w, dt):
     """The exact prior of one hypothesis as a function of the state (v, δx, δy): the true attitude
     q_ref ⊗ Exp(δ) propagated, the new error read against the propagated reference."""
     from quadest.rotation import quat_to_rotvec
+
     q = quat_mul(q_ref, quat_from_rotvec([delta[0], delta[1], 0.0]))
     g = np.empty(3)
     gravity_body(q, 9.80665, g)
@@ -104,8 +108,12 @@ def test_transition_matrix_eqs40_44_against_finite_differences():
     q_ref = quat_from_rotvec(rng.normal(size=3))
     x0 = np.zeros(5)
     x0[:3] = v
-    fd = np.column_stack([(_prior(x0[:3] + h[:3], q_ref, h[3:], w, dt) - _prior(x0[:3] - h[:3], q_ref, -h[3:], w, dt))
-                          / 2e-6 for h in np.eye(5) * 1e-6])
+    fd = np.column_stack(
+        [
+            (_prior(x0[:3] + h[:3], q_ref, h[3:], w, dt) - _prior(x0[:3] - h[:3], q_ref, -h[3:], w, dt)) / 2e-6
+            for h in np.eye(5) * 1e-6
+        ]
+    )
     # the compiled step builds F; recover it from one step of a single hypothesis without update
     f, U = np.empty(3), np.empty((3, 3))
     _aero(v, w, MODEL.A, MODEL.B, MODEL.C, MODEL.mass_kg, f, U)
@@ -139,6 +147,7 @@ def _truth_dir(rec, k):
 def test_true_hypothesis_wins_on_noise_free_data(ideal_throw):
     rec = ideal_throw
     from quadest.recovery.logic import detect_throw
+
     k = detect_throw(rec.acc, 7.0, 3)
     others = spread_points(12)
     dirs = np.vstack([_truth_dir(rec, k), others])
@@ -153,6 +162,7 @@ def test_true_hypothesis_wins_on_noise_free_data(ideal_throw):
 def test_antipodal_hypothesis_is_ruled_out_quickly(ideal_throw):
     rec = ideal_throw
     from quadest.recovery.logic import detect_throw
+
     k = detect_throw(rec.acc, 7.0, 3)
     g = _truth_dir(rec, k)
     res = recover(rec, MODEL, RecoveryParams(beta2=0.0), dirs=np.vstack([g, -g]), record_all=True)
@@ -204,8 +214,9 @@ def test_shortest_arc_puts_the_hypothesis_on_gravity():
 
 
 # -- the recovery logic -------------------------------------------------------------------------------------
-@pytest.mark.parametrize("scenario,preset", [("hover", "fma"), ("nominal", "fma"), ("hover", "bebop2"),
-                                             ("nominal", "bebop2")])
+@pytest.mark.parametrize(
+    "scenario,preset", [("hover", "fma"), ("nominal", "fma"), ("hover", "bebop2"), ("nominal", "bebop2")]
+)
 def test_never_leaves_waiting_at_rest_or_in_normal_flight(scenario, preset):
     rec = simulate(scenario, preset, seed=3, duration=30)
     res = recover(rec, MODEL)
@@ -225,6 +236,13 @@ def test_a_throw_goes_through_every_state(ideal_throw):
     assert res.summary["gravity_err_deg"] < 15.0 and res.summary["vel_err_mps"] < 0.5
     # after the hand-over the nominal estimator keeps the gravity direction
     tail = slice(-500, None)
-    err = np.degrees(np.arccos(np.clip(np.sum(res.gravity_dir[tail] * true_gravity_dir(
-        simulate("throw", "fma", seed=5).true_q[tail]), axis=1), -1, 1)))
+    err = np.degrees(
+        np.arccos(
+            np.clip(
+                np.sum(res.gravity_dir[tail] * true_gravity_dir(simulate("throw", "fma", seed=5).true_q[tail]), axis=1),
+                -1,
+                1,
+            )
+        )
+    )
     assert err.max() < 10.0

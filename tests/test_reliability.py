@@ -1,6 +1,7 @@
 """Nothing lost, nothing silent (issue #12, docs/reliability.md): bad samples are skipped and
 counted, never turned into NaN for the rest of a run; gaps restart the estimators; parameters
 are checked when a filter is built; outputs never destroy inputs."""
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -21,18 +22,29 @@ def _static(q_true, n):
 
 
 BAD = {
-    "gyr nan": ("gyr", np.nan), "gyr inf": ("gyr", np.inf), "gyr huge": ("gyr", 1e200),
-    "acc nan": ("acc", np.nan), "acc -inf": ("acc", -np.inf), "acc huge": ("acc", 1e200),
-    "mag inf": ("mag", np.inf), "mag huge": ("mag", 1e300),
-    "dt nan": ("dt", np.nan), "dt zero": ("dt", 0.0), "dt negative": ("dt", -0.5), "dt inf": ("dt", np.inf),
+    "gyr nan": ("gyr", np.nan),
+    "gyr inf": ("gyr", np.inf),
+    "gyr huge": ("gyr", 1e200),
+    "acc nan": ("acc", np.nan),
+    "acc -inf": ("acc", -np.inf),
+    "acc huge": ("acc", 1e200),
+    "mag inf": ("mag", np.inf),
+    "mag huge": ("mag", 1e300),
+    "dt nan": ("dt", np.nan),
+    "dt zero": ("dt", 0.0),
+    "dt negative": ("dt", -0.5),
+    "dt inf": ("dt", np.inf),
     "dt huge": ("dt", 1e5),
 }
 
 
 @pytest.mark.parametrize("name", list(FILTERS))
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(kinds=st.lists(st.sampled_from(sorted(BAD)), min_size=1, max_size=6),
-       start=st.integers(50, 250), spread=st.integers(0, 3))
+@given(
+    kinds=st.lists(st.sampled_from(sorted(BAD)), min_size=1, max_size=6),
+    start=st.integers(50, 250),
+    spread=st.integers(0, 3),
+)
 def test_a_bad_stretch_never_poisons_a_filter(name, kinds, start, spread):
     """Streaming: whatever bad values arrive, every output is a finite unit quaternion, and
     after the bad stretch the attitude is back within 1° of the truth (noise-free rest, so the
@@ -67,7 +79,7 @@ def test_batch_skips_bad_times_and_restarts_after_a_gap(name):
     g0, a0, m0 = _static(q0, n // 2)
     g1, a1, m1 = _static(q1, n - n // 2)
     gyr, acc, mag = np.vstack([g0, g1]), np.vstack([a0, a1]), np.vstack([m0, m1])
-    t[n // 2:] += 10.0
+    t[n // 2 :] += 10.0
     t[100] = np.nan
     t[200] = t[199] - 0.5  # a time going backwards
     res = make_filter(name).run(t=t, gyr=gyr, acc=acc, mag=mag)
@@ -78,14 +90,17 @@ def test_batch_skips_bad_times_and_restarts_after_a_gap(name):
     assert np.degrees(angle_between(res.q[-1], q1)) < 1.0
 
 
-@pytest.mark.parametrize("name, params, match", [
-    ("kalman", {"gyro_noise": -0.01}, r"gyro_noise must be in \(0, 10\]"),
-    ("mahony", {"k_p": 1e300}, r"k_p must be in \[0, 1e3\]"),
-    ("madgwick", {"beta_marg": float("nan")}, "beta_marg must be a finite number"),
-    ("afckf", {"theta_m": 1.0}, r"theta_m must be in \(1, 1e6\]"),
-    ("qukf", {"lam": -4.0}, r"lam must be in \(-4, 1e3\]"),
-    ("complementary", {"gain_acc": 2.0}, r"gain_acc must be in \[0, 1\]"),
-])
+@pytest.mark.parametrize(
+    "name, params, match",
+    [
+        ("kalman", {"gyro_noise": -0.01}, r"gyro_noise must be in \(0, 10\]"),
+        ("mahony", {"k_p": 1e300}, r"k_p must be in \[0, 1e3\]"),
+        ("madgwick", {"beta_marg": float("nan")}, "beta_marg must be a finite number"),
+        ("afckf", {"theta_m": 1.0}, r"theta_m must be in \(1, 1e6\]"),
+        ("qukf", {"lam": -4.0}, r"lam must be in \(-4, 1e3\]"),
+        ("complementary", {"gain_acc": 2.0}, r"gain_acc must be in \[0, 1\]"),
+    ],
+)
 def test_parameters_are_checked_when_a_filter_is_built(name, params, match):
     with pytest.raises(ValueError, match=match):
         make_filter(name, **params)
@@ -172,8 +187,13 @@ def test_a_file_size_limit_fails_the_command_and_keeps_the_old_output(tmp_path):
     def limit():
         resource.setrlimit(resource.RLIMIT_FSIZE, (200_000, 200_000))
 
-    r = subprocess.run([sys.executable, "-m", "quadest.cli.main", "estimate", str(src), "--filter", "madgwick",
-                        "-o", str(keep)], capture_output=True, text=True, preexec_fn=limit, timeout=600)
+    r = subprocess.run(
+        [sys.executable, "-m", "quadest.cli.main", "estimate", str(src), "--filter", "madgwick", "-o", str(keep)],
+        capture_output=True,
+        text=True,
+        preexec_fn=limit,
+        timeout=600,
+    )
     assert r.returncode == 1 and r.stderr.count("\n") == 1 and "File too large" in r.stderr, r.stderr
     assert keep.read_text() == "old output"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["big.csv", "keep.csv"]

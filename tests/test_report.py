@@ -3,6 +3,7 @@
 the figures computed here independently, zooming one plot zooms the others, and a recording
 without truth says so instead of showing errors. The browser tests skip, saying why, only where
 Chromium or Playwright is absent (.ci/run installs Chromium)."""
+
 import json
 import os
 import shutil
@@ -37,17 +38,56 @@ def reports(tmp_path_factory):
     bare = rec.__class__(t=rec.t, gyr=rec.gyr, acc=rec.acc, mag=rec.mag, meta={"source": "no truth"})
     save_recording(bare, d / "bare.csv")
     for name in ("flight", "bare"):
-        assert main(["report", str(d / f"{name}.csv"), "--filters", "madgwick,afckf", "-o", str(d / f"{name}.html"),
-                     "--json", str(d / f"{name}.json")]) == 0
+        assert (
+            main(
+                [
+                    "report",
+                    str(d / f"{name}.csv"),
+                    "--filters",
+                    "madgwick,afckf",
+                    "-o",
+                    str(d / f"{name}.html"),
+                    "--json",
+                    str(d / f"{name}.json"),
+                ]
+            )
+            == 0
+        )
     throw = simulate("throw", "fma", seed=5)
     save_recording(throw, d / "throw.csv")
     assert main(["report", str(d / "throw.csv"), "--filters", "madgwick", "-o", str(d / "throw.html")]) == 0
     assert main(["recover", str(d / "throw.csv"), "--report", str(d / "recover.html")]) == 0
     # the same page from compare and estimate
-    assert main(["compare", "--recording", str(d / "flight.csv"), "--filters", "madgwick", "--no-timing",
-                 "--report", str(d / "compare.html")]) == 0
-    assert main(["estimate", str(d / "flight.csv"), "--filter", "afckf", "-o", str(d / "q.csv"),
-                 "--report", str(d / "estimate.html")]) == 0
+    assert (
+        main(
+            [
+                "compare",
+                "--recording",
+                str(d / "flight.csv"),
+                "--filters",
+                "madgwick",
+                "--no-timing",
+                "--report",
+                str(d / "compare.html"),
+            ]
+        )
+        == 0
+    )
+    assert (
+        main(
+            [
+                "estimate",
+                str(d / "flight.csv"),
+                "--filter",
+                "afckf",
+                "-o",
+                str(d / "q.csv"),
+                "--report",
+                str(d / "estimate.html"),
+            ]
+        )
+        == 0
+    )
     return d
 
 
@@ -104,8 +144,19 @@ def _open(browser, path):
     return page, errors
 
 
-FIGURES = ["attitude-roll", "attitude-pitch", "attitude-yaw", "error-roll", "error-pitch", "error-yaw",
-           "sensor-gyroscope", "sensor-accelerometer", "mag-norm", "mag-dip", "spectrogram"]
+FIGURES = [
+    "attitude-roll",
+    "attitude-pitch",
+    "attitude-yaw",
+    "error-roll",
+    "error-pitch",
+    "error-yaw",
+    "sensor-gyroscope",
+    "sensor-accelerometer",
+    "mag-norm",
+    "mag-dip",
+    "spectrogram",
+]
 
 
 def test_the_report_in_a_browser(browser, reports):
@@ -121,7 +172,8 @@ def test_the_report_in_a_browser(browser, reports):
                 if (el.tagName === 'CANVAS' && el.width > 0 && el.height > 0) {
                     const d = el.getContext('2d').getImageData(0, 0, el.width, el.height).data;
                     const seen = new Set();
-                    for (let i = 0; i < d.length && seen.size < 3; i += 4 * 97) seen.add(d[i] + ',' + d[i+1] + ',' + d[i+2]);
+                    for (let i = 0; i < d.length && seen.size < 3; i += 4 * 97)
+                        seen.add(d[i] + ',' + d[i+1] + ',' + d[i+2]);
                     out.push(seen.size);
                 }
                 if (el.shadowRoot) walk(el.shadowRoot);
@@ -136,16 +188,19 @@ def test_the_report_in_a_browser(browser, reports):
     rows = page.locator("#rms tr").all_inner_texts()
     cells = {r.split("\t")[0]: r.split("\t")[1:] for r in rows[1:]}
     for name, rms in rep["rms_deg"].items():
-        assert [float(c) for c in cells[name][:3]] == pytest.approx([rms[a] for a in ("roll", "pitch", "yaw")],
-                                                                    abs=1e-3)
+        assert [float(c) for c in cells[name][:3]] == pytest.approx(
+            [rms[a] for a in ("roll", "pitch", "yaw")], abs=1e-3
+        )
     # zooming one plot zooms the others: they share one time range
     before = page.evaluate("() => Bokeh.documents[0].get_model_by_name('sensor-gyroscope').x_range.end")
     box = page.locator(".bk-Figure").nth(0).bounding_box()
     page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
     page.mouse.wheel(0, -400)
     page.wait_for_timeout(500)
-    after = page.evaluate("() => [Bokeh.documents[0].get_model_by_name('attitude-roll').x_range.end, "
-                          "Bokeh.documents[0].get_model_by_name('sensor-gyroscope').x_range.end]")
+    after = page.evaluate(
+        "() => [Bokeh.documents[0].get_model_by_name('attitude-roll').x_range.end, "
+        "Bokeh.documents[0].get_model_by_name('sensor-gyroscope').x_range.end]"
+    )
     assert after[0] == after[1] and after[1] < before
     page.close()
 
@@ -179,8 +234,26 @@ def test_a_sweeps_results_as_a_page(browser, tmp_path):
     import pyarrow.parquet as pq
 
     res = tmp_path / "sweep.parquet"
-    assert main(["sweep", "--filters", "madgwick", "--grid", "madgwick.beta_marg=0.02,0.2", "--seeds", "1-2",
-                 "--duration", "4", "--workers", "0", "-o", str(res)]) == 0
+    assert (
+        main(
+            [
+                "sweep",
+                "--filters",
+                "madgwick",
+                "--grid",
+                "madgwick.beta_marg=0.02,0.2",
+                "--seeds",
+                "1-2",
+                "--duration",
+                "4",
+                "--workers",
+                "0",
+                "-o",
+                str(res),
+            ]
+        )
+        == 0
+    )
     assert main(["report", str(res), "-o", str(tmp_path / "sweep.html"), "--json", str(tmp_path / "sweep.json")]) == 0
     summ = json.loads((tmp_path / "sweep.json").read_text())
     rows = [r for r in pq.read_table(res).to_pylist() if r["status"] == "ok"]
@@ -198,8 +271,23 @@ def test_a_sweeps_results_as_a_page(browser, tmp_path):
 def test_a_flown_recording_shows_its_rotor_speeds(browser, tmp_path, capsys):
     """quadest fly writes NAME-flight.parquet beside NAME.csv; the report of NAME.csv draws the
     rotor speeds from it; a named --rotors file that is absent is refused in one line."""
-    assert main(["fly", "--scenario", "hover", "--estimator", "truth", "--duration", "2", "--no-plot",
-                 "-o", str(tmp_path / "f")]) == 0
+    assert (
+        main(
+            [
+                "fly",
+                "--scenario",
+                "hover",
+                "--estimator",
+                "truth",
+                "--duration",
+                "2",
+                "--no-plot",
+                "-o",
+                str(tmp_path / "f"),
+            ]
+        )
+        == 0
+    )
     csv = next((tmp_path / "f").glob("*.csv"))
     assert main(["report", str(csv), "--filters", "madgwick", "-o", str(tmp_path / "r.html")]) == 0
     page, errors = _open(browser, tmp_path / "r.html")
@@ -216,9 +304,19 @@ def test_a_flown_recording_shows_its_rotor_speeds(browser, tmp_path, capsys):
 def test_a_report_never_overwrites_an_input(reports, capsys):
     """--report and -o naming the recording are refused in one line, the recording untouched."""
     before = (reports / "flight.csv").read_bytes()
-    for argv in (["compare", "--recording", str(reports / "flight.csv"), "--filters", "madgwick", "--no-timing",
-                  "--report", str(reports / "flight.csv")],
-                 ["report", str(reports / "flight.csv"), "-o", str(reports / "flight.csv")]):
+    for argv in (
+        [
+            "compare",
+            "--recording",
+            str(reports / "flight.csv"),
+            "--filters",
+            "madgwick",
+            "--no-timing",
+            "--report",
+            str(reports / "flight.csv"),
+        ],
+        ["report", str(reports / "flight.csv"), "-o", str(reports / "flight.csv")],
+    ):
         capsys.readouterr()
         assert main(argv) == 2
         err = capsys.readouterr().err

@@ -4,6 +4,7 @@ shows it. Bounds are derived from the sensors' values in the simulator's bebop2 
 noise 0.01 rad/s per sample at 500 Hz, magnetometer noise 0.5 µT at 100 Hz) and stated per test;
 the generic properties (streaming equals batch, split-and-resume bit-exact, bad samples skipped)
 are tested for every estimator in test_filters.py and test_reliability.py."""
+
 import math
 
 import numpy as np
@@ -11,7 +12,7 @@ import pytest
 
 from quadest.conventions import GRAVITY
 from quadest.filters import make_filter
-from quadest.filters.robust import S, UNKNOWN_HEADING_VAR, _mag_rate_terms
+from quadest.filters.robust import UNKNOWN_HEADING_VAR, S, _mag_rate_terms
 from quadest.rotation import quat_conj, quat_from_rotvec, quat_mul, quat_rotate
 from quadest.sim import simulate
 
@@ -27,8 +28,13 @@ def _rotvec_error(true_q, q):
 
 
 def _biased(scenario, seed, duration, **overrides):
-    return simulate(scenario, "bebop2", seed=seed, duration=duration,
-                    overrides={"gyro.bias": BIAS, "gyro.bias_rw_std": 0.0, **overrides})
+    return simulate(
+        scenario,
+        "bebop2",
+        seed=seed,
+        duration=duration,
+        overrides={"gyro.bias": BIAS, "gyro.bias_rw_std": 0.0, **overrides},
+    )
 
 
 def test_bias_converges_at_rest():
@@ -164,15 +170,16 @@ def test_flat_top_detection_calibrated_both_signs_not_a_ramp_nor_a_steady_spin()
     lim_p, lim_n = math.radians(416.6), -math.radians(421.6)
     up = np.linspace(2.0, 10.0, 20)
     lead = np.full(150, 1.0)  # the field's noise is learnt for clip_learn_tau first
-    true = np.concatenate([lead, up, np.full(30, 10.0), up[::-1], -up, np.full(30, -10.0), -up[::-1], up,
-                           np.full(30, 10.0)])
+    true = np.concatenate(
+        [lead, up, np.full(30, 10.0), up[::-1], -up, np.full(30, -10.0), -up[::-1], up, np.full(30, 10.0)]
+    )
     wander = 1.0 - 0.002 * rng.random(len(true))
     reads = np.where(true > lim_p, lim_p * wander, np.where(true < lim_n, lim_n * wander, true))
     flags = _clip_flags(true, reads)
     over = (true > lim_p) | (true < lim_n)
     assert flags[~over].sum() == 0
     n, k = len(up), len(lead)
-    first_pos, first_neg, again = flags[k + n:k + n + 30], flags[k + 3 * n + 30:k + 3 * n + 60], flags[-30:]
+    first_pos, first_neg, again = flags[k + n : k + n + 30], flags[k + 3 * n + 30 : k + 3 * n + 60], flags[-30:]
     assert first_pos[5:].all() and first_neg[5:].all() and again[1:].all(), (first_pos, first_neg, again)
     ramp = np.linspace(5.0, 9.0, 400)  # 0.25 % per sample: flat within the spread, yet rising
     assert _clip_flags(ramp, ramp).sum() == 0
@@ -303,9 +310,9 @@ def test_million_steps_keep_norms_and_covariance():
     res = est.run(t=t, gyr=w + rng.normal(0, 0.01, (n, 3)), acc=f, mag=m)
     x = est.get_state()
     for sl in (S.qg, S.qi):
-        assert abs(np.linalg.norm(x[sl:sl + 4]) - 1.0) < 1e-12
+        assert abs(np.linalg.norm(x[sl : sl + 4]) - 1.0) < 1e-12
     assert abs(np.linalg.norm(res.q[-1]) - 1.0) < 1e-12
-    Pb = x[S.Pb:S.Pb + 9].reshape(3, 3)
+    Pb = x[S.Pb : S.Pb + 9].reshape(3, 3)
     assert np.allclose(Pb, Pb.T, atol=1e-18) and np.linalg.eigvalsh(Pb).min() > 0.0
     assert np.isfinite(res.diag["var_tilt"]).all() and res.diag["var_tilt"].max() < 1.0
     assert res.diag["var_heading"].max() <= UNKNOWN_HEADING_VAR

@@ -1,4 +1,5 @@
 """Rotation math against scipy.spatial.transform.Rotation (an independent implementation)."""
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -21,7 +22,7 @@ def same_rotation(q1, q2, tol=1e-12):
 
 def test_product_is_composition(quats, rng):
     q2 = Rotation.random(N, random_state=rng).as_quat(scalar_first=True)
-    want = (Rotation.from_quat(quats, scalar_first=True) * Rotation.from_quat(q2, scalar_first=True))
+    want = Rotation.from_quat(quats, scalar_first=True) * Rotation.from_quat(q2, scalar_first=True)
     assert same_rotation(R.quat_mul(quats, q2), want.as_quat(scalar_first=True))
 
 
@@ -120,8 +121,9 @@ def test_compiled_kernels_match(quats, rng):
     for i in range(20):
         np.testing.assert_allclose(K.qmul(quats[i], q2[i]), R.quat_mul(quats[i], q2[i]), atol=1e-15)
         np.testing.assert_allclose(K.qrotate(quats[i], v[i]), R.quat_rotate(quats[i], v[i]), atol=1e-14)
-        np.testing.assert_allclose(K.qrotate_inv(quats[i], v[i]),
-                                   R.quat_rotate(R.quat_conj(quats[i]), v[i]), atol=1e-14)
+        np.testing.assert_allclose(
+            K.qrotate_inv(quats[i], v[i]), R.quat_rotate(R.quat_conj(quats[i]), v[i]), atol=1e-14
+        )
         np.testing.assert_allclose(K.qexp(v[i]), R.quat_from_rotvec(v[i]), atol=1e-15)
 
 
@@ -136,8 +138,7 @@ def test_shared_step_kernels_match(quats, rng):
         np.testing.assert_allclose(K.rot_matrix(q), R.quat_to_matrix(q), atol=1e-15)
         np.testing.assert_allclose(K.skew(v[i]) @ w[i], np.cross(v[i], w[i]), atol=1e-14)
         # q̇ = ½ q ⊗ [0, ω]
-        np.testing.assert_allclose(K.qdot_s(*q, *w[i]), 0.5 * R.quat_mul(q, np.concatenate([[0.0], w[i]])),
-                                   atol=1e-15)
+        np.testing.assert_allclose(K.qdot_s(*q, *w[i]), 0.5 * R.quat_mul(q, np.concatenate([[0.0], w[i]])), atol=1e-15)
         np.testing.assert_allclose(K.normalize_s(*(3.0 * q)), q, atol=1e-15)
         # q ⊗ Exp(rv), small and large angles
         for rv in (w[i], 1e-8 * w[i]):
@@ -157,7 +158,8 @@ def test_continuity():
     np.testing.assert_array_equal(R.quat_continuous(q)[:, 0], [1, 1, 1, 1])
 
 
-from hypothesis import given, settings, strategies as st  # noqa: E402
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
 
 angle = st.floats(-np.pi, np.pi, allow_nan=False)
 

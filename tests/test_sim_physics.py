@@ -5,6 +5,7 @@ accelerometer against the specific force recomputed here with scipy (rounding on
 the magnetometer. Integration here is independent of the simulator: a 4th-order Magnus
 expansion on scipy rotations.
 """
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -14,8 +15,13 @@ from quadest.sim import build_config, simulate
 from quadest.sim.sensors import earth_field
 
 G = 9.80665
-CASES = [("hover", "bebop2"), ("nominal", "bebop2"), ("damaged-rotor", "bebop2"),
-         ("throw", "fma"), ("hover", "lowcost-20hz")]
+CASES = [
+    ("hover", "bebop2"),
+    ("nominal", "bebop2"),
+    ("damaged-rotor", "bebop2"),
+    ("throw", "fma"),
+    ("hover", "lowcost-20hz"),
+]
 
 
 def integrate_gyro(t, w, q0):
@@ -72,8 +78,9 @@ def test_accelerometer_is_specific_force_with_lever_arm(scenario, preset):
 def test_truth_is_self_consistent(scenario, preset):
     """Velocity is the derivative of position, acceleration of velocity, ω̇ of ω (central
     differences at 2 kHz, so the O(h²) truncation stays below 1e-4 of the signal)."""
-    rec, tr = simulate(scenario, preset, seed=5, ideal=True, return_truth=True, duration=8.0,
-                       overrides={"imu.rate_hz": 2000.0})
+    rec, tr = simulate(
+        scenario, preset, seed=5, ideal=True, return_truth=True, duration=8.0, overrides={"imu.rate_hz": 2000.0}
+    )
     dt = np.diff(rec.t)
     inner = slice(1, -1)
     for x, dx, name in ((tr.pos, tr.vel, "vel"), (tr.vel, tr.acc_n, "acc"), (tr.gyr, tr.gyr_dot, "gyr_dot")):
@@ -100,15 +107,26 @@ def test_magnetometer_is_rotated_earth_field(scenario, preset):
 
 
 def test_level_at_rest_reads_minus_g():
-    rec = simulate("hover", "bebop2", seed=1, ideal=True, duration=2.0,
-                   overrides={"hover.gust_acc_rms": 0.0, "hover.yaw_amp_deg": 0.0})
+    rec = simulate(
+        "hover",
+        "bebop2",
+        seed=1,
+        ideal=True,
+        duration=2.0,
+        overrides={"hover.gust_acc_rms": 0.0, "hover.yaw_amp_deg": 0.0},
+    )
     np.testing.assert_allclose(rec.acc, np.tile([0, 0, -G], (len(rec), 1)), atol=1e-12)
     np.testing.assert_allclose(rec.gyr, 0, atol=1e-15)
 
 
 def test_throw_without_aerodynamics_is_parabola_and_torque_free():
-    zero = {"aero.A": [[0] * 3] * 3, "aero.B": [[0] * 3] * 3, "aero.C": [[0] * 10] * 3,
-            "aero.rate_damping": [0, 0, 0], "throw.rate_max": 10.0}
+    zero = {
+        "aero.A": [[0] * 3] * 3,
+        "aero.B": [[0] * 3] * 3,
+        "aero.C": [[0] * 10] * 3,
+        "aero.rate_damping": [0, 0, 0],
+        "throw.rate_max": 10.0,
+    }
     for seed in range(3):
         rec = simulate("throw", "fma", seed=seed, ideal=True, overrides=zero)
         info = rec.meta["scenario_info"]
@@ -118,8 +136,9 @@ def test_throw_without_aerodynamics_is_parabola_and_torque_free():
         after = rec.t >= tr
         tau = rec.t[after] - tr
         p0 = np.array([0, 0, -cfg.throw.release_height_m])
-        np.testing.assert_allclose(rec.true_pos[after], p0 + np.outer(tau, v0) + 0.5 * np.outer(tau ** 2, [0, 0, G]),
-                                   atol=1e-9)
+        np.testing.assert_allclose(
+            rec.true_pos[after], p0 + np.outer(tau, v0) + 0.5 * np.outer(tau**2, [0, 0, G]), atol=1e-9
+        )
         # free fall: the accelerometer reads only the lever-arm terms, which are zero here
         np.testing.assert_allclose(rec.acc[after], 0.0, atol=1e-9)
         # axisymmetric torque-free rotation: R(t) = Exp(t L_n / a) R0 Exp(β t e3),
@@ -129,8 +148,7 @@ def test_throw_without_aerodynamics_is_parabola_and_torque_free():
         Lb = np.array([a, a, c]) * w0
         Ln = R0.apply(Lb)
         beta = (1 / c - 1 / a) * Lb[2]
-        want = (Rotation.from_rotvec(np.outer(tau, Ln / a)) * R0 *
-                Rotation.from_rotvec(np.outer(beta * tau, [0, 0, 1])))
+        want = Rotation.from_rotvec(np.outer(tau, Ln / a)) * R0 * Rotation.from_rotvec(np.outer(beta * tau, [0, 0, 1]))
         err = (want.inv() * Rotation.from_quat(rec.true_q[after], scalar_first=True)).magnitude()
         assert err.max() < 1e-8
         # body rate: ω = L_b/a + β e3, L_b rotating in the body frame

@@ -1,4 +1,5 @@
 """Each scenario moves as issue #2 describes, measured on the truth it produces."""
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -65,8 +66,9 @@ def test_damaged_rotor_spin():
 def test_damaged_rotor_thrust_along_body_z():
     """Without rotor drag the centre of mass accelerates only by thrust along −z_b and gravity:
     the coning body z and the small circle of the centre of mass are consistent."""
-    rec, tr = simulate("damaged-rotor", "bebop2", seed=1, return_truth=True, ideal=True,
-                       overrides={"vehicle.rotor_drag": 0.0})
+    rec, tr = simulate(
+        "damaged-rotor", "bebop2", seed=1, return_truth=True, ideal=True, overrides={"vehicle.rotor_drag": 0.0}
+    )
     late = rec.t > 7.5
     f_com = Rotation.from_quat(rec.true_q, scalar_first=True).inv().apply(tr.acc_n - [0, 0, G])
     off = np.degrees(np.arctan2(np.linalg.norm(f_com[late, :2], axis=1), -f_com[late, 2]))
@@ -74,8 +76,7 @@ def test_damaged_rotor_thrust_along_body_z():
 
 
 def test_spin_sign_and_rotor_count():
-    rec = simulate("damaged-rotor", "bebop2", seed=1, ideal=True, duration=8.0,
-                   overrides={"damaged.spin_sign": -1})
+    rec = simulate("damaged-rotor", "bebop2", seed=1, ideal=True, duration=8.0, overrides={"damaged.spin_sign": -1})
     assert rec.true_gyr[-1, 2] < -10
 
 
@@ -86,10 +87,12 @@ def test_overrides_and_toml(tmp_path):
     toml.write_text("[damaged]\nspin_rate_mean = 12.0\n[environment]\nfield_ut = 50.0\n")
     cfg = build_config("bebop2", toml=toml)
     assert cfg.damaged.spin_rate_mean == 12.0 and cfg.environment.field_ut == 50.0
-    for bad, msg in (({"gyro.nosie_std": 1}, "has no parameter 'nosie_std'"),
-                     ({"foo.bar": 1}, "unknown section"),
-                     ({"acc.lever_arm": "[1, 2]"}, "expected shape"),
-                     ({"gyro.noise_std": "abc"}, "cannot read")):
+    for bad, msg in (
+        ({"gyro.nosie_std": 1}, "has no parameter 'nosie_std'"),
+        ({"foo.bar": 1}, "unknown section"),
+        ({"acc.lever_arm": "[1, 2]"}, "expected shape"),
+        ({"gyro.noise_std": "abc"}, "cannot read"),
+    ):
         with pytest.raises(ValueError, match=msg):
             build_config("bebop2", bad)
     with pytest.raises(ValueError, match="unknown preset"):

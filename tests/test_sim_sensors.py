@@ -4,6 +4,7 @@ Each error source is switched on alone on top of ideal sensors, so the differenc
 sample and the truth is that source only. Bounds are 5 standard errors of the estimator
 (std of a sample std ≈ σ/√(2N); of a sample mean, σ/√N).
 """
+
 import numpy as np
 import pytest
 
@@ -32,7 +33,9 @@ def test_white_noise_std(field, sigma):
 def test_magnetometer_noise_std():
     rec = run({"mag.noise_std": 0.5})
     from scipy.spatial.transform import Rotation
+
     from quadest.sim.sensors import earth_field
+
     ok = np.isfinite(rec.mag[:, 0])
     clean = Rotation.from_quat(rec.true_q[ok], scalar_first=True).inv().apply(earth_field(IDEAL.environment))
     err = rec.mag[ok] - clean
@@ -42,8 +45,14 @@ def test_magnetometer_noise_std():
 @pytest.mark.parametrize("field", ["gyro", "acc"])
 def test_constant_bias_draws(field):
     sigma = 0.02
-    draws = np.array([run({f"{field}.bias_std": sigma}, seed=s, duration=0.2).meta["sensor_errors"]
-                      ["gyr" if field == "gyro" else "acc"]["bias"] for s in range(200)])
+    draws = np.array(
+        [
+            run({f"{field}.bias_std": sigma}, seed=s, duration=0.2).meta["sensor_errors"][
+                "gyr" if field == "gyro" else "acc"
+            ]["bias"]
+            for s in range(200)
+        ]
+    )
     assert abs(draws.std() - sigma) < 5 * sigma / np.sqrt(2 * draws.size)
     assert abs(draws.mean()) < 5 * sigma / np.sqrt(draws.size)
     # and the samples carry exactly the recorded bias
@@ -105,21 +114,23 @@ def test_vibration_tone_follows_rotor_load():
     vib = rec.acc - rec.true_acc
     before, after = vib[(rec.t > 1) & (rec.t < 4.5)], vib[rec.t > 8]
     # a sinusoid of amplitude A has RMS A/√2; the load rises after the failure (3 rotors)
-    assert np.sqrt((before ** 2).mean()) == pytest.approx(0.3 / np.sqrt(2), rel=0.15)
-    assert np.sqrt((after ** 2).mean()) > 1.2 * np.sqrt((before ** 2).mean())
+    assert np.sqrt((before**2).mean()) == pytest.approx(0.3 / np.sqrt(2), rel=0.15)
+    assert np.sqrt((after**2).mean()) > 1.2 * np.sqrt((before**2).mean())
 
 
 def test_motor_disturbance_grows_with_current():
     rec = run({"mag.motor_coef": [10.0, 0.0, 0.0]}, scenario="damaged-rotor", duration=12.0)
     from scipy.spatial.transform import Rotation
+
     from quadest.sim.sensors import earth_field
+
     ok = np.isfinite(rec.mag[:, 0])
     clean = Rotation.from_quat(rec.true_q[ok], scalar_first=True).inv().apply(earth_field(IDEAL.environment))
     d = (rec.mag[ok] - clean)[:, 0]
     t = rec.t[ok]
     # hover current (1/TW)^1.5 with TW = 2; after the loss √(4/3) more at equal thrust
-    assert d[t < 4.5].mean() == pytest.approx(10.0 * 0.5 ** 1.5, rel=0.02)
-    assert d[t > 8].mean() == pytest.approx(10.0 * 0.5 ** 1.5 * np.sqrt(4 / 3), rel=0.05)
+    assert d[t < 4.5].mean() == pytest.approx(10.0 * 0.5**1.5, rel=0.02)
+    assert d[t > 8].mean() == pytest.approx(10.0 * 0.5**1.5 * np.sqrt(4 / 3), rel=0.05)
     np.testing.assert_allclose((rec.mag[ok] - clean)[:, 1:], 0, atol=1e-9)
 
 
@@ -155,20 +166,23 @@ def test_the_indoor_distortion_is_a_magnetic_field():
 
     env = Environment(distortion_ut=12.0, distortion_seed=4)
     src, mom = distortion_sources(env)
-    assert np.linalg.norm(field_at(env, np.zeros((1, 3)))[0] - field_at(Environment(), np.zeros((1, 3)))[0]) \
-        == pytest.approx(12.0, rel=1e-12)
+    assert np.linalg.norm(
+        field_at(env, np.zeros((1, 3)))[0] - field_at(Environment(), np.zeros((1, 3)))[0]
+    ) == pytest.approx(12.0, rel=1e-12)
     h = 1e-4
     for p in np.random.default_rng(0).uniform(-1.5, 1.5, (20, 3)):
         jac = np.empty((3, 3))  # jac[i, j] = ∂B_i/∂p_j
         for j in range(3):
             e = np.zeros(3)
             e[j] = h
-            jac[:, j] = (np.array(distortion_at(*(p + e), src, mom)) - np.array(distortion_at(*(p - e), src, mom))) / (2 * h)
+            jac[:, j] = (np.array(distortion_at(*(p + e), src, mom)) - np.array(distortion_at(*(p - e), src, mom))) / (
+                2 * h
+            )
         scale = np.abs(jac).max()
         assert abs(np.trace(jac)) < 1e-6 * scale
         assert np.abs(jac - jac.T).max() < 1e-6 * scale
     one = np.array([[0.0, 0.0, 0.0]]), np.array([[0.0, 0.0, 2.0]])
-    assert np.array(distortion_at(0.0, 0.0, 1.5, *one)) == pytest.approx([0.0, 0.0, 2 * 2.0 / 1.5 ** 3], rel=1e-12)
+    assert np.array(distortion_at(0.0, 0.0, 1.5, *one)) == pytest.approx([0.0, 0.0, 2 * 2.0 / 1.5**3], rel=1e-12)
 
 
 def test_the_distortion_follows_the_position():

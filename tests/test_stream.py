@@ -5,6 +5,7 @@ compiled step on the same state, so every output, diagnostic and counter bit-equ
 input (common case in C, the rest handed to Python). Not timed: speed is `quadest benchmark
 speed`'s (docs/estimators.md).
 """
+
 import gc
 import pickle
 import weakref

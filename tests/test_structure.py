@@ -1,9 +1,9 @@
 """The shape of the code: numba's cache follows the source, compiled parameters are read by
 name, and the packages import in one direction (docs/developing.md)."""
+
 import ast
 import json
 import os
-
 import shutil
 import subprocess
 import sys
@@ -39,8 +39,9 @@ def _copy_package(tmp_path) -> Path:
 def _start_copy(pkg: Path, names: str, cache_home: Path) -> subprocess.Popen:
     env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "QUADEST_NUMBA_CACHE_DIR")}
     env.update(PYTHONPATH=str(pkg.parent), XDG_CACHE_HOME=str(cache_home))
-    return subprocess.Popen([sys.executable, "-c", SCRIPT, names], env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [sys.executable, "-c", SCRIPT, names], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
 
 
 def _result(proc: subprocess.Popen, pkg: Path) -> dict:
@@ -64,8 +65,13 @@ def _edit(path: Path, old: str, new: str):
 NAMED = "madgwick,afckf,complementary,kalman,qukf"
 
 
-PARAMS_CLASSES = (("madgwick", "MadgwickParams"), ("afckf", "AfckfParams"), ("complementary", "ComplementaryParams"),
-                  ("kalman", "KalmanParams"), ("qukf", "QukfParams"))
+PARAMS_CLASSES = (
+    ("madgwick", "MadgwickParams"),
+    ("afckf", "AfckfParams"),
+    ("complementary", "ComplementaryParams"),
+    ("kalman", "KalmanParams"),
+    ("qukf", "QukfParams"),
+)
 
 
 @pytest.fixture(scope="module")
@@ -89,8 +95,11 @@ def test_an_edit_of_a_shared_kernel_reaches_every_filter(copied):
     again = _run_copy(pkg, "madgwick", cache)
     assert again["cache"] == first["cache"] and again["q"]["madgwick"] == first["q"]["madgwick"]
     # the shared step start never initialises: the attitude must stay at identity
-    _edit(pkg / "filters" / "common.py", "def prepare(x, acc, mag, use_mag):\n",
-          "def prepare(x, acc, mag, use_mag):\n    return False\n")
+    _edit(
+        pkg / "filters" / "common.py",
+        "def prepare(x, acc, mag, use_mag):\n",
+        "def prepare(x, acc, mag, use_mag):\n    return False\n",
+    )
     edited = _run_copy(pkg, "madgwick", cache)
     assert edited["cache"] != first["cache"]
     assert edited["q"]["madgwick"] != first["q"]["madgwick"]
@@ -106,7 +115,7 @@ def _reverse_fields(path: Path, class_name: str):
     cls = next(n for n in ast.parse(text).body if isinstance(n, ast.ClassDef) and n.name == class_name)
     fields = [n for n in cls.body if isinstance(n, ast.AnnAssign)]
     assert len(fields) > 2
-    blocks = ["".join(lines[f.lineno - 1:f.end_lineno]) for f in fields]
+    blocks = ["".join(lines[f.lineno - 1 : f.end_lineno]) for f in fields]
     first, last = fields[0].lineno - 1, fields[-1].end_lineno
     assert all(f.end_lineno + 1 == g.lineno for f, g in zip(fields, fields[1:])), "fields must be contiguous"
     path.write_text("".join(lines[:first]) + "".join(reversed(blocks)) + "".join(lines[last:]))
@@ -124,7 +133,7 @@ def test_parameters_are_read_by_name_not_position(copied):
 # -- layers --------------------------------------------------------------------------------------------
 LAYERS = [  # the first four are the issue's layer 0, in the order they build on each other
     {"errors"},
-    {"_cache", "conventions", "records"},
+    {"_jit", "conventions", "records"},
     {"rotation"},
     {"data", ""},  # "": the package itself (its __init__ exposes Recording and the version)
     {"models"},
@@ -135,7 +144,10 @@ LAYERS = [  # the first four are the issue's layer 0, in the order they build on
     {"cli"},
 ]
 LAYER = {part: k for k, parts in enumerate(LAYERS) for part in parts}
-LAZY_ALLOWED = {("cli", "plot")}  # matplotlib is loaded only when a command draws
+LAZY_ALLOWED = {
+    ("cli", "plot"),  # matplotlib is loaded only when a command draws
+    ("", "_jit"),  # quadest.NUMBA_CACHE_DIR: numba is loaded only when asked
+}
 
 
 def _part(module: str) -> str:
@@ -194,3 +206,58 @@ def test_the_layer_test_sees_a_violation(tmp_path):
     found = list(_quadest_imports(f))
     assert found == [("quadest.sweep", 2, False), ("quadest.cli", 5, True)]
     assert LAYER[_part("quadest.sweep")] > LAYER[_part("quadest.filters.afckf")]
+
+
+# -- nothing at import time ------------------------------------------------------------------------
+def _python(code: str, cache_home: Path) -> str:
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "QUADEST_NUMBA_CACHE_DIR")}
+    env["XDG_CACHE_HOME"] = str(cache_home)
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    return out.stdout
+
+
+def test_import_quadest_loads_no_compiler_and_touches_no_cache(tmp_path):
+    """``import quadest`` (the Recording type) neither imports numba nor hashes the source nor
+    makes, marks or removes a cache folder."""
+    old = tmp_path / "quadest" / "numba" / "0123456789abcdef"
+    old.mkdir(parents=True)
+    os.utime(old, (1, 1))
+    out = _python("import sys, quadest; print('numba' in sys.modules)", tmp_path)
+    assert out.strip() == "False"
+    assert [d.name for d in (tmp_path / "quadest" / "numba").iterdir()] == [old.name]
+    assert old.stat().st_mtime == 1
+
+
+def test_old_cache_folders_go_only_when_a_new_source_compiles(tmp_path):
+    """Old folders are removed (beyond the kept few) when the current source's folder is made,
+    which is when everything compiles anyway; a later import with the folder in place removes
+    nothing."""
+    root = tmp_path / "quadest" / "numba"
+    for i in range(6):
+        (root / f"old{i}").mkdir(parents=True)
+        os.utime(root / f"old{i}", (1000 + i, 1000 + i))
+    code = "import quadest.rotation.kernels as k, quadest; print(quadest.NUMBA_CACHE_DIR)"
+    current = Path(_python(code, tmp_path).strip())
+    assert current.parent == root and current.is_dir()
+    kept = sorted(d.name for d in root.iterdir() if d != current)
+    assert kept == ["old3", "old4", "old5"]  # the three most recent others: four folders in all
+    for i in range(6, 9):
+        (root / f"old{i}").mkdir()
+    _python(code, tmp_path)
+    assert len([d for d in root.iterdir() if d != current]) == 6
+
+
+def test_compiled_code_is_defined_through_quadest_jit():
+    """Every compiled function is decorated by ``quadest._jit``'s re-export of numba, which sets
+    the cache folder first: no module imports numba's decorators itself."""
+    problems = []
+    for path in sorted(SRC.rglob("*.py")):
+        if path.name == "_jit.py":
+            continue
+        for n in ast.walk(ast.parse(path.read_text())):
+            if isinstance(n, ast.ImportFrom) and n.module and n.module.split(".")[0] == "numba":
+                problems.append(f"{path.relative_to(SRC)}:{n.lineno} imports from {n.module}")
+            elif isinstance(n, ast.Import) and any(a.name.split(".")[0] == "numba" for a in n.names):
+                problems.append(f"{path.relative_to(SRC)}:{n.lineno} imports numba")
+    assert not problems, "\n".join(problems)

@@ -1,5 +1,6 @@
 """Sweeps and tuning on Dask (issue #7): results independent of where runs execute, a real
 scheduler and two workers on loopback, a worker killed mid-sweep, an interrupted sweep resumed."""
+
 import json
 import os
 import signal
@@ -14,18 +15,40 @@ import numpy as np
 import pytest
 
 from quadest.cli.main import main
-from quadest.sweep import (ResultStore, build_runs, halves, parse_grid, run_id, run_one, run_sweep, select,
-                           sim_sources, split_select)
+from quadest.sweep import (
+    ResultStore,
+    build_runs,
+    halves,
+    parse_grid,
+    run_id,
+    run_one,
+    run_sweep,
+    select,
+    sim_sources,
+    split_select,
+)
 from quadest.sweep.runs import parse_values
 
 BIN = Path(sys.executable).parent
-COMPARE = ("total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg", "roll_rms_deg", "pitch_rms_deg",
-           "yaw_rms_deg", "samples", "status", "source", "params", "filter")
+COMPARE = (
+    "total_rmse_deg",
+    "heading_rmse_deg",
+    "inclination_rmse_deg",
+    "roll_rms_deg",
+    "pitch_rms_deg",
+    "yaw_rms_deg",
+    "samples",
+    "status",
+    "source",
+    "params",
+    "filter",
+)
 
 
 def _runs(seeds=range(1, 4), duration=6.0, betas="0.02,0.1"):
-    return build_runs("madgwick,mahony", parse_grid([f"madgwick.beta_marg={betas}"]),
-                      sim_sources("hover", "bebop2", seeds, duration))
+    return build_runs(
+        "madgwick,mahony", parse_grid([f"madgwick.beta_marg={betas}"]), sim_sources("hover", "bebop2", seeds, duration)
+    )
 
 
 def _rows(path):
@@ -117,28 +140,68 @@ def test_split_selection_never_sees_the_half_it_reports():
     assert even == ["t00", "t02", "t04"] and odd == ["t01", "t03", "t05"]
     score = {('{"k": 1}', t): (1.0 if t in even else 3.0) for t in trials}
     score.update({('{"k": 2}', t): (2.0 if t in even else 2.5) for t in trials})
-    rows = [{"filter": "f", "status": "ok", "params": p, "source": t, "total_rmse_deg": v}
-            for (p, t), v in score.items()]
+    rows = [
+        {"filter": "f", "status": "ok", "params": p, "source": t, "total_rmse_deg": v} for (p, t), v in score.items()
+    ]
     sel = split_select(pa.Table.from_pylist(rows), "f")
     a, b = sel["folds"]
     assert a["params"] == {"k": 1} and a["tuned_mean"] == 1.0 and a["held_out_mean"] == 3.0
     assert b["params"] == {"k": 2} and b["tuned_mean"] == 2.5 and b["held_out_mean"] == 2.0
     assert a["held_out_trials"] == odd and b["held_out_trials"] == even
-    assert {tuple(r["params"].values()): (r["mean_A"], r["mean_B"]) for r in sel["sets"]} == {(1,): (1.0, 3.0),
-                                                                                              (2,): (2.0, 2.5)}
+    assert {tuple(r["params"].values()): (r["mean_A"], r["mean_B"]) for r in sel["sets"]} == {
+        (1,): (1.0, 3.0),
+        (2,): (2.0, 2.5),
+    }
 
 
 def test_sweep_defaults_to_a_local_cluster(tmp_path, capsys):
-    assert main(["sweep", "--filters", "madgwick", "--scenario", "hover", "--seeds", "1", "--duration", "3",
-                 "-o", str(tmp_path / "r")]) == 0
+    assert (
+        main(
+            [
+                "sweep",
+                "--filters",
+                "madgwick",
+                "--scenario",
+                "hover",
+                "--seeds",
+                "1",
+                "--duration",
+                "3",
+                "-o",
+                str(tmp_path / "r"),
+            ]
+        )
+        == 0
+    )
     assert "on a local Dask cluster (one worker per core)" in capsys.readouterr().out
     assert ResultStore(tmp_path / "r").read().column("status").to_pylist() == ["ok"]
 
 
 def test_tune_command(tmp_path, capsys):
     out = tmp_path / "res"
-    assert main(["tune", "madgwick", "--grid", "madgwick.beta_marg=0.01,0.1", "--scenario", "hover", "--seeds",
-                 "1-2", "--duration", "4", "-o", str(out), "--workers", "0", "--json", str(tmp_path / "t.json")]) == 0
+    assert (
+        main(
+            [
+                "tune",
+                "madgwick",
+                "--grid",
+                "madgwick.beta_marg=0.01,0.1",
+                "--scenario",
+                "hover",
+                "--seeds",
+                "1-2",
+                "--duration",
+                "4",
+                "-o",
+                str(out),
+                "--workers",
+                "0",
+                "--json",
+                str(tmp_path / "t.json"),
+            ]
+        )
+        == 0
+    )
     text = capsys.readouterr().out
     assert "trial-agnostic best" in text and "hover/bebop2/seed2" in text
     d = json.loads((tmp_path / "t.json").read_text())
@@ -166,13 +229,24 @@ def cluster():
     port = _free_port()
     address = f"tcp://127.0.0.1:{port}"
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    procs = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)]
+    procs = [
+        subprocess.Popen(
+            [dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            env=env,
+        )
+    ]
     time.sleep(1.0)
     for _ in range(2):
-        procs.append(subprocess.Popen([dask, "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard",
-                                       "--host", "127.0.0.1"], stdout=subprocess.DEVNULL,
-                                      stderr=subprocess.DEVNULL, env=env))
+        procs.append(
+            subprocess.Popen(
+                [dask, "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard", "--host", "127.0.0.1"],
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+                env=env,
+            )
+        )
     try:
         _wait_workers(address, 2)
         yield address, procs
@@ -190,11 +264,12 @@ def cluster():
 def test_scheduler_and_two_workers_equal_serial(cluster, tmp_path, capsys):
     address, _ = cluster
     args = ["--grid", "madgwick.beta_marg=0.02,0.1", "--scenario", "hover", "--seeds", "1-3", "--duration", "6"]
-    assert main(["sweep", "--filters", "madgwick,mahony", *args, "-o", str(tmp_path / "dask"),
-                 "--scheduler", address]) == 0
+    assert (
+        main(["sweep", "--filters", "madgwick,mahony", *args, "-o", str(tmp_path / "dask"), "--scheduler", address])
+        == 0
+    )
     assert "on the Dask cluster at" in capsys.readouterr().out
-    assert main(["sweep", "--filters", "madgwick,mahony", *args, "-o", str(tmp_path / "serial"),
-                 "--workers", "0"]) == 0
+    assert main(["sweep", "--filters", "madgwick,mahony", *args, "-o", str(tmp_path / "serial"), "--workers", "0"]) == 0
     assert _rows(tmp_path / "dask") == _rows(tmp_path / "serial")
     assert len(_raw_ids(tmp_path / "dask")) == 9
 
@@ -222,8 +297,22 @@ def test_worker_killed_mid_sweep_loses_and_duplicates_nothing(cluster, tmp_path)
 
 def test_interrupted_sweep_resumes_each_run_once(tmp_path):
     out = tmp_path / "r"
-    cmd = [str(BIN / "quadest"), "sweep", "--filters", "madgwick,mahony,afckf", "--scenario", "hover",
-           "--seeds", "1-30", "--duration", "30", "-o", str(out), "--workers", "0"]  # 90 runs, ~15 s
+    cmd = [
+        str(BIN / "quadest"),
+        "sweep",
+        "--filters",
+        "madgwick,mahony,afckf",
+        "--scenario",
+        "hover",
+        "--seeds",
+        "1-30",
+        "--duration",
+        "30",
+        "-o",
+        str(out),
+        "--workers",
+        "0",
+    ]  # 90 runs, ~15 s
     p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 120
     while time.time() < deadline and not _parts(out):
@@ -260,24 +349,64 @@ def test_flown_runs_sweep_resume_and_tune(tmp_path, capsys):
     from quadest.sweep import flown_sources
 
     out = tmp_path / "flown.parquet"
-    argv = ["sweep", "--fly", "rotor-loss", "--filters", "truth,madgwick", "--failure", "0@1", "--failure", "2@1",
-            "--seeds", "0-1", "--duration", "3", "--workers", "0", "-o", str(out)]
+    argv = [
+        "sweep",
+        "--fly",
+        "rotor-loss",
+        "--filters",
+        "truth,madgwick",
+        "--failure",
+        "0@1",
+        "--failure",
+        "2@1",
+        "--seeds",
+        "0-1",
+        "--duration",
+        "3",
+        "--workers",
+        "0",
+        "-o",
+        str(out),
+    ]
     assert main(argv) == 0
     t = pq.read_table(out).to_pylist()
     assert len(t) == 8 and all(r["status"] == "ok" and r["flight"] == "survived" for r in t)
     assert {r["source"] for r in t} == {f"flown rotor-loss/rotor{k}@1/seed{s}" for k in (0, 2) for s in (0, 1)}
     truth = [r for r in t if r["filter"] == "truth"]
     assert all(r["inclination_rmse_deg"] < 1e-5 and r["recovered"] == -1 for r in truth)
-    assert all(abs(r["spin_rate_rad_s"]) > 5.0 for r in t)  # the rotor-loss spin, an output (its sign: the lost rotor's sense)
+    assert all(
+        abs(r["spin_rate_rad_s"]) > 5.0 for r in t
+    )  # the rotor-loss spin, an output (its sign: the lost rotor's sense)
     capsys.readouterr()
     assert main(argv) == 0 and "executed 0 (skipped 8" in capsys.readouterr().out
-    assert main(["tune", "madgwick", "--fly", "rotor-loss", "--grid", "madgwick.beta_marg=0.05", "--seeds", "0",
-                 "--duration", "3", "--metric", "inclination_rmse_deg", "--workers", "0",
-                 "-o", str(tmp_path / "t.parquet")]) == 0
+    assert (
+        main(
+            [
+                "tune",
+                "madgwick",
+                "--fly",
+                "rotor-loss",
+                "--grid",
+                "madgwick.beta_marg=0.05",
+                "--seeds",
+                "0",
+                "--duration",
+                "3",
+                "--metric",
+                "inclination_rmse_deg",
+                "--workers",
+                "0",
+                "-o",
+                str(tmp_path / "t.parquet"),
+            ]
+        )
+        == 0
+    )
     assert "trial-agnostic best" in capsys.readouterr().out
     mixed = flown_sources("hover", [0]) + sim_sources("hover", "bebop2", [0], 2.0)
     with pytest.raises(UsageError, match="either flown"):
         run_sweep(build_runs("madgwick", {}, mixed), tmp_path / "m.parquet", workers=0, progress=False)
-    code = main(["sweep", "--fly", "rotor-loss", "--failure", "9@1", "--filters", "madgwick", "-o",
-                 str(tmp_path / "x.parquet")])
+    code = main(
+        ["sweep", "--fly", "rotor-loss", "--failure", "9@1", "--filters", "madgwick", "-o", str(tmp_path / "x.parquet")]
+    )
     assert code == 2 and "rotor 9 does not exist" in capsys.readouterr().err

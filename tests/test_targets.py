@@ -3,6 +3,7 @@
 Deterministic (simulated seeds), so they guard against regressions; speed targets are measured
 by `quadest benchmark speed`, never here.
 """
+
 import pytest
 
 from quadest.evaluation.reproduce import reproduce_afckf

@@ -2,6 +2,7 @@
 speed, and a damaged propeller's imbalance shakes the IMU as the rigid body answers its
 rotating force (checked against the Euler equations integrated here), in the closed loop as
 in the batch sensor model."""
+
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
@@ -39,7 +40,7 @@ def test_the_imbalance_response_is_the_rigid_bodys(rotor):
 
     def force(tt):
         theta = s * (0.7 + omega * tt)
-        return u * omega ** 2 * np.array([np.cos(theta), np.sin(theta), 0.0])
+        return u * omega**2 * np.array([np.cos(theta), np.sin(theta), 0.0])
 
     def rhs(tt, w):
         return (np.cross(r, force(tt)) - np.cross(w, J * w)) / J
@@ -51,10 +52,11 @@ def test_the_imbalance_response_is_the_rigid_bodys(rotor):
     assert np.abs(gyr - w_ode).max() < 0.02 * amp_g
     wdot = np.array([rhs(tt, w) for tt, w in zip(t, w_ode)])
     lever = np.asarray(LEVER)
-    f_ode = (np.array([force(tt) for tt in t]) / V.mass_kg + np.cross(wdot, lever)
-             + np.cross(w_ode, np.cross(w_ode, lever)))
+    f_ode = (
+        np.array([force(tt) for tt in t]) / V.mass_kg + np.cross(wdot, lever) + np.cross(w_ode, np.cross(w_ode, lever))
+    )
     amp_a = np.abs(f_ode).max()
-    assert amp_a > u * omega ** 2 / V.mass_kg  # the centre's 2 m/s² and the lever arm's share
+    assert amp_a > u * omega**2 / V.mass_kg  # the centre's 2 m/s² and the lever arm's share
     assert np.abs(acc - f_ode).max() < 0.02 * amp_a
 
 

@@ -7,6 +7,7 @@ that is what docs/reliability.md promises. Exit code 0 when every case behaves.
     python tools/hostile_cases.py            # the table
     python tools/hostile_cases.py --json out.json
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -40,7 +41,7 @@ def _rows(path: Path):
     """Header lines, column names and the numbers of a quadest CSV."""
     lines = path.read_text().splitlines()
     h = next(i for i, line in enumerate(lines) if not line.startswith("#"))
-    body = [line.split(",") for line in lines[h + 1:] if not line.startswith("#")]
+    body = [line.split(",") for line in lines[h + 1 :] if not line.startswith("#")]
     return lines[:h], lines[h].split(","), np.array([[float(x) if x else np.nan for x in r] for r in body])
 
 
@@ -85,8 +86,16 @@ def cases(d: Path):
 
     pq.write_table(pa.table({"run_id": ["x"], "seed": ["a"]}), other)
     zero_si = d / "zero_soft_iron.json"
-    zero_si.write_text(json.dumps({"format": "quadest calibration v1", "kind": "mag", "unit": "uT", "values": {
-        "hard_iron": [0, 0, 0], "soft_iron_correction": [[0, 0, 0], [0, 0, 0], [0, 0, 0]]}}))
+    zero_si.write_text(
+        json.dumps(
+            {
+                "format": "quadest calibration v1",
+                "kind": "mag",
+                "unit": "uT",
+                "values": {"hard_iron": [0, 0, 0], "soft_iron_correction": [[0, 0, 0], [0, 0, 0], [0, 0, 0]]},
+            }
+        )
+    )
     import h5py
 
     huge = d / "huge.hdf5"
@@ -104,15 +113,17 @@ def cases(d: Path):
     ulg.write_bytes(ulg.read_bytes()[: len(ulg.read_bytes()) // 2 + 5])
     write_dataflash(df, short)
     raw = bytearray(df.read_bytes())
-    raw[len(raw) // 2: len(raw) // 2 + 300] = b"\x00" * 300
+    raw[len(raw) // 2 : len(raw) // 2 + 300] = b"\x00" * 300
     df.write_bytes(bytes(raw))
     empty_values = d / "empty_values.json"
-    empty_values.write_text(json.dumps({"format": "quadest calibration v1", "kind": "gyro", "unit": "rad/s",
-                                        "values": {}}))
+    empty_values.write_text(
+        json.dumps({"format": "quadest calibration v1", "kind": "gyro", "unit": "rad/s", "values": {}})
+    )
 
     def one_line(code_wanted):
-        return lambda c, o, e: (c == code_wanted and e.count("\n") == 1 and "Traceback" not in e
-                                and "internal error" not in e)
+        return lambda c, o, e: (
+            c == code_wanted and e.count("\n") == 1 and "Traceback" not in e and "internal error" not in e
+        )
 
     def intact(c, o, e):
         return c == 2 and copy.read_bytes() == data and "is the input file" in e
@@ -127,49 +138,101 @@ def cases(d: Path):
     yield "acceleration in mg", ["info", mg], lambda c, o, e: c == 1 and "mg" in e
     yield "time in ms", ["info", ms], lambda c, o, e: c == 1 and "in ms" in e
     yield "reversed rows", ["info", rev], lambda c, o, e: c == 1 and "not strictly increasing" in e
-    yield "a duplicated column", ["info", dup, "--format", "csv", "--map", "t=t", "--map", "gyr=gx,gx,gz",
-                                  "--map", "acc=ax,ay,az"], one_line(1)
-    yield "--param for a parameter that does not exist", \
-        ["estimate", h, "--filter", "madgwick", "--param", "madgwick.beta=0.1", "-o", d / "e.csv"], one_line(2)
-    yield "--param with a negative noise", \
-        ["estimate", h, "--filter", "kalman", "--param", "kalman.gyro_noise=-1", "-o", d / "e.csv"], one_line(2)
-    yield "--param k_p=1e300", ["estimate", h, "--filter", "mahony", "--param", "mahony.k_p=1e300", "-o",
-                                d / "e.csv"], one_line(2)
-    yield "--declination-deg nan", ["estimate", h, "--filter", "madgwick", "--declination-deg", "nan", "-o",
-                                    d / "e.csv"], one_line(2)
+    yield (
+        "a duplicated column",
+        ["info", dup, "--format", "csv", "--map", "t=t", "--map", "gyr=gx,gx,gz", "--map", "acc=ax,ay,az"],
+        one_line(1),
+    )
+    yield (
+        "--param for a parameter that does not exist",
+        ["estimate", h, "--filter", "madgwick", "--param", "madgwick.beta=0.1", "-o", d / "e.csv"],
+        one_line(2),
+    )
+    yield (
+        "--param with a negative noise",
+        ["estimate", h, "--filter", "kalman", "--param", "kalman.gyro_noise=-1", "-o", d / "e.csv"],
+        one_line(2),
+    )
+    yield (
+        "--param k_p=1e300",
+        ["estimate", h, "--filter", "mahony", "--param", "mahony.k_p=1e300", "-o", d / "e.csv"],
+        one_line(2),
+    )
+    yield (
+        "--declination-deg nan",
+        ["estimate", h, "--filter", "madgwick", "--declination-deg", "nan", "-o", d / "e.csv"],
+        one_line(2),
+    )
     yield "--set of an unknown parameter", ["simulate", "--set", "gyro.nope=1", "-o", d / "x.csv"], one_line(2)
     yield "--set without a value", ["simulate", "--set", "novalue", "-o", d / "x.csv"], one_line(2)
     yield "an unknown filter", ["compare", "--filters", "nope", "--duration", "2"], one_line(2)
-    yield "a grid parameter typo", ["sweep", "--filters", "madgwick", "--grid", "madgwick.bta=0.1",
-                                    "--seeds", "1", "--duration", "2", "--workers", "0", "-o", d / "s.parquet"], \
-        one_line(2)
+    yield (
+        "a grid parameter typo",
+        [
+            "sweep",
+            "--filters",
+            "madgwick",
+            "--grid",
+            "madgwick.bta=0.1",
+            "--seeds",
+            "1",
+            "--duration",
+            "2",
+            "--workers",
+            "0",
+            "-o",
+            d / "s.parquet",
+        ],
+        one_line(2),
+    )
     yield "a missing file", ["info", d / "missing.csv"], one_line(1)
     yield "an HDF5 file that declares 1e8 rows", ["info", huge, "--format", "broad"], one_line(1)
     yield "a ULog cut in half", ["info", ulg], lambda c, o, e: c == 0 and "warning:" in e and "cut short" in e
-    yield "a DataFlash log damaged mid-file", ["info", df], \
-        lambda c, o, e: c == 0 and "warning:" in e and "damaged" in e and "bad header" not in e
-    yield "--param for a filter that is not run", ["compare", "--recording", h, "--filters", "madgwick",
-                                                   "--param", "kalman.lin_acc=1", "--no-timing"], one_line(2)
-    yield "--workers -1", ["sweep", "--filters", "madgwick", "--seeds", "1", "--workers", "-1", "-o",
-                           d / "w.parquet"], lambda c, o, e: c == 2 and "Traceback" not in e
-    yield "reproduce recovery --throws 0", ["reproduce", "recovery", "--throws", "0"], \
-        lambda c, o, e: c == 2 and "Traceback" not in e
+    yield (
+        "a DataFlash log damaged mid-file",
+        ["info", df],
+        lambda c, o, e: c == 0 and "warning:" in e and "damaged" in e and "bad header" not in e,
+    )
+    yield (
+        "--param for a filter that is not run",
+        ["compare", "--recording", h, "--filters", "madgwick", "--param", "kalman.lin_acc=1", "--no-timing"],
+        one_line(2),
+    )
+    yield (
+        "--workers -1",
+        ["sweep", "--filters", "madgwick", "--seeds", "1", "--workers", "-1", "-o", d / "w.parquet"],
+        lambda c, o, e: c == 2 and "Traceback" not in e,
+    )
+    yield (
+        "reproduce recovery --throws 0",
+        ["reproduce", "recovery", "--throws", "0"],
+        lambda c, o, e: c == 2 and "Traceback" not in e,
+    )
     yield "simulate --duration inf", ["simulate", "--duration", "inf", "-o", d / "x.csv"], one_line(1)
     yield "simulate --duration 1e5", ["simulate", "--duration", "1e5", "-o", d / "x.csv"], one_line(1)
     yield "--set imu.rate_hz=1e12", ["simulate", "--set", "imu.rate_hz=1e12", "-o", d / "x.csv"], one_line(2)
     yield "--set a negative noise", ["simulate", "--set", "gyro.noise_std=-0.1", "-o", d / "x.csv"], one_line(2)
-    yield "an all-zero soft-iron correction", ["estimate", h, "--filter", "madgwick", "--calibration", zero_si,
-                                               "-o", d / "e.csv"], one_line(1)
-    yield "a calibration with no values", ["estimate", h, "--filter", "madgwick", "--calibration", empty_values,
-                                           "-o", d / "e.csv"], one_line(1)
-    yield "a sweep in which every run fails", ["sweep", "--filters", "madgwick", "--data", notruth, "--workers", "0",
-                                               "-o", d / "s2.parquet"], \
-        lambda c, o, e: c == 1 and "none of the 1 runs succeeded" in e and "Traceback" not in e
-    yield "a sweep resumed onto another program's Parquet file", \
-        ["sweep", "--filters", "madgwick", "--seeds", "1", "--duration", "2", "--workers", "0", "-o", other], \
-        lambda c, o, e: c == 1 and "not a results file" in e and not (d / "other.parquet.parts").exists()
-    yield "an output with an unknown extension", ["estimate", h, "--filter", "madgwick", "-o", d / "e.txt"], \
-        one_line(1)
+    yield (
+        "an all-zero soft-iron correction",
+        ["estimate", h, "--filter", "madgwick", "--calibration", zero_si, "-o", d / "e.csv"],
+        one_line(1),
+    )
+    yield (
+        "a calibration with no values",
+        ["estimate", h, "--filter", "madgwick", "--calibration", empty_values, "-o", d / "e.csv"],
+        one_line(1),
+    )
+    yield (
+        "a sweep in which every run fails",
+        ["sweep", "--filters", "madgwick", "--data", notruth, "--workers", "0", "-o", d / "s2.parquet"],
+        lambda c, o, e: c == 1 and "none of the 1 runs succeeded" in e and "Traceback" not in e,
+    )
+    yield (
+        "a sweep resumed onto another program's Parquet file",
+        ["sweep", "--filters", "madgwick", "--seeds", "1", "--duration", "2", "--workers", "0", "-o", other],
+        lambda c, o, e: c == 1 and "not a results file" in e and not (d / "other.parquet.parts").exists(),
+    )
+    yield "an output with an unknown extension", ["estimate", h, "--filter", "madgwick", "-o", d / "e.txt"], one_line(1)
 
 
 def main_(argv=None) -> int:

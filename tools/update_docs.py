@@ -7,6 +7,7 @@ parameter records, and result tables (``results-*``) from the JSON the benchmark
 (docs/developing.md says which command writes which file). tests/test_docs.py fails when a table
 is out of date.
 """
+
 import json
 import math
 import re
@@ -18,28 +19,35 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def simulator_params() -> str:
     from quadest.sim import build_config, param_table
+
     rows = ["| parameter | value | unit | meaning | source |", "|---|---|---|---|---|"]
     for r in param_table(build_config("bebop2"), "bebop2"):
-        rows.append(f"| `{r['key']}` | {json.dumps(r['value'], default=str)} | {r['unit']} | "
-                    f"{r['doc']} | {r['source']} |")
+        rows.append(
+            f"| `{r['key']}` | {json.dumps(r['value'], default=str)} | {r['unit']} | {r['doc']} | {r['source']} |"
+        )
     return "\n".join(rows)
 
 
 def estimator_params() -> str:
     from quadest.filters import FILTERS
+
     out = []
     for name, cls in FILTERS.items():
-        out.append(f"**`{name}`**\n\n| parameter | default | unit | bounds | meaning | source |\n"
-                   "|---|---|---|---|---|---|")
+        out.append(
+            f"**`{name}`**\n\n| parameter | default | unit | bounds | meaning | source |\n|---|---|---|---|---|---|"
+        )
         for d in cls.Params.describe():
-            out.append(f"| `{d['name']}` | {json.dumps(d['default'], default=float)} | {d['unit']} | "
-                       f"{d.get('bounds', '-')} | {d['doc']} | {d['source']} |")
+            out.append(
+                f"| `{d['name']}` | {json.dumps(d['default'], default=float)} | {d['unit']} | "
+                f"{d.get('bounds', '-')} | {d['doc']} | {d['source']} |"
+            )
         out.append("")
     return "\n".join(out).rstrip()
 
 
 def recovery_params() -> str:
     from quadest.recovery import RecoveryParams
+
     rows = ["| parameter | default | unit | meaning | source |", "|---|---|---|---|---|"]
     for d in RecoveryParams.describe():
         rows.append(f"| `{d['name']}` | {d['default']} | {d['unit']} | {d['doc']} | {d['source']} |")
@@ -48,24 +56,30 @@ def recovery_params() -> str:
 
 def vehicle_params() -> str:
     from quadest.models.multirotor import MultirotorParams
+
     rows = ["| parameter | default | unit | bounds | meaning | source |", "|---|---|---|---|---|---|"]
     for d in MultirotorParams.describe():
-        rows.append(f"| `{d['name']}` | {json.dumps(d['default'], default=float)} | {d['unit']} | "
-                    f"{d.get('bounds', '-')} | {d['doc']} | {d['source']} |")
+        rows.append(
+            f"| `{d['name']}` | {json.dumps(d['default'], default=float)} | {d['unit']} | "
+            f"{d.get('bounds', '-')} | {d['doc']} | {d['source']} |"
+        )
     return "\n".join(rows)
 
 
 def _param_rows(describe_rows, default_header="default"):
     rows = [f"| parameter | {default_header} | unit | bounds | meaning | source |", "|---|---|---|---|---|---|"]
     for d in describe_rows:
-        rows.append(f"| `{d['name']}` | {json.dumps(d['default'], default=float)} | {d['unit']} | "
-                    f"{d.get('bounds', '-')} | {d['doc']} | {d['source']} |")
+        rows.append(
+            f"| `{d['name']}` | {json.dumps(d['default'], default=float)} | {d['unit']} | "
+            f"{d.get('bounds', '-')} | {d['doc']} | {d['source']} |"
+        )
     return "\n".join(rows)
 
 
 def vehicle_presets() -> str:
     """The presets' values that differ from the default vehicle, with sources."""
     from quadest.models.multirotor import VEHICLE_PRESETS, preset_rows
+
     out = []
     for name, (values, _) in VEHICLE_PRESETS.items():
         if not values:
@@ -81,16 +95,19 @@ def vehicle_presets() -> str:
 
 def ftc_params() -> str:
     from quadest.control import FtcParams
+
     return _param_rows(FtcParams.describe())
 
 
 def throw_params() -> str:
     from quadest.flight.throw import ThrowParams
+
     return _param_rows(ThrowParams.describe())
 
 
 def flight_params() -> str:
     from quadest.flight import FlightParams
+
     return _param_rows(FlightParams.describe())
 
 
@@ -100,18 +117,42 @@ def _f(v, fmt="{:.1f}"):
 
 def results_flight() -> str:
     r = _load("flight")
-    rows = [[t["estimator"], f"{t['survived']}/{t['runs']}", f"{t['settled']}/{t['runs']}",
-             _f(t["tilt_error_in_loop_deg"]), _f(t["tilt_error_offline_deg"]), _f(t["position_rms_settled_m"], "{:.3f}"),
-             _f(t["spin_rate_rad_s"]), _f(t["tilt_deg"])] for t in r["table"]]
+    rows = [
+        [
+            t["estimator"],
+            f"{t['survived']}/{t['runs']}",
+            f"{t['settled']}/{t['runs']}",
+            _f(t["tilt_error_in_loop_deg"]),
+            _f(t["tilt_error_offline_deg"]),
+            _f(t["position_rms_settled_m"], "{:.3f}"),
+            _f(t["spin_rate_rad_s"]),
+            _f(t["tilt_deg"]),
+        ]
+        for t in r["table"]
+    ]
     seeds = sorted({run["seed"] for run in r["runs"]})
-    return (_table(["in the loop", "survived", "settled", "tilt error in the loop (° RMS)",
-                    "offline, truth's flight (° RMS)", "position RMS settled (m)", "spin (rad/s)", "tilt (°)"], rows)
-            + f"\n\nRotor 0 lost at 2 s, 10 s flights, seeds {seeds[0]}-{seeds[-1]}, recovery vehicle, bebop2 sensors "
-              "(docs/results/flight.json).")
+    return (
+        _table(
+            [
+                "in the loop",
+                "survived",
+                "settled",
+                "tilt error in the loop (° RMS)",
+                "offline, truth's flight (° RMS)",
+                "position RMS settled (m)",
+                "spin (rad/s)",
+                "tilt (°)",
+            ],
+            rows,
+        )
+        + f"\n\nRotor 0 lost at 2 s, 10 s flights, seeds {seeds[0]}-{seeds[-1]}, recovery vehicle, bebop2 sensors "
+        "(docs/results/flight.json)."
+    )
 
 
 def results_throw() -> str:
     import numpy as np
+
     r = _load("throw")
     rows = []
     for t in r["table"]:
@@ -119,18 +160,35 @@ def results_throw() -> str:
         g = [x["gravity_error_at_handover_deg"] for x in runs if x.get("gravity_error_at_handover_deg") is not None]
         v = [x["velocity_error_at_handover_m_s"] for x in runs if x.get("velocity_error_at_handover_m_s") is not None]
         up = [x["upright_s"] for x in runs if x.get("upright_s") is not None]
-        rows.append([t["estimator"], f"{t['recovered']}/{t['runs']}", _f(t["handover_s"], "{:.3f}"),
-                     f"{np.median(g):.1f} / {np.max(g):.1f}" if g else "-",
-                     f"{np.median(v):.2f} / {np.max(v):.2f}" if v else "-",
-                     f"{np.median(up):.2f}" if up else "-",
-                     f"{np.mean([x['lowest_point_m'] for x in runs]):.2f} / {np.max([x['lowest_point_m'] for x in runs]):.2f}"])
+        low = [x["lowest_point_m"] for x in runs]
+        rows.append(
+            [
+                t["estimator"],
+                f"{t['recovered']}/{t['runs']}",
+                _f(t["handover_s"], "{:.3f}"),
+                f"{np.median(g):.1f} / {np.max(g):.1f}" if g else "-",
+                f"{np.median(v):.2f} / {np.max(v):.2f}" if v else "-",
+                f"{np.median(up):.2f}" if up else "-",
+                f"{np.mean(low):.2f} / {np.max(low):.2f}",
+            ]
+        )
     seeds = sorted({x["seed"] for x in r["runs"]})
-    return (_table(["in the loop", "recovered", "handover (s after the release, mean)",
-                    "gravity error there (°, median / max)",
-                    "velocity error there (m/s, median / max)", "upright (s after the release, median)",
-                    "fall (m, mean / max)"], rows)
-            + f"\n\n{len(seeds)} throws (seeds {seeds[0]}-{seeds[-1]}), recovery vehicle, fma sensors "
-              "(docs/results/throw.json).")
+    return (
+        _table(
+            [
+                "in the loop",
+                "recovered",
+                "handover (s after the release, mean)",
+                "gravity error there (°, median / max)",
+                "velocity error there (m/s, median / max)",
+                "upright (s after the release, median)",
+                "fall (m, mean / max)",
+            ],
+            rows,
+        )
+        + f"\n\n{len(seeds)} throws (seeds {seeds[0]}-{seeds[-1]}), recovery vehicle, fma sensors "
+        "(docs/results/throw.json)."
+    )
 
 
 def results_repoimu() -> str:
@@ -140,10 +198,12 @@ def results_repoimu() -> str:
     rows = [[t] + [f"{row[n]['total_rmse_deg']:.2f}" for n in names] for t, row in r["trials"].items()]
     rows.append(["mean total"] + [f"{r['mean'][n]['total_rmse_deg']:.2f}" for n in names])
     rows.append(["mean roll / pitch"] + [f"{r['mean'][n]['roll']:.1f} / {r['mean'][n]['pitch']:.1f}" for n in names])
-    return (_table(["trial"] + names, rows)
-            + f"\n\nTotal RMS error in degrees after the reader's alignment (heading and body rotation); "
-              f"{', '.join(r['without_truth']) or 'none'} without Vicon truth, not scored "
-              "(`quadest benchmark repoimu --data ../shared/data/repoimu --json docs/results/repoimu.json`).")
+    return (
+        _table(["trial"] + names, rows)
+        + f"\n\nTotal RMS error in degrees after the reader's alignment (heading and body rotation); "
+        f"{', '.join(r['without_truth']) or 'none'} without Vicon truth, not scored "
+        "(`quadest benchmark repoimu --data ../shared/data/repoimu --json docs/results/repoimu.json`)."
+    )
 
 
 def results_recovery_flown() -> str:
@@ -156,58 +216,114 @@ def results_recovery_flown() -> str:
         d = c[k]
         return "-" if d["median"] is None else f"{d['median']:{fmt}} / {d['p90']:{fmt}}"
 
-    rows = [["release detected", f"{cu['detected']}/{cu['throws']}", f"{ca['detected']}/{ca['throws']}", "-"],
-            ["bank converged", f"{cu['converged']}/{cu['throws']}", f"{ca['converged']}/{ca['throws']}", "-"],
-            ["convergence after the detection (s, median / p90)", med(cu, "convergence_s", ".3f"),
-             med(ca, "convergence_s", ".3f"), f"{pub['convergence_s']:.2f} (one throw)"],
-            ["gravity error there (°, median / p90)", med(cu, "gravity_error_deg", ".1f"),
-             med(ca, "gravity_error_deg", ".1f"), f"about {pub['gravity_error_deg']:g} (one throw)"],
-            ["velocity error there (m/s, median / p90)", med(cu, "velocity_error_m_s", ".2f"),
-             med(ca, "velocity_error_m_s", ".2f"), "-"],
-            ["upright within 30° (s after the release, median / p90)", med(cu, "upright_s", ".2f"),
-             med(ca, "upright_s", ".2f"), "-"],
-            ["recovered to hover (height within 0.5 m for 10 s)",
-             f"{cu['recovered']}/{cu['throws']} ({100 * cu['recovered'] / cu['throws']:.0f} %)",
-             f"{ca['recovered']}/{ca['throws']} ({100 * ca['recovered'] / ca['throws']:.0f} %)",
-             f"{pub['hovered_10s']}/{pub['throws']} hovered 10 s; {pub['recovered']}/{pub['throws']} with brief hovers"],
-            ["crashed", f"{cu['crashed']}/{cu['throws']}", f"{ca['crashed']}/{ca['throws']}", "1/32"],
-            ["fall (m, median / p90)", med(cu, "fall_m", ".2f"), med(ca, "fall_m", ".2f"), "-"]]
+    rows = [
+        ["release detected", f"{cu['detected']}/{cu['throws']}", f"{ca['detected']}/{ca['throws']}", "-"],
+        ["bank converged", f"{cu['converged']}/{cu['throws']}", f"{ca['converged']}/{ca['throws']}", "-"],
+        [
+            "convergence after the detection (s, median / p90)",
+            med(cu, "convergence_s", ".3f"),
+            med(ca, "convergence_s", ".3f"),
+            f"{pub['convergence_s']:.2f} (one throw)",
+        ],
+        [
+            "gravity error there (°, median / p90)",
+            med(cu, "gravity_error_deg", ".1f"),
+            med(ca, "gravity_error_deg", ".1f"),
+            f"about {pub['gravity_error_deg']:g} (one throw)",
+        ],
+        [
+            "velocity error there (m/s, median / p90)",
+            med(cu, "velocity_error_m_s", ".2f"),
+            med(ca, "velocity_error_m_s", ".2f"),
+            "-",
+        ],
+        [
+            "upright within 30° (s after the release, median / p90)",
+            med(cu, "upright_s", ".2f"),
+            med(ca, "upright_s", ".2f"),
+            "-",
+        ],
+        [
+            "recovered to hover (height within 0.5 m for 10 s)",
+            f"{cu['recovered']}/{cu['throws']} ({100 * cu['recovered'] / cu['throws']:.0f} %)",
+            f"{ca['recovered']}/{ca['throws']} ({100 * ca['recovered'] / ca['throws']:.0f} %)",
+            f"{pub['hovered_10s']}/{pub['throws']} hovered 10 s; {pub['recovered']}/{pub['throws']} with brief hovers",
+        ],
+        ["crashed", f"{cu['crashed']}/{cu['throws']}", f"{ca['crashed']}/{ca['throws']}", "1/32"],
+        ["fall (m, median / p90)", med(cu, "fall_m", ".2f"), med(ca, "fall_m", ".2f"), "-"],
+    ]
     t = up["throw"]
-    return (_table(["", "thrown upward", "in any direction", "paper (real throws)"], rows)
-            + f"\n\n{cu['throws']} flown throws each (seeds {up['seeds'][0]}-{up['seeds'][1]}), release up to "
-              f"{t['speed_max']:g} m/s and {t['rate_max']:g} rad/s, hand up to {t['hand_acc_max']:g} m/s² "
-              "(`quadest reproduce recovery [--any-direction] --json ...`, docs/results/recovery-flown*.json).")
+    return (
+        _table(["", "thrown upward", "in any direction", "paper (real throws)"], rows)
+        + f"\n\n{cu['throws']} flown throws each (seeds {up['seeds'][0]}-{up['seeds'][1]}), release up to "
+        f"{t['speed_max']:g} m/s and {t['rate_max']:g} rad/s, hand up to {t['hand_acc_max']:g} m/s² "
+        "(`quadest reproduce recovery [--any-direction] --json ...`, docs/results/recovery-flown*.json)."
+    )
 
 
 def results_sim() -> str:
     r = _load("sim")
     c = r["closed_loop"]
-    rows = [["closed loop: rotor loss, fault-tolerant controller, " + c["estimator"] + " in the loop, sensors at 1 kHz",
-             f"{c['loop_us_per_step']:.2f} µs", f"{c['loop_x_real_time']:.0f}x real time (whole `fly` call with its "
-             f"recording: {c['total_x_real_time']:.0f}x)", "≥ 200x"]]
+    rows = [
+        [
+            "closed loop: rotor loss, fault-tolerant controller, " + c["estimator"] + " in the loop, sensors at 1 kHz",
+            f"{c['loop_us_per_step']:.2f} µs",
+            f"{c['loop_x_real_time']:.0f}x real time (whole `fly` call with its "
+            f"recording: {c['total_x_real_time']:.0f}x)",
+            "≥ 200x",
+        ]
+    ]
     if "rotorpy" in r:
         p = r["rotorpy"]
-        rows.append(["SE(3) circle, Hummingbird, 1 kHz: quadest", f"{p['ms_per_step']['quadest'] * 1e3:.2f} µs",
-                     f"{p['speedup']:.0f}x faster than RotorPy", "≥ 100x"])
+        rows.append(
+            [
+                "SE(3) circle, Hummingbird, 1 kHz: quadest",
+                f"{p['ms_per_step']['quadest'] * 1e3:.2f} µs",
+                f"{p['speedup']:.0f}x faster than RotorPy",
+                "≥ 100x",
+            ]
+        )
         rows.append(["the same, RotorPy", f"{p['ms_per_step']['rotorpy'] * 1e3:.0f} µs", "-", "-"])
     return _table(["flight", "per step", "measured", "target"], rows) + (
-        f"\n\n{c['duration_s']:g} s flown, best of 3 after a warm-up, one core (docs/results/sim.json).")
+        f"\n\n{c['duration_s']:g} s flown, best of 3 after a warm-up, one core (docs/results/sim.json)."
+    )
 
 
 def results_crosscheck() -> str:
     p = _load("sim")["rotorpy"]
     h, t = p["hover_rotor_speed"], p["tracking_rms_m"]
-    rows = [["hover rotor speed (rad/s)", f"{h['quadest']:.3f}", f"{h['rotorpy']:.3f}",
-             f"{100 * (h['quadest'] / h['rotorpy'] - 1):+.3f} %", "within 1 %"],
-            [f"tracking RMS after {t['from_s']:g} s (cm)", f"{100 * t['quadest']:.2f}", f"{100 * t['rotorpy']:.2f}",
-             f"{100 * (t['quadest'] / t['rotorpy'] - 1):+.1f} %", "within 20 %"]]
-    return (_table(["", "quadest", "RotorPy", "difference", "required"], rows)
-            + f"\n\nAt {p['rate_hz']:g} Hz over {p['duration_s']:g} s (docs/results/sim.json).")
+    rows = [
+        [
+            "hover rotor speed (rad/s)",
+            f"{h['quadest']:.3f}",
+            f"{h['rotorpy']:.3f}",
+            f"{100 * (h['quadest'] / h['rotorpy'] - 1):+.3f} %",
+            "within 1 %",
+        ],
+        [
+            f"tracking RMS after {t['from_s']:g} s (cm)",
+            f"{100 * t['quadest']:.2f}",
+            f"{100 * t['rotorpy']:.2f}",
+            f"{100 * (t['quadest'] / t['rotorpy'] - 1):+.1f} %",
+            "within 20 %",
+        ],
+    ]
+    return (
+        _table(["", "quadest", "RotorPy", "difference", "required"], rows)
+        + f"\n\nAt {p['rate_hz']:g} Hz over {p['duration_s']:g} s (docs/results/sim.json)."
+    )
 
 
 RESULTS = ROOT / "docs" / "results"
-SPEED_TARGET_US = {"afckf": 0.5, "qukf": 2.0, "ekf": 2.0, "madgwick": 0.2, "mahony": 0.2, "complementary": 0.2,
-                   "kalman": 5.0}  # batch targets of issue #3 (targets, not measurements)
+SPEED_TARGET_US = {
+    "afckf": 0.5,
+    "qukf": 2.0,
+    "ekf": 2.0,
+    "madgwick": 0.2,
+    "mahony": 0.2,
+    "complementary": 0.2,
+    "kalman": 5.0,
+}  # batch targets of issue #3 (targets, not measurements)
 BROAD_GROUPS = (("all_trials", "all"), ("undisturbed", "undisturbed"), ("disturbed", "disturbed"))
 
 
@@ -229,41 +345,62 @@ def results_overview() -> str:
     """README: BROAD groups, flights and speed per filter."""
     broad, flights, speed = _load("broad"), _load("flights"), _load("speed")
     g = broad["groups"]
-    header = ["filter"] + [f"BROAD {label} ({g[k]['_trials']})" for k, label in BROAD_GROUPS] + [
-        "flights: roll / pitch / yaw RMS", "µs/sample batch", "streaming"]
+    header = (
+        ["filter"]
+        + [f"BROAD {label} ({g[k]['_trials']})" for k, label in BROAD_GROUPS]
+        + ["flights: roll / pitch / yaw RMS", "µs/sample batch", "streaming"]
+    )
     rows = []
     for n in broad["filters"]:
         sp = speed["filters"].get(n)
-        rows.append([n] + [f"{g[k][n]['total_rmse_deg']:.2f}" for k, _ in BROAD_GROUPS]
-                    + [_rpy(flights["mean"][n]) if n in flights["mean"] else "-",
-                       f"{sp['batch_us']:.2f}" if sp else "-", f"{sp['stream_us']:.2f}" if sp else "-"])
+        rows.append(
+            [n]
+            + [f"{g[k][n]['total_rmse_deg']:.2f}" for k, _ in BROAD_GROUPS]
+            + [
+                _rpy(flights["mean"][n]) if n in flights["mean"] else "-",
+                f"{sp['batch_us']:.2f}" if sp else "-",
+                f"{sp['stream_us']:.2f}" if sp else "-",
+            ]
+        )
     return _table(header, rows)
 
 
 def results_broad_summary() -> str:
     broad, flights = _load("broad"), _load("flights")
     g = broad["groups"]["all_trials"]
-    header = ["filter", f"all {g['_trials']} trials: total", "heading", "inclination"] + [
-        f"{label} ({broad['groups'][k]['_trials']})" for k, label in BROAD_GROUPS[1:]] + ["flights roll / pitch / yaw"]
-    rows = [[n, f"{g[n]['total_rmse_deg']:.2f}", f"{g[n]['heading_rmse_deg']:.2f}", f"{g[n]['inclination_rmse_deg']:.2f}"]
-            + [f"{broad['groups'][k][n]['total_rmse_deg']:.2f}" for k, _ in BROAD_GROUPS[1:]]
-            + [_rpy(flights["mean"][n]) if n in flights["mean"] else "-"] for n in broad["filters"]]
+    header = (
+        ["filter", f"all {g['_trials']} trials: total", "heading", "inclination"]
+        + [f"{label} ({broad['groups'][k]['_trials']})" for k, label in BROAD_GROUPS[1:]]
+        + ["flights roll / pitch / yaw"]
+    )
+    rows = [
+        [n, f"{g[n]['total_rmse_deg']:.2f}", f"{g[n]['heading_rmse_deg']:.2f}", f"{g[n]['inclination_rmse_deg']:.2f}"]
+        + [f"{broad['groups'][k][n]['total_rmse_deg']:.2f}" for k, _ in BROAD_GROUPS[1:]]
+        + [_rpy(flights["mean"][n]) if n in flights["mean"] else "-"]
+        for n in broad["filters"]
+    ]
     return _table(header, rows)
 
 
 def results_broad_trials() -> str:
     broad = _load("broad")
     names = broad["filters"]
-    return _table(["trial"] + names, [[t] + [f"{row[n]['total_rmse_deg']:.2f}" for n in names]
-                                      for t, row in broad["trials"].items()])
+    return _table(
+        ["trial"] + names,
+        [[t] + [f"{row[n]['total_rmse_deg']:.2f}" for n in names] for t, row in broad["trials"].items()],
+    )
 
 
 def results_flights() -> str:
     flights = _load("flights")
     names = flights["filters"]
-    return _table(["flight"] + names, [[f"{f} ({row['duration_s']:.0f} s)"] + [_rpy(row[n]["rms_deg"], "{:.1f}")
-                                                                              for n in names]
-                                       for f, row in flights["flights"].items()])
+    return _table(
+        ["flight"] + names,
+        [
+            [f"{f} ({row['duration_s']:.0f} s)"] + [_rpy(row[n]["rms_deg"], "{:.1f}") for n in names]
+            for f, row in flights["flights"].items()
+        ],
+    )
 
 
 def results_speed() -> str:
@@ -271,12 +408,17 @@ def results_speed() -> str:
     rows = []
     for n, v in speed["filters"].items():
         target = SPEED_TARGET_US.get(n)
-        met = "-" if target is None else (f"{target:g}" + ("" if v["batch_us"] <= target else
-                                                              f" (missed by {v['batch_us'] - target:.2f})"))
+        met = (
+            "-"
+            if target is None
+            else (f"{target:g}" + ("" if v["batch_us"] <= target else f" (missed by {v['batch_us'] - target:.2f})"))
+        )
         rows.append([n, f"{v['batch_us']:.2f}", met, f"{v['stream_us']:.2f}"])
     rows.append(["recovery bank, 40 EKFs", f"{speed['recovery_bank_40_us']:.1f}", "20", "-"])
-    return (_table(["filter", "batch", "batch target", "streaming"], rows)
-            + f"\n\n{speed['samples']} simulated samples (docs/results/speed.json).")
+    return (
+        _table(["filter", "batch", "batch target", "streaming"], rows)
+        + f"\n\n{speed['samples']} simulated samples (docs/results/speed.json)."
+    )
 
 
 AFCKF_NAMES = ["madgwick", "complementary", "kalman", "afckf"]
@@ -289,10 +431,14 @@ def _afckf_table(r, cases) -> str:
     for case, label in cases:
         for a in ("roll", "pitch", "yaw"):
             p = pub.get(case, {}).get("rms_deg", {})
-            rows.append([f"{label}, {a}"]
-                        + [f"{r['cases'][case][n]['rms_deg'][a]:.2f}" + (f" ({p[n][a]:.2f})" if n in p else "")
-                           for n in AFCKF_NAMES]
-                        + [f"{r['cases'][case][n]['rms_deg'][a]:.2f}" for n in _extra(r['cases'][case])])
+            rows.append(
+                [f"{label}, {a}"]
+                + [
+                    f"{r['cases'][case][n]['rms_deg'][a]:.2f}" + (f" ({p[n][a]:.2f})" if n in p else "")
+                    for n in AFCKF_NAMES
+                ]
+                + [f"{r['cases'][case][n]['rms_deg'][a]:.2f}" for n in _extra(r["cases"][case])]
+            )
     return _table([""] + AFCKF_NAMES + [EXTRA_LABELS[n] for n in _extra(r["cases"][cases[0][0]])], rows)
 
 
@@ -308,10 +454,18 @@ def results_afckf() -> str:
     """README and docs/estimators.md: the flown reproduction, ours (paper's)."""
     r = _load("afckf")
     seeds = r["seeds"]
-    return (_afckf_table(r, [("damaged-rotor", "rotor loss from hover"),
-                             ("damaged-rotor-trajectory", "rotor loss on the circle"), ("nominal", "normal flight")])
-            + f"\n\nRMS error in degrees, the paper's in parentheses; from the loss on; mean over seeds "
-              f"{seeds[0]}-{seeds[-1]} (`quadest reproduce afckf`, docs/results/afckf.json).")
+    return (
+        _afckf_table(
+            r,
+            [
+                ("damaged-rotor", "rotor loss from hover"),
+                ("damaged-rotor-trajectory", "rotor loss on the circle"),
+                ("nominal", "normal flight"),
+            ],
+        )
+        + f"\n\nRMS error in degrees, the paper's in parentheses; from the loss on; mean over seeds "
+        f"{seeds[0]}-{seeds[-1]} (`quadest reproduce afckf`, docs/results/afckf.json)."
+    )
 
 
 def results_afckf_flights() -> str:
@@ -323,22 +477,30 @@ def results_afckf_flights() -> str:
         tilt = "-" if f["tilt_deg"] is None else f"{f['tilt_deg']:.1f}"
         rows.append([case, spin, tilt, f"{f['peak_rate_rad_s']:.1f}", f"{100 * f['gyro_clipped_share']:.2f} %"])
     p = r["params"]
-    return (_table(["case", "settled spin (rad/s)", "tilt (°)", "peak body rate (rad/s)",
-                    "gyro samples clipped (±1000°/s)"], rows)
-            + f"\n\nThe paper: 15.5 rad/s. A {p['vehicle']} loses rotor {p['rotor']} at {p['failure_s']:g} s "
-              f"(docs/results/afckf.json).")
+    return (
+        _table(
+            ["case", "settled spin (rad/s)", "tilt (°)", "peak body rate (rad/s)", "gyro samples clipped (±1000°/s)"],
+            rows,
+        )
+        + f"\n\nThe paper: 15.5 rad/s. A {p['vehicle']} loses rotor {p['rotor']} at {p['failure_s']:g} s "
+        f"(docs/results/afckf.json)."
+    )
 
 
 def results_afckf_ablations() -> str:
     """README and docs/estimators.md: the ablation table."""
     r = _load("afckf")
     names = AFCKF_NAMES + _extra(r["ablations"][0])
-    rows = [[row["change"]] + [" / ".join(f"{row[n][a]:.1f}" for a in ("roll", "pitch", "yaw")) for n in names]
-            for row in r["ablations"]]
+    rows = [
+        [row["change"]] + [" / ".join(f"{row[n][a]:.1f}" for a in ("roll", "pitch", "yaw")) for n in names]
+        for row in r["ablations"]
+    ]
     seeds = r["seeds"]
-    return (_table(["one change", *AFCKF_NAMES, *(EXTRA_LABELS[n] for n in names[len(AFCKF_NAMES):])], rows)
-            + f"\n\nRoll / pitch / yaw RMS error in degrees from the loss on, the flown rotor loss from hover, mean "
-              f"over seeds {seeds[0]}-{seeds[-1]} (`quadest reproduce afckf --ablations`, docs/results/afckf.json).")
+    return (
+        _table(["one change", *AFCKF_NAMES, *(EXTRA_LABELS[n] for n in names[len(AFCKF_NAMES) :])], rows)
+        + f"\n\nRoll / pitch / yaw RMS error in degrees from the loss on, the flown rotor loss from hover, mean "
+        f"over seeds {seeds[0]}-{seeds[-1]} (`quadest reproduce afckf --ablations`, docs/results/afckf.json)."
+    )
 
 
 def results_afckf_in_loop() -> str:
@@ -348,26 +510,51 @@ def results_afckf_in_loop() -> str:
     def f(v, fmt="{:.1f}"):
         return "-" if v is None else fmt.format(v)
 
-    rows = [[row["variant"], row["estimator"], f"{row['survived']}/{row['runs']}", f"{row['settled']}/{row['runs']}",
-             f(row["position_rms_settled_m"], "{:.2f}"), f(row["attitude_error_after_loss_deg"]),
-             f(row["tilt_error_after_loss_deg"]), f(row["tilt_error_offline_deg"])] for row in r["table"]]
+    rows = [
+        [
+            row["variant"],
+            row["estimator"],
+            f"{row['survived']}/{row['runs']}",
+            f"{row['settled']}/{row['runs']}",
+            f(row["position_rms_settled_m"], "{:.2f}"),
+            f(row["attitude_error_after_loss_deg"]),
+            f(row["tilt_error_after_loss_deg"]),
+            f(row["tilt_error_offline_deg"]),
+        ]
+        for row in r["table"]
+    ]
     seeds = r["seeds"]
-    return (_table(["sensors", "in the loop", "stayed up", "settled", "position RMS settled (m)",
-                    "attitude error in the loop (°)", "tilt error in the loop (°)", "tilt error offline (°)"], rows)
-            + f"\n\nA {r['params']['vehicle']} loses rotor {r['params']['rotor']} at {r['params']['failure_s']:g} s; "
-              f"a run must stay up {r['after_loss_s']:g} s more; errors RMS after the loss, mean over the runs that "
-              f"stayed up; offline: the same estimator over the truth's flight. Seeds {seeds[0]}-{seeds[-1]} "
-              f"(`quadest reproduce afckf --in-loop`, docs/results/afckf-in-loop.json).")
+    return (
+        _table(
+            [
+                "sensors",
+                "in the loop",
+                "stayed up",
+                "settled",
+                "position RMS settled (m)",
+                "attitude error in the loop (°)",
+                "tilt error in the loop (°)",
+                "tilt error offline (°)",
+            ],
+            rows,
+        )
+        + f"\n\nA {r['params']['vehicle']} loses rotor {r['params']['rotor']} at {r['params']['failure_s']:g} s; "
+        f"a run must stay up {r['after_loss_s']:g} s more; errors RMS after the loss, mean over the runs that "
+        f"stayed up; offline: the same estimator over the truth's flight. Seeds {seeds[0]}-{seeds[-1]} "
+        f"(`quadest reproduce afckf --in-loop`, docs/results/afckf-in-loop.json)."
+    )
 
 
 def results_afckf_prescribed() -> str:
     """docs/estimators.md: the prescribed reproduction."""
     r = _load("afckf-prescribed")
     seeds = r["seeds"]
-    return (_afckf_table(r, [("damaged-rotor", "damaged rotor"), ("nominal", "normal flight")])
-            + f"\n\nRMS error in degrees, the paper's in parentheses; damaged rotor from the failure on; mean over "
-              f"seeds {seeds[0]}-{seeds[-1]} (`quadest reproduce afckf --prescribed`, "
-              f"docs/results/afckf-prescribed.json).")
+    return (
+        _afckf_table(r, [("damaged-rotor", "damaged rotor"), ("nominal", "normal flight")])
+        + f"\n\nRMS error in degrees, the paper's in parentheses; damaged rotor from the failure on; mean over "
+        f"seeds {seeds[0]}-{seeds[-1]} (`quadest reproduce afckf --prescribed`, "
+        f"docs/results/afckf-prescribed.json)."
+    )
 
 
 def results_split() -> str:
@@ -377,20 +564,30 @@ def results_split() -> str:
         sp = _load(f"split-{name}")
         by = {f["held_out"]: f for f in sp["folds"]}
         grid = "its defaults (not tuned)" if sp["parameter_sets"] == 1 else f"{sp['parameter_sets']} sets"
-        rows.append([name, grid] + [f"{by[h]['held_out_mean']:.2f} (tuned on {by[h]['tuned_on']}: "
-                                    f"{_params(by[h]['params'])}; {by[h]['tuned_mean']:.2f} there)" for h in "AB"])
+        rows.append(
+            [name, grid]
+            + [
+                f"{by[h]['held_out_mean']:.2f} (tuned on {by[h]['tuned_on']}: "
+                f"{_params(by[h]['params'])}; {by[h]['tuned_mean']:.2f} there)"
+                for h in "AB"
+            ]
+        )
     sp = _load("split-robust")
     from quadest.filters.robust import RobustParams
 
     d = RobustParams()
-    row = next(r for r in sp["sets"] if all(math.isclose(getattr(d, k), v, rel_tol=1e-3) for k, v in r["params"].items()))
+    row = next(
+        r for r in sp["sets"] if all(math.isclose(getattr(d, k), v, rel_tol=1e-3) for k, v in r["params"].items())
+    )
     rows.append(["robust, defaults", _params(row["params"]), f"{row['mean_A']:.2f}", f"{row['mean_B']:.2f}"])
     h = sp["halves"]
-    return (_table(["filter", "grid", "held-out half A", "held-out half B"], rows)
-            + f"\n\nBROAD total RMSE (°), mean over a half. A: {', '.join(t[:2] for t in h['A'])}; "
-              f"B: {', '.join(t[:2] for t in h['B'])} (trial numbers). `quadest tune NAME --data ../shared/data/broad "
-              "--split --grid ...` (docs/results/split-*.json; robust's grid: tau_mag 5-40 s x bias_motion_std "
-              "0.05-0.8 °/s, tau_acc 4 s; the Kalman filter's: lin_acc x mag_noise x dist_tau_s).")
+    return (
+        _table(["filter", "grid", "held-out half A", "held-out half B"], rows)
+        + f"\n\nBROAD total RMSE (°), mean over a half. A: {', '.join(t[:2] for t in h['A'])}; "
+        f"B: {', '.join(t[:2] for t in h['B'])} (trial numbers). `quadest tune NAME --data ../shared/data/broad "
+        "--split --grid ...` (docs/results/split-*.json; robust's grid: tau_mag 5-40 s x bias_motion_std "
+        "0.05-0.8 °/s, tau_acc 4 s; the Kalman filter's: lin_acc x mag_noise x dist_tau_s)."
+    )
 
 
 def _params(p: dict) -> str:
@@ -410,21 +607,35 @@ def results_robust_targets() -> str:
         rows.append([what, ours, theirs, "yes" if met else "**no**"])
 
     b = broad["groups"]["all_trials"]
-    row("BROAD, 12 trials, total RMSE (in-sample for two parameters)", f"{b['robust']['total_rmse_deg']:.2f}",
-        f"VQF {b['vqf']['total_rmse_deg']:.2f}", b["robust"]["total_rmse_deg"] <= b["vqf"]["total_rmse_deg"])
+    row(
+        "BROAD, 12 trials, total RMSE (in-sample for two parameters)",
+        f"{b['robust']['total_rmse_deg']:.2f}",
+        f"VQF {b['vqf']['total_rmse_deg']:.2f}",
+        b["robust"]["total_rmse_deg"] <= b["vqf"]["total_rmse_deg"],
+    )
     sr, sv = _load("split-robust"), _load("split-vqf")
     for f in sr["folds"]:
         v = next(g for g in sv["folds"] if g["held_out"] == f["held_out"])
-        row(f"BROAD split, held-out half {f['held_out']}", f"{f['held_out_mean']:.2f}", f"VQF {v['held_out_mean']:.2f}",
-            f["held_out_mean"] <= v["held_out_mean"])
+        row(
+            f"BROAD split, held-out half {f['held_out']}",
+            f"{f['held_out_mean']:.2f}",
+            f"VQF {v['held_out_mean']:.2f}",
+            f["held_out_mean"] <= v["held_out_mean"],
+        )
     fm = flights["mean"]
-    row("flights (DIDO, Blackbird), roll / pitch RMS", f"{fm['robust']['roll']:.2f} / {fm['robust']['pitch']:.2f}",
+    row(
+        "flights (DIDO, Blackbird), roll / pitch RMS",
+        f"{fm['robust']['roll']:.2f} / {fm['robust']['pitch']:.2f}",
         f"VQF {fm['vqf']['roll']:.2f} / {fm['vqf']['pitch']:.2f}",
-        fm["robust"]["roll"] <= fm["vqf"]["roll"] and fm["robust"]["pitch"] <= fm["vqf"]["pitch"])
+        fm["robust"]["roll"] <= fm["vqf"]["roll"] and fm["robust"]["pitch"] <= fm["vqf"]["pitch"],
+    )
     rm = repo["mean"]
-    row("RepoIMU, roll / pitch / yaw, total", f"{_rpy(rm['robust'])}, {rm['robust']['total_rmse_deg']:.2f}",
+    row(
+        "RepoIMU, roll / pitch / yaw, total",
+        f"{_rpy(rm['robust'])}, {rm['robust']['total_rmse_deg']:.2f}",
         f"VQF {_rpy(rm['vqf'])}, {rm['vqf']['total_rmse_deg']:.2f}",
-        all(rm["robust"][a] <= rm["vqf"][a] for a in ("roll", "pitch", "yaw", "total_rmse_deg")))
+        all(rm["robust"][a] <= rm["vqf"][a] for a in ("roll", "pitch", "yaw", "total_rmse_deg")),
+    )
 
     def sim_row(label, res, case, other):
         ours, theirs = res["cases"][case]["robust"]["rms_deg"], res["cases"][case][other]["rms_deg"]
@@ -433,40 +644,74 @@ def results_robust_targets() -> str:
     sim_row("damaged rotor, prescribed (gyro clips at ±1000 °/s in the spin)", pres, "damaged-rotor", "afckf")
     sim_row("damaged rotor, flown", flown, "damaged-rotor", "afckf")
     clip = next(r for r in flown["ablations"] if r["change"].startswith("gyro range ±500"))
-    row("damaged rotor, flown, gyro ±500 °/s (clipping)", _rpy(clip["robust"]), f"afckf {_rpy(clip['afckf'])}",
-        all(clip["robust"][a] <= clip["afckf"][a] for a in ("roll", "pitch", "yaw")))
+    row(
+        "damaged rotor, flown, gyro ±500 °/s (clipping)",
+        _rpy(clip["robust"]),
+        f"afckf {_rpy(clip['afckf'])}",
+        all(clip["robust"][a] <= clip["afckf"][a] for a in ("roll", "pitch", "yaw")),
+    )
     sim_row("nominal flight, prescribed", pres, "nominal", "kalman")
     sim_row("nominal flight (the circle), flown", flown, "nominal", "kalman")
     for variant in dict.fromkeys(r["variant"] for r in loop["table"]):
         up = {r["estimator"]: r for r in loop["table"] if r["variant"] == variant}
         if "robust" in up:
-            row(f"in the loop, {variant}: stayed up", f"{up['robust']['survived']}/{up['robust']['runs']}",
-                f"afckf {up['afckf']['survived']}/{up['afckf']['runs']}", up["robust"]["survived"] >= up["afckf"]["survived"])
+            row(
+                f"in the loop, {variant}: stayed up",
+                f"{up['robust']['survived']}/{up['robust']['runs']}",
+                f"afckf {up['afckf']['survived']}/{up['afckf']['runs']}",
+                up["robust"]["survived"] >= up["afckf"]["survived"],
+            )
     ne = [pres["cases"][c]["robust"]["nees"] for c in ("damaged-rotor", "nominal")]
-    row("mean NEES, prescribed damaged rotor / nominal (3 dof)", " / ".join(f"{v:.2f}" for v in ne), "1.5-4.5",
-        all(1.5 <= v <= 4.5 for v in ne))
+    row(
+        "mean NEES, prescribed damaged rotor / nominal (3 dof)",
+        " / ".join(f"{v:.2f}" for v in ne),
+        "1.5-4.5",
+        all(1.5 <= v <= 4.5 for v in ne),
+    )
     sp = speed["filters"]
-    row("batch µs/sample", f"{sp['robust']['batch_us']:.2f}", f"VQF {sp['vqf']['batch_us']:.2f}",
-        sp["robust"]["batch_us"] <= sp["vqf"]["batch_us"])
+    row(
+        "batch µs/sample",
+        f"{sp['robust']['batch_us']:.2f}",
+        f"VQF {sp['vqf']['batch_us']:.2f}",
+        sp["robust"]["batch_us"] <= sp["vqf"]["batch_us"],
+    )
     row("streaming µs/call", f"{sp['robust']['stream_us']:.2f}", "1.5", sp["robust"]["stream_us"] <= 1.5)
-    return (_table(["target", "robust", "against", "met"], rows)
-            + "\n\nSimulator figures: roll / pitch / yaw RMS (°), seeds 1-5, from the loss on (docs/results/"
-              "afckf*.json); real data: docs/results/broad.json, flights.json, repoimu.json, split-*.json; speed "
-              "in one run, docs/results/speed.json.")
+    return (
+        _table(["target", "robust", "against", "met"], rows)
+        + "\n\nSimulator figures: roll / pitch / yaw RMS (°), seeds 1-5, from the loss on (docs/results/"
+        "afckf*.json); real data: docs/results/broad.json, flights.json, repoimu.json, split-*.json; speed "
+        "in one run, docs/results/speed.json."
+    )
 
 
-GENERATORS = {"simulator-params": simulator_params, "estimator-params": estimator_params,
-              "recovery-params": recovery_params, "vehicle-params": vehicle_params,
-              "vehicle-presets": vehicle_presets, "ftc-params": ftc_params, "flight-params": flight_params,
-              "throw-params": throw_params,
-              "results-flight": results_flight, "results-throw": results_throw, "results-sim": results_sim, "results-crosscheck": results_crosscheck,
-              "results-overview": results_overview,
-              "results-broad-summary": results_broad_summary, "results-broad-trials": results_broad_trials,
-              "results-flights": results_flights, "results-speed": results_speed, "results-afckf": results_afckf,
-              "results-afckf-flights": results_afckf_flights, "results-afckf-ablations": results_afckf_ablations,
-              "results-afckf-prescribed": results_afckf_prescribed, "results-afckf-in-loop": results_afckf_in_loop,
-              "results-recovery-flown": results_recovery_flown, "results-repoimu": results_repoimu,
-              "results-split": results_split, "results-robust-targets": results_robust_targets}
+GENERATORS = {
+    "simulator-params": simulator_params,
+    "estimator-params": estimator_params,
+    "recovery-params": recovery_params,
+    "vehicle-params": vehicle_params,
+    "vehicle-presets": vehicle_presets,
+    "ftc-params": ftc_params,
+    "flight-params": flight_params,
+    "throw-params": throw_params,
+    "results-flight": results_flight,
+    "results-throw": results_throw,
+    "results-sim": results_sim,
+    "results-crosscheck": results_crosscheck,
+    "results-overview": results_overview,
+    "results-broad-summary": results_broad_summary,
+    "results-broad-trials": results_broad_trials,
+    "results-flights": results_flights,
+    "results-speed": results_speed,
+    "results-afckf": results_afckf,
+    "results-afckf-flights": results_afckf_flights,
+    "results-afckf-ablations": results_afckf_ablations,
+    "results-afckf-prescribed": results_afckf_prescribed,
+    "results-afckf-in-loop": results_afckf_in_loop,
+    "results-recovery-flown": results_recovery_flown,
+    "results-repoimu": results_repoimu,
+    "results-split": results_split,
+    "results-robust-targets": results_robust_targets,
+}
 PATTERN = re.compile(r"(<!-- generated:([a-z-]+) -->\n)(.*?)(<!-- /generated -->)", re.S)
 
 

@@ -18,6 +18,7 @@ Units
     unit in its name (``rate_hz``, ``range_dps``, ``field_ut``). Magnetometer data may be in any
     unit (µT in simulations); its unit is stated in a recording's metadata.
 """
+
 import numpy as np
 
 GRAVITY = 9.80665

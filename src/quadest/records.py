@@ -1,6 +1,7 @@
 """Parameter records: frozen dataclasses whose every field states its unit, meaning and where
 its value comes from (a publication, or "chosen" and why). The estimators', the recovery's and
 the simulator's parameters are all declared with :func:`param`."""
+
 from __future__ import annotations
 
 import math

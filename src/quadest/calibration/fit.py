@@ -3,6 +3,7 @@
 Every fit returns a :class:`~quadest.calibration.model.Calibration` with values, 1σ
 uncertainties and quality figures, or raises ValueError saying what the data lack.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -26,8 +27,16 @@ def _moving_std(x, w):
     return np.sqrt(np.maximum(var, 0.0)), mean
 
 
-def static_segments(rec, *, window_s: float = 0.5, min_s: float = 2.0, gyr_std: float = 0.05,
-                    acc_std: float = 0.5, gyr_mean: float = 0.2, trim_s: float = 0.25):
+def static_segments(
+    rec,
+    *,
+    window_s: float = 0.5,
+    min_s: float = 2.0,
+    gyr_std: float = 0.05,
+    acc_std: float = 0.5,
+    gyr_mean: float = 0.2,
+    trim_s: float = 0.25,
+):
     """Segments ``(i0, i1)`` (row indices, end exclusive) where the sensor is still: over a
     moving window the gyroscope and accelerometer spread stay below ``gyr_std`` (rad/s) and
     ``acc_std`` (m/s²) per axis and the mean rate below ``gyr_mean``; runs shorter than
@@ -56,8 +65,11 @@ def _segments_of(recs, **kw):
 
 
 def _source(recs):
-    return {"recordings": [str(r.meta.get("source", "")) + (f" seed {r.meta['seed']}" if "seed" in r.meta else "")
-                           for r in recs]}
+    return {
+        "recordings": [
+            str(r.meta.get("source", "")) + (f" seed {r.meta['seed']}" if "seed" in r.meta else "") for r in recs
+        ]
+    }
 
 
 # -- gyroscope ------------------------------------------------------------------------------------
@@ -65,21 +77,28 @@ def calibrate_gyro(recs, **kw) -> Calibration:
     """Bias = mean gyroscope reading over the rest segments found automatically."""
     segs = _segments_of(recs, **kw)
     if not segs:
-        raise ValueError("gyro: no rest segment found (the vehicle must lie still for a few seconds; "
-                         "quadest simulate --scenario rest shows the motion)")
+        raise ValueError(
+            "gyro: no rest segment found (the vehicle must lie still for a few seconds; "
+            "quadest simulate --scenario rest shows the motion)"
+        )
     samples = np.vstack([recs[k].gyr[a:b] for k, a, b in segs])
     bias = samples.mean(axis=0)
     noise = samples.std(axis=0)
     means = np.array([recs[k].gyr[a:b].mean(axis=0) for k, a, b in segs])
     rate = recs[0].imu_rate_hz()
     return Calibration(
-        "gyro", recs[0].meta.get("units", {}).get("gyr", "rad/s"),
+        "gyro",
+        recs[0].meta.get("units", {}).get("gyr", "rad/s"),
         {"bias": bias.tolist()},
         {"bias": (noise / np.sqrt(len(samples))).tolist()},
-        {"rest_segments_s": [[float(recs[k].t[a]), float(recs[k].t[b - 1])] for k, a, b in segs],
-         "rest_time_s": float(len(samples) / rate), "noise_std": noise.tolist(),
-         "segment_spread": (means.std(axis=0) if len(means) > 1 else np.zeros(3)).tolist()},
-        _source(recs))
+        {
+            "rest_segments_s": [[float(recs[k].t[a]), float(recs[k].t[b - 1])] for k, a, b in segs],
+            "rest_time_s": float(len(samples) / rate),
+            "noise_std": noise.tolist(),
+            "segment_spread": (means.std(axis=0) if len(means) > 1 else np.zeros(3)).tolist(),
+        },
+        _source(recs),
+    )
 
 
 # -- accelerometer --------------------------------------------------------------------------------
@@ -95,8 +114,10 @@ def calibrate_accel(recs, *, gravity: float = GRAVITY, **kw) -> Calibration:
 
     segs = _segments_of(recs, **kw)
     if len(segs) < 6:
-        raise ValueError(f"accel: found {len(segs)} static position(s); a calibration needs six (each axis "
-                         "down and up) or at least nine of varied attitude, each held still for 2 s or more")
+        raise ValueError(
+            f"accel: found {len(segs)} static position(s); a calibration needs six (each axis "
+            "down and up) or at least nine of varied attitude, each held still for 2 s or more"
+        )
     means = np.array([recs[k].acc[a:b].mean(axis=0) for k, a, b in segs])
     counts = np.array([b - a for _, a, b in segs])
     noise = np.array([recs[k].acc[a:b].std(axis=0) for k, a, b in segs]).mean(axis=0)
@@ -112,7 +133,7 @@ def calibrate_accel(recs, *, gravity: float = GRAVITY, **kw) -> Calibration:
         M, b = sol[:3].T, sol[3]
         resid = means - X @ sol
         dof = max(1, 3 * len(F) - 12)
-        s2 = float(np.sum(resid ** 2) / dof)
+        s2 = float(np.sum(resid**2) / dof)
         cov = np.linalg.inv(X.T @ X) * s2
         b_std = np.sqrt(np.full(3, cov[3, 3]))
         m_std = np.sqrt(np.diag(cov)[:3])
@@ -120,33 +141,41 @@ def calibrate_accel(recs, *, gravity: float = GRAVITY, **kw) -> Calibration:
         method = "six-position"
     else:
         if len(segs) < 9:
-            raise ValueError(f"accel: the {len(segs)} static positions are not the six axis-aligned ones; a "
-                             "many-position calibration needs at least nine of varied attitude")
+            raise ValueError(
+                f"accel: the {len(segs)} static positions are not the six axis-aligned ones; a "
+                "many-position calibration needs at least nine of varied attitude"
+            )
 
         def res(p):
             T = np.array([[p[0], p[1], p[2]], [0, p[3], p[4]], [0, 0, p[5]]])
             return np.linalg.norm((means - p[6:9]) @ T.T, axis=1) - gravity
+
         sol = least_squares(res, np.array([1, 0, 0, 1, 0, 1, 0, 0, 0], float))
         p = sol.x
         T = np.array([[p[0], p[1], p[2]], [0, p[3], p[4]], [0, 0, p[5]]])
         b = p[6:9]
         M = np.linalg.inv(T)
         dof = max(1, len(means) - 9)
-        s2 = float(np.sum(sol.fun ** 2) / dof)
+        s2 = float(np.sum(sol.fun**2) / dof)
         cov = np.linalg.pinv(sol.jac.T @ sol.jac) * s2
         b_std = np.sqrt(np.diag(cov)[6:9])
         m_std = np.sqrt(np.diag(cov)[[0, 3, 5]])
         method = "many-position"
     corrected = (means - b) @ T.T
     return Calibration(
-        "accel", recs[0].meta.get("units", {}).get("acc", "m/s^2"),
-        {"bias": b.tolist(), "matrix": T.tolist(), "sensor_matrix": M.tolist(),
-         "scale": (np.diag(M) - 1.0).tolist()},
+        "accel",
+        recs[0].meta.get("units", {}).get("acc", "m/s^2"),
+        {"bias": b.tolist(), "matrix": T.tolist(), "sensor_matrix": M.tolist(), "scale": (np.diag(M) - 1.0).tolist()},
         {"bias": b_std.tolist(), "scale": m_std.tolist()},
-        {"method": method, "positions": len(segs), "samples_per_position": counts.tolist(),
-         "norm_residual_rms_mps2": float(np.sqrt(np.mean((np.linalg.norm(corrected, axis=1) - gravity) ** 2))),
-         "noise_std": noise.tolist()},
-        _source(recs))
+        {
+            "method": method,
+            "positions": len(segs),
+            "samples_per_position": counts.tolist(),
+            "norm_residual_rms_mps2": float(np.sqrt(np.mean((np.linalg.norm(corrected, axis=1) - gravity) ** 2))),
+            "noise_std": noise.tolist(),
+        },
+        _source(recs),
+    )
 
 
 # -- magnetometer ---------------------------------------------------------------------------------
@@ -192,15 +221,19 @@ def calibrate_mag(recs, *, min_samples: int = 100) -> Calibration:
     in the magnetometer's unit). Refuses data that do not determine the ellipsoid."""
     m = np.vstack([r.mag[np.isfinite(r.mag[:, 0])] for r in recs])
     if len(m) < min_samples:
-        raise ValueError(f"mag: {len(m)} magnetometer samples; the ellipsoid fit needs at least {min_samples} "
-                         "taken while the vehicle turns through many orientations")
+        raise ValueError(
+            f"mag: {len(m)} magnetometer samples; the ellipsoid fit needs at least {min_samples} "
+            "taken while the vehicle turns through many orientations"
+        )
     d = m - m.mean(axis=0)
     d /= np.linalg.norm(d, axis=1, keepdims=True) + 1e-300
     ev = np.linalg.eigvalsh(d.T @ d / len(d))
     if ev[0] < 0.03 * ev[-1]:
-        raise ValueError("mag: the field was seen turning in one plane only (a rotation about one axis); "
-                         "turn the vehicle about its other axes too, e.g. a figure-eight with rolls and "
-                         "pitches (quadest simulate --scenario figure-eight)")
+        raise ValueError(
+            "mag: the field was seen turning in one plane only (a rotation about one axis); "
+            "turn the vehicle about its other axes too, e.g. a figure-eight with rolls and "
+            "pitches (quadest simulate --scenario figure-eight)"
+        )
     h, A = _ellipsoid(m)
     w, V = np.linalg.eigh(A)
     if w.min() <= 0:
@@ -219,12 +252,18 @@ def calibrate_mag(recs, *, min_samples: int = 100) -> Calibration:
     h_std = np.sqrt(4.0 / 5.0 * np.sum((hs - hs.mean(axis=0)) ** 2, axis=0))
     r = np.linalg.norm((m - h) @ W.T, axis=1)
     return Calibration(
-        "mag", recs[0].meta.get("units", {}).get("mag", "unknown"),
+        "mag",
+        recs[0].meta.get("units", {}).get("mag", "unknown"),
         {"hard_iron": h.tolist(), "soft_iron_correction": W.tolist(), "field_strength": F},
         {"hard_iron": h_std.tolist()},
-        {"samples": int(len(m)), "radius_rms_rel": float(np.sqrt(np.mean((r / F - 1) ** 2))),
-         "coverage_eigenvalues": ev.tolist(), "axes": radii.tolist()},
-        _source(recs))
+        {
+            "samples": int(len(m)),
+            "radius_rms_rel": float(np.sqrt(np.mean((r / F - 1) ** 2))),
+            "coverage_eigenvalues": ev.tolist(),
+            "axes": radii.tolist(),
+        },
+        _source(recs),
+    )
 
 
 # -- centrifugal constants and aerodynamics ------------------------------------------------------------
@@ -235,8 +274,10 @@ def fit_centrifugal(gyr, acc, *, min_rate: float = 5.0, gyro_range: float = np.i
     gyr, acc = np.asarray(gyr, float), np.asarray(acc, float)
     ok = (np.abs(gyr[:, 2]) > min_rate) & (np.abs(gyr).max(axis=1) < gyro_range) & np.isfinite(acc).all(axis=1)
     if ok.sum() < 50:
-        raise ValueError(f"fit_centrifugal: {int(ok.sum())} samples spin faster than {min_rate} rad/s; "
-                         "need a spinning segment of at least 50 samples")
+        raise ValueError(
+            f"fit_centrifugal: {int(ok.sum())} samples spin faster than {min_rate} rad/s; "
+            "need a spinning segment of at least 50 samples"
+        )
     A = np.column_stack([gyr[ok, 2] ** 2, np.ones(ok.sum())])
     out = []
     res = []
@@ -257,13 +298,21 @@ def calibrate_centrifugal(recs, *, min_rate: float = 5.0) -> Calibration:
         rng = float(cfg["gyro"]["range"]) if cfg["gyro"]["range"] != "inf" else np.inf
     ok = np.abs(gyr).max(axis=1) < rng * (1 - 1e-9)
     o1, o2, res = fit_centrifugal(gyr[ok], acc[ok], min_rate=min_rate)
-    spin = (np.abs(gyr[ok, 2]) > min_rate)
+    spin = np.abs(gyr[ok, 2]) > min_rate
     w2 = gyr[ok][spin, 2] ** 2
     se = res / np.sqrt(np.sum((w2 - w2.mean()) ** 2))
-    return Calibration("centrifugal", recs[0].meta.get("units", {}).get("acc", "m/s^2"),
-                       {"omega1": o1, "omega2": o2}, {"omega1": se, "omega2": se},
-                       {"samples": int(spin.sum()), "residual_rms_mps2": res,
-                        "rate_range_rad_s": [float(np.sqrt(w2.min())), float(np.sqrt(w2.max()))]}, _source(recs))
+    return Calibration(
+        "centrifugal",
+        recs[0].meta.get("units", {}).get("acc", "m/s^2"),
+        {"omega1": o1, "omega2": o2},
+        {"omega1": se, "omega2": se},
+        {
+            "samples": int(spin.sum()),
+            "residual_rms_mps2": res,
+            "rate_range_rad_s": [float(np.sqrt(w2.min())), float(np.sqrt(w2.max()))],
+        },
+        _source(recs),
+    )
 
 
 def calibrate_aero(recs, mass_kg: float | None = None) -> Calibration:
@@ -273,13 +322,24 @@ def calibrate_aero(recs, mass_kg: float | None = None) -> Calibration:
         if mass_kg is None:
             raise ValueError("aero: give the vehicle mass (--mass KG)")
     model = fit_aero(recs, mass_kg)
-    return Calibration("aero", recs[0].meta.get("units", {}).get("acc", "m/s^2"), {"A": model.A.tolist(), "B": model.B.tolist(), "C": model.C.tolist(),
-                                     "mass_kg": model.mass_kg}, {}, model.info, _source(recs))
+    return Calibration(
+        "aero",
+        recs[0].meta.get("units", {}).get("acc", "m/s^2"),
+        {"A": model.A.tolist(), "B": model.B.tolist(), "C": model.C.tolist(), "mass_kg": model.mass_kg},
+        {},
+        model.info,
+        _source(recs),
+    )
 
 
 def calibrate(kind: str, recs, **kw) -> Calibration:
-    fn = {"gyro": calibrate_gyro, "accel": calibrate_accel, "mag": calibrate_mag,
-          "centrifugal": calibrate_centrifugal, "aero": calibrate_aero}.get(kind)
+    fn = {
+        "gyro": calibrate_gyro,
+        "accel": calibrate_accel,
+        "mag": calibrate_mag,
+        "centrifugal": calibrate_centrifugal,
+        "aero": calibrate_aero,
+    }.get(kind)
     if fn is None:
         raise ValueError(f"unknown calibration kind {kind!r}; kinds: gyro, accel, mag, centrifugal, aero")
     return fn(recs, **kw)

@@ -13,6 +13,7 @@ centrifugal and aero, the accelerometer's); applying it to a recording whose uni
 refused. The parameters' own units: biases and hard iron in the sensor's unit, ω1 and ω2 in m,
 A, B, C in N s/m, N s²/m², N.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -27,10 +28,13 @@ from quadest.models.aero import AeroModel
 
 FORMAT_TAG = "quadest calibration v1"
 KINDS = ("gyro", "accel", "mag", "centrifugal", "aero")
-VALUE_SHAPES = {"gyro": {"bias": (3,)}, "accel": {"bias": (3,), "matrix": (3, 3)},
-                "mag": {"hard_iron": (3,), "soft_iron_correction": (3, 3)},
-                "centrifugal": {"omega1": (), "omega2": ()},
-                "aero": {"A": (3, 3), "B": (3, 3), "C": (3, 10), "mass_kg": ()}}
+VALUE_SHAPES = {
+    "gyro": {"bias": (3,)},
+    "accel": {"bias": (3,), "matrix": (3, 3)},
+    "mag": {"hard_iron": (3,), "soft_iron_correction": (3, 3)},
+    "centrifugal": {"omega1": (), "omega2": ()},
+    "aero": {"A": (3, 3), "B": (3, 3), "C": (3, 10), "mass_kg": ()},
+}
 """The values each kind of calibration must hold, and their shapes."""
 SENSOR = {"gyro": "gyr", "accel": "acc", "mag": "mag", "centrifugal": "acc", "aero": "acc"}
 
@@ -60,20 +64,31 @@ class Calibration:
             except (TypeError, ValueError):
                 raise ValueError(f"calibration {self.kind}: {key} is not numeric") from None
             if a.shape != shape or not np.isfinite(a).all():
-                raise ValueError(f"calibration {self.kind}: {key} must be {shape or 'a number'} of finite numbers, "
-                                 f"got {self.values[key]!r}")
+                raise ValueError(
+                    f"calibration {self.kind}: {key} must be {shape or 'a number'} of finite numbers, "
+                    f"got {self.values[key]!r}"
+                )
             if key in ("matrix", "soft_iron_correction") and abs(np.linalg.det(a)) < 1e-6:
-                raise ValueError(f"calibration {self.kind}: the matrix {key} is singular; applying it would "
-                                 "erase the sensor's signal")
+                raise ValueError(
+                    f"calibration {self.kind}: the matrix {key} is singular; applying it would "
+                    "erase the sensor's signal"
+                )
 
     @property
     def sensor(self) -> str:
         return SENSOR[self.kind]
 
     def to_dict(self) -> dict:
-        return {"format": FORMAT_TAG, "kind": self.kind, "sensor": self.sensor, "unit": self.unit,
-                "values": self.values, "uncertainty": self.uncertainty, "quality": self.quality,
-                "source": self.source}
+        return {
+            "format": FORMAT_TAG,
+            "kind": self.kind,
+            "sensor": self.sensor,
+            "unit": self.unit,
+            "values": self.values,
+            "uncertainty": self.uncertainty,
+            "quality": self.quality,
+            "source": self.source,
+        }
 
     def save(self, path) -> Path:
         """Write the JSON file, atomically (nothing half-written is left on a failure)."""
@@ -84,8 +99,10 @@ class Calibration:
         units = rec.meta.get("units", {})
         have = units.get(self.sensor)
         if have is not None and have != "unknown" and have != self.unit:
-            raise ValueError(f"calibration {self.kind} was made for {self.sensor} in {self.unit}, but the "
-                             f"recording's {self.sensor} is in {have}")
+            raise ValueError(
+                f"calibration {self.kind} was made for {self.sensor} in {self.unit}, but the "
+                f"recording's {self.sensor} is in {have}"
+            )
         if self.kind == "mag" and not rec.has_mag:
             raise ValueError("a magnetometer calibration needs a recording with magnetometer samples")
 
@@ -123,8 +140,9 @@ class Calibration:
 def load_calibration(path) -> Calibration:
     d = read_tagged_json(path, FORMAT_TAG, "calibration")
     try:
-        return Calibration(d["kind"], d["unit"], d["values"], d.get("uncertainty", {}), d.get("quality", {}),
-                           d.get("source", {}))
+        return Calibration(
+            d["kind"], d["unit"], d["values"], d.get("uncertainty", {}), d.get("quality", {}), d.get("source", {})
+        )
     except KeyError as exc:
         raise ValueError(f"{path}: calibration lacks {exc}") from None
 

@@ -1,4 +1,5 @@
 """What the commands share: one-line errors, output, and the options several commands take."""
+
 from __future__ import annotations
 
 import argparse
@@ -66,23 +67,42 @@ def parse_seeds(text) -> list[int]:
 def add_input_args(p):
     """The options every recording-taking command shares (docs/readers.md)."""
     g = p.add_argument_group("input format (chosen from the file unless --format is given)")
-    g.add_argument("--format", choices=FORMATS, default=None,
-                   help="reader: " + ", ".join(FORMATS))
-    g.add_argument("--map", action="append", metavar="FIELD=COL[,COL..]",
-                   help="--format csv: which columns are t, gyr, acc, mag, true_q, true_pos, true_vel "
-                        "(e.g. --map gyr=gx,gy,gz; repeatable)")
-    g.add_argument("--units", action="append", metavar="FIELD=UNIT",
-                   help="--format csv: t=s|ms|us|ns, gyr=rad/s|deg/s, acc=m/s^2|g|mg, mag=uT|nT|T|gauss|mgauss")
-    g.add_argument("--frame", choices=["ned-frd", "enu-flu"], default="ned-frd",
-                   help="--format csv: the file's navigation/body frames (default: ned-frd)")
+    g.add_argument("--format", choices=FORMATS, default=None, help="reader: " + ", ".join(FORMATS))
+    g.add_argument(
+        "--map",
+        action="append",
+        metavar="FIELD=COL[,COL..]",
+        help="--format csv: which columns are t, gyr, acc, mag, true_q, true_pos, true_vel "
+        "(e.g. --map gyr=gx,gy,gz; repeatable)",
+    )
+    g.add_argument(
+        "--units",
+        action="append",
+        metavar="FIELD=UNIT",
+        help="--format csv: t=s|ms|us|ns, gyr=rad/s|deg/s, acc=m/s^2|g|mg, mag=uT|nT|T|gauss|mgauss",
+    )
+    g.add_argument(
+        "--frame",
+        choices=["ned-frd", "enu-flu"],
+        default="ned-frd",
+        help="--format csv: the file's navigation/body frames (default: ned-frd)",
+    )
     g.add_argument("--quat-order", choices=["wxyz", "xyzw"], default="wxyz", help="--format csv: true_q order")
-    g.add_argument("--topic", action="append", metavar="KIND=TOPIC",
-                   help="ROS bags: imu=/imu/data, mag=/imu/mag, truth=/vicon/pose when several are present")
+    g.add_argument(
+        "--topic",
+        action="append",
+        metavar="KIND=TOPIC",
+        help="ROS bags: imu=/imu/data, mag=/imu/mag, truth=/vicon/pose when several are present",
+    )
 
 
 def add_calibration_arg(p):
-    p.add_argument("--calibration", action="append", metavar="CALIB.json",
-                   help="apply a calibration from quadest calibrate before any filter (repeatable)")
+    p.add_argument(
+        "--calibration",
+        action="append",
+        metavar="CALIB.json",
+        help="apply a calibration from quadest calibrate before any filter (repeatable)",
+    )
 
 
 def count(text) -> int:
@@ -106,20 +126,34 @@ def positive(text) -> int:
 
 def add_engine_args(p, default_workers=None):
     g = p.add_argument_group("execution (Dask)")
-    g.add_argument("--workers", type=count, default=default_workers, metavar="N",
-                   help="worker processes of a local Dask cluster; 0 runs in this process "
-                        + ("(default: 0)" if default_workers == 0 else "(default: one per core)"))
+    g.add_argument(
+        "--workers",
+        type=count,
+        default=default_workers,
+        metavar="N",
+        help="worker processes of a local Dask cluster; 0 runs in this process "
+        + ("(default: 0)" if default_workers == 0 else "(default: one per core)"),
+    )
     g.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="run on an existing Dask cluster instead")
 
 
-def add_align_args(p, *, body: bool = True, default_text: str = "what the reader recommends, e.g. heading "
-                                                                  "for DIDO/Blackbird"):
-    p.add_argument("--align", choices=["none", "heading", "full"], default=None,
-                   help="remove a constant rotation between the estimate's and the truth's navigation "
-                        f"frames (default: {default_text})")
+def add_align_args(
+    p, *, body: bool = True, default_text: str = "what the reader recommends, e.g. heading for DIDO/Blackbird"
+):
+    p.add_argument(
+        "--align",
+        choices=["none", "heading", "full"],
+        default=None,
+        help="remove a constant rotation between the estimate's and the truth's navigation "
+        f"frames (default: {default_text})",
+    )
     if body:
-        p.add_argument("--align-body", action=argparse.BooleanOptionalAction, default=None,
-                       help="also remove a constant rotation between IMU and truth body (default: on for RepoIMU)")
+        p.add_argument(
+            "--align-body",
+            action=argparse.BooleanOptionalAction,
+            default=None,
+            help="also remove a constant rotation between IMU and truth body (default: on for RepoIMU)",
+        )
 
 
 def read(args, path):
@@ -129,8 +163,12 @@ def read(args, path):
     if fmt == "csv" or getattr(args, "map", None):
         fmt = fmt or "csv"
         try:
-            opts = {"columns": parse_columns(args.map), "units": parse_units(args.units), "frame": args.frame,
-                    "quat_order": args.quat_order}
+            opts = {
+                "columns": parse_columns(args.map),
+                "units": parse_units(args.units),
+                "frame": args.frame,
+                "quat_order": args.quat_order,
+            }
         except ValueError as exc:  # --map and --units are options: a usage error
             raise CliError(str(exc)) from None
     for item in getattr(args, "topic", None) or []:
@@ -141,15 +179,17 @@ def read(args, path):
     rec = read_recording(path, fmt, **opts)
     dropped = rec.meta.get("dropped_rows")
     if dropped:  # said on stderr, so that JSON on stdout stays clean
-        print(f"note: {path}: dropped {dropped} row(s) with a repeated or decreasing time or a non-finite IMU "
-              "value", file=sys.stderr, flush=True)
+        print(
+            f"note: {path}: dropped {dropped} row(s) with a repeated or decreasing time or a non-finite IMU value",
+            file=sys.stderr,
+            flush=True,
+        )
     for warning in rec.meta.get("warnings", []):
         print(f"warning: {path}: {warning}", file=sys.stderr, flush=True)
     return rec
 
 
-def write_report_for(rec, names, params, path, title, json_path=None, recovery=None, recovery_model="",
-                     rotors=None):
+def write_report_for(rec, names, params, path, title, json_path=None, recovery=None, recovery_model="", rotors=None):
     """``quadest report`` and every ``--report PATH``: the HTML page for ``rec`` with the
     estimators ``names`` and a throw's ``recovery`` (docs/report.md)."""
     from quadest.plot.report import write_report  # bokeh: only when a report is written
@@ -165,6 +205,10 @@ def write_report_for(rec, names, params, path, title, json_path=None, recovery=N
 
 
 def add_report_arg(p):
-    p.add_argument("--report", type=Path, metavar="PATH", default=None,
-                   help="also write an HTML report of the recording and the estimators (quadest report; "
-                        "docs/report.md)")
+    p.add_argument(
+        "--report",
+        type=Path,
+        metavar="PATH",
+        default=None,
+        help="also write an HTML report of the recording and the estimators (quadest report; docs/report.md)",
+    )

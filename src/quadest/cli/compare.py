@@ -1,4 +1,5 @@
 """``quadest compare``, ``quadest reproduce`` and ``quadest benchmark``: estimators side by side."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -11,10 +12,10 @@ from quadest.cli.common import (
     add_align_args,
     add_calibration_arg,
     add_engine_args,
-    positive,
     add_input_args,
     add_report_arg,
     parse_seeds,
+    positive,
     read,
     say,
     sim_config,
@@ -27,12 +28,12 @@ from quadest.evaluation import reproduce as R
 from quadest.evaluation.compare import compare, format_tables, parse_params
 from quadest.evaluation.runner import estimator_names, filter_notes
 from quadest.evaluation.speed import benchmark_speed
-from quadest.filters.base import STREAM_C
 from quadest.filters import FILTERS
+from quadest.filters.base import STREAM_C
 from quadest.flight import fly
-from quadest.flight.throw import ThrowParams
 from quadest.flight.crosscheck import rotorpy_available
 from quadest.flight.speed import benchmark_sim
+from quadest.flight.throw import ThrowParams
 from quadest.readers.catalog import resolve_data
 from quadest.sim import PRESETS, SCENARIOS, simulate
 
@@ -41,8 +42,7 @@ def _recording_from_args(args):
     if args.recording:
         return read(args, args.recording), str(args.recording)
     cfg = sim_config(args.preset, args.set)
-    rec = simulate(args.scenario, args.preset, seed=args.seed, duration=args.duration, config=cfg,
-                   progress=True)
+    rec = simulate(args.scenario, args.preset, seed=args.seed, duration=args.duration, config=cfg, progress=True)
     return rec, f"simulated {args.scenario} / {args.preset} / seed {args.seed}"
 
 
@@ -56,10 +56,20 @@ def cmd_compare(args):
     rec, cal_params = apply_calibrations(rec, args.calibration)
     for name, kv in cal_params.items():
         params[name] = {**kv, **params.get(name, {})}
-    say(f"comparing {', '.join(names)} on {source} ({len(rec)} samples"
-        + (f", errors from t = {args.t_from:g} s)" if args.t_from is not None else ")"))
-    report, results = compare(rec, names, params=params, t_from=args.t_from, timing=not args.no_timing,
-                              source=source, align=args.align, align_body=args.align_body)
+    say(
+        f"comparing {', '.join(names)} on {source} ({len(rec)} samples"
+        + (f", errors from t = {args.t_from:g} s)" if args.t_from is not None else ")")
+    )
+    report, results = compare(
+        rec,
+        names,
+        params=params,
+        t_from=args.t_from,
+        timing=not args.no_timing,
+        source=source,
+        align=args.align,
+        align_body=args.align_body,
+    )
     if report["against"] == "ref_q":
         say("no independent truth in this recording: errors are against the log's onboard attitude (ref_q)")
     used = min((e["samples"] for e in report["filters"].values()), default=0)
@@ -67,17 +77,21 @@ def cmd_compare(args):
         truth = getattr(rec, report["against"])
         ok = np.isfinite(truth[:, 0])
         span = float(rec.t[ok][-1] - rec.t[ok][0]) if ok.any() else 0.0
-        say(f"note: the errors rest on {used} of {len(rec)} samples: the truth covers {span:.2f} s of the "
-            f"{rec.duration:.2f} s recording" + (" (and --from cuts more)" if args.t_from is not None else ""))
+        say(
+            f"note: the errors rest on {used} of {len(rec)} samples: the truth covers {span:.2f} s of the "
+            f"{rec.duration:.2f} s recording" + (" (and --from cuts more)" if args.t_from is not None else "")
+        )
     for res in results.values():
         for line in filter_notes(res):
             say(line)
     for name, entry in report["filters"].items():
         if "alignment" in entry:
             a = entry["alignment"]
-            parts = [f"heading {a['heading_offset_deg']:+.2f}°" if "heading_offset_deg" in a else "",
-                     f"navigation rotation {a['nav_rotation_deg']:.2f}°" if "nav_rotation_deg" in a else "",
-                     f"body rotation {a['body_rotation_deg']:.2f}°" if "body_rotation_deg" in a else ""]
+            parts = [
+                f"heading {a['heading_offset_deg']:+.2f}°" if "heading_offset_deg" in a else "",
+                f"navigation rotation {a['nav_rotation_deg']:.2f}°" if "nav_rotation_deg" in a else "",
+                f"body rotation {a['body_rotation_deg']:.2f}°" if "body_rotation_deg" in a else "",
+            ]
             say(f"alignment removed for {name}: " + ", ".join(p for p in parts if p))
     say(format_tables(report))
     if args.json:
@@ -107,20 +121,32 @@ def cmd_reproduce(args):
         return _reproduce_in_loop(args)
     if args.paper == "afckf":
         if args.prescribed:
-            say("Reproducing Solanki & de Visser 2022 (AFCKF), Tables I-V, on the prescribed scenarios: a "
+            say(
+                "Reproducing Solanki & de Visser 2022 (AFCKF), Tables I-V, on the prescribed scenarios: a "
                 f"Bebop 2 that loses a rotor (spin, tilt and spin-up given; errors from the failure on) and in "
-                f"normal flight, seeds {args.seeds}.")
+                f"normal flight, seeds {args.seeds}."
+            )
         else:
-            say("Reproducing Solanki & de Visser 2022 (AFCKF), Tables I-V, on the flying vehicle: a Bebop 2 "
+            say(
+                "Reproducing Solanki & de Visser 2022 (AFCKF), Tables I-V, on the flying vehicle: a Bebop 2 "
                 "hovers (and flies a circle) and loses a rotor; a fault-tolerant controller flies it on the true "
                 f"state; the estimators run on its sensors (errors from the loss on); seeds {args.seeds}"
-                + (", then the ablations (each row one sensor change)." if args.ablations else "."))
+                + (", then the ablations (each row one sensor change)." if args.ablations else ".")
+            )
         say("(first use compiles the estimators and the closed loop: about a minute)")
-        result = R.reproduce_afckf(seeds, progress=True, workers=args.workers, scheduler=args.scheduler,
-                                   prescribed=args.prescribed, ablations=args.ablations)
+        result = R.reproduce_afckf(
+            seeds,
+            progress=True,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            prescribed=args.prescribed,
+            ablations=args.ablations,
+        )
     else:
-        say("Reproducing Liang et al. 2023 (QUKF), Table 1, on the simulator: MPU6050 + HMC5883L at "
-            f"20 Hz, 30 s of hover and of motion, seeds {args.seeds}.")
+        say(
+            "Reproducing Liang et al. 2023 (QUKF), Table 1, on the simulator: MPU6050 + HMC5883L at "
+            f"20 Hz, 30 s of hover and of motion, seeds {args.seeds}."
+        )
         result = R.reproduce_qukf(seeds, progress=True, workers=args.workers, scheduler=args.scheduler)
     say(R.format_reproduction(args.paper, result))
     if args.json:
@@ -141,9 +167,11 @@ def cmd_reproduce(args):
 
 def _reproduce_in_loop(args):
     seeds = parse_seeds(args.seeds)
-    say("The AFCKF paper's rotor loss flown with each estimator in the fault-tolerant controller's loop (a Bebop 2 "
+    say(
+        "The AFCKF paper's rotor loss flown with each estimator in the fault-tolerant controller's loop (a Bebop 2 "
         f"loses rotor 0 at 5 s and must stay up 20 s more), seeds {args.seeds}, with the baseline sensors and "
-        "the gyroscope-range and magnetometer-latency ablations.")
+        "the gyroscope-range and magnetometer-latency ablations."
+    )
     say("(each estimator's loop compiles on its first flight: some seconds each)")
     result = R.afckf_in_loop(seeds, progress=True, workers=args.workers, scheduler=args.scheduler)
     say(FL.format_in_loop(result["table"]))
@@ -159,11 +187,19 @@ def _reproduce_recovery(args):
         raise CliError("--any-direction is for the flown throws: leave out --prescribed")
     if not args.prescribed:
         return _reproduce_recovery_flown(args)
-    say(f"Reproducing Beffa, Ledergerber & D'Andrea (state estimate recovery) on {args.throws} simulated "
+    say(
+        f"Reproducing Beffa, Ledergerber & D'Andrea (state estimate recovery) on {args.throws} simulated "
         f"throws (fma preset, seeds {args.seed}..{args.seed + args.throws - 1}), with the simulation's "
-        "aerodynamic model, one fitted on 20 separate throws, and one perturbed by ±20 %.")
-    result = R.reproduce_recovery(args.throws, args.seed, progress=True, keep_runs=bool(args.json or args.plot_dir),
-                                  workers=args.workers, scheduler=args.scheduler)
+        "aerodynamic model, one fitted on 20 separate throws, and one perturbed by ±20 %."
+    )
+    result = R.reproduce_recovery(
+        args.throws,
+        args.seed,
+        progress=True,
+        keep_runs=bool(args.json or args.plot_dir),
+        workers=args.workers,
+        scheduler=args.scheduler,
+    )
     say(R.format_recovery(result))
     if args.plot_dir:
         from quadest.plot import plot_recovery, plot_recovery_histograms
@@ -180,15 +216,24 @@ def _reproduce_recovery(args):
 
 
 def _reproduce_recovery_flown(args):
-    say(f"Reproducing Beffa, Ledergerber & D'Andrea (state estimate recovery) on {args.throws} flown throws (seeds "
+    say(
+        f"Reproducing Beffa, Ledergerber & D'Andrea (state estimate recovery) on {args.throws} flown throws (seeds "
         f"{args.seed}..{args.seed + args.throws - 1}): the rotor-level vehicle thrown "
-        + ("in any direction" if args.any_direction else "upward") + " by a hand (up to 30 m/s²), released at up to "
+        + ("in any direction" if args.any_direction else "upward")
+        + " by a hand (up to 30 m/s²), released at up to "
         "8 m/s and 20 rad/s; the bank of EKFs (its aerodynamic model fitted on separate flown throws) finds gravity, "
-        "the controller rights the vehicle and holds its height.")
+        "the controller rights the vehicle and holds its height."
+    )
     say("(the first throw fits the model and compiles the loop: about a minute)")
-    result = R.reproduce_recovery_flown(args.throws, args.seed, progress=True, workers=args.workers,
-                                        scheduler=args.scheduler, any_direction=args.any_direction,
-                                        keep_runs=bool(args.json))
+    result = R.reproduce_recovery_flown(
+        args.throws,
+        args.seed,
+        progress=True,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        any_direction=args.any_direction,
+        keep_runs=bool(args.json),
+    )
     say(FL.format_throws(result))
     if args.plot_dir:
         from quadest.plot import plot_flight
@@ -204,23 +249,34 @@ def _reproduce_recovery_flown(args):
 def _benchmark_sim(args):
     est = args.filters if args.filters in ("truth", *FILTERS) else "afckf"
     rp = min(args.duration, 10.0)
-    say(f"the flying vehicle on one core at 1 kHz: {args.duration:g} s of rotor loss with the fault-tolerant "
+    say(
+        f"the flying vehicle on one core at 1 kHz: {args.duration:g} s of rotor loss with the fault-tolerant "
         f"controller and {est} in the loop (sensors at 1 kHz), best of 3 after a warm-up"
-        + (f"; then {rp:g} s of the SE(3) circle flown by quadest and by RotorPy (RotorPy's "
-           "Hummingbird, its SE(3) gains)" if rotorpy_available() else "; RotorPy is not installed: "
-           "pip install rotorpy for the comparison"))
+        + (
+            f"; then {rp:g} s of the SE(3) circle flown by quadest and by RotorPy (RotorPy's "
+            "Hummingbird, its SE(3) gains)"
+            if rotorpy_available()
+            else "; RotorPy is not installed: pip install rotorpy for the comparison"
+        )
+    )
     res = benchmark_sim(args.duration, rp, est)
     c = res["closed_loop"]
-    say(f"closed loop ({c['estimator']}, ftc): {c['loop_us_per_step']:.2f} µs per step, "
+    say(
+        f"closed loop ({c['estimator']}, ftc): {c['loop_us_per_step']:.2f} µs per step, "
         f"{c['loop_x_real_time']:.0f}x real time; the whole fly() call with its recording "
-        f"{c['total_x_real_time']:.0f}x real time (run {c['status']})")
+        f"{c['total_x_real_time']:.0f}x real time (run {c['status']})"
+    )
     if "rotorpy" in res:
         r = res["rotorpy"]
-        say(f"SE(3) circle at 1 kHz: quadest {r['ms_per_step']['quadest'] * 1e3:.2f} µs per step, RotorPy "
-            f"{r['ms_per_step']['rotorpy']:.2f} ms per step: quadest {r['speedup']:.0f}x faster")
-        say(f"  hover rotor speed: quadest {r['hover_rotor_speed']['quadest']:.2f}, RotorPy "
+        say(
+            f"SE(3) circle at 1 kHz: quadest {r['ms_per_step']['quadest'] * 1e3:.2f} µs per step, RotorPy "
+            f"{r['ms_per_step']['rotorpy']:.2f} ms per step: quadest {r['speedup']:.0f}x faster"
+        )
+        say(
+            f"  hover rotor speed: quadest {r['hover_rotor_speed']['quadest']:.2f}, RotorPy "
             f"{r['hover_rotor_speed']['rotorpy']:.2f} rad/s; tracking RMS after the first lap: quadest "
-            f"{100 * r['tracking_rms_m']['quadest']:.2f} cm, RotorPy {100 * r['tracking_rms_m']['rotorpy']:.2f} cm")
+            f"{100 * r['tracking_rms_m']['quadest']:.2f} cm, RotorPy {100 * r['tracking_rms_m']['rotorpy']:.2f} cm"
+        )
     return res
 
 
@@ -232,27 +288,38 @@ def cmd_benchmark(args):
         return 0
     names = estimator_names(args.filters, all_includes_peers=True)
     if args.what == "speed":
-        say(f"µs per sample on {args.duration:g} s of a simulated damaged-rotor flight (bebop2), one core; "
+        say(
+            f"µs per sample on {args.duration:g} s of a simulated damaged-rotor flight (bebop2), one core; "
             "batch: best of 3 after a warm-up; streaming: update() called from Python ("
-            + ("in C: the extension _stream" if STREAM_C else "through Python: the C extension _stream is not "
-               "built here, reinstall with a C compiler")
-            + "). Peers: their whole-recording call (the same Python loop per sample for imufusion and ahrs)")
+            + (
+                "in C: the extension _stream"
+                if STREAM_C
+                else "through Python: the C extension _stream is not built here, reinstall with a C compiler"
+            )
+            + "). Peers: their whole-recording call (the same Python loop per sample for imufusion and ahrs)"
+        )
         say(f"{'filter':<15}{'batch':>10}{'streaming':>12}")
-        res = benchmark_speed(names, args.duration,
-                              on_result=lambda n, r: say(f"{n:<15}{r['batch_us']:>10.3f}{r['stream_us']:>12.2f}"))
+        res = benchmark_speed(
+            names, args.duration, on_result=lambda n, r: say(f"{n:<15}{r['batch_us']:>10.3f}{r['stream_us']:>12.2f}")
+        )
         say(f"{'recovery bank of 40 EKFs':<27}{res['recovery_bank_40_us']:>8.2f} µs per IMU sample (whole bank, batch)")
     else:
         if not args.data:
-            raise CliError(f"benchmark {args.what} needs --data DIR or a dataset name ("
-                           + ({"broad": "broad", "repoimu": "repoimu"}.get(args.what, "all")) + "; quadest data list)")
+            raise CliError(
+                f"benchmark {args.what} needs --data DIR or a dataset name ("
+                + ({"broad": "broad", "repoimu": "repoimu"}.get(args.what, "all"))
+                + "; quadest data list)"
+            )
         args.data = resolve_data(args.data)
         if args.what == "broad":
             say(f"BROAD on {args.data}: {', '.join(names)}; BROAD's metric over the movement phases")
             res = B.benchmark_broad(args.data, names, trials=args.trials, nav=args.align or "none", progress=True)
             say(B.format_broad(res))
         elif args.what == "repoimu":
-            say(f"RepoIMU trials under {args.data}: {', '.join(names)}; 9-axis, roll/pitch/yaw and total RMS after "
-                "the reader's alignment")
+            say(
+                f"RepoIMU trials under {args.data}: {', '.join(names)}; 9-axis, roll/pitch/yaw and total RMS after "
+                "the reader's alignment"
+            )
             res = B.benchmark_repoimu(args.data, names, progress=True)
             say(B.format_repoimu(res))
         else:
@@ -265,26 +332,45 @@ def cmd_benchmark(args):
 
 
 def add_parsers(sub):
-    c = sub.add_parser("compare", help="run estimators on one recording and tabulate their errors",
-                       description="Run attitude estimators on a simulated flight or a recording with "
-                                   "truth; print RMS error, variance and mean absolute error per axis "
-                                   "(filters as columns) and the execution time, like the papers' "
-                                   "tables. Filters: " + ", ".join(FILTERS) + "; with quadest[peers] "
-                                   "also vqf, vqf-offline, imufusion, ahrs-madgwick, ahrs-mahony, ahrs-ekf, "
-                                   "ahrs-aqua (--filters peers).")
+    c = sub.add_parser(
+        "compare",
+        help="run estimators on one recording and tabulate their errors",
+        description="Run attitude estimators on a simulated flight or a recording with "
+        "truth; print RMS error, variance and mean absolute error per axis "
+        "(filters as columns) and the execution time, like the papers' "
+        "tables. Filters: " + ", ".join(FILTERS) + "; with quadest[peers] "
+        "also vqf, vqf-offline, imufusion, ahrs-madgwick, ahrs-mahony, ahrs-ekf, "
+        "ahrs-aqua (--filters peers).",
+    )
     src = c.add_mutually_exclusive_group()
     src.add_argument("--recording", type=Path, metavar="FILE", help="recording with true_q, any supported format")
-    src.add_argument("--scenario", choices=SCENARIOS, default="damaged-rotor",
-                     help="simulate this scenario (default: damaged-rotor)")
+    src.add_argument(
+        "--scenario", choices=SCENARIOS, default="damaged-rotor", help="simulate this scenario (default: damaged-rotor)"
+    )
     c.add_argument("--preset", choices=list(PRESETS), default="bebop2", help="with --scenario (default: bebop2)")
     c.add_argument("--seed", type=int, default=1, help="with --scenario (default: 1)")
     c.add_argument("--duration", type=float, default=None, help="with --scenario: seconds")
     c.add_argument("--set", action="append", metavar="KEY=VALUE", help="with --scenario: simulator parameter")
-    c.add_argument("--filters", default="all", help="all (quadest's seven), peers (installed peers), or a comma-separated list of filters and peers (default: all)")
-    c.add_argument("--param", action="append", metavar="FILTER.NAME=VALUE",
-                   help="estimator parameter, e.g. --param afckf.omega1=-0.0145 (repeatable)")
-    c.add_argument("--from", dest="t_from", type=float, default=None, metavar="SECONDS",
-                   help="count errors from this time on (e.g. 5 for the failure in damaged-rotor)")
+    c.add_argument(
+        "--filters",
+        default="all",
+        help="all (quadest's seven), peers (installed peers), or a comma-separated list of filters and peers "
+        "(default: all)",
+    )
+    c.add_argument(
+        "--param",
+        action="append",
+        metavar="FILTER.NAME=VALUE",
+        help="estimator parameter, e.g. --param afckf.omega1=-0.0145 (repeatable)",
+    )
+    c.add_argument(
+        "--from",
+        dest="t_from",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="count errors from this time on (e.g. 5 for the failure in damaged-rotor)",
+    )
     c.add_argument("--json", metavar="OUT", help="write the figures as JSON")
     c.add_argument("--plot-dir", metavar="DIR", help="draw the error of every filter over time per axis")
     c.add_argument("--no-timing", action="store_true", help="skip the execution-time measurement")
@@ -294,59 +380,95 @@ def add_parsers(sub):
     add_report_arg(c)
     c.set_defaults(func=cmd_compare)
 
-    r = sub.add_parser("reproduce", help="reproduce a paper's experiments on the simulator",
-                       description="Run a paper's experiment on simulated flights over several seeds and "
-                                   "print our figures next to the published ones. afckf: Tables I-V of "
-                                   "Solanki & de Visser 2022 on the flown rotor loss (--prescribed: on the "
-                                   "prescribed scenario; --ablations: what each sensor property does); qukf: Table 1 of Liang et al. 2023; "
-                                   "recovery: throws and the bank of EKFs of Beffa et al.")
+    r = sub.add_parser(
+        "reproduce",
+        help="reproduce a paper's experiments on the simulator",
+        description="Run a paper's experiment on simulated flights over several seeds and "
+        "print our figures next to the published ones. afckf: Tables I-V of "
+        "Solanki & de Visser 2022 on the flown rotor loss (--prescribed: on the "
+        "prescribed scenario; --ablations: what each sensor property does); qukf: Table 1 of Liang et al. 2023; "
+        "recovery: throws and the bank of EKFs of Beffa et al.",
+    )
     r.add_argument("paper", choices=["afckf", "qukf", "recovery"])
     r.add_argument("--seeds", default=None, help="afckf, qukf: seed range or list (default: 1-5; 1-20 with --in-loop)")
     r.add_argument("--throws", type=positive, default=100, help="recovery: number of throws (default: 100)")
     r.add_argument("--seed", type=int, default=1, help="recovery: first seed (default: 1)")
-    r.add_argument("--prescribed", action="store_true",
-                   help="afckf: the prescribed scenarios (spin, tilt and spin-up given) instead of the flown vehicle; "
-                        "recovery: the prescribed throws (the simulation's own aerodynamic model) instead of flown ones")
-    r.add_argument("--ablations", action="store_true",
-                   help="afckf: also the ablation table on the flown rotor loss (each row one sensor change: gyro "
-                        "range and scale, magnetometer latency, motor interference, indoor field, lever arm, "
-                        "vibration, a damaged propeller; docs/estimators.md)")
-    r.add_argument("--any-direction", action="store_true",
-                   help="recovery: throw in any direction, downward too (the flagged case; default: upward or level)")
-    r.add_argument("--in-loop", action="store_true",
-                   help="afckf: instead of the tables, the flown loss with each estimator in the fault-tolerant "
-                        "controller's loop (default seeds 1-20): which keep the vehicle up and in place, with the "
-                        "baseline sensors and the gyro-range and magnetometer-latency ablations")
+    r.add_argument(
+        "--prescribed",
+        action="store_true",
+        help="afckf: the prescribed scenarios (spin, tilt and spin-up given) instead of the flown vehicle; "
+        "recovery: the prescribed throws (the simulation's own aerodynamic model) instead of flown ones",
+    )
+    r.add_argument(
+        "--ablations",
+        action="store_true",
+        help="afckf: also the ablation table on the flown rotor loss (each row one sensor change: gyro "
+        "range and scale, magnetometer latency, motor interference, indoor field, lever arm, "
+        "vibration, a damaged propeller; docs/estimators.md)",
+    )
+    r.add_argument(
+        "--any-direction",
+        action="store_true",
+        help="recovery: throw in any direction, downward too (the flagged case; default: upward or level)",
+    )
+    r.add_argument(
+        "--in-loop",
+        action="store_true",
+        help="afckf: instead of the tables, the flown loss with each estimator in the fault-tolerant "
+        "controller's loop (default seeds 1-20): which keep the vehicle up and in place, with the "
+        "baseline sensors and the gyro-range and magnetometer-latency ablations",
+    )
     r.add_argument("--json", metavar="OUT", help="write all figures (per seed too) as JSON")
-    r.add_argument("--report", type=Path, metavar="PATH", default=None,
-                   help="afckf, qukf: also write an HTML report of the first seed's flight (quadest report)")
+    r.add_argument(
+        "--report",
+        type=Path,
+        metavar="PATH",
+        default=None,
+        help="afckf, qukf: also write an HTML report of the first seed's flight (quadest report)",
+    )
     r.add_argument("--plot-dir", metavar="DIR", help="draw the errors over time for the first seed")
     add_engine_args(r, default_workers=0)
     r.set_defaults(func=cmd_reproduce)
 
-    b = sub.add_parser("benchmark", help="benchmarks: BROAD, quadrotor flights, speed, the flying vehicle",
-                       description="broad: every filter on every BROAD trial in --data with the benchmark's "
-                                   "metric (total, heading, inclination RMSE over the movement phases), per "
-                                   "trial and per group of trials.json. flights: roll/pitch/yaw RMS on the "
-                                   "DIDO and Blackbird flights under --data (6-axis; heading offset removed). "
-                                   "repoimu: roll/pitch/yaw and total RMS on the RepoIMU T-stick and pendulum "
-                                   "trials under --data (9-axis; the IMU-to-Vicon body rotation and heading removed). "
-                                   "speed: microseconds per sample of every filter, batch and streaming. "
-                                   "sim: the flying vehicle's closed loop (rotor loss, fault-tolerant "
-                                   "controller, --filters names the estimator in the loop, default afckf) "
-                                   "and the SE(3) circle flown by quadest and RotorPy (when installed). "
-                                   "quadest's filters and the installed peers (pip install 'quadest[peers]': "
-                                   "vqf, imufusion, ahrs) run side by side.")
+    b = sub.add_parser(
+        "benchmark",
+        help="benchmarks: BROAD, quadrotor flights, speed, the flying vehicle",
+        description="broad: every filter on every BROAD trial in --data with the benchmark's "
+        "metric (total, heading, inclination RMSE over the movement phases), per "
+        "trial and per group of trials.json. flights: roll/pitch/yaw RMS on the "
+        "DIDO and Blackbird flights under --data (6-axis; heading offset removed). "
+        "repoimu: roll/pitch/yaw and total RMS on the RepoIMU T-stick and pendulum "
+        "trials under --data (9-axis; the IMU-to-Vicon body rotation and heading removed). "
+        "speed: microseconds per sample of every filter, batch and streaming. "
+        "sim: the flying vehicle's closed loop (rotor loss, fault-tolerant "
+        "controller, --filters names the estimator in the loop, default afckf) "
+        "and the SE(3) circle flown by quadest and RotorPy (when installed). "
+        "quadest's filters and the installed peers (pip install 'quadest[peers]': "
+        "vqf, imufusion, ahrs) run side by side.",
+    )
     b.add_argument("what", choices=["broad", "flights", "repoimu", "speed", "sim"], help="what to benchmark")
-    b.add_argument("--data", metavar="DIR|NAME", help="broad, flights, repoimu: folder with the data, or a dataset "
-                                                       "in the cache (broad, repoimu; all: every dataset there)")
-    b.add_argument("--filters", default="all",
-                   help="all (quadest and installed peers), quadest, peers, or a comma-separated list")
+    b.add_argument(
+        "--data",
+        metavar="DIR|NAME",
+        help="broad, flights, repoimu: folder with the data, or a dataset "
+        "in the cache (broad, repoimu; all: every dataset there)",
+    )
+    b.add_argument(
+        "--filters", default="all", help="all (quadest and installed peers), quadest, peers, or a comma-separated list"
+    )
     b.add_argument("--trials", default="*", metavar="GLOB", help="broad: trial files to run (default: all)")
-    b.add_argument("--align", choices=["none", "heading", "full"], default=None,
-                   help="constant navigation-frame rotation removed before the errors (default: none "
-                        "for broad, heading for flights)")
-    b.add_argument("--duration", type=float, default=60.0,
-                   help="speed: seconds of simulated data; sim: seconds flown (RotorPy: at most 10) (default: 60)")
+    b.add_argument(
+        "--align",
+        choices=["none", "heading", "full"],
+        default=None,
+        help="constant navigation-frame rotation removed before the errors (default: none "
+        "for broad, heading for flights)",
+    )
+    b.add_argument(
+        "--duration",
+        type=float,
+        default=60.0,
+        help="speed: seconds of simulated data; sim: seconds flown (RotorPy: at most 10) (default: 60)",
+    )
     b.add_argument("--json", metavar="OUT", help="write the figures as JSON")
     b.set_defaults(func=cmd_benchmark)

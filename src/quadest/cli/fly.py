@@ -1,4 +1,5 @@
 """``quadest fly``: the vehicle flies with an estimator in the loop."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -11,9 +12,10 @@ from quadest.flight import CONTROLLERS, SCENARIOS, FlightParams, campaign_table,
 from quadest.models import VEHICLE_PRESETS
 from quadest.sim import PRESETS
 
-
-FAILURE_FORMAT = ("ROTOR@TIME[:EFFICIENCY[:IMBALANCE]] (for example 0@2, 1@3:0.6, or 2@1:0.9:5e-6 for a "
-                  "damaged propeller, its imbalance in kg m)")
+FAILURE_FORMAT = (
+    "ROTOR@TIME[:EFFICIENCY[:IMBALANCE]] (for example 0@2, 1@3:0.6, or 2@1:0.9:5e-6 for a "
+    "damaged propeller, its imbalance in kg m)"
+)
 
 
 def parse_failure(text) -> Failure | None:
@@ -77,16 +79,20 @@ def parse_estimators(text, scenario: str) -> list[str]:
     names = known if text.strip() == "all" else [n.strip() for n in text.split(",") if n.strip()]
     bad = [n for n in names if n not in known]
     if bad or not names:
-        raise CliError(f"--estimator: unknown {', '.join(bad) or repr(text)} for {scenario}; estimators: "
-                       f"{', '.join(known)}, or all")
+        raise CliError(
+            f"--estimator: unknown {', '.join(bad) or repr(text)} for {scenario}; estimators: "
+            f"{', '.join(known)}, or all"
+        )
     return names
 
 
 def _report(flight, out: Path, plot: bool):
     s = flight.summary
     stem = out / f"{s['scenario']}-{s['controller']}-{s['estimator']}-seed{s['seed']}"
-    s["files"] = {"recording": str(save_recording(flight.recording, stem.with_suffix(".csv"))),
-                  "flight": str(write_table(flight_table(flight), Path(f"{stem}-flight.parquet")))}
+    s["files"] = {
+        "recording": str(save_recording(flight.recording, stem.with_suffix(".csv"))),
+        "flight": str(write_table(flight_table(flight), Path(f"{stem}-flight.parquet"))),
+    }
     if plot:
         from quadest.plot import plot_flight  # matplotlib: only when a plot is drawn
 
@@ -96,14 +102,18 @@ def _report(flight, out: Path, plot: bool):
         extra = f", spin {s['spin_rate_rad_s']:.1f} rad/s, tilt {s['tilt_deg']:.1f}°"
     if "recovered" in s:
         hand = "-" if s["handover_s"] is None else f"{s['handover_s']:.3f} s"
-        say(f"{s['estimator']}, seed {s['seed']}: {s['reason']}; {'recovered' if s['recovered'] else 'not recovered'}: "
+        say(
+            f"{s['estimator']}, seed {s['seed']}: {s['reason']}; {'recovered' if s['recovered'] else 'not recovered'}: "
             f"handover at {hand}, gravity error there {_fmt(s.get('gravity_error_at_handover_deg'), '°')}, "
-            f"upright at {_fmt(s.get('upright_s'), ' s')}, lowest {s['lowest_point_m']:.2f} m below the release")
+            f"upright at {_fmt(s.get('upright_s'), ' s')}, lowest {s['lowest_point_m']:.2f} m below the release"
+        )
         return
     end = f" at {s['end_time_s']:.2f} s" if s["end_time_s"] is not None else ""
-    say(f"{s['estimator']}, seed {s['seed']}: {s['reason']}{end}; settled after {_fmt(s['time_to_settle_s'], ' s')}, "
+    say(
+        f"{s['estimator']}, seed {s['seed']}: {s['reason']}{end}; settled after {_fmt(s['time_to_settle_s'], ' s')}, "
         f"position RMS {_fmt(s['position_rms_settled_m'], ' m', 3)}, tilt error in the loop "
-        f"{_fmt(s['tilt_error_rms_deg'], '°')} RMS{extra}")
+        f"{_fmt(s['tilt_error_rms_deg'], '°')} RMS{extra}"
+    )
 
 
 def cmd_fly(args):
@@ -114,11 +124,19 @@ def cmd_fly(args):
     if out.exists() and not out.is_dir():
         raise CliError(f"{out}: -o names a folder for the runs' files, and this is a file")
     out.mkdir(parents=True, exist_ok=True)
-    say(f"flying {args.scenario} ({args.vehicle} vehicle, {args.preset or 'default'} sensors) with the "
+    say(
+        f"flying {args.scenario} ({args.vehicle} vehicle, {args.preset or 'default'} sensors) with the "
         f"{args.controller or 'default'} controller and {', '.join(estimators)} in the loop, seeds {args.seeds} "
-        "(the first flight with each estimator compiles the loop: some seconds)")
-    kwargs = dict(controller=args.controller, duration=args.duration, preset=args.preset, failure=failure,
-                  vehicle=args.vehicle, params=FlightParams(position_sensor=args.position_sensor))
+        "(the first flight with each estimator compiles the loop: some seconds)"
+    )
+    kwargs = dict(
+        controller=args.controller,
+        duration=args.duration,
+        preset=args.preset,
+        failure=failure,
+        vehicle=args.vehicle,
+        params=FlightParams(position_sensor=args.position_sensor),
+    )
     runs = []
     if len(estimators) == 1:
         for seed in seeds:
@@ -127,24 +145,31 @@ def cmd_fly(args):
             runs.append(flight.summary)
         table = campaign_table(runs)
     else:
-        runs = fly_many(args.scenario, estimators, seeds, on_flight=lambda f: _report(f, out, not args.no_plot),
-                        **kwargs)
+        runs = fly_many(
+            args.scenario, estimators, seeds, on_flight=lambda f: _report(f, out, not args.no_plot), **kwargs
+        )
         table = campaign_table(runs)
     if args.scenario == "throw":
         say(f"\n{'estimator':<12}{'recovered':>10}{'handover':>10}{'gravity err':>12}{'velocity err':>13}{'lowest':>9}")
         for r in table:
-            say(f"{r['estimator']:<12}{r['recovered']:>6}/{r['runs']:<3}{_fmt(r['handover_s'], ' s', 3):>10}"
+            say(
+                f"{r['estimator']:<12}{r['recovered']:>6}/{r['runs']:<3}{_fmt(r['handover_s'], ' s', 3):>10}"
                 f"{_fmt(r['gravity_error_at_handover_deg'], '°'):>12}"
-                f"{_fmt(r['velocity_error_at_handover_m_s'], ' m/s'):>13}{_fmt(r['lowest_point_m'], ' m'):>9}")
+                f"{_fmt(r['velocity_error_at_handover_m_s'], ' m/s'):>13}{_fmt(r['lowest_point_m'], ' m'):>9}"
+            )
     elif len(estimators) > 1:
         say("\nper estimator (tilt error offline: the same estimator over the flight with truth in the loop)")
-        say(f"{'estimator':<14}{'survived':>9}{'settled':>8}{'tilt err loop':>14}{'offline':>9}{'pos RMS':>9}"
-            f"{'spin':>7}{'tilt':>7}")
+        say(
+            f"{'estimator':<14}{'survived':>9}{'settled':>8}{'tilt err loop':>14}{'offline':>9}{'pos RMS':>9}"
+            f"{'spin':>7}{'tilt':>7}"
+        )
         for r in table:
-            say(f"{r['estimator']:<14}{r['survived']:>5}/{r['runs']:<3}{r['settled']:>4}/{r['runs']:<3}"
+            say(
+                f"{r['estimator']:<14}{r['survived']:>5}/{r['runs']:<3}{r['settled']:>4}/{r['runs']:<3}"
                 f"{_fmt(r['tilt_error_in_loop_deg'], '°'):>14}{_fmt(r['tilt_error_offline_deg'], '°'):>9}"
                 f"{_fmt(r['position_rms_settled_m'], ' m'):>9}{_fmt(r['spin_rate_rad_s'], '', 1):>7}"
-                f"{_fmt(r['tilt_deg'], '°', 1):>7}")
+                f"{_fmt(r['tilt_deg'], '°', 1):>7}"
+            )
     survived = sum(r["status"] == "survived" for r in runs)
     say(f"{survived} of {len(runs)} runs survived")
     write_json(out / "summary.json", {"runs": runs, "table": table, "survived": survived, "runs_flown": len(runs)})
@@ -153,40 +178,69 @@ def cmd_fly(args):
 
 def add_parsers(sub):
     s = sub.add_parser(
-        "fly", help="fly the vehicle with an estimator in the loop (hover, trajectory, rotor loss)",
+        "fly",
+        help="fly the vehicle with an estimator in the loop (hover, trajectory, rotor loss)",
         description="Fly the rotor-level vehicle model with a controller that reads an estimator's attitude "
-                    "(and position from a motion-capture sensor) at the IMU rate. Per seed, writes the "
-                    "recording (.csv, readable by every command), the flight (.parquet: true state, rotor "
-                    "speeds and commands, what the controller read), a summary and a plot; summary.json "
-                    "gathers the runs. A run that crashes or whose estimator fails ends with a status and "
-                    "reason. docs/vehicle.md has the models.")
-    s.add_argument("--scenario", choices=SCENARIOS, default="rotor-loss",
-                   help="hover: hold the origin from a disturbed start; trajectory: a 1 m circle at 0.2 Hz; "
-                        "rotor-loss: hover, rotor 0 lost at 2 s (default); throw: released tumbling, recovered by the "
-                        "recovery paper's bank of EKFs, then held")
-    s.add_argument("--controller", choices=CONTROLLERS, default=None,
-                   help="se3: the nominal controller only; ftc: SE(3), then the fault-tolerant controller once a "
-                        "rotor loss is known (default: ftc for rotor-loss, else se3)")
-    s.add_argument("--estimator", default=None,
-                   help=f"the attitude estimator in the loop: truth, {', '.join(FILTERS)}, the peers vqf and imufusion "
-                        "(their streaming API, when installed); for a throw recovery (the "
-                        "bank of EKFs, then its nominal EKF) or truth. Several (comma-separated) or all fly each, with "
-                        "the flight with truth in the loop first and each estimator also run over that flight "
-                        "afterwards (default: madgwick; recovery for a throw)")
+        "(and position from a motion-capture sensor) at the IMU rate. Per seed, writes the "
+        "recording (.csv, readable by every command), the flight (.parquet: true state, rotor "
+        "speeds and commands, what the controller read), a summary and a plot; summary.json "
+        "gathers the runs. A run that crashes or whose estimator fails ends with a status and "
+        "reason. docs/vehicle.md has the models.",
+    )
+    s.add_argument(
+        "--scenario",
+        choices=SCENARIOS,
+        default="rotor-loss",
+        help="hover: hold the origin from a disturbed start; trajectory: a 1 m circle at 0.2 Hz; "
+        "rotor-loss: hover, rotor 0 lost at 2 s (default); throw: released tumbling, recovered by the "
+        "recovery paper's bank of EKFs, then held",
+    )
+    s.add_argument(
+        "--controller",
+        choices=CONTROLLERS,
+        default=None,
+        help="se3: the nominal controller only; ftc: SE(3), then the fault-tolerant controller once a "
+        "rotor loss is known (default: ftc for rotor-loss, else se3)",
+    )
+    s.add_argument(
+        "--estimator",
+        default=None,
+        help=f"the attitude estimator in the loop: truth, {', '.join(FILTERS)}, the peers vqf and imufusion "
+        "(their streaming API, when installed); for a throw recovery (the "
+        "bank of EKFs, then its nominal EKF) or truth. Several (comma-separated) or all fly each, with "
+        "the flight with truth in the loop first and each estimator also run over that flight "
+        "afterwards (default: madgwick; recovery for a throw)",
+    )
     s.add_argument("--seeds", default="0", help="seeds: 0-4 or 0,3,7 (default: 0)")
-    s.add_argument("--duration", type=float, default=None,
-                   help="seconds (default: per scenario; a throw's count from the release, 14 s)")
-    s.add_argument("--failure", default=None, metavar="ROTOR@TIME[:EFF[:IMB]]",
-                   help="a rotor failure: 0@2 loses rotor 0 at 2 s, 1@3:0.6 leaves rotor 1 60 %% from 3 s, "
-                        "2@1:0.9:5e-6 damages rotor 2's propeller at 1 s (90 %% thrust, imbalance 5e-6 kg m: a "
-                        "0.1 g chip at 5 cm, which shakes the IMU once per revolution) (default for rotor-loss: 0@2)")
+    s.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        help="seconds (default: per scenario; a throw's count from the release, 14 s)",
+    )
+    s.add_argument(
+        "--failure",
+        default=None,
+        metavar="ROTOR@TIME[:EFF[:IMB]]",
+        help="a rotor failure: 0@2 loses rotor 0 at 2 s, 1@3:0.6 leaves rotor 1 60 %% from 3 s, "
+        "2@1:0.9:5e-6 damages rotor 2's propeller at 1 s (90 %% thrust, imbalance 5e-6 kg m: a "
+        "0.1 g chip at 5 cm, which shakes the IMU once per revolution) (default for rotor-loss: 0@2)",
+    )
     s.add_argument("--preset", choices=list(PRESETS), default=None, help="sensors (default: bebop2; fma for a throw)")
-    s.add_argument("--vehicle", choices=list(VEHICLE_PRESETS), default="recovery",
-                   help="vehicle: recovery (the recovery paper's), bebop2 (Sun et al. 2021), hummingbird (RotorPy's) "
-                        "(default: recovery; docs/vehicle.md)")
-    s.add_argument("--position-sensor", choices=["mocap", "gnss"], default="mocap",
-                   help="the position sensor the loop reads: mocap (100 Hz, 1 mm, 10 ms) or gnss (5 Hz, 0.5 m "
-                        "horizontal, 1 m vertical, 100 ms) (default: mocap)")
+    s.add_argument(
+        "--vehicle",
+        choices=list(VEHICLE_PRESETS),
+        default="recovery",
+        help="vehicle: recovery (the recovery paper's), bebop2 (Sun et al. 2021), hummingbird (RotorPy's) "
+        "(default: recovery; docs/vehicle.md)",
+    )
+    s.add_argument(
+        "--position-sensor",
+        choices=["mocap", "gnss"],
+        default="mocap",
+        help="the position sensor the loop reads: mocap (100 Hz, 1 mm, 10 ms) or gnss (5 Hz, 0.5 m "
+        "horizontal, 1 m vertical, 100 ms) (default: mocap)",
+    )
     s.add_argument("-o", "--output", required=True, metavar="DIR", help="folder for the runs' files")
     s.add_argument("--no-plot", action="store_true", help="skip the figures")
     s.set_defaults(func=cmd_fly)

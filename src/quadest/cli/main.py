@@ -3,6 +3,7 @@
 One module per group of commands (docs/developing.md): each command parses its options, calls
 one library function and prints; the library does the work.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -17,18 +18,35 @@ from quadest.data.files import refuse_overwriting_inputs
 from quadest.errors import UsageError
 
 GROUPS = (sim, fly, recordings, compare, recovery, sweep, data)
-ORDER = ("simulate", "fly", "info", "report", "compare", "reproduce", "fit-aero", "recover", "calibrate", "estimate", "benchmark",
-         "sweep", "tune", "data", "demo")
+ORDER = (
+    "simulate",
+    "fly",
+    "info",
+    "report",
+    "compare",
+    "reproduce",
+    "fit-aero",
+    "recover",
+    "calibrate",
+    "estimate",
+    "benchmark",
+    "sweep",
+    "tune",
+    "data",
+    "demo",
+)
 
 
 def build_parser():
     p = argparse.ArgumentParser(
         prog="quadest",
         description="Quadcopter attitude and state estimation that keeps working when things go "
-                    "wrong. Conventions: NED/FRD, q_nb = [w, x, y, z], SI units (docs/conventions.md).")
+        "wrong. Conventions: NED/FRD, q_nb = [w, x, y, z], SI units (docs/conventions.md).",
+    )
     p.add_argument("--version", action="version", version=f"quadest {__version__}")
-    p.add_argument("--debug", action="store_true",
-                   help="on an error, show the full traceback (also accepted after the command)")
+    p.add_argument(
+        "--debug", action="store_true", help="on an error, show the full traceback (also accepted after the command)"
+    )
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     for group in GROUPS:
         group.add_parsers(sub)
@@ -51,8 +69,11 @@ def _paths(value):
 def check_outputs(args) -> None:
     """Refuse an output that names an input file: writing it would destroy the input."""
     inputs = [p for name in INPUT_OPTIONS for p in _paths(getattr(args, name, None))]
-    outputs = {opt: getattr(args, name) for name, opt in OUTPUT_OPTIONS.items()
-               if isinstance(getattr(args, name, None), (str, Path))}
+    outputs = {
+        opt: getattr(args, name)
+        for name, opt in OUTPUT_OPTIONS.items()
+        if isinstance(getattr(args, name, None), (str, Path))
+    }
     try:
         refuse_overwriting_inputs(outputs, inputs)
     except ValueError as exc:
@@ -83,8 +104,10 @@ def main(argv=None):
         if usage or isinstance(exc, (ValueError, OSError)):
             msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         else:
-            msg = (f"internal error ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}); "
-                   "please report it with the output of --debug")
+            msg = (
+                f"internal error ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}); "
+                "please report it with the output of --debug"
+            )
         print(f"quadest {args.command}: error: {msg}", file=sys.stderr)
         return 2 if usage else 1
 

@@ -1,5 +1,6 @@
 """``quadest info``, ``quadest calibrate`` and ``quadest estimate``: one recording in, a summary,
 a calibration or an attitude out."""
+
 from __future__ import annotations
 
 import json
@@ -8,19 +9,27 @@ from pathlib import Path
 import numpy as np
 
 from quadest.calibration import apply_calibrations, calibrate
-from quadest.cli.common import (CliError, add_calibration_arg, add_input_args, add_report_arg, read, say,
-                                write_json, write_report_for)
+from quadest.cli.common import (
+    CliError,
+    add_calibration_arg,
+    add_input_args,
+    add_report_arg,
+    read,
+    say,
+    write_json,
+    write_report_for,
+)
 from quadest.data import format_summary, summarize, write_table
 from quadest.evaluation.compare import parse_params
-from quadest.filters.peers import PEERS
 from quadest.evaluation.inspect import events
 from quadest.evaluation.runner import estimate, estimator_names, filter_notes
+from quadest.filters import FILTERS
+from quadest.filters.peers import PEERS
 from quadest.models.aero import AeroModel
 from quadest.recovery import recover
+from quadest.rotation import quat_to_euler
 from quadest.sim import aero_model_of
 from quadest.sweep.summary import is_results, sweep_summary
-from quadest.filters import FILTERS
-from quadest.rotation import quat_to_euler
 
 
 def cmd_info(args):
@@ -41,9 +50,14 @@ def cmd_calibrate(args):
     say(f"{args.kind} calibration from {len(recs)} recording(s)")
     for key, val in cal.values.items():
         unc = cal.uncertainty.get(key)
-        say(f"  {key:<22} {np.array2string(np.asarray(val), precision=5, suppress_small=True)}"
-            + (f"  ± {np.array2string(np.asarray(unc), formatter={'float_kind': lambda x: f'{x:.1e}'})}"
-               if unc is not None else ""))
+        say(
+            f"  {key:<22} {np.array2string(np.asarray(val), precision=5, suppress_small=True)}"
+            + (
+                f"  ± {np.array2string(np.asarray(unc), formatter={'float_kind': lambda x: f'{x:.1e}'})}"
+                if unc is not None
+                else ""
+            )
+        )
     for key, val in cal.quality.items():
         if key in ("samples_per_position", "recordings"):
             continue
@@ -66,8 +80,16 @@ def cmd_estimate(args):
     for line in filter_notes(res):
         say(line)
     e = quat_to_euler(q)
-    cols = {"t": rec.t, "q_w": q[:, 0], "q_x": q[:, 1], "q_y": q[:, 2], "q_z": q[:, 3],
-            "roll": e[:, 0], "pitch": e[:, 1], "yaw": e[:, 2]}
+    cols = {
+        "t": rec.t,
+        "q_w": q[:, 0],
+        "q_x": q[:, 1],
+        "q_y": q[:, 2],
+        "q_z": q[:, 3],
+        "roll": e[:, 0],
+        "pitch": e[:, 1],
+        "yaw": e[:, 2],
+    }
     if args.diagnostics:
         if not res.diag:
             raise CliError(f"--diagnostics: {args.filter} reports no per-sample diagnostics")
@@ -76,8 +98,13 @@ def cmd_estimate(args):
     extra = f", diag_{', diag_'.join(res.diag)}" if args.diagnostics else ""
     say(f"{args.filter}: {len(rec)} samples -> {args.output} (t, q_w, q_x, q_y, q_z, roll, pitch, yaw; rad{extra})")
     if args.report:
-        write_report_for(rec, [args.filter], {args.filter: kw}, args.report,
-                         f"quadest estimate: {args.filter} on {Path(args.file).name}")
+        write_report_for(
+            rec,
+            [args.filter],
+            {args.filter: kw},
+            args.report,
+            f"quadest estimate: {args.filter} on {Path(args.file).name}",
+        )
     return 0
 
 
@@ -104,10 +131,20 @@ def cmd_report(args):
                 say("a free fall was found; give --aero aero.json (quadest fit-aero) to see the recovery's bank")
         if model is not None:
             recovery = recover(rec, model, record_all=True)
-    rotors = _rotor_speeds(args.rotors or Path(args.file).with_name(Path(args.file).stem + "-flight.parquet"),
-                           explicit=bool(args.rotors))
-    write_report_for(rec, names, kw, args.output, args.title or f"quadest report: {Path(args.file).name}", args.json,
-                     recovery=recovery, recovery_model=source, rotors=rotors)
+    rotors = _rotor_speeds(
+        args.rotors or Path(args.file).with_name(Path(args.file).stem + "-flight.parquet"), explicit=bool(args.rotors)
+    )
+    write_report_for(
+        rec,
+        names,
+        kw,
+        args.output,
+        args.title or f"quadest report: {Path(args.file).name}",
+        args.json,
+        recovery=recovery,
+        recovery_model=source,
+        rotors=rotors,
+    )
     return 0
 
 
@@ -144,49 +181,73 @@ def _sweep_report(args):
 
 
 def add_parsers(sub):
-    i = sub.add_parser("info", help="summarise a recording",
-                       description="Print duration, rates, ranges, gaps and which truth a "
-                                   "recording holds; any supported format (docs/readers.md).")
+    i = sub.add_parser(
+        "info",
+        help="summarise a recording",
+        description="Print duration, rates, ranges, gaps and which truth a "
+        "recording holds; any supported format (docs/readers.md).",
+    )
     i.add_argument("file", type=Path, help="recording: any supported format (docs/readers.md)")
     i.add_argument("--json", action="store_true", help="print JSON instead of text")
     add_input_args(i)
     i.set_defaults(func=cmd_info)
 
-    r = sub.add_parser("report", help="an HTML report of a recording, to open in a browser",
-                       description="One self-contained HTML page (opens offline) for any recording quadest reads: "
-                                   "a summary (rates, gaps, clipping, vibration, magnetic disturbance, events such "
-                                   "as rests, free falls and spins), each estimator's attitude beside the truth "
-                                   "or the autopilot's own estimate (labelled so) with error plots and an RMS "
-                                   "table, the raw sensors, the magnetometer's norm and dip and the "
-                                   "accelerometer's spectrogram; linked zoom. Numbers from all samples; plots "
-                                   "decimated for display.")
-    r.add_argument("file", type=Path, help="recording: any supported format (docs/readers.md), or a sweep's "
-                                           "results (.parquet from quadest sweep or tune)")
-    r.add_argument("--filters", default="madgwick,afckf,kalman",
-                   help="estimators to run: comma-separated, quadest (all of quadest's), or peers (default: "
-                        "madgwick,afckf,kalman)")
+    r = sub.add_parser(
+        "report",
+        help="an HTML report of a recording, to open in a browser",
+        description="One self-contained HTML page (opens offline) for any recording quadest reads: "
+        "a summary (rates, gaps, clipping, vibration, magnetic disturbance, events such "
+        "as rests, free falls and spins), each estimator's attitude beside the truth "
+        "or the autopilot's own estimate (labelled so) with error plots and an RMS "
+        "table, the raw sensors, the magnetometer's norm and dip and the "
+        "accelerometer's spectrogram; linked zoom. Numbers from all samples; plots "
+        "decimated for display.",
+    )
+    r.add_argument(
+        "file",
+        type=Path,
+        help="recording: any supported format (docs/readers.md), or a sweep's "
+        "results (.parquet from quadest sweep or tune)",
+    )
+    r.add_argument(
+        "--filters",
+        default="madgwick,afckf,kalman",
+        help="estimators to run: comma-separated, quadest (all of quadest's), or peers (default: "
+        "madgwick,afckf,kalman)",
+    )
     r.add_argument("--param", action="append", metavar="FILTER.NAME=VALUE", help="a filter parameter (repeatable)")
     r.add_argument("--title", default=None, help="the page's title (default: from the file name)")
     r.add_argument("-o", "--output", type=Path, required=True, help="the HTML file to write")
     r.add_argument("--json", type=Path, default=None, help="also write the report's tables as JSON")
-    r.add_argument("--rotors", type=Path, default=None, metavar="FLIGHT.parquet",
-                   help="rotor speeds to show (default: NAME-flight.parquet beside the recording, as quadest fly "
-                        "writes it)")
-    r.add_argument("--aero", metavar="JSON", default=None,
-                   help="with a throw in the recording: the aerodynamic model for the recovery's bank (default: a "
-                        "simulation's own; quadest fit-aero)")
+    r.add_argument(
+        "--rotors",
+        type=Path,
+        default=None,
+        metavar="FLIGHT.parquet",
+        help="rotor speeds to show (default: NAME-flight.parquet beside the recording, as quadest fly writes it)",
+    )
+    r.add_argument(
+        "--aero",
+        metavar="JSON",
+        default=None,
+        help="with a throw in the recording: the aerodynamic model for the recovery's bank (default: a "
+        "simulation's own; quadest fit-aero)",
+    )
     add_calibration_arg(r)
     add_input_args(r)
     r.set_defaults(func=cmd_report)
 
-    cb = sub.add_parser("calibrate", help="calibrate a sensor from recordings",
-                        description="Fit a calibration and write it with its uncertainty and quality "
-                                    "figures. gyro: bias from rest segments (found automatically); accel: "
-                                    "bias, scale and misalignment from a six-position or many-position "
-                                    "static set; mag: hard and soft iron by ellipsoid fit from a rotation "
-                                    "sequence; centrifugal: the AFCKF's ω1, ω2 from a spinning segment; "
-                                    "aero: the recovery paper's model (as fit-aero). docs/calibration.md "
-                                    "gives the procedures.")
+    cb = sub.add_parser(
+        "calibrate",
+        help="calibrate a sensor from recordings",
+        description="Fit a calibration and write it with its uncertainty and quality "
+        "figures. gyro: bias from rest segments (found automatically); accel: "
+        "bias, scale and misalignment from a six-position or many-position "
+        "static set; mag: hard and soft iron by ellipsoid fit from a rotation "
+        "sequence; centrifugal: the AFCKF's ω1, ω2 from a spinning segment; "
+        "aero: the recovery paper's model (as fit-aero). docs/calibration.md "
+        "gives the procedures.",
+    )
     cb.add_argument("kind", choices=["gyro", "accel", "mag", "centrifugal", "aero"])
     cb.add_argument("recordings", nargs="+", type=Path, metavar="RECORDING")
     cb.add_argument("-o", "--output", required=True, metavar="CALIB.json")
@@ -194,20 +255,34 @@ def add_parsers(sub):
     add_input_args(cb)
     cb.set_defaults(func=cmd_calibrate)
 
-    es = sub.add_parser("estimate", help="run one estimator on a recording and write its attitude",
-                        description="Run an estimator over a recording (any supported format) and write t, q_w, "
-                                    "q_x, q_y, q_z, roll, pitch, yaw (radians) to .csv or .parquet.")
+    es = sub.add_parser(
+        "estimate",
+        help="run one estimator on a recording and write its attitude",
+        description="Run an estimator over a recording (any supported format) and write t, q_w, "
+        "q_x, q_y, q_z, roll, pitch, yaw (radians) to .csv or .parquet.",
+    )
     es.add_argument("file", type=Path, help="recording: any supported format (docs/readers.md)")
-    es.add_argument("--filter", default="robust", choices=list(FILTERS) + list(PEERS),
-                    help="estimator: quadest's, or a peer with quadest[peers] installed (default: robust, "
-                         "quadest's own; docs/estimators.md)")
+    es.add_argument(
+        "--filter",
+        default="robust",
+        choices=list(FILTERS) + list(PEERS),
+        help="estimator: quadest's, or a peer with quadest[peers] installed (default: robust, "
+        "quadest's own; docs/estimators.md)",
+    )
     es.add_argument("-o", "--output", required=True, metavar="OUT", help=".csv or .parquet")
     es.add_argument("--param", action="append", metavar="FILTER.NAME=VALUE", help="estimator parameter")
-    es.add_argument("--diagnostics", action="store_true",
-                    help="also write the estimator's per-sample diagnostics as diag_* columns (robust: its reported "
-                         "error variances var_tilt and var_heading in rad², the bias, rest, disturbance, clipping)")
-    es.add_argument("--declination-deg", type=float, default=None,
-                    help="magnetic declination (default: from a simulation's metadata, else 0)")
+    es.add_argument(
+        "--diagnostics",
+        action="store_true",
+        help="also write the estimator's per-sample diagnostics as diag_* columns (robust: its reported "
+        "error variances var_tilt and var_heading in rad², the bias, rest, disturbance, clipping)",
+    )
+    es.add_argument(
+        "--declination-deg",
+        type=float,
+        default=None,
+        help="magnetic declination (default: from a simulation's metadata, else 0)",
+    )
     add_calibration_arg(es)
     add_input_args(es)
     add_report_arg(es)

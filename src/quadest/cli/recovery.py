@@ -1,4 +1,5 @@
 """``quadest fit-aero`` and ``quadest recover``: the state-estimate recovery of a thrown vehicle."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -6,8 +7,16 @@ from pathlib import Path
 import numpy as np
 
 from quadest.calibration import apply_calibrations, load_calibration
-from quadest.cli.common import (CliError, add_calibration_arg, add_input_args, add_report_arg, read, say, write_json,
-                                write_report_for)
+from quadest.cli.common import (
+    CliError,
+    add_calibration_arg,
+    add_input_args,
+    add_report_arg,
+    read,
+    say,
+    write_json,
+    write_report_for,
+)
 from quadest.models.aero import AeroModel, fit_aero
 from quadest.recovery import RecoveryParams, recover
 from quadest.sim import aero_model_of
@@ -49,13 +58,19 @@ def cmd_recover(args):
     else:
         g = s["gravity_dir_body"]
         v = s["velocity_body_mps"]
-        say(f"converged {s['t_converge_from_detection_s'] * 1e3:.0f} ms after detection"
-            + (f", {s['t_converge_s'] * 1e3:.0f} ms after release" if "t_converge_s" in s else ""))
-        say(f"gravity direction (body) [{g[0]:+.3f}, {g[1]:+.3f}, {g[2]:+.3f}], velocity (body) "
-            f"[{v[0]:+.2f}, {v[1]:+.2f}, {v[2]:+.2f}] m/s")
+        say(
+            f"converged {s['t_converge_from_detection_s'] * 1e3:.0f} ms after detection"
+            + (f", {s['t_converge_s'] * 1e3:.0f} ms after release" if "t_converge_s" in s else "")
+        )
+        say(
+            f"gravity direction (body) [{g[0]:+.3f}, {g[1]:+.3f}, {g[2]:+.3f}], velocity (body) "
+            f"[{v[0]:+.2f}, {v[1]:+.2f}, {v[2]:+.2f}] m/s"
+        )
         if "gravity_err_deg" in s:
-            say(f"errors against truth: gravity direction {s['gravity_err_deg']:.2f}°"
-                + (f", velocity {s['vel_err_mps']:.3f} m/s" if "vel_err_mps" in s else ""))
+            say(
+                f"errors against truth: gravity direction {s['gravity_err_deg']:.2f}°"
+                + (f", velocity {s['vel_err_mps']:.3f} m/s" if "vel_err_mps" in s else "")
+            )
     if args.json:
         write_json(args.json, s)
     if args.plot:
@@ -63,8 +78,15 @@ def cmd_recover(args):
 
         say(f"wrote {plot_recovery(res, rec, args.plot, title=f'recovery: {args.file}')}")
     if args.report:
-        write_report_for(rec, ["madgwick"], {}, args.report, f"quadest recover: {args.file}", recovery=res,
-                         recovery_model="the aerodynamic model this recovery used")
+        write_report_for(
+            rec,
+            ["madgwick"],
+            {},
+            args.report,
+            f"quadest recover: {args.file}",
+            recovery=res,
+            recovery_model="the aerodynamic model this recovery used",
+        )
     return 0
 
 
@@ -72,34 +94,41 @@ def _simulated_model(rec):
     try:
         return aero_model_of(rec)
     except ValueError:
-        raise CliError("this recording does not carry a simulation's aerodynamic model: give --aero aero.json "
-                       "(quadest fit-aero)") from None
+        raise CliError(
+            "this recording does not carry a simulation's aerodynamic model: give --aero aero.json (quadest fit-aero)"
+        ) from None
 
 
 def add_parsers(sub):
-    fa = sub.add_parser("fit-aero", help="fit the recovery paper's aerodynamic model (eq 14)",
-                        description="Least-squares fit of f_c = A v + B|v|v + C ψ(ω) (recovery paper eqs "
-                                    "9-14) from recordings with true velocity and attitude (simulated "
-                                    "throws: the free flight after release; other recordings: every sample).")
+    fa = sub.add_parser(
+        "fit-aero",
+        help="fit the recovery paper's aerodynamic model (eq 14)",
+        description="Least-squares fit of f_c = A v + B|v|v + C ψ(ω) (recovery paper eqs "
+        "9-14) from recordings with true velocity and attitude (simulated "
+        "throws: the free flight after release; other recordings: every sample).",
+    )
     fa.add_argument("recordings", nargs="+", type=Path, metavar="RECORDING")
     fa.add_argument("-o", "--output", required=True, metavar="JSON", help="model file to write")
     fa.add_argument("--mass", type=float, default=None, help="vehicle mass, kg (default: from a simulation)")
     add_input_args(fa)
     fa.set_defaults(func=cmd_fit_aero)
 
-    rv = sub.add_parser("recover", help="recover attitude and velocity of a thrown vehicle from the IMU",
-                        description="Run the recovery logic (throw detection, the bank of EKFs, hand-over "
-                                    "to a nominal estimator) on a recording; report detection and "
-                                    "convergence times, gravity direction and velocity, and their errors "
-                                    "when the recording has truth.")
+    rv = sub.add_parser(
+        "recover",
+        help="recover attitude and velocity of a thrown vehicle from the IMU",
+        description="Run the recovery logic (throw detection, the bank of EKFs, hand-over "
+        "to a nominal estimator) on a recording; report detection and "
+        "convergence times, gravity direction and velocity, and their errors "
+        "when the recording has truth.",
+    )
     rv.add_argument("file", type=Path, help="recording: any supported format (docs/readers.md)")
     rv.add_argument("--aero", metavar="JSON", help="aerodynamic model (default: a simulation's own)")
     d = RecoveryParams()  # the defaults are the parameter record's
-    rv.add_argument("--hypotheses", type=int, default=d.n_hypotheses,
-                    help=f"hypotheses of the bank (default: {d.n_hypotheses})")
+    rv.add_argument(
+        "--hypotheses", type=int, default=d.n_hypotheses, help=f"hypotheses of the bank (default: {d.n_hypotheses})"
+    )
     rv.add_argument("--beta1", type=float, default=d.beta1, help=f"detection threshold, m/s² (default: {d.beta1:g})")
-    rv.add_argument("--beta2", type=float, default=d.beta2,
-                    help=f"convergence threshold on S_g (default: {d.beta2:g})")
+    rv.add_argument("--beta2", type=float, default=d.beta2, help=f"convergence threshold on S_g (default: {d.beta2:g})")
     rv.add_argument("--json", metavar="OUT", help="write the summary as JSON")
     rv.add_argument("--plot", metavar="PNG", help="hypothesis errors, probabilities and velocity over time")
     add_calibration_arg(rv)

@@ -1,4 +1,5 @@
 """``quadest simulate`` and ``quadest demo``."""
+
 from __future__ import annotations
 
 import json
@@ -17,19 +18,23 @@ def cmd_simulate(args):
         if args.markdown:
             say("| parameter | value | unit | meaning | source |\n|---|---|---|---|---|")
             for r in rows:
-                say(f"| `{r['key']}` | {json.dumps(r['value'], default=str)} | {r['unit']} | "
-                    f"{r['doc']} | {r['source']} |")
+                say(
+                    f"| `{r['key']}` | {json.dumps(r['value'], default=str)} | {r['unit']} | "
+                    f"{r['doc']} | {r['source']} |"
+                )
             return 0
         for r in rows:
-            say(f"{r['key']:<{w}}  {json.dumps(r['value'], default=str):<28} {r['unit']:<12} "
-                f"{r['doc']} [{r['source']}]")
+            say(
+                f"{r['key']:<{w}}  {json.dumps(r['value'], default=str):<28} {r['unit']:<12} {r['doc']} [{r['source']}]"
+            )
         return 0
     if not args.output:
         raise CliError("simulate needs -o FILE (.csv or .parquet), or --list-params")
-    say(f"simulating {args.scenario} with preset {args.preset}, seed {args.seed}"
-        + (", ideal sensors" if args.ideal else ""))
-    rec = simulate(args.scenario, args.preset, seed=args.seed, duration=args.duration, config=cfg,
-                   progress=True)
+    say(
+        f"simulating {args.scenario} with preset {args.preset}, seed {args.seed}"
+        + (", ideal sensors" if args.ideal else "")
+    )
+    rec = simulate(args.scenario, args.preset, seed=args.seed, duration=args.duration, config=cfg, progress=True)
     path = save_recording(rec, args.output)
     say(f"wrote {path}: {len(rec)} samples, {rec.duration:.2f} s")
     if args.scenario == "damaged-rotor":
@@ -66,30 +71,42 @@ def cmd_demo(args):
 
 
 def add_parsers(sub):
-    s = sub.add_parser("simulate", help="simulate a flight and its sensors into a recording",
-                       description="Simulate a flight scenario with a sensor preset. Deterministic "
-                                   "for a given seed. Every parameter can be overridden; "
-                                   "--list-params shows them with unit and source.")
+    s = sub.add_parser(
+        "simulate",
+        help="simulate a flight and its sensors into a recording",
+        description="Simulate a flight scenario with a sensor preset. Deterministic "
+        "for a given seed. Every parameter can be overridden; "
+        "--list-params shows them with unit and source.",
+    )
     s.add_argument("--scenario", choices=SCENARIOS, default="hover", help="motion (default: hover)")
-    s.add_argument("--preset", choices=list(PRESETS), default="bebop2",
-                   help="vehicle and sensors (default: bebop2)")
+    s.add_argument("--preset", choices=list(PRESETS), default="bebop2", help="vehicle and sensors (default: bebop2)")
     s.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     s.add_argument("--duration", type=float, default=None, help="seconds (default: per scenario)")
-    s.add_argument("--set", action="append", metavar="KEY=VALUE",
-                   help="override a parameter, e.g. --set gyro.noise_std=0.02 --set "
-                        "acc.lever_arm=[0,0,0.01] (repeatable)")
+    s.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=VALUE",
+        help="override a parameter, e.g. --set gyro.noise_std=0.02 --set acc.lever_arm=[0,0,0.01] (repeatable)",
+    )
     s.add_argument("--config", metavar="TOML", help="TOML file of [section] key = value overrides")
-    s.add_argument("--ideal", action="store_true",
-                   help="ideal sensors: no noise, bias, scale error, saturation or disturbance "
-                        "(--set and --config then add chosen errors back)")
+    s.add_argument(
+        "--ideal",
+        action="store_true",
+        help="ideal sensors: no noise, bias, scale error, saturation or disturbance "
+        "(--set and --config then add chosen errors back)",
+    )
     s.add_argument("-o", "--output", metavar="FILE", help="recording to write (.csv or .parquet)")
     s.add_argument("--plot", metavar="PNG", help="also draw attitude, rates and sensor signals")
-    s.add_argument("--list-params", action="store_true",
-                   help="print every parameter (after preset and overrides) and exit")
+    s.add_argument(
+        "--list-params", action="store_true", help="print every parameter (after preset and overrides) and exit"
+    )
     s.add_argument("--markdown", action="store_true", help="with --list-params: a Markdown table")
     s.set_defaults(func=cmd_simulate)
 
-    d = sub.add_parser("demo", help="the simulator demo: a rotor failure, summarised and plotted",
-                       description="Simulate a rotor failure on a Bebop 2, summarise and plot it.")
+    d = sub.add_parser(
+        "demo",
+        help="the simulator demo: a rotor failure, summarised and plotted",
+        description="Simulate a rotor failure on a Bebop 2, summarise and plot it.",
+    )
     d.add_argument("--out", default="demo-output", help="output folder (default: demo-output)")
     d.set_defaults(func=cmd_demo)

@@ -1,4 +1,5 @@
 """``quadest sweep`` and ``quadest tune``: grids of filters and parameters over many flights."""
+
 from __future__ import annotations
 
 import sys
@@ -6,13 +7,22 @@ from pathlib import Path
 
 from quadest.cli.common import CliError, add_engine_args, parse_seeds, parse_sets, say, sim_config, write_json
 from quadest.cli.fly import failure_record, parse_failure
-from quadest.readers.catalog import resolve_data
 from quadest.flight import CONTROLLERS, DEFAULT_DURATION
 from quadest.flight import SCENARIOS as FLY_SCENARIOS
 from quadest.models import VEHICLE_PRESETS, vehicle_preset
+from quadest.readers.catalog import resolve_data
 from quadest.sim import PRESETS, SCENARIOS
-from quadest.sweep import (build_runs, file_sources, flown_sources, format_selection, format_split, parse_grid,
-                           run_sweep, sim_sources, tune)
+from quadest.sweep import (
+    build_runs,
+    file_sources,
+    flown_sources,
+    format_selection,
+    format_split,
+    parse_grid,
+    run_sweep,
+    sim_sources,
+    tune,
+)
 
 
 def _flown_sources(args):
@@ -24,9 +34,15 @@ def _flown_sources(args):
     for f in failures:  # refused before any run starts
         if f is not None:
             f.check(vehicle, duration)
-    return flown_sources(args.fly, parse_seeds(args.seeds), controller=args.controller,
-                         failures=[failure_record(f) for f in failures],
-                         duration=args.duration, vehicle=args.vehicle, preset=args.preset)
+    return flown_sources(
+        args.fly,
+        parse_seeds(args.seeds),
+        controller=args.controller,
+        failures=[failure_record(f) for f in failures],
+        duration=args.duration,
+        vehicle=args.vehicle,
+        preset=args.preset,
+    )
 
 
 def _sweep_runs(args, filters):
@@ -38,31 +54,41 @@ def _sweep_runs(args, filters):
     else:
         preset = args.preset or "bebop2"
         sim_config(preset, args.set)  # refuse a wrong --set before any run starts
-        sources = sim_sources(args.scenario, preset, parse_seeds(args.seeds), args.duration,
-                              parse_sets(args.set), args.t_from)
+        sources = sim_sources(
+            args.scenario, preset, parse_seeds(args.seeds), args.duration, parse_sets(args.set), args.t_from
+        )
     return build_runs(filters, grid, sources, args.align)
 
 
 def _announce(args, runs):
-    where = (f"on the Dask cluster at {args.scheduler}" if args.scheduler else
-             "in this process" if args.workers == 0 else
-             f"on a local Dask cluster of {args.workers} worker(s)" if args.workers else
-             "on a local Dask cluster (one worker per core)")
+    where = (
+        f"on the Dask cluster at {args.scheduler}"
+        if args.scheduler
+        else "in this process"
+        if args.workers == 0
+        else f"on a local Dask cluster of {args.workers} worker(s)"
+        if args.workers
+        else "on a local Dask cluster (one worker per core)"
+    )
     say(f"{len(runs)} runs {where}; results in {args.out}")
 
 
 def _report(args, res):
-    say(f"executed {res['executed']} (skipped {res['skipped']} already in {args.out}) in {res['wall_s']:.1f} s"
-        + (f"; {res['runs_per_s']:.2f} runs/s over {res['compute_s']:.1f} s of computing (cluster start-up "
-           "excluded)" if res["executed"] else "")
-        + f"; results hold {res['ok']} ok, {res['failed']} failed")
+    say(
+        f"executed {res['executed']} (skipped {res['skipped']} already in {args.out}) in {res['wall_s']:.1f} s"
+        + (
+            f"; {res['runs_per_s']:.2f} runs/s over {res['compute_s']:.1f} s of computing (cluster start-up excluded)"
+            if res["executed"]
+            else ""
+        )
+        + f"; results hold {res['ok']} ok, {res['failed']} failed"
+    )
     if res["failed"]:
         say("failed runs keep their error in the 'error' column; --retry-failed runs them again")
 
 
 def _engine(args) -> dict:
-    return {"workers": args.workers, "scheduler": args.scheduler, "retry_failed": args.retry_failed,
-            "progress": True}
+    return {"workers": args.workers, "scheduler": args.scheduler, "retry_failed": args.retry_failed, "progress": True}
 
 
 def cmd_sweep(args):
@@ -73,8 +99,11 @@ def cmd_sweep(args):
     if args.json:
         write_json(args.json, res)
     if res["executed"] and not res["executed_ok"]:
-        print(f"quadest sweep: error: none of the {res['executed']} runs succeeded; their errors are in "
-              f"{args.out} (column 'error')", file=sys.stderr)
+        print(
+            f"quadest sweep: error: none of the {res['executed']} runs succeeded; their errors are in "
+            f"{args.out} (column 'error')",
+            file=sys.stderr,
+        )
         return 1
     return 0
 
@@ -91,61 +120,116 @@ def cmd_tune(args):
 
 
 def _add_sweep_args(p):
-    p.add_argument("--grid", action="append", metavar="FILTER.PARAM=VALUES",
-                   help="parameter values: a list 0.01,0.1, lin:A:B:N or log:A:B:N (repeatable; several "
-                        "parameters of one filter make their Cartesian product)")
+    p.add_argument(
+        "--grid",
+        action="append",
+        metavar="FILTER.PARAM=VALUES",
+        help="parameter values: a list 0.01,0.1, lin:A:B:N or log:A:B:N (repeatable; several "
+        "parameters of one filter make their Cartesian product)",
+    )
     src = p.add_argument_group("data: simulated flights (default) or recordings")
-    src.add_argument("--data", nargs="+", metavar="PATH",
-                     help="recordings or folders of them (e.g. ../shared/data/broad), any supported format, or a "
-                          "dataset fetched with quadest data fetch (broad)")
+    src.add_argument(
+        "--data",
+        nargs="+",
+        metavar="PATH",
+        help="recordings or folders of them (e.g. ../shared/data/broad), any supported format, or a "
+        "dataset fetched with quadest data fetch (broad)",
+    )
     src.add_argument("--format", default=None, help="with --data: reader (default: chosen from each file)")
     src.add_argument("--scenario", choices=SCENARIOS, default="nominal", help="simulated scenario (default: nominal)")
-    src.add_argument("--preset", choices=list(PRESETS), default=None,
-                     help="simulator preset (default: bebop2; fma for a flown throw)")
+    src.add_argument(
+        "--preset",
+        choices=list(PRESETS),
+        default=None,
+        help="simulator preset (default: bebop2; fma for a flown throw)",
+    )
     src.add_argument("--seeds", default="1-10", help="seed range or list (default: 1-10)")
     src.add_argument("--duration", type=float, default=None, help="seconds per simulated flight")
     src.add_argument("--set", action="append", metavar="KEY=VALUE", help="simulator parameter")
-    src.add_argument("--from", dest="t_from", type=float, default=None, metavar="SECONDS",
-                     help="count errors from this time on")
+    src.add_argument(
+        "--from", dest="t_from", type=float, default=None, metavar="SECONDS", help="count errors from this time on"
+    )
     fl = p.add_argument_group("flown flights: the vehicle flies with each estimator in the loop (docs/vehicle.md)")
-    fl.add_argument("--fly", choices=FLY_SCENARIOS, default=None, metavar="SCENARIO",
-                    help=f"fly this scenario ({', '.join(FLY_SCENARIOS)}) instead of simulating a prescribed one; "
-                         "--filters then names the estimators in the loop (truth too; recovery for a throw)")
+    fl.add_argument(
+        "--fly",
+        choices=FLY_SCENARIOS,
+        default=None,
+        metavar="SCENARIO",
+        help=f"fly this scenario ({', '.join(FLY_SCENARIOS)}) instead of simulating a prescribed one; "
+        "--filters then names the estimators in the loop (truth too; recovery for a throw)",
+    )
     fl.add_argument("--controller", choices=CONTROLLERS, default=None, help="with --fly (default: per scenario)")
-    fl.add_argument("--failure", action="append", metavar="ROTOR@TIME[:EFF[:IMB]]",
-                    help="with --fly: a rotor failure (repeatable: every failure with every seed)")
-    fl.add_argument("--vehicle", choices=list(VEHICLE_PRESETS), default="recovery",
-                    help="with --fly: the vehicle (default: recovery)")
-    p.add_argument("--align", choices=["none", "heading", "full"], default=None,
-                   help="constant navigation-frame rotation removed (default: the reader's recommendation)")
-    p.add_argument("-o", "--out", required=True, type=Path, metavar="RESULTS.parquet",
-                   help="results file, one row per run (parts go to RESULTS.parquet.parts/ while it runs); "
-                        "an existing one is resumed")
+    fl.add_argument(
+        "--failure",
+        action="append",
+        metavar="ROTOR@TIME[:EFF[:IMB]]",
+        help="with --fly: a rotor failure (repeatable: every failure with every seed)",
+    )
+    fl.add_argument(
+        "--vehicle",
+        choices=list(VEHICLE_PRESETS),
+        default="recovery",
+        help="with --fly: the vehicle (default: recovery)",
+    )
+    p.add_argument(
+        "--align",
+        choices=["none", "heading", "full"],
+        default=None,
+        help="constant navigation-frame rotation removed (default: the reader's recommendation)",
+    )
+    p.add_argument(
+        "-o",
+        "--out",
+        required=True,
+        type=Path,
+        metavar="RESULTS.parquet",
+        help="results file, one row per run (parts go to RESULTS.parquet.parts/ while it runs); "
+        "an existing one is resumed",
+    )
     p.add_argument("--retry-failed", action="store_true", help="run again the runs recorded as failed")
     p.add_argument("--json", metavar="OUT", help="write the summary as JSON")
     add_engine_args(p)
 
 
 def add_parsers(sub):
-    sw = sub.add_parser("sweep", help="run a grid of filters and parameters over many flights, on Dask",
-                        description="Run every (filter x parameter set x flight) and write one row per run "
-                                    "(parameters, metrics, status, error) to a Parquet file as runs finish. "
-                                    "Runs carry their seeds, so results do not depend on the number of workers; "
-                                    "an interrupted sweep resumes. docs/sweeps.md")
+    sw = sub.add_parser(
+        "sweep",
+        help="run a grid of filters and parameters over many flights, on Dask",
+        description="Run every (filter x parameter set x flight) and write one row per run "
+        "(parameters, metrics, status, error) to a Parquet file as runs finish. "
+        "Runs carry their seeds, so results do not depend on the number of workers; "
+        "an interrupted sweep resumes. docs/sweeps.md",
+    )
     sw.add_argument("--filters", default="quadest", help="quadest (default), all, peers, or a comma-separated list")
     _add_sweep_args(sw)
     sw.set_defaults(func=cmd_sweep)
 
-    tu = sub.add_parser("tune", help="choose a filter's parameters that minimise a metric over a set",
-                        description="Sweep one filter's parameter grid over flights or recordings and report "
-                                    "the best set for all trials together (the lowest mean: BROAD's "
-                                    "trial-agnostic choice) and per trial. docs/sweeps.md")
+    tu = sub.add_parser(
+        "tune",
+        help="choose a filter's parameters that minimise a metric over a set",
+        description="Sweep one filter's parameter grid over flights or recordings and report "
+        "the best set for all trials together (the lowest mean: BROAD's "
+        "trial-agnostic choice) and per trial. docs/sweeps.md",
+    )
     tu.add_argument("filter", help="the filter to tune (quadest's or a peer's name)")
-    tu.add_argument("--metric", default="total_rmse_deg",
-                    choices=["total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg", "roll_rms_deg",
-                             "pitch_rms_deg", "yaw_rms_deg"], help="metric to minimise (default: total_rmse_deg)")
-    tu.add_argument("--split", action="store_true",
-                    help="cross-validate: choose on one half of the trials (sorted, alternately), report the mean "
-                         "on the other half it never saw, and the reverse")
+    tu.add_argument(
+        "--metric",
+        default="total_rmse_deg",
+        choices=[
+            "total_rmse_deg",
+            "heading_rmse_deg",
+            "inclination_rmse_deg",
+            "roll_rms_deg",
+            "pitch_rms_deg",
+            "yaw_rms_deg",
+        ],
+        help="metric to minimise (default: total_rmse_deg)",
+    )
+    tu.add_argument(
+        "--split",
+        action="store_true",
+        help="cross-validate: choose on one half of the trials (sorted, alternately), report the mean "
+        "on the other half it never saw, and the reverse",
+    )
     _add_sweep_args(tu)
     tu.set_defaults(func=cmd_tune)

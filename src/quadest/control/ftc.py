@@ -38,6 +38,7 @@ measured rate ``ω`` and the position and velocity estimates:
 In the relaxed hover ``d_b = n`` and ``ω ∥ n``, so ``ω_d = ω`` and the controller supplies
 exactly the gyroscopic moment the equilibrium needs.
 """
+
 from __future__ import annotations
 
 import functools
@@ -45,37 +46,88 @@ from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 from scipy.optimize import fsolve
 
+from quadest._jit import njit
 from quadest.models.multirotor import MultirotorParams, fly_open_loop
 from quadest.records import check, check_triples, describe, param
 from quadest.rotation.kernels import rot_matrix
 
-FtcGains = namedtuple("FtcGains", ["n_b", "k_n", "k_i", "k_w", "k_p", "k_v", "max_tilt", "inertia", "damping",
-                                   "alloc_inv", "active", "mass", "gravity", "k_f", "t_max"])
+FtcGains = namedtuple(
+    "FtcGains",
+    [
+        "n_b",
+        "k_n",
+        "k_i",
+        "k_w",
+        "k_p",
+        "k_v",
+        "max_tilt",
+        "inertia",
+        "damping",
+        "alloc_inv",
+        "active",
+        "mass",
+        "gravity",
+        "k_f",
+        "t_max",
+    ],
+)
 """What the compiled controller reads (built by :meth:`FtcParams.gains`)."""
 
 
 @dataclass(frozen=True)
 class FtcParams:
-    rho: float = param(0.25, "-", "thrust of the rotor opposite the lost one over that of its neighbours",
-                       "chosen: leaves that rotor room to push and to relax (Mueller & D'Andrea 2014 leave "
-                       "it free); a smaller ratio spins faster and tilts less", bounds="[0, 1]")
-    k_n: float = param(12.0, "1/s", "primary-axis gain (rate commanded per unit of axis error)",
-                       "chosen: about a quarter of k_w", bounds="(0, 1e3]")
-    k_i: float = param(4.0, "1/s²", "integral gain on the primary-axis error (body frame)",
-                       "chosen: a third of k_n; removes the steady axis error the controller's model leaves "
-                       "(inflow and rotor drag it does not know: 3.4° without it)", bounds="[0, 1e3]")
-    k_w: float = param(50.0, "1/s", "rate gain (angular acceleration per rate error)",
-                       "chosen: above the spin rate (15-25 rad/s), below the motors' 1/τ", bounds="(0, 1e4]")
-    k_p: tuple = param((2.0, 2.0, 6.0), "1/s²", "position gain (north, east, down)",
-                       "chosen: a third of the nominal horizontal gains (the thrust axis turns with the spin)")
+    rho: float = param(
+        0.25,
+        "-",
+        "thrust of the rotor opposite the lost one over that of its neighbours",
+        "chosen: leaves that rotor room to push and to relax (Mueller & D'Andrea 2014 leave "
+        "it free); a smaller ratio spins faster and tilts less",
+        bounds="[0, 1]",
+    )
+    k_n: float = param(
+        12.0,
+        "1/s",
+        "primary-axis gain (rate commanded per unit of axis error)",
+        "chosen: about a quarter of k_w",
+        bounds="(0, 1e3]",
+    )
+    k_i: float = param(
+        4.0,
+        "1/s²",
+        "integral gain on the primary-axis error (body frame)",
+        "chosen: a third of k_n; removes the steady axis error the controller's model leaves "
+        "(inflow and rotor drag it does not know: 3.4° without it)",
+        bounds="[0, 1e3]",
+    )
+    k_w: float = param(
+        50.0,
+        "1/s",
+        "rate gain (angular acceleration per rate error)",
+        "chosen: above the spin rate (15-25 rad/s), below the motors' 1/τ",
+        bounds="(0, 1e4]",
+    )
+    k_p: tuple = param(
+        (2.0, 2.0, 6.0),
+        "1/s²",
+        "position gain (north, east, down)",
+        "chosen: a third of the nominal horizontal gains (the thrust axis turns with the spin)",
+    )
     k_v: tuple = param((2.5, 2.5, 5.0), "1/s", "velocity gain (north, east, down)", "chosen: about critical damping")
-    max_tilt_deg: float = param(25.0, "deg", "largest tilt of the commanded up direction",
-                                "chosen: keeps thrust for the height", bounds="(0, 80]")
-    yaw_damping: float | None = param(None, "N m s", "the controller's lumped yaw damping (None: fitted from "
-                                      "a simulated spin, fit_yaw_damping)", "fitted: the controller's model")
+    max_tilt_deg: float = param(
+        25.0,
+        "deg",
+        "largest tilt of the commanded up direction",
+        "chosen: keeps thrust for the height",
+        bounds="(0, 80]",
+    )
+    yaw_damping: float | None = param(
+        None,
+        "N m s",
+        "the controller's lumped yaw damping (None: fitted from a simulated spin, fit_yaw_damping)",
+        "fitted: the controller's model",
+    )
 
     def __post_init__(self):
         check(self, "ftc")
@@ -83,7 +135,7 @@ class FtcParams:
         if self.yaw_damping is not None and not (np.isfinite(self.yaw_damping) and self.yaw_damping > 0):
             raise ValueError(f"ftc: yaw_damping must be a positive number, got {self.yaw_damping!r}")
 
-    def model(self, vehicle: MultirotorParams) -> "FtcModel":
+    def model(self, vehicle: MultirotorParams) -> FtcModel:
         d_z = self.yaw_damping if self.yaw_damping is not None else fit_yaw_damping(vehicle, self.rho)
         return FtcModel.of(vehicle, d_z)
 
@@ -93,10 +145,23 @@ class FtcParams:
         active = np.array([j for j in range(vehicle.rotors) if j != failed], np.int64)
         pos = np.asarray(vehicle.rotor_pos, float)[active]
         A = np.vstack([np.ones(3), -pos[:, 1], pos[:, 0]])
-        return FtcGains(hover.axis, float(self.k_n), float(self.k_i), float(self.k_w), np.asarray(self.k_p, float),
-                        np.asarray(self.k_v, float), float(np.radians(self.max_tilt_deg)), np.asarray(model.inertia),
-                        np.asarray(model.damping), np.linalg.inv(A), active, float(vehicle.mass_kg),
-                        float(vehicle.gravity), float(vehicle.k_f), float(vehicle.k_f * vehicle.omega_max ** 2))
+        return FtcGains(
+            hover.axis,
+            float(self.k_n),
+            float(self.k_i),
+            float(self.k_w),
+            np.asarray(self.k_p, float),
+            np.asarray(self.k_v, float),
+            float(np.radians(self.max_tilt_deg)),
+            np.asarray(model.inertia),
+            np.asarray(model.damping),
+            np.linalg.inv(A),
+            active,
+            float(vehicle.mass_kg),
+            float(vehicle.gravity),
+            float(vehicle.k_f),
+            float(vehicle.k_f * vehicle.omega_max**2),
+        )
 
     @classmethod
     def describe(cls) -> list[dict]:
@@ -116,9 +181,16 @@ class FtcModel:
     kappa: float  # k_m / k_f
 
     @classmethod
-    def of(cls, v: MultirotorParams, yaw_damping: float) -> "FtcModel":
-        return cls(v.mass_kg, v.gravity, tuple(v.inertia), (v.damping[0], v.damping[1], float(yaw_damping)),
-                   tuple(map(tuple, v.rotor_pos)), tuple(v.spin), v.k_m / v.k_f)
+    def of(cls, v: MultirotorParams, yaw_damping: float) -> FtcModel:
+        return cls(
+            v.mass_kg,
+            v.gravity,
+            tuple(v.inertia),
+            (v.damping[0], v.damping[1], float(yaw_damping)),
+            tuple(map(tuple, v.rotor_pos)),
+            tuple(v.spin),
+            v.k_m / v.k_f,
+        )
 
 
 RelaxedHover = namedtuple("RelaxedHover", ["axis", "spin", "thrusts", "tilt_deg"])

@@ -1,14 +1,15 @@
 """The closed loop: the controller reads the state (for now the true one; the estimators come
 into the loop next), commands the rotors, the vehicle model integrates (RK4), every step in
 compiled code."""
+
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from quadest._jit import njit
 from quadest.control.se3 import SE3Params, se3_command
 from quadest.errors import UsageError
 from quadest.models.multirotor import MultirotorParams, rk4_ws, work
@@ -72,15 +73,18 @@ class Failure:
 
     def check(self, vehicle: MultirotorParams, duration_s: float) -> None:
         if not 0 <= self.rotor < vehicle.rotors:
-            raise UsageError(f"failure: rotor {self.rotor} does not exist (the vehicle has rotors 0 to "
-                             f"{vehicle.rotors - 1})")
+            raise UsageError(
+                f"failure: rotor {self.rotor} does not exist (the vehicle has rotors 0 to {vehicle.rotors - 1})"
+            )
         if not 0.0 <= self.time_s < duration_s:
             raise UsageError(f"failure: time {self.time_s} s lies outside the run (0 to {duration_s:g} s)")
         if not (math.isfinite(self.imbalance) and 0.0 <= self.imbalance <= MAX_IMBALANCE):
             raise UsageError(f"failure: imbalance must be between 0 and {MAX_IMBALANCE:g} kg m, got {self.imbalance}")
         if not 0.0 <= self.efficiency <= 1.0 or (self.efficiency == 1.0 and self.imbalance == 0.0):
-            raise UsageError(f"failure: efficiency must be in [0, 1) (1 only for a propeller with an imbalance), "
-                             f"got {self.efficiency}")
+            raise UsageError(
+                f"failure: efficiency must be in [0, 1) (1 only for a propeller with an imbalance), "
+                f"got {self.efficiency}"
+            )
 
 
 MAX_IMBALANCE = 1e-3
@@ -88,8 +92,17 @@ MAX_IMBALANCE = 1e-3
 propeller's; what a user meaning grams by millimetres (5 rather than 5e-6) would give."""
 
 
-def fly_se3(x0, reference, *, vehicle: MultirotorParams | None = None, gains: SE3Params | None = None,
-            rate_hz: float = 1000.0, eta=None, failure: Failure | None = None, return_eta: bool = False):
+def fly_se3(
+    x0,
+    reference,
+    *,
+    vehicle: MultirotorParams | None = None,
+    gains: SE3Params | None = None,
+    rate_hz: float = 1000.0,
+    eta=None,
+    failure: Failure | None = None,
+    return_eta: bool = False,
+):
     """Fly the vehicle from state ``x0`` along ``reference`` (``(p_d, v_d, a_d, yaw_d)``, one row
     per step at ``rate_hz``) with the SE(3) controller on the true state, a ``failure`` striking
     when it is due. Returns the states after each step (steps, 13 + N) and the rotor commands
@@ -106,8 +119,26 @@ def fly_se3(x0, reference, *, vehicle: MultirotorParams | None = None, gains: SE
     if failure is not None:
         failure.check(vehicle, steps / rate_hz)
         fail_rotor, fail_step, fail_eta = failure.rotor, int(round(failure.time_s * rate_hz)), failure.efficiency
-    out_x, out_cmd, out_eta = (np.empty((steps, len(x))), np.empty((steps, vehicle.rotors)),
-                               np.empty((steps, vehicle.rotors)))
-    _fly(x, eta, vehicle.vehicle(), gains.gains(vehicle), 1.0 / rate_hz, p_d, v_d, a_d, yaw_d, fail_rotor, fail_step,
-         float(fail_eta), out_x, out_cmd, out_eta)
+    out_x, out_cmd, out_eta = (
+        np.empty((steps, len(x))),
+        np.empty((steps, vehicle.rotors)),
+        np.empty((steps, vehicle.rotors)),
+    )
+    _fly(
+        x,
+        eta,
+        vehicle.vehicle(),
+        gains.gains(vehicle),
+        1.0 / rate_hz,
+        p_d,
+        v_d,
+        a_d,
+        yaw_d,
+        fail_rotor,
+        fail_step,
+        float(fail_eta),
+        out_x,
+        out_cmd,
+        out_eta,
+    )
     return (out_x, out_cmd, out_eta) if return_eta else (out_x, out_cmd)

@@ -21,14 +21,15 @@ then ``Ω_i = √(max(t_i, 0)/k_f)``. ``A⁻¹`` is computed once (:func:`alloca
 rotors cannot give all of it, the yaw moment yields first: ``M_z`` is scaled down (to zero if
 need be) until every rotor's thrust lies within ``[0, k_f Ω_max²]``.
 """
+
 from __future__ import annotations
 
 from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from quadest._jit import njit
 from quadest.models.multirotor import MultirotorParams
 from quadest.records import check, check_triples, describe, param
 from quadest.rotation.kernels import rot_matrix
@@ -39,22 +40,47 @@ Gains = namedtuple("Gains", ["k_p", "k_v", "k_R", "k_w", "alloc_inv", "k_f", "t_
 
 @dataclass(frozen=True)
 class SE3Params:
-    k_p: tuple = param((6.5, 6.5, 15.0), "1/s²", "position gain per unit mass (north, east, down)",
-                       "RotorPy SE3Control, Hummingbird gains (as quoted in shared/docs/anchors.md)")
-    k_v: tuple = param((4.0, 4.0, 9.0), "1/s", "velocity gain per unit mass",
-                       "RotorPy SE3Control, Hummingbird gains (as quoted in shared/docs/anchors.md)")
-    k_R: float = param(544.0, "1/s²", "attitude gain per unit inertia",
-                       "RotorPy SE3Control, Hummingbird gains (as quoted in shared/docs/anchors.md)", bounds="[0, 1e6]")
-    k_w: float = param(46.64, "1/s", "rate gain per unit inertia",
-                       "RotorPy SE3Control, Hummingbird gains (as quoted in shared/docs/anchors.md)", bounds="[0, 1e5]")
+    k_p: tuple = param(
+        (6.5, 6.5, 15.0),
+        "1/s²",
+        "position gain per unit mass (north, east, down)",
+        "RotorPy SE3Control, Hummingbird gains (as quoted in shared/docs/anchors.md)",
+    )
+    k_v: tuple = param(
+        (4.0, 4.0, 9.0),
+        "1/s",
+        "velocity gain per unit mass",
+        "RotorPy SE3Control, Hummingbird gains (as quoted in shared/docs/anchors.md)",
+    )
+    k_R: float = param(
+        544.0,
+        "1/s²",
+        "attitude gain per unit inertia",
+        "RotorPy SE3Control, Hummingbird gains (as quoted in shared/docs/anchors.md)",
+        bounds="[0, 1e6]",
+    )
+    k_w: float = param(
+        46.64,
+        "1/s",
+        "rate gain per unit inertia",
+        "RotorPy SE3Control, Hummingbird gains (as quoted in shared/docs/anchors.md)",
+        bounds="[0, 1e5]",
+    )
 
     def __post_init__(self):
         check(self, "se3")
         check_triples(self, "se3", "k_p", "k_v")
 
     def gains(self, vehicle: MultirotorParams) -> Gains:
-        return Gains(np.asarray(self.k_p, float), np.asarray(self.k_v, float), float(self.k_R), float(self.k_w),
-                     allocation(vehicle), float(vehicle.k_f), float(vehicle.k_f * vehicle.omega_max ** 2))
+        return Gains(
+            np.asarray(self.k_p, float),
+            np.asarray(self.k_v, float),
+            float(self.k_R),
+            float(self.k_w),
+            allocation(vehicle),
+            float(vehicle.k_f),
+            float(vehicle.k_f * vehicle.omega_max**2),
+        )
 
     @classmethod
     def describe(cls) -> list[dict]:

@@ -6,6 +6,7 @@ and renamed onto the target only once it is complete. A failed or interrupted wr
 disk, ``ulimit -f``, Ctrl-C) leaves the old file as it was, or no file, never a shorter one
 that reads back as valid.
 """
+
 from __future__ import annotations
 
 import json
@@ -22,8 +23,9 @@ def atomic_output(path, *, suffix: str | None = None):
     (default: the target's) lets writers that choose a format by extension see the right one."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=(suffix if suffix is not None else path.suffix) + ".tmp",
-                               dir=path.parent)
+    fd, tmp = tempfile.mkstemp(
+        prefix=f".{path.name}.", suffix=(suffix if suffix is not None else path.suffix) + ".tmp", dir=path.parent
+    )
     os.close(fd)
     tmp = Path(tmp)
     try:

@@ -11,6 +11,7 @@ is fixed (docs/recordings.md)::
 
 and the metadata stands in ``# key: <json>`` comment lines at the top.
 """
+
 from __future__ import annotations
 
 import io
@@ -37,8 +38,10 @@ TRUTH_FIELDS = {
     "true_pos": (("n", "e", "d"), "position, m, navigation frame"),
     "true_vel": (("n", "e", "d"), "velocity, m/s, navigation frame"),
     "true_acc": (("x", "y", "z"), "specific force at the IMU, m/s², body frame"),
-    "ref_q": (("w", "x", "y", "z"), "reference attitude q_nb from the vehicle's own estimator "
-                                     "(PX4 EKF2, ArduPilot EKF): not independent truth"),
+    "ref_q": (
+        ("w", "x", "y", "z"),
+        "reference attitude q_nb from the vehicle's own estimator (PX4 EKF2, ArduPilot EKF): not independent truth",
+    ),
 }
 SENSOR_FIELDS = ("gyr", "acc", "mag")
 
@@ -106,8 +109,9 @@ class Recording:
         step = np.diff(t) <= 0
         if step.any():
             i = _first_row(step) + 1
-            raise ValueError(f"t: not strictly increasing at row {i} "
-                             f"(t[{i}] = {float(t[i])!r} <= t[{i - 1}] = {float(t[i - 1])!r})")
+            raise ValueError(
+                f"t: not strictly increasing at row {i} (t[{i}] = {float(t[i])!r} <= t[{i - 1}] = {float(t[i - 1])!r})"
+            )
         object.__setattr__(self, "t", t)
         for name in ("gyr", "acc"):
             a = self._array(name, getattr(self, name), width=3, n=n)
@@ -141,7 +145,7 @@ class Recording:
             raise ValueError(f"meta: must be JSON-serialisable ({exc})") from None
         meta.setdefault("units", {})
         if not isinstance(meta["units"], dict):
-            raise ValueError(f"meta: units must be a mapping like {{\"mag\": \"uT\"}}, got {meta['units']!r}")
+            raise ValueError(f'meta: units must be a mapping like {{"mag": "uT"}}, got {meta["units"]!r}')
         meta["units"] = {"gyr": "rad/s", "acc": "m/s^2", "mag": "unknown", **meta["units"]}
         object.__setattr__(self, "meta", meta)
         if self.check_units:
@@ -166,8 +170,9 @@ class Recording:
         nan = np.isnan(a)
         partial = nan.any(axis=1) & ~nan.all(axis=1)
         if partial.any():
-            raise ValueError(f"{name}: row {_first_row(partial)} is partly NaN; a row without a "
-                             "sample must be NaN in every column")
+            raise ValueError(
+                f"{name}: row {_first_row(partial)} is partly NaN; a row without a sample must be NaN in every column"
+            )
         inf = np.isinf(a).any(axis=1)
         if inf.any():
             raise ValueError(f"{name}: infinite value at row {_first_row(inf)}")
@@ -179,37 +184,48 @@ class Recording:
             raise ValueError(
                 f"gyr: {np.abs(self.gyr[i]).max():.1f} at row {i} exceeds {GYR_LIMIT:.0f} rad/s, "
                 "more than any MEMS gyroscope measures: is the gyroscope in deg/s? "
-                "quadest takes rad/s (multiply deg/s by pi/180)")
+                "quadest takes rad/s (multiply deg/s by pi/180)"
+            )
         with np.errstate(over="ignore"):  # a damaged file may hold 1e300: its norm is inf, refused below
             norm = np.linalg.norm(self.acc, axis=1)
         big = norm > ACC_LIMIT
         if big.any():
             i = _first_row(big)
-            raise ValueError(f"acc: norm {norm[i]:.1f} at row {i} exceeds {ACC_LIMIT:.0f} m/s²: "
-                             "is the accelerometer in mg or raw counts? quadest takes m/s²")
+            raise ValueError(
+                f"acc: norm {norm[i]:.1f} at row {i} exceeds {ACC_LIMIT:.0f} m/s²: "
+                "is the accelerometer in mg or raw counts? quadest takes m/s²"
+            )
         med, p95 = np.median(norm), np.percentile(norm, 95)
         if len(norm) >= 10 and 0.5 < med < 1.5 and p95 < 3.0:
-            raise ValueError(f"acc: norms look like g, not m/s² (median {med:.3f}, row 0 reads "
-                             f"{norm[0]:.3f}); quadest takes m/s² (multiply g by 9.80665)")
+            raise ValueError(
+                f"acc: norms look like g, not m/s² (median {med:.3f}, row 0 reads "
+                f"{norm[0]:.3f}); quadest takes m/s² (multiply g by 9.80665)"
+            )
         # not rotating (gyroscope quiet), the accelerometer reads gravity (about 9.8 m/s²) or,
         # falling without rotation, less: never much more
         rest = np.abs(self.gyr).max(axis=1) < REST_RATE
         if rest.sum() >= MIN_REST_SAMPLES:
             g_rest = float(np.median(norm[rest]))
             if 500.0 < g_rest < 2000.0:  # 1 g = 1000 mg
-                raise ValueError(f"acc: at rest the accelerometer reads {g_rest:.0f} (median norm): that is gravity "
-                                 "in mg (or cm/s²), not m/s²; quadest takes m/s² (multiply mg by 0.00980665)")
+                raise ValueError(
+                    f"acc: at rest the accelerometer reads {g_rest:.0f} (median norm): that is gravity "
+                    "in mg (or cm/s²), not m/s²; quadest takes m/s² (multiply mg by 0.00980665)"
+                )
             if g_rest > 2.0 * GRAVITY:
-                raise ValueError(f"acc: at rest (gyroscope below {REST_RATE} rad/s, {int(rest.sum())} samples) the "
-                                 f"accelerometer reads {g_rest:.3g} (median norm), not gravity (9.81 m/s²): is "
-                                 "it in another unit (ft/s²?) or scaled? quadest takes m/s²")
+                raise ValueError(
+                    f"acc: at rest (gyroscope below {REST_RATE} rad/s, {int(rest.sum())} samples) the "
+                    f"accelerometer reads {g_rest:.3g} (median norm), not gravity (9.81 m/s²): is "
+                    "it in another unit (ft/s²?) or scaled? quadest takes m/s²"
+                )
         # the time: an IMU samples faster than once a second
         if len(self.t) >= 10:
             med_dt = float(np.median(np.diff(self.t)))
             if med_dt > 1.0:
                 unit = "µs" if med_dt > 200.0 else "ms"
-                raise ValueError(f"t: the median interval is {med_dt:g} s ({1 / med_dt:.3g} Hz), slower than any "
-                                 f"IMU: is the time in {unit}? quadest takes seconds")
+                raise ValueError(
+                    f"t: the median interval is {med_dt:g} s ({1 / med_dt:.3g} Hz), slower than any "
+                    f"IMU: is the time in {unit}? quadest takes seconds"
+                )
 
     # -- properties ---------------------------------------------------------------------
     def __len__(self):
@@ -254,12 +270,12 @@ class Recording:
             return 0.0
         return float((len(tm) - 1) / (tm[-1] - tm[0]))
 
-    def select(self, index) -> "Recording":
+    def select(self, index) -> Recording:
         """A new recording with the rows ``index`` (slice, boolean mask or integer array)."""
         kw = {k: getattr(self, k)[index] for k in ("t", "gyr", "acc", "mag", *self.truth)}
         return Recording(**kw, meta=self.meta, check_units=False)
 
-    def between(self, t0: float, t1: float) -> "Recording":
+    def between(self, t0: float, t1: float) -> Recording:
         """Rows with ``t0 <= t <= t1``."""
         return self.select((self.t >= t0) & (self.t <= t1))
 
@@ -293,8 +309,9 @@ def save_recording(rec: Recording, path) -> Path:
     if kind == "parquet":
         import pyarrow.parquet as pq
 
-        table = table.replace_schema_metadata({b"quadest": json.dumps(
-            {"format": FORMAT_TAG, "meta": rec.meta, "rows": len(rec)}).encode()})
+        table = table.replace_schema_metadata(
+            {b"quadest": json.dumps({"format": FORMAT_TAG, "meta": rec.meta, "rows": len(rec)}).encode()}
+        )
         with atomic_output(path) as tmp:
             pq.write_table(table, tmp)
         return path
@@ -333,8 +350,10 @@ def _from_columns(names, get, meta, source, check_units=True) -> Recording:
             known.update(cols)
     extra = [c for c in names if c not in known]
     if extra:
-        raise ValueError(f"{source}: unexpected column(s) {', '.join(extra)} "
-                         "(the recording header is documented in docs/recordings.md)")
+        raise ValueError(
+            f"{source}: unexpected column(s) {', '.join(extra)} "
+            "(the recording header is documented in docs/recordings.md)"
+        )
     try:
         return Recording(**kw, meta=meta, check_units=check_units)  # checked like any other file
     except ValueError as exc:
@@ -377,7 +396,7 @@ def load_recording(path, *, check_units: bool = True) -> Recording:
     while data.startswith(b"#", pos):
         end = data.find(b"\n", pos)
         end = len(data) if end < 0 else end
-        line = data[pos + 1:end].decode("utf-8", "replace").strip()
+        line = data[pos + 1 : end].decode("utf-8", "replace").strip()
         pos = end + 1
         if line.startswith("quadest recording"):
             tag = line
@@ -397,12 +416,15 @@ def load_recording(path, *, check_units: bool = True) -> Recording:
         # v2: the file must end with its end line; a file cut anywhere lacks it
         end_at = body.rfind(b"\n" + END_MARK.encode())
         if end_at < 0 or not body.endswith(b" rows\n"):
-            raise ValueError(f"{path}: the file is cut short (its end line is missing"
-                             + (f"; it states {rows} rows)" if rows is not None else ")"))
-        body = body[:end_at + 1]
+            raise ValueError(
+                f"{path}: the file is cut short (its end line is missing"
+                + (f"; it states {rows} rows)" if rows is not None else ")")
+            )
+        body = body[: end_at + 1]
     try:
-        table = pcsv.read_csv(io.BytesIO(body), convert_options=pcsv.ConvertOptions(
-            column_types={}, strings_can_be_null=True))
+        table = pcsv.read_csv(
+            io.BytesIO(body), convert_options=pcsv.ConvertOptions(column_types={}, strings_can_be_null=True)
+        )
     except pa.ArrowException as exc:
         raise ValueError(f"{path}: malformed CSV ({str(exc).splitlines()[0]})") from None
     if rows is not None and rows != table.num_rows:

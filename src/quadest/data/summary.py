@@ -1,4 +1,5 @@
 """What ``quadest info`` prints: duration, rates, ranges, gaps and the truth present."""
+
 import numpy as np
 
 from quadest.data.recording import TRUTH_FIELDS, Recording
@@ -35,8 +36,11 @@ def summarize(rec: Recording) -> dict:
         a = getattr(rec, name)
         ok = np.isfinite(a[:, 0])
         if ok.any():
-            out["ranges"][name] = {"min": a[ok].min(axis=0).tolist(), "max": a[ok].max(axis=0).tolist(),
-                                   "norm_mean": float(np.linalg.norm(a[ok], axis=1).mean())}
+            out["ranges"][name] = {
+                "min": a[ok].min(axis=0).tolist(),
+                "max": a[ok].max(axis=0).tolist(),
+                "norm_mean": float(np.linalg.norm(a[ok], axis=1).mean()),
+            }
     for key in ("source", "format", "dataset", "frames", "scenario", "preset", "seed"):
         if key in rec.meta:
             out[key] = rec.meta[key]
@@ -53,20 +57,25 @@ def format_summary(s: dict, name: str = "") -> str:
     lines += [
         f"samples     {s['samples']}",
         f"duration    {s['duration_s']:.3f} s (from t = {s['t_start_s']:.3f} s)",
-        f"IMU rate    {s['imu_rate_hz']:.2f} Hz (interval {s['dt_min_s'] * 1e3:.3f} to "
-        f"{s['dt_max_s'] * 1e3:.3f} ms)",
-        f"mag         {s['mag_samples']} samples, {s['mag_rate_hz']:.2f} Hz" if s["mag_samples"]
+        f"IMU rate    {s['imu_rate_hz']:.2f} Hz (interval {s['dt_min_s'] * 1e3:.3f} to {s['dt_max_s'] * 1e3:.3f} ms)",
+        f"mag         {s['mag_samples']} samples, {s['mag_rate_hz']:.2f} Hz"
+        if s["mag_samples"]
         else "mag         none",
     ]
     for w in s.get("warnings", []):
         lines.append(f"warning     {w}")
     if s.get("dropped_rows"):
-        lines.append(f"dropped     {s['dropped_rows']} row(s) of the file (repeated or decreasing time, or a "
-                     "non-finite IMU value)")
+        lines.append(
+            f"dropped     {s['dropped_rows']} row(s) of the file (repeated or decreasing time, or a "
+            "non-finite IMU value)"
+        )
     g = s["gaps"]
-    lines.append(f"gaps        {g['count']} (intervals > {GAP_FACTOR:g}x median), longest "
-                 f"{g['longest_s'] * 1e3:.1f} ms, first at t = {g['first_at_s']:.3f} s"
-                 if g["count"] else "gaps        none")
+    lines.append(
+        f"gaps        {g['count']} (intervals > {GAP_FACTOR:g}x median), longest "
+        f"{g['longest_s'] * 1e3:.1f} ms, first at t = {g['first_at_s']:.3f} s"
+        if g["count"]
+        else "gaps        none"
+    )
     for name, r in s["ranges"].items():
         unit = u.get(name, "")
         lo = ", ".join(f"{v:+.3g}" for v in r["min"])

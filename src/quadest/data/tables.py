@@ -1,4 +1,5 @@
 """Writing a table of named columns (an estimate's attitude, for example) to CSV or Parquet."""
+
 from __future__ import annotations
 
 from pathlib import Path

@@ -1,5 +1,6 @@
 """quadest's small JSON files (calibrations, aerodynamic models): a ``format`` tag says what a
 file is, so a wrong or damaged file is refused in one line."""
+
 from __future__ import annotations
 
 import json

@@ -12,6 +12,7 @@ marker body). Both are least-squares (chordal) means; with both unknown, ``q_bod
 from the rotation that best maps the estimate's body rotation increments onto the truth's
 (Kabsch on rotation vectors over 0.5 s) and the two are refined alternately.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -77,8 +78,16 @@ def _body_init(q_est, q_true, lag):
     return matrix_to_quat(R.T)
 
 
-def fit_alignment(q_est, q_true, *, nav: str = "heading", body: bool = False, mask=None,
-                  rate_hz: float | None = None, iterations: int = 30) -> Alignment:
+def fit_alignment(
+    q_est,
+    q_true,
+    *,
+    nav: str = "heading",
+    body: bool = False,
+    mask=None,
+    rate_hz: float | None = None,
+    iterations: int = 30,
+) -> Alignment:
     """Fit the constant rotations over the rows with truth (and ``mask``)."""
     if nav not in NAV_MODES:
         raise ValueError(f"unknown alignment {nav!r}; one of {', '.join(NAV_MODES)}")

@@ -1,6 +1,7 @@
 """Benchmarks on real recordings: BROAD with its own metric, and the quadrotor flights (DIDO,
 Blackbird) with roll/pitch/yaw RMS; quadest's filters and the installed peers side by side
 (docs/readers.md, benchmarks)."""
+
 from __future__ import annotations
 
 import json
@@ -9,9 +10,9 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from quadest.filters.peers import available_peers
 from quadest.evaluation.runner import estimate, score
 from quadest.filters import FILTERS
+from quadest.filters.peers import available_peers
 from quadest.readers import detect_format, read_recording
 
 
@@ -66,8 +67,9 @@ def benchmark_broad(data_dir, names=None, *, trials: str = "*", nav: str = "none
         for g in groups_of.get(trial, ["all_trials"]):
             groups.setdefault(g, []).append(trial)
     for g, members in groups.items():
-        out["groups"][g] = {n: {k: float(np.mean([out["trials"][t][n][k] for t in members])) for k in METRICS}
-                            for n in names}
+        out["groups"][g] = {
+            n: {k: float(np.mean([out["trials"][t][n][k] for t in members])) for k in METRICS} for n in names
+        }
         out["groups"][g]["_trials"] = len(members)
     return out
 
@@ -93,20 +95,26 @@ def benchmark_flights(data_dir, names=None, *, nav: str = "heading", progress: b
     names = list(names or default_names())
     flights = find_flights(data_dir)
     if not flights:
-        raise ValueError(f"{data_dir}: no DIDO flight (*.hdf5) or Blackbird folder found (quadest data fetch "
-                         "blackbird_clover puts the Blackbird flights in the cache; DIDO: quadest data list)")
+        raise ValueError(
+            f"{data_dir}: no DIDO flight (*.hdf5) or Blackbird folder found (quadest data fetch "
+            "blackbird_clover puts the Blackbird flights in the cache; DIDO: quadest data list)"
+        )
     out = {"flights": {}, "mean": {}, "filters": names, "alignment": nav}
     bar = tqdm(total=len(flights) * len(names), unit="run", desc="benchmark flights", disable=not progress)
     for f in flights:
         rec = read_recording(f)
-        key = f"{rec.meta.get('dataset', '')}/{f.parent.name + '/' if f.is_dir() else ''}{f.stem if f.is_file() else f.name}"
+        folder = f.parent.name + "/" if f.is_dir() else ""
+        key = f"{rec.meta.get('dataset', '')}/{folder}{f.stem if f.is_file() else f.name}"
         out["flights"][key] = {"samples": len(rec), "duration_s": rec.duration}
         for n in names:
             bar.set_postfix_str(f"{key[:24]} {n}")
             s = score(rec, estimate(rec, n).q, nav=nav, body=False)
-            out["flights"][key][n] = {"rms_deg": s["rms_deg"], "total_rmse_deg": s["total_rmse_deg"],
-                                      "inclination_rmse_deg": s["inclination_rmse_deg"],
-                                      "alignment": s.get("alignment")}
+            out["flights"][key][n] = {
+                "rms_deg": s["rms_deg"],
+                "total_rmse_deg": s["total_rmse_deg"],
+                "inclination_rmse_deg": s["inclination_rmse_deg"],
+                "alignment": s.get("alignment"),
+            }
             bar.update(1)
     bar.close()
     for n in names:
@@ -136,8 +144,13 @@ def benchmark_repoimu(data_dir, names=None, *, progress: bool = False) -> dict:
     trials = find_repoimu(data_dir)
     if not trials:
         raise ValueError(f"{data_dir}: no RepoIMU trial (*.csv) found (quadest data list says where to get them)")
-    out = {"trials": {}, "mean": {}, "filters": names, "alignment": "heading and body rotation (the reader's)",
-           "without_truth": []}
+    out = {
+        "trials": {},
+        "mean": {},
+        "filters": names,
+        "alignment": "heading and body rotation (the reader's)",
+        "without_truth": [],
+    }
     bar = tqdm(total=len(trials) * len(names), unit="run", desc="benchmark repoimu", disable=not progress)
     for f in trials:
         rec = read_recording(f)
@@ -150,8 +163,11 @@ def benchmark_repoimu(data_dir, names=None, *, progress: bool = False) -> dict:
         for n in names:
             bar.set_postfix_str(f"{key[:24]} {n}")
             s = score(rec, estimate(rec, n).q)
-            out["trials"][key][n] = {"rms_deg": s["rms_deg"], "total_rmse_deg": s["total_rmse_deg"],
-                                     "samples": s["samples"]}
+            out["trials"][key][n] = {
+                "rms_deg": s["rms_deg"],
+                "total_rmse_deg": s["total_rmse_deg"],
+                "samples": s["samples"],
+            }
             bar.update(1)
     bar.close()
     for n in names:
@@ -164,8 +180,10 @@ def benchmark_repoimu(data_dir, names=None, *, progress: bool = False) -> dict:
 def format_repoimu(res: dict) -> str:
     names = res["filters"]
     w = max(9, *(len(n) for n in names)) + 1
-    lines = [f"RepoIMU: RMS error [deg] (9-axis; alignment: {res['alignment']})",
-             "trial / roll, pitch, yaw, total".ljust(36) + "".join(n.rjust(w) for n in names)]
+    lines = [
+        f"RepoIMU: RMS error [deg] (9-axis; alignment: {res['alignment']})",
+        "trial / roll, pitch, yaw, total".ljust(36) + "".join(n.rjust(w) for n in names),
+    ]
     for t, row in res["trials"].items():
         lines.append(f"{t} ({row['samples']} samples)")
         for a in ("roll", "pitch", "yaw"):
@@ -175,24 +193,32 @@ def format_repoimu(res: dict) -> str:
         lines.append(f"not scored (no Vicon truth): {', '.join(res['without_truth'])}")
     lines.append("mean over trials")
     for a in ("roll", "pitch", "yaw", "total_rmse_deg"):
-        lines.append(f"  {a}".ljust(36) + "".join(
-            f"{(res['mean'][n][a] if a != 'total_rmse_deg' else res['mean'][n]['total_rmse_deg']):{w}.2f}"
-            for n in names))
+        lines.append(
+            f"  {a}".ljust(36)
+            + "".join(
+                f"{(res['mean'][n][a] if a != 'total_rmse_deg' else res['mean'][n]['total_rmse_deg']):{w}.2f}"
+                for n in names
+            )
+        )
     return "\n".join(lines)
 
 
 def format_broad(res: dict) -> str:
     names = res["filters"]
     w = max(9, *(len(n) for n in names)) + 1
-    lines = [f"BROAD: total RMSE [deg] over the movement phases (alignment: {res['alignment']})",
-             "trial".ljust(34) + "".join(n.rjust(w) for n in names)]
+    lines = [
+        f"BROAD: total RMSE [deg] over the movement phases (alignment: {res['alignment']})",
+        "trial".ljust(34) + "".join(n.rjust(w) for n in names),
+    ]
     for t, row in res["trials"].items():
         lines.append(t[:33].ljust(34) + "".join(f"{row[n]['total_rmse_deg']:{w}.2f}" for n in names))
     lines.append("")
     lines.append("group means: total / heading / inclination RMSE [deg]")
     lines.append("group (trials)".ljust(34) + "".join(n.rjust(w) for n in names))
     for g, row in res["groups"].items():
-        lines.append(f"{g} ({row['_trials']})"[:33].ljust(34) + "".join(f"{row[n]['total_rmse_deg']:{w}.2f}" for n in names))
+        lines.append(
+            f"{g} ({row['_trials']})"[:33].ljust(34) + "".join(f"{row[n]['total_rmse_deg']:{w}.2f}" for n in names)
+        )
         lines.append("  heading".ljust(34) + "".join(f"{row[n]['heading_rmse_deg']:{w}.2f}" for n in names))
         lines.append("  inclination".ljust(34) + "".join(f"{row[n]['inclination_rmse_deg']:{w}.2f}" for n in names))
     return "\n".join(lines)

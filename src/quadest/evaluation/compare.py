@@ -1,5 +1,6 @@
 """Run several estimators on one recording and tabulate their errors and speed (``quadest
 compare``), through the one runner (:mod:`quadest.evaluation.runner`)."""
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -31,9 +32,17 @@ def parse_params(items) -> dict:
     return out
 
 
-def compare(rec: Recording, names, *, params: dict | None = None, t_from: float | None = None,
-            timing: bool = True, source: str = "", align: str | None = None,
-            align_body: bool | None = None) -> tuple[dict, dict]:
+def compare(
+    rec: Recording,
+    names,
+    *,
+    params: dict | None = None,
+    t_from: float | None = None,
+    timing: bool = True,
+    source: str = "",
+    align: str | None = None,
+    align_body: bool | None = None,
+) -> tuple[dict, dict]:
     """Errors (and speed) of each estimator on ``rec``. Returns ``(report, results)`` where the
     report follows the JSON layout of ``quadest compare --json``. ``align`` (none, heading,
     full) and ``align_body`` remove constant frame rotations before the errors (default: what
@@ -44,8 +53,13 @@ def compare(rec: Recording, names, *, params: dict | None = None, t_from: float 
     params = params or {}
     results = estimate_all(rec, names, params)
     mask = evaluation_mask(rec, t_from)
-    report = {"recording": source, "from_s": t_from, "against": truth, "alignment": {"nav": nav, "body": body},
-              "filters": {}}
+    report = {
+        "recording": source,
+        "from_s": t_from,
+        "against": truth,
+        "alignment": {"nav": nav, "body": body},
+        "filters": {},
+    }
     for name, res in results.items():
         aligned: list = []
         entry = score(rec, res.q, truth=truth, nav=nav, body=body, mask=mask, aligned=aligned)
@@ -60,8 +74,10 @@ def compare(rec: Recording, names, *, params: dict | None = None, t_from: float 
     return report, results
 
 
-def format_tables(report: dict, metrics=(("rms_deg", "RMS error [deg]"), ("var_deg2", "variance [deg²]"),
-                                         ("mae_deg", "mean absolute error [deg]"))) -> str:
+def format_tables(
+    report: dict,
+    metrics=(("rms_deg", "RMS error [deg]"), ("var_deg2", "variance [deg²]"), ("mae_deg", "mean absolute error [deg]")),
+) -> str:
     """One table per metric: filters as columns, roll/pitch/yaw as rows (like the papers)."""
     names = list(report["filters"])
     w = max(12, *(len(n) + 2 for n in names))
@@ -75,6 +91,7 @@ def format_tables(report: dict, metrics=(("rms_deg", "RMS error [deg]"), ("var_d
     if all("us_per_sample" in report["filters"][n] for n in names):
         lines.append("execution time [µs/sample]")
         lines.append(f"{'batch':<8}" + "".join(f"{report['filters'][n]['us_per_sample']:>{w}.3f}" for n in names))
-        lines.append(f"{'stream':<8}" + "".join(
-            f"{report['filters'][n]['us_per_sample_streaming']:>{w}.2f}" for n in names))
+        lines.append(
+            f"{'stream':<8}" + "".join(f"{report['filters'][n]['us_per_sample_streaming']:>{w}.2f}" for n in names)
+        )
     return "\n".join(lines).rstrip()

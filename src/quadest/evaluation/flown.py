@@ -17,6 +17,7 @@ the fault-tolerant controller's loop instead of the truth, many seeds, with the 
 baseline and of the ablations that matter (:data:`IN_LOOP_VARIANTS`): which estimators keep the
 vehicle up, and in place (:func:`in_loop_seed`, :func:`in_loop_table`).
 """
+
 from __future__ import annotations
 
 import math
@@ -38,23 +39,45 @@ from quadest.sim import build_config
 class FlownAfckfParams:
     """What the flown reproduction assumes beyond the vehicle and its sensors."""
 
-    vehicle: str = param("bebop2", "-", "vehicle preset (docs/vehicle.md)",
-                         "the AFCKF paper's vehicle, a Parrot Bebop 2 (Sun et al. 2021's simulation parameters)")
+    vehicle: str = param(
+        "bebop2",
+        "-",
+        "vehicle preset (docs/vehicle.md)",
+        "the AFCKF paper's vehicle, a Parrot Bebop 2 (Sun et al. 2021's simulation parameters)",
+    )
     preset: str = param("bebop2", "-", "sensor preset (docs/simulator.md)", "the prescribed reproduction's")
-    rotor: int = param(0, "-", "the rotor lost (front right)", "chosen: the paper does not say which",
-                       bounds="[0, 3]")
-    failure_s: float = param(5.0, "s", "time of the loss", "chosen: as the prescribed scenario; the filters have "
-                             "converged in hover by then", bounds="(0, 3600]")
-    duration_s: float = param(30.0, "s", "length of each flight", "chosen: 25 s after the loss, mostly the "
-                              "settled spin", bounds="(0, 3600]")
-    height_m: float = param(10.0, "m", "height of the hover point above the ground",
-                            "chosen: room for the Bebop 2's fall after the loss (2.6 m from hover, 5.4 m from the "
-                            "circle)", bounds="(0, 1e3]")
-    calibration_seed: int = param(1000, "-", "the AFCKF's centrifugal calibration flight (never evaluated)",
-                                  "chosen: apart from the evaluated seeds", bounds="[0, 1e9]")
-    calibration_after_s: float = param(8.0, "s", "the calibration reads the spin from this long after the loss",
-                                       "chosen: the relaxed hover has settled (about 6 s on the Bebop 2)",
-                                       bounds="[0, 3600]")
+    rotor: int = param(0, "-", "the rotor lost (front right)", "chosen: the paper does not say which", bounds="[0, 3]")
+    failure_s: float = param(
+        5.0,
+        "s",
+        "time of the loss",
+        "chosen: as the prescribed scenario; the filters have converged in hover by then",
+        bounds="(0, 3600]",
+    )
+    duration_s: float = param(
+        30.0, "s", "length of each flight", "chosen: 25 s after the loss, mostly the settled spin", bounds="(0, 3600]"
+    )
+    height_m: float = param(
+        10.0,
+        "m",
+        "height of the hover point above the ground",
+        "chosen: room for the Bebop 2's fall after the loss (2.6 m from hover, 5.4 m from the circle)",
+        bounds="(0, 1e3]",
+    )
+    calibration_seed: int = param(
+        1000,
+        "-",
+        "the AFCKF's centrifugal calibration flight (never evaluated)",
+        "chosen: apart from the evaluated seeds",
+        bounds="[0, 1e9]",
+    )
+    calibration_after_s: float = param(
+        8.0,
+        "s",
+        "the calibration reads the spin from this long after the loss",
+        "chosen: the relaxed hover has settled (about 6 s on the Bebop 2)",
+        bounds="[0, 3600]",
+    )
 
     def __post_init__(self):
         check(self, "flown afckf")
@@ -80,9 +103,18 @@ def flown_flight(case: str, seed: int, p: FlownAfckfParams | None = None, config
     """One flight of ``case`` (:data:`CASES`) with the truth in the loop."""
     p = p or FlownAfckfParams()
     scenario, lost = CASES[case]
-    return fly(scenario, estimator="truth", controller="ftc" if lost else "se3", vehicle=p.vehicle,
-               preset=p.preset, config=config, seed=seed, duration=p.duration_s,
-               failure=Failure(p.rotor, p.failure_s) if lost else None, params=FlightParams(height_m=p.height_m))
+    return fly(
+        scenario,
+        estimator="truth",
+        controller="ftc" if lost else "se3",
+        vehicle=p.vehicle,
+        preset=p.preset,
+        config=config,
+        seed=seed,
+        duration=p.duration_s,
+        failure=Failure(p.rotor, p.failure_s) if lost else None,
+        params=FlightParams(height_m=p.height_m),
+    )
 
 
 def flight_outputs(flight, t_from: float) -> dict:
@@ -93,9 +125,13 @@ def flight_outputs(flight, t_from: float) -> dict:
     after = rec.t >= t_from
     clipped = (np.abs(rec.gyr[after]) >= rng * (1 - 1e-12)).any(axis=1)
     s = flight.summary
-    return {"status": s["status"], "spin_rate_rad_s": s.get("spin_rate_rad_s"), "tilt_deg": s.get("tilt_deg"),
-            "gyro_clipped_share": float(clipped.mean()) if clipped.size else 0.0,
-            "peak_rate_rad_s": float(np.abs(rec.true_gyr[after]).max()) if after.any() else None}
+    return {
+        "status": s["status"],
+        "spin_rate_rad_s": s.get("spin_rate_rad_s"),
+        "tilt_deg": s.get("tilt_deg"),
+        "gyro_clipped_share": float(clipped.mean()) if clipped.size else 0.0,
+        "peak_rate_rad_s": float(np.abs(rec.true_gyr[after]).max()) if after.any() else None,
+    }
 
 
 def afckf_calibration_flown(p: FlownAfckfParams | None = None) -> dict:
@@ -104,15 +140,22 @@ def afckf_calibration_flown(p: FlownAfckfParams | None = None) -> dict:
     p = p or FlownAfckfParams()
     rec = flown_flight("damaged-rotor", p.calibration_seed, p).recording
     cal = calibrate_centrifugal([rec.between(p.failure_s + p.calibration_after_s, np.inf)])
-    return {"omega1": float(cal.values["omega1"]), "omega2": float(cal.values["omega2"]),
-            "uncertainty_m": float(cal.uncertainty["omega1"]), "residual_mps2": cal.quality["residual_rms_mps2"],
-            "seed": p.calibration_seed, "flown": True}
+    return {
+        "omega1": float(cal.values["omega1"]),
+        "omega2": float(cal.values["omega2"]),
+        "uncertainty_m": float(cal.uncertainty["omega1"]),
+        "residual_mps2": cal.quality["residual_rms_mps2"],
+        "seed": p.calibration_seed,
+        "flown": True,
+    }
 
 
 def score_filters(rec, params: dict, t_from: float) -> dict:
     """Every filter of the reproduction (:data:`LABELS`) over ``rec``, scored from ``t_from``."""
-    return {label: score_result(rec, estimate(rec, name, params.get(label)), t_from=t_from)
-            for name, label in zip(FILTERS, LABELS)}
+    return {
+        label: score_result(rec, estimate(rec, name, params.get(label)), t_from=t_from)
+        for name, label in zip(FILTERS, LABELS)
+    }
 
 
 def flown_seed(task) -> dict:
@@ -180,11 +223,15 @@ def format_ablations(rows: list[dict]) -> str:
     """The ablation table: one line per change, roll / pitch / yaw RMS per filter."""
     names = LABELS
     w = max(len(r["change"]) for r in rows) + 2
-    lines = ["roll / pitch / yaw RMS error from the loss on [deg], mean over seeds; each row changes one thing",
-             f"{'change':<{w}}" + "".join(f"{n:>22}" for n in names)]
+    lines = [
+        "roll / pitch / yaw RMS error from the loss on [deg], mean over seeds; each row changes one thing",
+        f"{'change':<{w}}" + "".join(f"{n:>22}" for n in names),
+    ]
     for r in rows:
-        lines.append(f"{r['change']:<{w}}" + "".join(
-            f"{r[n]['roll']:>8.1f}{r[n]['pitch']:>7.1f}{r[n]['yaw']:>7.1f}" for n in names))
+        lines.append(
+            f"{r['change']:<{w}}"
+            + "".join(f"{r[n]['roll']:>8.1f}{r[n]['pitch']:>7.1f}{r[n]['yaw']:>7.1f}" for n in names)
+        )
     return "\n".join(lines)
 
 
@@ -211,9 +258,16 @@ def in_loop_seed(task) -> list[dict]:
     each estimator also run offline over the truth's flight; the runs' summaries."""
     label, overrides, seed, p, estimators = task
     cfg = build_config(p.preset).with_overrides(overrides) if overrides else build_config(p.preset)
-    runs = fly_many("rotor-loss", estimators, [seed], vehicle=p.vehicle, config=cfg,
-                    duration=p.failure_s + IN_LOOP_AFTER_S, failure=Failure(p.rotor, p.failure_s),
-                    params=FlightParams(height_m=p.height_m))
+    runs = fly_many(
+        "rotor-loss",
+        estimators,
+        [seed],
+        vehicle=p.vehicle,
+        config=cfg,
+        duration=p.failure_s + IN_LOOP_AFTER_S,
+        failure=Failure(p.rotor, p.failure_s),
+        params=FlightParams(height_m=p.height_m),
+    )
     for r in runs:
         r["variant"] = label
     return runs
@@ -231,40 +285,57 @@ def in_loop_table(runs: list[dict]) -> list[dict]:
         for name in dict.fromkeys(r["estimator"] for r in of_v):
             rs = [r for r in of_v if r["estimator"] == name]
             up = [r for r in rs if r["status"] == "survived"]
-            rows.append({
-                "variant": variant, "estimator": name, "runs": len(rs), "survived": len(up),
-                "settled": sum(r["time_to_settle_s"] is not None for r in rs),
-                "position_rms_settled_m": mean([r["position_rms_settled_m"] for r in rs]),
-                "attitude_error_after_loss_deg": mean([r.get("attitude_error_after_failure_rms_deg") for r in up]),
-                "tilt_error_after_loss_deg": mean([r.get("tilt_error_after_failure_rms_deg") for r in up]),
-                "tilt_error_offline_deg": (0.0 if name == "truth" else
-                                           mean([r.get("offline_on_truth_flight", {}).get(
-                                               "tilt_error_after_failure_rms_deg") for r in rs])),
-            })
+            rows.append(
+                {
+                    "variant": variant,
+                    "estimator": name,
+                    "runs": len(rs),
+                    "survived": len(up),
+                    "settled": sum(r["time_to_settle_s"] is not None for r in rs),
+                    "position_rms_settled_m": mean([r["position_rms_settled_m"] for r in rs]),
+                    "attitude_error_after_loss_deg": mean([r.get("attitude_error_after_failure_rms_deg") for r in up]),
+                    "tilt_error_after_loss_deg": mean([r.get("tilt_error_after_failure_rms_deg") for r in up]),
+                    "tilt_error_offline_deg": (
+                        0.0
+                        if name == "truth"
+                        else mean(
+                            [r.get("offline_on_truth_flight", {}).get("tilt_error_after_failure_rms_deg") for r in rs]
+                        )
+                    ),
+                }
+            )
     return rows
 
 
 def format_in_loop(rows: list[dict]) -> str:
     """The in-loop table, one block per sensor variant."""
-    lines = [f"each estimator in the fault-tolerant controller's loop; up: stayed up for {IN_LOOP_AFTER_S:g} s after the "
-             "loss; errors after the loss (RMS, mean over the runs that stayed up); offline: the same estimator's tilt "
-             "error over the truth's flight"]
+    lines = [
+        f"each estimator in the fault-tolerant controller's loop; up: stayed up for {IN_LOOP_AFTER_S:g} s after the "
+        "loss; errors after the loss (RMS, mean over the runs that stayed up); offline: the same estimator's tilt "
+        "error over the truth's flight"
+    ]
     for variant in dict.fromkeys(r["variant"] for r in rows):
-        lines += ["", variant,
-                  f"{'estimator':<15}{'up':>8}{'settled':>9}{'pos RMS':>10}{'attitude':>10}{'tilt':>8}{'offline':>9}"]
+        lines += [
+            "",
+            variant,
+            f"{'estimator':<15}{'up':>8}{'settled':>9}{'pos RMS':>10}{'attitude':>10}{'tilt':>8}{'offline':>9}",
+        ]
         for r in (r for r in rows if r["variant"] == variant):
+
             def f(v, fmt):
                 return "-" if v is None else fmt.format(v)
-            lines.append(f"{r['estimator']:<15}{r['survived']:>4}/{r['runs']:<3}{r['settled']:>6}/{r['runs']:<2}"
-                         f"{f(r['position_rms_settled_m'], '{:.2f} m'):>10}"
-                         f"{f(r['attitude_error_after_loss_deg'], '{:.1f}°'):>10}"
-                         f"{f(r['tilt_error_after_loss_deg'], '{:.1f}°'):>8}{f(r['tilt_error_offline_deg'], '{:.1f}°'):>9}")
+
+            lines.append(
+                f"{r['estimator']:<15}{r['survived']:>4}/{r['runs']:<3}{r['settled']:>6}/{r['runs']:<2}"
+                f"{f(r['position_rms_settled_m'], '{:.2f} m'):>10}"
+                f"{f(r['attitude_error_after_loss_deg'], '{:.1f}°'):>10}"
+                f"{f(r['tilt_error_after_loss_deg'], '{:.1f}°'):>8}{f(r['tilt_error_offline_deg'], '{:.1f}°'):>9}"
+            )
     return "\n".join(lines)
 
 
 # -- the recovery paper's throws, flown ------------------------------------------------------------------
-RECOVERY_PAPER = {"throws": 32, "hovered_10s": 16, "recovered": 21, "convergence_s": 0.570,
-                  "gravity_error_deg": 10.0}
+RECOVERY_PAPER = {"throws": 32, "hovered_10s": 16, "recovered": 21, "convergence_s": 0.570, "gravity_error_deg": 10.0}
 """The recovery paper's real throws (section VI): 16 of 32 hovered at least 10 s, 5 more at least
 3 s (21 counted successful); in the detailed experiment the bank converged 570 ms after the
 detection with about 10° of gravity error (Fig. 1 and 2)."""
@@ -285,21 +356,47 @@ def throw_stats(runs: list[dict]) -> dict:
         return [r[key] for r in runs if r.get(key) is not None]
 
     def stats(v):
-        return {"median": float(np.median(v)), "p90": float(np.percentile(v, 90)), "max": float(np.max(v))} if v \
+        return (
+            {"median": float(np.median(v)), "p90": float(np.percentile(v, 90)), "max": float(np.max(v))}
+            if v
             else {"median": None, "p90": None, "max": None}
+        )
 
-    failed = [{k: r.get(k) for k in ("seed", "status", "reason", "release_speed_m_s", "release_rate_rad_s",
-                                     "hand_acc_peak_m_s2", "gravity_error_at_handover_deg", "upright_s",
-                                     "lowest_point_m")} for r in runs if not r["recovered"]]
-    return {"throws": n, "detected": len(values("detected_s")), "converged": len(values("handover_s")),
-            "recovered": sum(r["recovered"] for r in runs), "crashed": sum(r["status"] == "crashed" for r in runs),
-            "convergence_s": stats(values("convergence_s")), "detection_delay_s": stats(values("detected_s")),
-            "gravity_error_deg": stats(values("gravity_error_at_handover_deg")),
-            "velocity_error_m_s": stats(values("velocity_error_at_handover_m_s")),
-            "upright_s": stats(values("upright_s")), "fall_m": stats(values("lowest_point_m")),
-            "release_speed_m_s": stats(values("release_speed_m_s")),
-            "release_rate_rad_s": stats(values("release_rate_rad_s")),
-            "hand_acc_peak_m_s2": stats(values("hand_acc_peak_m_s2")), "not_recovered": failed}
+    failed = [
+        {
+            k: r.get(k)
+            for k in (
+                "seed",
+                "status",
+                "reason",
+                "release_speed_m_s",
+                "release_rate_rad_s",
+                "hand_acc_peak_m_s2",
+                "gravity_error_at_handover_deg",
+                "upright_s",
+                "lowest_point_m",
+            )
+        }
+        for r in runs
+        if not r["recovered"]
+    ]
+    return {
+        "throws": n,
+        "detected": len(values("detected_s")),
+        "converged": len(values("handover_s")),
+        "recovered": sum(r["recovered"] for r in runs),
+        "crashed": sum(r["status"] == "crashed" for r in runs),
+        "convergence_s": stats(values("convergence_s")),
+        "detection_delay_s": stats(values("detected_s")),
+        "gravity_error_deg": stats(values("gravity_error_at_handover_deg")),
+        "velocity_error_m_s": stats(values("velocity_error_at_handover_m_s")),
+        "upright_s": stats(values("upright_s")),
+        "fall_m": stats(values("lowest_point_m")),
+        "release_speed_m_s": stats(values("release_speed_m_s")),
+        "release_rate_rad_s": stats(values("release_rate_rad_s")),
+        "hand_acc_peak_m_s2": stats(values("hand_acc_peak_m_s2")),
+        "not_recovered": failed,
+    }
 
 
 def format_throws(result: dict) -> str:
@@ -311,22 +408,26 @@ def format_throws(result: dict) -> str:
 
         def f(d, fmt):
             return "-" if d["median"] is None else f"{d['median']:{fmt}} median, {d['p90']:{fmt}} p90"
-        lines += [f"{case}: {n} flown throws (release up to {result['throw']['speed_max']:g} m/s and "
-                  f"{result['throw']['rate_max']:g} rad/s, hand up to {result['throw']['hand_acc_max']:g} m/s²)",
-                  f"  release detected        {st['detected']}/{n}",
-                  f"  bank converged          {st['converged']}/{n}; {f(st['convergence_s'], '.3f')} s after the "
-                  f"detection (paper: {paper['convergence_s'] * 1e3:.0f} ms in its detailed throw)",
-                  f"  gravity error there     {f(st['gravity_error_deg'], '.1f')} ° (paper: about "
-                  f"{paper['gravity_error_deg']:g}°)",
-                  f"  velocity error there    {f(st['velocity_error_m_s'], '.2f')} m/s",
-                  f"  upright (30°)           {f(st['upright_s'], '.2f')} s after the release",
-                  f"  recovered to hover      {st['recovered']}/{n} = {100 * st['recovered'] / max(n, 1):.0f} % "
-                  f"(upright within 30°, then the height within 0.5 m for 10 s; paper: {paper['hovered_10s']} of "
-                  f"{paper['throws']} hovered 10 s, {paper['recovered']} of {paper['throws']} with the brief hovers)",
-                  f"  crashed                 {st['crashed']}/{n}; fall {f(st['fall_m'], '.2f')} m"]
+
+        lines += [
+            f"{case}: {n} flown throws (release up to {result['throw']['speed_max']:g} m/s and "
+            f"{result['throw']['rate_max']:g} rad/s, hand up to {result['throw']['hand_acc_max']:g} m/s²)",
+            f"  release detected        {st['detected']}/{n}",
+            f"  bank converged          {st['converged']}/{n}; {f(st['convergence_s'], '.3f')} s after the "
+            f"detection (paper: {paper['convergence_s'] * 1e3:.0f} ms in its detailed throw)",
+            f"  gravity error there     {f(st['gravity_error_deg'], '.1f')} ° (paper: about "
+            f"{paper['gravity_error_deg']:g}°)",
+            f"  velocity error there    {f(st['velocity_error_m_s'], '.2f')} m/s",
+            f"  upright (30°)           {f(st['upright_s'], '.2f')} s after the release",
+            f"  recovered to hover      {st['recovered']}/{n} = {100 * st['recovered'] / max(n, 1):.0f} % "
+            f"(upright within 30°, then the height within 0.5 m for 10 s; paper: {paper['hovered_10s']} of "
+            f"{paper['throws']} hovered 10 s, {paper['recovered']} of {paper['throws']} with the brief hovers)",
+            f"  crashed                 {st['crashed']}/{n}; fall {f(st['fall_m'], '.2f')} m",
+        ]
         for r in st["not_recovered"][:10]:
-            lines.append(f"    not recovered: seed {r['seed']}, {r['reason']}; release {r['release_speed_m_s']:.1f} m/s, "
-                         f"{r['release_rate_rad_s']:.1f} rad/s; gravity error at handover "
-                         + ("-" if r["gravity_error_at_handover_deg"] is None else
-                            f"{r['gravity_error_at_handover_deg']:.1f}°"))
+            lines.append(
+                f"    not recovered: seed {r['seed']}, {r['reason']}; release {r['release_speed_m_s']:.1f} m/s, "
+                f"{r['release_rate_rad_s']:.1f} rad/s; gravity error at handover "
+                + ("-" if r["gravity_error_at_handover_deg"] is None else f"{r['gravity_error_at_handover_deg']:.1f}°")
+            )
     return "\n".join(lines)

@@ -3,6 +3,7 @@ rates, gaps, clipping, vibration, magnetic disturbance, the events in it, and ea
 attitude with its errors where there is a truth (or the autopilot's own estimate, labelled so).
 The figures are drawn by :mod:`quadest.plot.report`; every number here comes from all samples,
 whatever the figures decimate."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -61,8 +62,14 @@ def events(rec: Recording) -> list[dict]:
     for axis in range(3):
         for a, b in _runs(np.abs(w[:, axis]) > SPIN_RATE, t, SPIN_MIN_S):
             sel = (t >= a) & (t <= b)
-            out.append({"kind": f"sustained spin about body {'xyz'[axis]} (a rotor loss?)", "start_s": a, "end_s": b,
-                        "rate_rad_s": float(np.mean(np.abs(w[sel, axis])))})
+            out.append(
+                {
+                    "kind": f"sustained spin about body {'xyz'[axis]} (a rotor loss?)",
+                    "start_s": a,
+                    "end_s": b,
+                    "rate_rad_s": float(np.mean(np.abs(w[sel, axis]))),
+                }
+            )
     return sorted(out, key=lambda e: e["start_s"])
 
 
@@ -76,12 +83,16 @@ def summary(rec: Recording) -> dict:
         "source": rec.meta.get("source") or rec.meta.get("format") or "-",
         "vehicle": rec.meta.get("vehicle") or rec.meta.get("preset") or rec.meta.get("system"),
         "file": rec.meta.get("path") or rec.meta.get("file"),
-        "duration_s": float(t[-1] - t[0]) if len(t) > 1 else 0.0, "rows": int(len(t)),
+        "duration_s": float(t[-1] - t[0]) if len(t) > 1 else 0.0,
+        "rows": int(len(t)),
         "imu_rate_hz": 1.0 / med if med > 0 else None,
-        "mag_rate_hz": None, "gaps": int(gaps.sum()), "gap_time_s": float(dt[gaps].sum() - med * gaps.sum()),
+        "mag_rate_hz": None,
+        "gaps": int(gaps.sum()),
+        "gap_time_s": float(dt[gaps].sum() - med * gaps.sum()),
         "longest_gap_s": float(dt[gaps].max()) if gaps.any() else 0.0,
         "dropped_rows": rec.meta.get("dropped_rows") or rec.meta.get("skipped_rows"),
-        "gyro_clipped_share": _flat_top_share(rec.gyr), "acc_clipped_share": _flat_top_share(rec.acc),
+        "gyro_clipped_share": _flat_top_share(rec.gyr),
+        "acc_clipped_share": _flat_top_share(rec.acc),
         "truth": "true_q" if rec.true_q is not None else ("ref_q" if rec.ref_q is not None else None),
     }
     n = max(1, int(round(VIBRATION_WINDOW_S / med))) if med > 0 else 1
@@ -160,8 +171,13 @@ def report_data(rec: Recording, names, params: dict | None = None, recovery=None
     summ = summary(rec)
     att = attitude(rec, names, params)
     q = getattr(rec, att["truth"]) if att["truth"] else (next(iter(att["q"].values())) if att["q"] else None)
-    att["reference"] = ("truth" if att["truth"] == "true_q" else "the autopilot's estimate" if att["truth"]
-                        else (next(iter(att["q"])) if att["q"] else None))
+    att["reference"] = (
+        "truth"
+        if att["truth"] == "true_q"
+        else "the autopilot's estimate"
+        if att["truth"]
+        else (next(iter(att["q"])) if att["q"] else None)
+    )
     att["mag"] = mag_norm_and_dip(rec, q) if q is not None else None
     att["spin"] = spin_and_tilt(rec, q) if q is not None and any("spin" in e["kind"] for e in summ["events"]) else None
     att["recovery"] = recovery
@@ -171,6 +187,9 @@ def report_data(rec: Recording, names, params: dict | None = None, recovery=None
 
 def report_json(summ: dict, att: dict) -> dict:
     """What a report's tables show, as JSON (``--json``)."""
-    return {"summary": summ, "truth": att["truth"],
-            "rms_deg": {n: s["rms_deg"] for n, s in att["scores"].items()},
-            "total_rmse_deg": {n: s["total_rmse_deg"] for n, s in att["scores"].items()}}
+    return {
+        "summary": summ,
+        "truth": att["truth"],
+        "rms_deg": {n: s["rms_deg"] for n, s in att["scores"].items()},
+        "total_rmse_deg": {n: s["total_rmse_deg"] for n, s in att["scores"].items()},
+    }

@@ -7,6 +7,7 @@
   the vertical (heading, ``2 atan2(|e_z|, |e_w|)``) and the rest (inclination,
   ``2 acos(√(e_w² + e_z²))``); the total is its angle ``2 atan2(|e_xyz|, |e_w|)``.
 """
+
 from __future__ import annotations
 
 import numpy as np

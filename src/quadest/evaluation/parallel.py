@@ -1,6 +1,7 @@
 """Running many independent tasks: in this process, on a local Dask cluster, or on an existing
 one (docs/sweeps.md). Used by the paper reproductions and by sweeps; the tasks carry their
 seeds, so results do not depend on where they run."""
+
 from __future__ import annotations
 
 import os
@@ -29,12 +30,16 @@ def _connect(scheduler: str, timeout_s: float):
     th.start()
     th.join(timeout_s + 5.0)
     if th.is_alive():
-        raise ValueError(f"{scheduler} accepted the connection but did not answer as a Dask scheduler within "
-                         f"{timeout_s:g} s: is that the scheduler's address (tcp://HOST:8786)?")
+        raise ValueError(
+            f"{scheduler} accepted the connection but did not answer as a Dask scheduler within "
+            f"{timeout_s:g} s: is that the scheduler's address (tcp://HOST:8786)?"
+        )
     if "error" in box:
         exc = box["error"]
-        raise ValueError(f"cannot reach the Dask scheduler at {scheduler} ({type(exc).__name__}: "
-                         f"{str(exc).splitlines()[0] if str(exc) else ''})") from None
+        raise ValueError(
+            f"cannot reach the Dask scheduler at {scheduler} ({type(exc).__name__}: "
+            f"{str(exc).splitlines()[0] if str(exc) else ''})"
+        ) from None
     return box["client"]
 
 
@@ -61,18 +66,34 @@ def dask_client(workers: int | None = None, scheduler: str | None = None, timeou
     # adaptive mmap threshold: every array above 128 KiB is then mapped and unmapped anew, and
     # the simulator and filters ran 1.9x slower per run than in this process (measured). The
     # workers here keep glibc's defaults (docs/sweeps.md says how for a cluster of your own).
-    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}), \
-            LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                         silence_logs=40) as cluster, Client(cluster) as client:
+    with (
+        dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}),
+        LocalCluster(
+            n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=40
+        ) as cluster,
+        Client(cluster) as client,
+    ):
         yield client
 
 
-def execute(fn, items, *, keys=None, workers: int | None = 0, scheduler: str | None = None, on_result=None,
-            progress: bool = False, desc: str = "runs", max_inflight: int | None = None, stats: dict | None = None,
-            weights=None):
+def execute(
+    fn,
+    items,
+    *,
+    keys=None,
+    workers: int | None = 0,
+    scheduler: str | None = None,
+    on_result=None,
+    progress: bool = False,
+    desc: str = "runs",
+    max_inflight: int | None = None,
+    stats: dict | None = None,
+    weights=None,
+):
     """Apply ``fn`` to every item; ``workers=0`` (and no scheduler) runs in this process,
-    otherwise on Dask (``workers=None``: a local cluster with one worker per core). ``on_result(item_index, result_or_exception)`` is called as results
-    arrive (in completion order); returns the results in item order. Exceptions from a task
+    otherwise on Dask (``workers=None``: a local cluster with one worker per core).
+    ``on_result(item_index, result_or_exception)`` is called as results arrive
+    (in completion order); returns the results in item order. Exceptions from a task
     (a lost worker, a failing function) are passed on as values, never raised. ``stats`` gets
     ``compute_s``: the time from the first task to the last result, without the cluster's
     start-up. ``weights``: how many runs each item holds (for the progress bar)."""
@@ -81,8 +102,9 @@ def execute(fn, items, *, keys=None, workers: int | None = 0, scheduler: str | N
     items = list(items)
     results: list = [None] * len(items)
     failed = 0
-    bar = tqdm(total=sum(weights) if weights else len(items), unit="run", desc=desc, disable=not progress,
-               smoothing=0.1)
+    bar = tqdm(
+        total=sum(weights) if weights else len(items), unit="run", desc=desc, disable=not progress, smoothing=0.1
+    )
 
     def done(i, r):
         nonlocal failed
@@ -129,7 +151,9 @@ def execute(fn, items, *, keys=None, workers: int | None = 0, scheduler: str | N
                 if i is None:
                     return False
                 key = f"quadest-{keys[i]}" if keys else None
-                fut = client.submit(fn, items[i], key=key, pure=False) if key else client.submit(fn, items[i], pure=False)
+                fut = (
+                    client.submit(fn, items[i], key=key, pure=False) if key else client.submit(fn, items[i], pure=False)
+                )
                 index[fut.key] = i
                 ac.add(fut)
                 return True
@@ -150,5 +174,3 @@ def execute(fn, items, *, keys=None, workers: int | None = 0, scheduler: str | N
         return results
     finally:
         bar.close()
-
-

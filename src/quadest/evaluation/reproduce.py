@@ -12,6 +12,7 @@ it also runs uncalibrated (``afckf-nocal``).
 QUKF (Liang et al. 2023, Table 1): the ``lowcost-20hz`` preset, 30 s of hover and 30 s of motion;
 QUKF, EKF and a complementary filter (the paper does not say which; quadest uses Valenti's).
 """
+
 from __future__ import annotations
 
 from dataclasses import asdict
@@ -34,35 +35,47 @@ from quadest.sim import aero_model, build_config, simulate
 PUBLISHED = {
     "afckf": {
         "damaged-rotor": {
-            "rms_deg": {"madgwick": {"yaw": 143.5094, "pitch": 2.7121, "roll": 3.2761},
-                        "complementary": {"yaw": 164.8690, "pitch": 2.0417, "roll": 2.7165},
-                        "kalman": {"yaw": 150.4092, "pitch": 2.4125, "roll": 3.0184},
-                        "afckf": {"yaw": 9.8865, "pitch": 1.5717, "roll": 1.4599}},
-            "var_deg2": {"madgwick": {"yaw": 20591.4895, "pitch": 6.9058, "roll": 6.9263},
-                         "complementary": {"yaw": 27182.5512, "pitch": 4.0811, "roll": 3.4681},
-                         "kalman": {"yaw": 22415.3247, "pitch": 5.5746, "roll": 5.5789},
-                         "afckf": {"yaw": 97.7493, "pitch": 1.8775, "roll": 1.7705}},
+            "rms_deg": {
+                "madgwick": {"yaw": 143.5094, "pitch": 2.7121, "roll": 3.2761},
+                "complementary": {"yaw": 164.8690, "pitch": 2.0417, "roll": 2.7165},
+                "kalman": {"yaw": 150.4092, "pitch": 2.4125, "roll": 3.0184},
+                "afckf": {"yaw": 9.8865, "pitch": 1.5717, "roll": 1.4599},
+            },
+            "var_deg2": {
+                "madgwick": {"yaw": 20591.4895, "pitch": 6.9058, "roll": 6.9263},
+                "complementary": {"yaw": 27182.5512, "pitch": 4.0811, "roll": 3.4681},
+                "kalman": {"yaw": 22415.3247, "pitch": 5.5746, "roll": 5.5789},
+                "afckf": {"yaw": 97.7493, "pitch": 1.8775, "roll": 1.7705},
+            },
         },
         "nominal": {
-            "rms_deg": {"madgwick": {"yaw": 1.8073, "pitch": 1.6893, "roll": 1.3670},
-                        "complementary": {"yaw": 2.6526, "pitch": 8.2690, "roll": 3.0333},
-                        "kalman": {"yaw": 2.6571, "pitch": 1.8590, "roll": 2.9042},
-                        "afckf": {"yaw": 2.4921, "pitch": 2.0445, "roll": 2.0558}},
-            "var_deg2": {"madgwick": {"yaw": 3.1942, "pitch": 1.4312, "roll": 0.5101},
-                         "complementary": {"yaw": 3.0433, "pitch": 7.8106, "roll": 0.8680},
-                         "kalman": {"yaw": 3.3033, "pitch": 0.5657, "roll": 0.1548},
-                         "afckf": {"yaw": 2.2183, "pitch": 1.3689, "roll": 1.1665}},
+            "rms_deg": {
+                "madgwick": {"yaw": 1.8073, "pitch": 1.6893, "roll": 1.3670},
+                "complementary": {"yaw": 2.6526, "pitch": 8.2690, "roll": 3.0333},
+                "kalman": {"yaw": 2.6571, "pitch": 1.8590, "roll": 2.9042},
+                "afckf": {"yaw": 2.4921, "pitch": 2.0445, "roll": 2.0558},
+            },
+            "var_deg2": {
+                "madgwick": {"yaw": 3.1942, "pitch": 1.4312, "roll": 0.5101},
+                "complementary": {"yaw": 3.0433, "pitch": 7.8106, "roll": 0.8680},
+                "kalman": {"yaw": 3.3033, "pitch": 0.5657, "roll": 0.1548},
+                "afckf": {"yaw": 2.2183, "pitch": 1.3689, "roll": 1.1665},
+            },
         },
         "time_us": {"madgwick": 70.80, "complementary": 597.3, "kalman": 486.2, "afckf": 111.0},
     },
     "qukf": {
         "nominal": {
-            "rms_deg": {"qukf": {"roll": 0.5288, "pitch": 0.6891, "yaw": 0.5821},
-                        "ekf": {"roll": 0.8122, "pitch": 0.8934, "yaw": 0.7526},
-                        "complementary": {"roll": 1.1548, "pitch": 1.0438, "yaw": 1.0745}},
-            "mae_deg": {"qukf": {"roll": 0.3582, "pitch": 0.4224, "yaw": 0.4163},
-                        "ekf": {"roll": 0.7564, "pitch": 0.6827, "yaw": 0.6135},
-                        "complementary": {"roll": 1.0652, "pitch": 0.8307, "yaw": 0.8677}},
+            "rms_deg": {
+                "qukf": {"roll": 0.5288, "pitch": 0.6891, "yaw": 0.5821},
+                "ekf": {"roll": 0.8122, "pitch": 0.8934, "yaw": 0.7526},
+                "complementary": {"roll": 1.1548, "pitch": 1.0438, "yaw": 1.0745},
+            },
+            "mae_deg": {
+                "qukf": {"roll": 0.3582, "pitch": 0.4224, "yaw": 0.4163},
+                "ekf": {"roll": 0.7564, "pitch": 0.6827, "yaw": 0.6135},
+                "complementary": {"roll": 1.0652, "pitch": 0.8307, "yaw": 0.8677},
+            },
         },
     },
 }
@@ -78,9 +91,13 @@ def afckf_calibration(seed: int = CALIBRATION_SEED) -> dict:
     cfg = build_config("bebop2")
     spin = rec.between(cfg.damaged.failure_s + 5 * cfg.damaged.spin_up_tau_s, np.inf)
     cal = calibrate_centrifugal([spin])
-    return {"omega1": float(cal.values["omega1"]), "omega2": float(cal.values["omega2"]),
-            "uncertainty_m": float(cal.uncertainty["omega1"]), "residual_mps2": cal.quality["residual_rms_mps2"],
-            "seed": seed}
+    return {
+        "omega1": float(cal.values["omega1"]),
+        "omega2": float(cal.values["omega2"]),
+        "uncertainty_m": float(cal.uncertainty["omega1"]),
+        "residual_mps2": cal.quality["residual_rms_mps2"],
+        "seed": seed,
+    }
 
 
 def _aggregate(per_seed: list[dict], names) -> dict:
@@ -99,9 +116,16 @@ def _aggregate(per_seed: list[dict], names) -> dict:
     return out
 
 
-def reproduce_afckf(seeds=range(1, 6), progress: bool = False, workers: int = 0, scheduler=None, *,
-                    prescribed: bool = False, ablations: bool = False,
-                    params: FL.FlownAfckfParams | None = None) -> dict:
+def reproduce_afckf(
+    seeds=range(1, 6),
+    progress: bool = False,
+    workers: int = 0,
+    scheduler=None,
+    *,
+    prescribed: bool = False,
+    ablations: bool = False,
+    params: FL.FlownAfckfParams | None = None,
+) -> dict:
     """AFCKF Tables I-V on the simulator: flown (default) or on the prescribed scenarios; with
     ``ablations`` (flown only) the ablation table too. Seeds run through
     :func:`quadest.evaluation.parallel.execute`: in this process (``workers=0``), on a local
@@ -114,24 +138,46 @@ def reproduce_afckf(seeds=range(1, 6), progress: bool = False, workers: int = 0,
     cal = FL.afckf_calibration_flown(p)
     fparams = {"afckf": {"omega1": cal["omega1"], "omega2": cal["omega2"]}, "afckf-nocal": {}}
     seeds = list(seeds)
-    out = {"seeds": seeds, "mode": "flown", "params": {r["name"]: getattr(p, r["name"]) for r in p.describe()},
-           "calibration": cal, "published": PUBLISHED["afckf"], "cases": {}, "flights": {}}
+    out = {
+        "seeds": seeds,
+        "mode": "flown",
+        "params": {r["name"]: getattr(p, r["name"]) for r in p.describe()},
+        "calibration": cal,
+        "published": PUBLISHED["afckf"],
+        "cases": {},
+        "flights": {},
+    }
     for case in FL.CASES:
-        res = _map(FL.flown_seed, [(case, s, p, fparams) for s in seeds], progress, f"AFCKF flown {case}",
-                   workers, scheduler)
+        res = _map(
+            FL.flown_seed, [(case, s, p, fparams) for s in seeds], progress, f"AFCKF flown {case}", workers, scheduler
+        )
         out["cases"][case] = _aggregate([r["scores"] for r in res], FL.LABELS)
         out["flights"][case] = _flight_means([r["flight"] for r in res])
     if ablations:
-        per_seed = _map(FL.ablation_seed, [(s, p, fparams, FL.ABLATIONS) for s in seeds], progress,
-                        "AFCKF ablations", workers, scheduler)
+        per_seed = _map(
+            FL.ablation_seed,
+            [(s, p, fparams, FL.ABLATIONS) for s in seeds],
+            progress,
+            "AFCKF ablations",
+            workers,
+            scheduler,
+        )
         out["ablations"] = FL.ablation_rows(per_seed)
     rec = FL.flown_flight("damaged-rotor", seeds[0], p).recording
     out["time_us"] = _times(rec, fparams)
     return out
 
 
-def afckf_in_loop(seeds=range(1, 21), progress: bool = False, workers: int = 0, scheduler=None, *,
-                  params: FL.FlownAfckfParams | None = None, estimators=None, variants=None) -> dict:
+def afckf_in_loop(
+    seeds=range(1, 21),
+    progress: bool = False,
+    workers: int = 0,
+    scheduler=None,
+    *,
+    params: FL.FlownAfckfParams | None = None,
+    estimators=None,
+    variants=None,
+) -> dict:
     """The flown loss with each estimator in the fault-tolerant controller's loop
     (:func:`quadest.evaluation.flown.in_loop_seed`), per sensor variant and seed."""
     p = params or FL.FlownAfckfParams()
@@ -139,10 +185,15 @@ def afckf_in_loop(seeds=range(1, 21), progress: bool = False, workers: int = 0, 
     variants = list(variants or FL.IN_LOOP_VARIANTS)
     seeds = list(seeds)
     tasks = [(label, overrides, s, p, estimators) for label, overrides in variants for s in seeds]
-    runs = [r for part in _map(FL.in_loop_seed, tasks, progress, "AFCKF in the loop", workers, scheduler)
-            for r in part]
-    return {"seeds": seeds, "mode": "in-loop", "params": {r["name"]: getattr(p, r["name"]) for r in p.describe()},
-            "after_loss_s": FL.IN_LOOP_AFTER_S, "table": FL.in_loop_table(runs), "runs": runs}
+    runs = [r for part in _map(FL.in_loop_seed, tasks, progress, "AFCKF in the loop", workers, scheduler) for r in part]
+    return {
+        "seeds": seeds,
+        "mode": "in-loop",
+        "params": {r["name"]: getattr(p, r["name"]) for r in p.describe()},
+        "after_loss_s": FL.IN_LOOP_AFTER_S,
+        "table": FL.in_loop_table(runs),
+        "runs": runs,
+    }
 
 
 def _flight_means(outputs: list[dict]) -> dict:
@@ -157,8 +208,9 @@ def _flight_means(outputs: list[dict]) -> dict:
 def _times(rec, params) -> dict:
     out = {}
     for name, label in zip(FL.FILTERS, FL.LABELS):
-        out[label] = time_estimator(lambda n=name, lb=label: make_filter(n, declination=rec.declination,
-                                                                          **params.get(lb, {})), rec)
+        out[label] = time_estimator(
+            lambda n=name, lb=label: make_filter(n, declination=rec.declination, **params.get(lb, {})), rec
+        )
     return out
 
 
@@ -169,9 +221,19 @@ def _reproduce_afckf_prescribed(seeds, progress, workers, scheduler) -> dict:
     seeds = list(seeds)
     out = {"seeds": seeds, "mode": "prescribed", "calibration": cal, "published": PUBLISHED["afckf"], "cases": {}}
     for scenario in ("damaged-rotor", "nominal"):
-        out["cases"][scenario] = _run_case_labelled(scenario, "bebop2", seeds, FL.FILTERS, FL.LABELS, params,
-                                                    cfg.damaged.failure_s if scenario == "damaged-rotor" else 0.0,
-                                                    progress, f"AFCKF {scenario}", workers, scheduler)
+        out["cases"][scenario] = _run_case_labelled(
+            scenario,
+            "bebop2",
+            seeds,
+            FL.FILTERS,
+            FL.LABELS,
+            params,
+            cfg.damaged.failure_s if scenario == "damaged-rotor" else 0.0,
+            progress,
+            f"AFCKF {scenario}",
+            workers,
+            scheduler,
+        )
     out["time_us"] = _times(simulate("damaged-rotor", "bebop2", seed=seeds[0]), params)
     return out
 
@@ -180,8 +242,10 @@ def _one_seed(task) -> dict:
     """One seed of a reproduction: simulate, run the filters, their errors (a picklable task)."""
     scenario, preset, seed, duration, names, labels_list, params, t_from = task
     rec = simulate(scenario, preset, seed=seed, duration=duration)
-    return {label: score_result(rec, estimate(rec, name, params.get(label)), t_from=t_from)
-            for name, label in zip(names, labels_list)}
+    return {
+        label: score_result(rec, estimate(rec, name, params.get(label)), t_from=t_from)
+        for name, label in zip(names, labels_list)
+    }
 
 
 def _map(fn, tasks, progress, desc, workers, scheduler) -> list:
@@ -192,21 +256,46 @@ def _map(fn, tasks, progress, desc, workers, scheduler) -> list:
     return results
 
 
-def _run_case_labelled(scenario, preset, seeds, names, labels_list, params, t_from, progress, desc,
-                       workers=0, scheduler=None, duration=None):
+def _run_case_labelled(
+    scenario,
+    preset,
+    seeds,
+    names,
+    labels_list,
+    params,
+    t_from,
+    progress,
+    desc,
+    workers=0,
+    scheduler=None,
+    duration=None,
+):
     tasks = [(scenario, preset, s, duration, list(names), list(labels_list), params, t_from) for s in seeds]
     return _aggregate(_map(_one_seed, tasks, progress, desc, workers, scheduler), labels_list)
 
 
-def reproduce_qukf(seeds=range(1, 6), progress: bool = False, duration: float = 30.0, workers: int = 0,
-                   scheduler=None) -> dict:
+def reproduce_qukf(
+    seeds=range(1, 6), progress: bool = False, duration: float = 30.0, workers: int = 0, scheduler=None
+) -> dict:
     """QUKF Table 1 on the simulator: 30 s of hover and of motion at 20 Hz."""
     names = ["qukf", "ekf", "complementary"]
     seeds = list(seeds)
     out = {"seeds": seeds, "published": PUBLISHED["qukf"], "cases": {}}
     for scenario in ("hover", "nominal"):
-        out["cases"][scenario] = _run_case_labelled(scenario, "lowcost-20hz", seeds, names, names, {}, 0.0,
-                                                    progress, f"QUKF {scenario}", workers, scheduler, duration)
+        out["cases"][scenario] = _run_case_labelled(
+            scenario,
+            "lowcost-20hz",
+            seeds,
+            names,
+            names,
+            {},
+            0.0,
+            progress,
+            f"QUKF {scenario}",
+            workers,
+            scheduler,
+            duration,
+        )
     return out
 
 
@@ -219,16 +308,26 @@ def first_seed_flight(paper: str, result: dict):
         params = {"afckf": {k: result["calibration"][k] for k in ("omega1", "omega2")}}
         if result.get("mode") == "flown":
             p = FL.FlownAfckfParams(**result["params"])
-            return (FL.flown_flight("damaged-rotor", seed, p).recording, names, params, p.failure_s,
-                    f"flown rotor loss / {p.vehicle} / seed {seed}")
+            return (
+                FL.flown_flight("damaged-rotor", seed, p).recording,
+                names,
+                params,
+                p.failure_s,
+                f"flown rotor loss / {p.vehicle} / seed {seed}",
+            )
         scen, preset, t_from, duration = "damaged-rotor", "bebop2", build_config("bebop2").damaged.failure_s, None
     elif paper == "qukf":
         scen, preset, t_from, duration = "nominal", "lowcost-20hz", None, 30.0
         names, params = ["qukf", "ekf", "complementary"], {}
     else:
         raise ValueError(f"no error plots for {paper!r}")
-    return (simulate(scen, preset, seed=seed, duration=duration), names, params, t_from,
-            f"{scen} / {preset} / seed {seed}")
+    return (
+        simulate(scen, preset, seed=seed, duration=duration),
+        names,
+        params,
+        t_from,
+        f"{scen} / {preset} / seed {seed}",
+    )
 
 
 def first_seed_estimates(paper: str, result: dict):
@@ -246,12 +345,13 @@ def format_reproduction(paper: str, result: dict) -> str:
         cal = result["calibration"]
         if result.get("mode") == "flown":
             lines += _flown_lines(result)
-        lines.append(f"AFCKF centrifugal calibration (eq 13) from {'flown ' if cal.get('flown') else ''}calibration "
-                     f"flight seed {cal['seed']}: "
-                     f"ω1 = {cal['omega1']:.4f} m, ω2 = {cal['omega2']:.4f} m (± {cal['uncertainty_m']:.1e} m, residual "
-                     f"{cal['residual_mps2']:.2f} m/s²; quadest calibrate centrifugal)")
-    lines.append(f"seeds {result['seeds'][0]}..{result['seeds'][-1]} (mean over seeds); "
-                 "'paper' = published value")
+        lines.append(
+            f"AFCKF centrifugal calibration (eq 13) from {'flown ' if cal.get('flown') else ''}calibration "
+            f"flight seed {cal['seed']}: "
+            f"ω1 = {cal['omega1']:.4f} m, ω2 = {cal['omega2']:.4f} m (± {cal['uncertainty_m']:.1e} m, residual "
+            f"{cal['residual_mps2']:.2f} m/s²; quadest calibrate centrifugal)"
+        )
+    lines.append(f"seeds {result['seeds'][0]}..{result['seeds'][-1]} (mean over seeds); 'paper' = published value")
     for case, res in result["cases"].items():
         for key, title in (("rms_deg", "RMS error [deg]"), ("var_deg2", "variance [deg²]"), ("mae_deg", "MAE [deg]")):
             pubc = pub.get(case, {}).get(key)
@@ -286,17 +386,23 @@ PAPER_SPIN_RATE = 15.5  # rad/s, the AFCKF paper's damaged-rotor flights
 def _flown_lines(result: dict) -> list[str]:
     """What the flights made of the loss, beside the paper's spin rate."""
     p = result["params"]
-    lines = [f"flown: a {p['vehicle']} loses rotor {p['rotor']} at {p['failure_s']:g} s of {p['duration_s']:g} s; the "
-             "fault-tolerant controller flies it on the true state; the estimators run on its sensors "
-             f"({p['preset']} preset); the damaged-rotor cases are scored from the loss on."]
+    lines = [
+        f"flown: a {p['vehicle']} loses rotor {p['rotor']} at {p['failure_s']:g} s of {p['duration_s']:g} s; the "
+        "fault-tolerant controller flies it on the true state; the estimators run on its sensors "
+        f"({p['preset']} preset); the damaged-rotor cases are scored from the loss on."
+    ]
     for case, f in result["flights"].items():
         if f["spin_rate_rad_s"] is None:
-            lines.append(f"  {case}: no loss; peak body rate {f['peak_rate_rad_s']:.1f} rad/s, "
-                         f"gyro clipped on {100 * f['gyro_clipped_share']:.1f} % of the samples")
+            lines.append(
+                f"  {case}: no loss; peak body rate {f['peak_rate_rad_s']:.1f} rad/s, "
+                f"gyro clipped on {100 * f['gyro_clipped_share']:.1f} % of the samples"
+            )
             continue
-        lines.append(f"  {case}: settled spin {f['spin_rate_rad_s']:.1f} rad/s (paper: {PAPER_SPIN_RATE} rad/s), "
-                     f"tilt {f['tilt_deg']:.1f}°, peak body rate {f['peak_rate_rad_s']:.1f} rad/s, gyro clipped on "
-                     f"{100 * f['gyro_clipped_share']:.1f} % of the samples after the loss")
+        lines.append(
+            f"  {case}: settled spin {f['spin_rate_rad_s']:.1f} rad/s (paper: {PAPER_SPIN_RATE} rad/s), "
+            f"tilt {f['tilt_deg']:.1f}°, peak body rate {f['peak_rate_rad_s']:.1f} rad/s, gyro clipped on "
+            f"{100 * f['gyro_clipped_share']:.1f} % of the samples after the loss"
+        )
     return lines
 
 
@@ -348,24 +454,42 @@ def _one_throw(task) -> dict:
     return {name: recover(rec, model, params).summary for name, model in models.items()}
 
 
-def reproduce_recovery(throws: int = 100, seed: int = 1, progress: bool = False, preset: str = "fma",
-                       params=None, keep_runs: bool = False, workers: int = 0, scheduler=None) -> dict:
+def reproduce_recovery(
+    throws: int = 100,
+    seed: int = 1,
+    progress: bool = False,
+    preset: str = "fma",
+    params=None,
+    keep_runs: bool = False,
+    workers: int = 0,
+    scheduler=None,
+) -> dict:
     """Simulate ``throws`` throws (seeds ``seed``..) and run the recovery with each model case;
     the throws run through :func:`quadest.evaluation.parallel.execute` like the other
     reproductions."""
     models = recovery_models(preset)
     seeds = list(range(seed, seed + throws))
     per_case = {name: [] for name in models}
-    results = execute(_one_throw, [(preset, s, models, params) for s in seeds], workers=workers,
-                      scheduler=scheduler, progress=progress, desc="throws")
+    results = execute(
+        _one_throw,
+        [(preset, s, models, params) for s in seeds],
+        workers=workers,
+        scheduler=scheduler,
+        progress=progress,
+        desc="throws",
+    )
     for r in results:
         if isinstance(r, BaseException):
             raise ValueError(f"a throw failed: {type(r).__name__}: {r}")
         for name in models:
             per_case[name].append(r[name])
-    out = {"preset": preset, "seeds": [seeds[0], seeds[-1]], "cases": {},
-           "fitted_model": models["fitted"].info,
-           "published": {"t_converge_s": 0.570, "gravity_err_deg_detailed": 10.0, "recovered": "21 of 32 real throws"}}
+    out = {
+        "preset": preset,
+        "seeds": [seeds[0], seeds[-1]],
+        "cases": {},
+        "fitted_model": models["fitted"].info,
+        "published": {"t_converge_s": 0.570, "gravity_err_deg_detailed": 10.0, "recovered": "21 of 32 real throws"},
+    }
     for name, summaries in per_case.items():
         out["cases"][name] = recovery_stats(summaries)
         if keep_runs:
@@ -373,9 +497,16 @@ def reproduce_recovery(throws: int = 100, seed: int = 1, progress: bool = False,
     return out
 
 
-def reproduce_recovery_flown(throws: int = 100, seed: int = 1, progress: bool = False, workers: int = 0,
-                             scheduler=None, any_direction: bool = False, keep_runs: bool = False,
-                             duration: float = 14.0) -> dict:
+def reproduce_recovery_flown(
+    throws: int = 100,
+    seed: int = 1,
+    progress: bool = False,
+    workers: int = 0,
+    scheduler=None,
+    any_direction: bool = False,
+    keep_runs: bool = False,
+    duration: float = 14.0,
+) -> dict:
     """The recovery paper's experiment flown (issue #14, part 4): ``throws`` throws of the
     rotor-level vehicle (seeds ``seed``..), thrown upward (or in any direction), recovered by the
     bank of EKFs with the aerodynamic model fitted on separate flown throws, then flown to a
@@ -384,8 +515,14 @@ def reproduce_recovery_flown(throws: int = 100, seed: int = 1, progress: bool = 
     seeds = list(range(seed, seed + throws))
     runs = _map(FL.flown_throw, [(s, throw, duration) for s in seeds], progress, "flown throws", workers, scheduler)
     case = "any direction" if any_direction else "upward"
-    out = {"mode": "flown", "seeds": [seeds[0], seeds[-1]], "throw": asdict(throw), "duration_s": duration,
-           "published": FL.RECOVERY_PAPER, "cases": {case: FL.throw_stats(runs)}}
+    out = {
+        "mode": "flown",
+        "seeds": [seeds[0], seeds[-1]],
+        "throw": asdict(throw),
+        "duration_s": duration,
+        "published": FL.RECOVERY_PAPER,
+        "cases": {case: FL.throw_stats(runs)},
+    }
     if keep_runs:
         out["cases"][case]["runs"] = runs
     return out
@@ -399,13 +536,16 @@ def example_throw(seed: int = 1, preset: str = "fma"):
 
 
 def format_recovery(result: dict) -> str:
-    lines = [f"{result['cases']['true']['throws']} simulated throws ({result['preset']} preset, seeds "
-             f"{result['seeds'][0]}..{result['seeds'][1]}); errors at convergence"]
+    lines = [
+        f"{result['cases']['true']['throws']} simulated throws ({result['preset']} preset, seeds "
+        f"{result['seeds'][0]}..{result['seeds'][1]}); errors at convergence"
+    ]
     hdr = f"{'':34}" + "".join(f"{n:>12}" for n in result["cases"])
     lines.append(hdr)
 
     def row(label, fn, fmt):
         lines.append(f"{label:34}" + "".join(f"{fn(c):>12{fmt}}" for c in result["cases"].values()))
+
     row("detected share", lambda c: 100 * c["detected_share"], ".1f")
     row("converged share [%]", lambda c: 100 * c["converged_share"], ".1f")
     row("converged within 1.5 s [%]", lambda c: 100 * c["converged_within_share"], ".1f")
@@ -419,6 +559,8 @@ def format_recovery(result: dict) -> str:
     row("velocity error p90 [m/s]", lambda c: c["vel_err_mps"]["p90"], ".3f")
     row("velocity error max [m/s]", lambda c: c["vel_err_mps"]["max"], ".2f")
     p = result["published"]
-    lines.append(f"paper (real throws): convergence after {p['t_converge_s'] * 1e3:.0f} ms with about "
-                 f"{p['gravity_err_deg_detailed']:.0f}° gravity error in the detailed experiment; {p['recovered']} recovered")
+    lines.append(
+        f"paper (real throws): convergence after {p['t_converge_s'] * 1e3:.0f} ms with about "
+        f"{p['gravity_err_deg_detailed']:.0f}° gravity error in the detailed experiment; {p['recovered']} recovered"
+    )
     return "\n".join(lines)

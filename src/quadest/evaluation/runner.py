@@ -8,6 +8,7 @@ compares estimators (compare, benchmark, sweep, reproduce) goes through :func:`e
   rotations removed (by default what the reader recommends in ``meta['align']``), then the
   error figures of :func:`quadest.evaluation.metrics.summarize_errors`.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -16,8 +17,8 @@ from quadest.data.recording import Recording
 from quadest.errors import UsageError
 from quadest.evaluation.align import Alignment, fit_alignment
 from quadest.evaluation.metrics import nees, summarize_errors
-from quadest.filters.peers import PEERS, available_peers, run_peer
 from quadest.filters import FILTERS, FilterResult, make_filter
+from quadest.filters.peers import PEERS, available_peers, run_peer
 
 
 def estimator_names(spec: str, all_includes_peers: bool = False) -> list[str]:
@@ -31,8 +32,9 @@ def estimator_names(spec: str, all_includes_peers: bool = False) -> list[str]:
     names = [s.strip() for s in spec.split(",") if s.strip()]
     bad = [n for n in names if n not in FILTERS and n not in PEERS]
     if bad or not names:
-        raise UsageError(f"unknown filter(s) {', '.join(bad) or spec!r}; filters: {', '.join(FILTERS)}; "
-                         f"peers: {', '.join(PEERS)}")
+        raise UsageError(
+            f"unknown filter(s) {', '.join(bad) or spec!r}; filters: {', '.join(FILTERS)}; peers: {', '.join(PEERS)}"
+        )
     missing = [n for n in names if n in PEERS and n not in available_peers()]
     if missing:
         raise UsageError(f"peer(s) {', '.join(missing)} not installed: pip install 'quadest[peers]'")
@@ -50,8 +52,9 @@ def check_params(name: str, params: dict) -> None:
         raise UsageError(f"peer {name} runs with its own defaults; it takes no parameters")
 
 
-def estimate(rec: Recording, name: str, params: dict | None = None, *,
-             declination: float | None = None) -> FilterResult:
+def estimate(
+    rec: Recording, name: str, params: dict | None = None, *, declination: float | None = None
+) -> FilterResult:
     """Run one estimator over ``rec``: a quadest filter with ``params``, or a peer at its own
     defaults. ``declination`` (rad) defaults to the recording's."""
     params = params or {}
@@ -69,8 +72,10 @@ def filter_notes(res: FilterResult) -> list[str]:
     """What a user must be told about a run: samples skipped, restarts after gaps."""
     out = []
     if res.skipped:
-        out.append(f"{res.name}: skipped {res.skipped} unusable sample(s) (an interval that is not positive, "
-                   "or a value that is not finite or beyond any sensor); the attitude was held there")
+        out.append(
+            f"{res.name}: skipped {res.skipped} unusable sample(s) (an interval that is not positive, "
+            "or a value that is not finite or beyond any sensor); the attitude was held there"
+        )
     if res.restarts:
         times = ", ".join(f"{t:.3f}" for t in res.restarts[:5]) + (" ..." if len(res.restarts) > 5 else "")
         out.append(f"{res.name}: started again from the sensors after {len(res.restarts)} gap(s), at t = {times} s")
@@ -111,12 +116,15 @@ def alignment_of(rec: Recording, nav: str | None = None, body: bool | None = Non
     """The constant rotations to remove: as asked, else what the reader recommends
     (``meta['align']``), else none."""
     rec_align = rec.meta.get("align", {})
-    return (nav if nav is not None else rec_align.get("nav", "none"),
-            body if body is not None else bool(rec_align.get("body", False)))
+    return (
+        nav if nav is not None else rec_align.get("nav", "none"),
+        body if body is not None else bool(rec_align.get("body", False)),
+    )
 
 
-def align_estimate(rec: Recording, q, *, truth: str = "true_q", nav: str = "none", body: bool = False,
-                   mask=None) -> tuple[np.ndarray, Alignment | None]:
+def align_estimate(
+    rec: Recording, q, *, truth: str = "true_q", nav: str = "none", body: bool = False, mask=None
+) -> tuple[np.ndarray, Alignment | None]:
     """The estimate in the truth's frames and the :class:`Alignment` removed (None if none asked)."""
     if nav == "none" and not body:
         return q, None
@@ -132,13 +140,23 @@ def score_result(rec: Recording, res: FilterResult, *, t_from: float | None = No
     out = score(rec, res.q, t_from=t_from)
     if "var_tilt" in res.diag and rec.true_q is not None:
         # the declination rotates about down: the covariance, diagonal in NED, is unchanged by it
-        out["nees"] = nees(res.q, rec.true_q, res.diag["var_tilt"], res.diag["var_heading"],
-                           evaluation_mask(rec, t_from))
+        out["nees"] = nees(
+            res.q, rec.true_q, res.diag["var_tilt"], res.diag["var_heading"], evaluation_mask(rec, t_from)
+        )
     return out
 
 
-def score(rec: Recording, q, *, truth: str | None = None, nav: str | None = None, body: bool | None = None,
-          mask=None, t_from: float | None = None, aligned: list | None = None) -> dict:
+def score(
+    rec: Recording,
+    q,
+    *,
+    truth: str | None = None,
+    nav: str | None = None,
+    body: bool | None = None,
+    mask=None,
+    t_from: float | None = None,
+    aligned: list | None = None,
+) -> dict:
     """Error figures of one estimate (:func:`summarize_errors`) over the evaluated rows, after
     removing the constant rotations (:func:`alignment_of`); the alignment removed is under
     ``"alignment"``. ``aligned``, a list, receives the aligned estimate."""

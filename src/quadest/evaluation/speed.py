@@ -1,15 +1,16 @@
 """How fast the estimators run (``quadest benchmark speed``; a benchmark, never a timed test):
 microseconds per sample in batch and in streaming use, quadest's filters and the peers on the
 same simulated recording, and the recovery bank."""
+
 from __future__ import annotations
 
 import time
 
 import numpy as np
 
-from quadest.filters.peers import run_peer
 from quadest.filters import FILTERS, make_filter
 from quadest.filters.base import STREAM_C
+from quadest.filters.peers import run_peer
 from quadest.recovery.logic import RecoveryParams, _run_bank, shortest_arc
 from quadest.recovery.sphere import spread_points
 from quadest.rotation.frames import vec_frd_to_flu
@@ -79,8 +80,13 @@ def time_bank(n_hypotheses: int = 40, duration: float = 20.0, seed: int = 1) -> 
     model = aero_model(build_config("fma"))
     p = RecoveryParams(n_hypotheses=n_hypotheses, beta2=-1.0)  # never converges: the bank runs on
     n = len(rec)
-    bufs = dict(best_out=np.zeros(n, np.int64), sg_out=np.zeros(n), prob_out=np.empty((1, 1)),
-                gd_out=np.zeros((n, 1, 3)), v_out=np.zeros((n, 3)))
+    bufs = dict(
+        best_out=np.zeros(n, np.int64),
+        sg_out=np.zeros(n),
+        prob_out=np.empty((1, 1)),
+        gd_out=np.zeros((n, 1, 3)),
+        v_out=np.zeros((n, 3)),
+    )
 
     def once():
         dirs = spread_points(n_hypotheses)
@@ -88,9 +94,28 @@ def time_bank(n_hypotheses: int = 40, duration: float = 20.0, seed: int = 1) -> 
         Qr = np.array([shortest_arc(d) for d in dirs])
         P = np.repeat(np.diag([9.0, 9, 9, 1, 1])[None], n_hypotheses, axis=0)
         t0 = time.perf_counter()
-        _run_bank(V, Qr, P, np.zeros(n_hypotheses), rec.gyr[0].copy(), rec.t, rec.gyr, rec.acc, 1,
-                  p.bank_record(model.mass_kg), model.A, model.B, model.C, p.beta2, bufs["best_out"],
-                  bufs["sg_out"], bufs["prob_out"], bufs["gd_out"], bufs["v_out"], False)
+        _run_bank(
+            V,
+            Qr,
+            P,
+            np.zeros(n_hypotheses),
+            rec.gyr[0].copy(),
+            rec.t,
+            rec.gyr,
+            rec.acc,
+            1,
+            p.bank_record(model.mass_kg),
+            model.A,
+            model.B,
+            model.C,
+            p.beta2,
+            bufs["best_out"],
+            bufs["sg_out"],
+            bufs["prob_out"],
+            bufs["gd_out"],
+            bufs["v_out"],
+            False,
+        )
         return time.perf_counter() - t0
 
     once()
@@ -111,5 +136,4 @@ def benchmark_speed(names, duration: float = 60.0, on_result=None) -> dict:
             out[name] = _peer_speed(name, rec)
         if on_result is not None:
             on_result(name, out[name])
-    return {"samples": len(rec), "filters": out, "recovery_bank_40_us": time_bank(40),
-            "streaming_in_c": STREAM_C}
+    return {"samples": len(rec), "filters": out, "recovery_bank_40_us": time_bank(40), "streaming_in_c": STREAM_C}

@@ -4,6 +4,7 @@
 ``FILTERS`` maps the command-line name to the estimator class; every class takes a parameter
 record (or keyword overrides), offers streaming ``update`` and batch ``run``.
 """
+
 from quadest.filters.afckf import Afckf
 from quadest.filters.base import Estimator, FilterResult
 from quadest.filters.complementary import Complementary
@@ -24,5 +25,17 @@ def make_filter(name: str, **kwargs) -> Estimator:
     return FILTERS[name](**kwargs)
 
 
-__all__ = ["FILTERS", "Estimator", "FilterResult", "make_filter", "Afckf", "Complementary", "Ekf", "Kalman",
-           "Madgwick", "Mahony", "Qukf", "Robust"]
+__all__ = [
+    "FILTERS",
+    "Estimator",
+    "FilterResult",
+    "make_filter",
+    "Afckf",
+    "Complementary",
+    "Ekf",
+    "Kalman",
+    "Madgwick",
+    "Mahony",
+    "Qukf",
+    "Robust",
+]

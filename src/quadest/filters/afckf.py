@@ -50,13 +50,14 @@ The gradient step and the Kalman channel work in the paper's z-up earth frame (e
 The paper publishes no values for β, ρ, ϑ, κ_i, ι, α; quadest's defaults below are chosen from
 the sensors' noise and the vehicle's rates and documented; none was fitted to the checked seeds.
 """
+
 import math
 from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
-from numba import carray, njit
 
+from quadest._jit import carray, njit
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
 from quadest.filters.common import (
@@ -78,53 +79,109 @@ from quadest.filters.linalg import inv_spd_into
 from quadest.rotation.kernels import FASTMATH, normalize_s, qdot_s
 
 WMAX = 256  # longest averaging window of eq 53, samples
-S = layout(("q_up", 4),  # Kalman-channel quaternion q' (paper's z-up frame)
-           ("P", 16),  # its covariance, row-major
-           ("bias", 3),  # gyro bias, rad/s
-           ("psi", 1),  # fused yaw (before the moving average), rad
-           ("mag_ref", 1),  # local field norm ‖b_e‖ (0: from the first sample)
-           ("started", 1),  # 1 once the channels are initialised
-           ("head", 1),  # ring buffer position
-           ("buf", 2 * WMAX),  # ring buffers of sin and cos of the fused yaw, WMAX values each
-           start=BASE)
+S = layout(
+    ("q_up", 4),  # Kalman-channel quaternion q' (paper's z-up frame)
+    ("P", 16),  # its covariance, row-major
+    ("bias", 3),  # gyro bias, rad/s
+    ("psi", 1),  # fused yaw (before the moving average), rad
+    ("mag_ref", 1),  # local field norm ‖b_e‖ (0: from the first sample)
+    ("started", 1),  # 1 once the channels are initialised
+    ("head", 1),  # ring buffer position
+    ("buf", 2 * WMAX),  # ring buffers of sin and cos of the fused yaw, WMAX values each
+    start=BASE,
+)
 IQ, IP, IB, IPSI, IMREF, ISTART, IHEAD, IBUF = S.q_up, S.P, S.bias, S.psi, S.mag_ref, S.started, S.head, S.buf
 
 
 @dataclass(frozen=True)
 class AfckfParams(Params):
-    use_mag: bool = P(True, "-", "use the magnetometer yaw channel",
-                      "quadest: 9-axis when samples are present")
-    omega1: float = P(0.0, "m", "centrifugal constant ω1 of eq 13 (m/s² per (rad/s)²)",
-                      "calibration (eq 13): quadest calibrate centrifugal on a spinning segment")
+    use_mag: bool = P(True, "-", "use the magnetometer yaw channel", "quadest: 9-axis when samples are present")
+    omega1: float = P(
+        0.0,
+        "m",
+        "centrifugal constant ω1 of eq 13 (m/s² per (rad/s)²)",
+        "calibration (eq 13): quadest calibrate centrifugal on a spinning segment",
+    )
     omega2: float = P(0.0, "m", "centrifugal constant ω2 of eq 13", "calibration (eq 13)")
-    beta: float = P(1.5, "-", "step scale β > 1 of eq 24", "chosen: eq 24 requires β > 1; the paper gives no value", bounds="(0, 100]")
+    beta: float = P(
+        1.5,
+        "-",
+        "step scale β > 1 of eq 24",
+        "chosen: eq 24 requires β > 1; the paper gives no value",
+        bounds="(0, 100]",
+    )
     gyro_std: float = P(0.01, "rad/s", "gyro noise σ_ω per sample (eq 27)", "bebop2 gyro noise", bounds="(0, 10]")
-    acc_std: float = P(0.3, "m/s²", "accelerometer noise σ_acc per sample (eq 34)", "bebop2 accelerometer", bounds="(0, 100]")
+    acc_std: float = P(
+        0.3, "m/s²", "accelerometer noise σ_acc per sample (eq 34)", "bebop2 accelerometer", bounds="(0, 100]"
+    )
     alpha_a: float = P(3.0, "-", "spread multiple α of eqs 37-38", "chosen: 3σ", bounds="(0, 100]")
-    omega_d: float = P(0.005, "rad/s²", "bias drift rate ω_d; ρ = √(3/4) ω_d (eq 42)",
-                      "chosen: slow MEMS bias drift; the paper gives no value", bounds="[0, 10]")
-    mag_std: float = P(0.5, "mag unit", "magnetometer noise σ_m per sample (eq 49)", "bebop2 magnetometer", bounds="(0, 1e9]")
+    omega_d: float = P(
+        0.005,
+        "rad/s²",
+        "bias drift rate ω_d; ρ = √(3/4) ω_d (eq 42)",
+        "chosen: slow MEMS bias drift; the paper gives no value",
+        bounds="[0, 10]",
+    )
+    mag_std: float = P(
+        0.5, "mag unit", "magnetometer noise σ_m per sample (eq 49)", "bebop2 magnetometer", bounds="(0, 1e9]"
+    )
     alpha_m: float = P(3.0, "-", "spread multiple α of eq 49", "chosen: 3σ", bounds="(0, 100]")
-    mag_norm: float = P(0.0, "mag unit", "local field norm ‖b_e‖ (0: the first sample's norm)",
-                      "quadest: measured on the first sample unless given", bounds="[0, 1e9]")
-    omega_sat: float = P(np.radians(1000.0), "rad/s", "gyro yaw-rate saturation ω_ψ,sat (eq 48)",
-                         "bebop2 gyro range", bounds="(0, 1e3]")
-    theta_m: float = P(10.0, "-", "membership curvature ϑ_m of eq 47",
-                      "chosen: a convex membership; the paper gives no value", bounds="(1, 1e6]")
-    theta_w: float = P(10.0, "-", "membership curvature ϑ_ω of eq 48",
-                      "chosen: as ϑ_m", bounds="(1, 1e6]")
-    kappa_1: float = P(0.01, "-", "κ when the field is clean and the rate low (per magnetometer sample)",
-                       "chosen: trust the gyro's yaw, a slow magnetometer pull", bounds="[0, 1]")
-    kappa_2: float = P(0.2, "-", "κ when the field is clean and the gyro near saturation",
-                      "chosen: lean on the magnetometer when the gyro clips", bounds="[0, 1]")
-    kappa_3: float = P(0.001, "-", "κ when the field is disturbed and the rate low",
-                      "chosen: ten times less than κ₁", bounds="[0, 1]")
-    kappa_4: float = P(0.02, "-", "κ when the field is disturbed and the gyro near saturation",
-                      "chosen: ten times less than κ₂", bounds="[0, 1]")
-    iota: float = P(20.0, "samples", "window scale ι of eq 53 (at most 256)",
-                     "chosen: 40 ms of averaging at 500 Hz when not rotating", bounds="[1, 256]")
-    p0: float = P(1.0, "-", "initial covariance P0 = p0·I ('large', §III AEKF)",
-                   "chosen: large against a unit quaternion's components", bounds="(0, 1e6]")
+    mag_norm: float = P(
+        0.0,
+        "mag unit",
+        "local field norm ‖b_e‖ (0: the first sample's norm)",
+        "quadest: measured on the first sample unless given",
+        bounds="[0, 1e9]",
+    )
+    omega_sat: float = P(
+        np.radians(1000.0), "rad/s", "gyro yaw-rate saturation ω_ψ,sat (eq 48)", "bebop2 gyro range", bounds="(0, 1e3]"
+    )
+    theta_m: float = P(
+        10.0,
+        "-",
+        "membership curvature ϑ_m of eq 47",
+        "chosen: a convex membership; the paper gives no value",
+        bounds="(1, 1e6]",
+    )
+    theta_w: float = P(10.0, "-", "membership curvature ϑ_ω of eq 48", "chosen: as ϑ_m", bounds="(1, 1e6]")
+    kappa_1: float = P(
+        0.01,
+        "-",
+        "κ when the field is clean and the rate low (per magnetometer sample)",
+        "chosen: trust the gyro's yaw, a slow magnetometer pull",
+        bounds="[0, 1]",
+    )
+    kappa_2: float = P(
+        0.2,
+        "-",
+        "κ when the field is clean and the gyro near saturation",
+        "chosen: lean on the magnetometer when the gyro clips",
+        bounds="[0, 1]",
+    )
+    kappa_3: float = P(
+        0.001, "-", "κ when the field is disturbed and the rate low", "chosen: ten times less than κ₁", bounds="[0, 1]"
+    )
+    kappa_4: float = P(
+        0.02,
+        "-",
+        "κ when the field is disturbed and the gyro near saturation",
+        "chosen: ten times less than κ₂",
+        bounds="[0, 1]",
+    )
+    iota: float = P(
+        20.0,
+        "samples",
+        "window scale ι of eq 53 (at most 256)",
+        "chosen: 40 ms of averaging at 500 Hz when not rotating",
+        bounds="[1, 256]",
+    )
+    p0: float = P(
+        1.0,
+        "-",
+        "initial covariance P0 = p0·I ('large', §III AEKF)",
+        "chosen: large against a unit quaternion's components",
+        bounds="(0, 1e6]",
+    )
     gravity: float = P(GRAVITY, "m/s²", "|g| of eq 15", "standard gravity", bounds="(0, 100]")
 
 
@@ -202,9 +259,9 @@ def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
         return
     if x[ISTART] == 0.0 or (pending and x[YAW_PENDING] == 0.0):
         # channels start from the initial attitude (or the heading just set by the magnetometer)
-        x[IQ:IQ + 4] = _to_up(x[0:4])
+        x[IQ : IQ + 4] = _to_up(x[0:4])
         P0 = np.eye(4) * p[PR.p0]
-        x[IP:IP + 16] = P0.ravel()
+        x[IP : IP + 16] = P0.ravel()
         x[IPSI] = q_to_euler(x[0:4])[2]
         s0, c0 = np.sin(x[IPSI]), np.cos(x[IPSI])
         for i in range(WMAX):
@@ -212,7 +269,7 @@ def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
             x[IBUF + WMAX + i] = c0
         x[ISTART] = 1.0
     # the Kalman channel works in place on the state: P is a view of x
-    P = x[IP:IP + 16].reshape((4, 4))
+    P = x[IP : IP + 16].reshape((4, 4))
     qw, qx, qy, qz = x[IQ], x[IQ + 1], x[IQ + 2], x[IQ + 3]
     # D. eq 39: ω_cor = ω − b
     if finite3(gyr):
@@ -311,8 +368,18 @@ def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
         lam_m = c[CO.lam_m]  # eq 49
         rho_m = min(abs(mn - x[IMREF]), lam_m)  # eq 50 (text's definition)
         w_abs = min(abs(gyr[2]) if finite3(gyr) else 0.0, p[PR.omega_sat])
-        kappa = fuzzy_gain(rho_m, lam_m, w_abs, p[PR.omega_sat], p[PR.theta_m], p[PR.theta_w], p[PR.kappa_1],
-                           p[PR.kappa_2], p[PR.kappa_3], p[PR.kappa_4])
+        kappa = fuzzy_gain(
+            rho_m,
+            lam_m,
+            w_abs,
+            p[PR.omega_sat],
+            p[PR.theta_m],
+            p[PR.theta_w],
+            p[PR.kappa_1],
+            p[PR.kappa_2],
+            p[PR.kappa_3],
+            p[PR.kappa_4],
+        )
         roll = np.arctan2(r21, r22)
         pitch = np.arcsin(min(1.0, max(-1.0, -r20)))
         psi_m = mag_heading(mag, roll, pitch)  # eqs 44-45, corrected (ν: declination of the run)
@@ -349,14 +416,22 @@ def afckf_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
         afckf_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
-        q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
+        q_out[k] = x[Q_OUT : Q_OUT + 4]  # published: in the geographic frame
 
 
 def afckf_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
     """Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address)."""
     try:
-        afckf_step(carray(x, nx), carray(p, n_p), carray(c, nc), carray(gyr, 3), carray(acc, 3), carray(mag, 3),
-                   dt, carray(diag, nd))
+        afckf_step(
+            carray(x, nx),
+            carray(p, n_p),
+            carray(c, nc),
+            carray(gyr, 3),
+            carray(acc, 3),
+            carray(mag, 3),
+            dt,
+            carray(diag, nd),
+        )
     except Exception:  # noqa: BLE001 -- a C callback cannot raise: the C call does, from the status
         return 1
     return 0

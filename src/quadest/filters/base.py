@@ -25,6 +25,7 @@ work in the magnetic NED frame (x towards magnetic north); ``declination`` (rad,
 rotates their output into the geographic frame. NaN magnetometer rows mean "no new sample":
 the magnetometer correction is skipped for that step.
 """
+
 from __future__ import annotations
 
 import math
@@ -32,8 +33,8 @@ from collections import namedtuple
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
-from numba import cfunc, types
 
+from quadest._jit import cfunc, types
 from quadest.errors import UsageError
 from quadest.filters.common import BASE, DECL, INIT, Q_OUT, RESTARTS, SKIPPED, T_LAST
 from quadest.records import check, describe, param
@@ -54,8 +55,10 @@ class Params:
     def values(self) -> dict:
         """``{name: value}`` with floats as ``float`` and flags as ``bool`` (the types the
         compiled step was compiled for)."""
-        return {f.name: (bool(getattr(self, f.name)) if f.type in (bool, "bool") else float(getattr(self, f.name)))
-                for f in fields(self)}
+        return {
+            f.name: (bool(getattr(self, f.name)) if f.type in (bool, "bool") else float(getattr(self, f.name)))
+            for f in fields(self)
+        }
 
 
 def field_offsets(names, typename: str = "Offsets"):
@@ -136,15 +139,23 @@ class Estimator:
     batch = None
     stream = None
 
-    def __init__(self, params: Params | None = None, *, q0=None, declination: float = 0.0,
-                 max_gap_s: float | None = None, **overrides):
+    def __init__(
+        self,
+        params: Params | None = None,
+        *,
+        q0=None,
+        declination: float = 0.0,
+        max_gap_s: float | None = None,
+        **overrides,
+    ):
         params = params if params is not None else self.Params()
         if overrides:
             names = {f.name for f in fields(params)}
             bad = sorted(set(overrides) - names)
             if bad:
-                raise TypeError(f"{self.name}: unknown parameter(s) {', '.join(bad)}; "
-                                f"parameters: {', '.join(sorted(names))}")
+                raise TypeError(
+                    f"{self.name}: unknown parameter(s) {', '.join(bad)}; parameters: {', '.join(sorted(names))}"
+                )
             params = replace(params, **overrides)
         check(params, self.name)
         if not math.isfinite(declination):
@@ -179,13 +190,13 @@ class Estimator:
         self._init_state(x)
         self._set_declination(x)
         self._x = x
-        self._qv = x[Q_OUT:Q_OUT + 4]  # a view of the published attitude (the streaming output copies it)
+        self._qv = x[Q_OUT : Q_OUT + 4]  # a view of the published attitude (the streaming output copies it)
         self.__dict__.pop("update", None)  # the C call held the old state: made again at the next update
 
     def _set_declination(self, x):
         """The declination's half-angle cosine and sine, and the published attitude from them."""
         x[DECL], x[DECL + 1] = math.cos(0.5 * self.declination), math.sin(0.5 * self.declination)
-        x[Q_OUT:Q_OUT + 4] = qmul(np.array([x[DECL], 0.0, 0.0, x[DECL + 1]]), x[0:4])
+        x[Q_OUT : Q_OUT + 4] = qmul(np.array([x[DECL], 0.0, 0.0, x[DECL + 1]]), x[0:4])
 
     def _restart(self):
         """Start again from the next samples (after a gap): the attitude is initialised from the
@@ -216,7 +227,7 @@ class Estimator:
         if x.shape != (self.state_size,):
             raise ValueError(f"{self.name}: state must have shape ({self.state_size},), got {x.shape}")
         self._x = x.copy()
-        self._qv = self._x[Q_OUT:Q_OUT + 4]
+        self._qv = self._x[Q_OUT : Q_OUT + 4]
         self.__dict__.pop("update", None)  # the C call held the old state: made again at the next update
 
     @property
@@ -278,8 +289,9 @@ class Estimator:
         ``update`` stays its fallback for every call out of the common case."""
         address = stream_address(type(self))
         if address:
-            self.update = _Stream(address, self._x, self._p, self._c, self._diag, self._s, Q_OUT,
-                                  type(self).update.__get__(self))
+            self.update = _Stream(
+                address, self._x, self._p, self._c, self._diag, self._s, Q_OUT, type(self).update.__get__(self)
+            )
 
     def __getstate__(self):  # the compiled entry point and the C call are made again after unpickling
         state = dict(self.__dict__)
@@ -291,7 +303,7 @@ class Estimator:
     def __setstate__(self, state):
         self.__dict__.update(state)
         self._call_step = self._first_step
-        self._qv = self._x[Q_OUT:Q_OUT + 4]
+        self._qv = self._x[Q_OUT : Q_OUT + 4]
 
     def _first_step(self, *args):
         """The first streaming call goes through numba's dispatcher (which compiles or loads the
@@ -347,8 +359,15 @@ class Estimator:
         finite_t = t[np.isfinite(t)]
         if len(finite_t):
             self._x[T_LAST] = finite_t[-1]
-        return FilterResult(self.name, t, q, {nm: diag[:, i] for i, nm in enumerate(self.diag_names)},
-                            self.params, int(self._x[SKIPPED] - skipped0), tuple(restarts))
+        return FilterResult(
+            self.name,
+            t,
+            q,
+            {nm: diag[:, i] for i, nm in enumerate(self.diag_names)},
+            self.params,
+            int(self._x[SKIPPED] - skipped0),
+            tuple(restarts),
+        )
 
 
 try:
@@ -360,8 +379,9 @@ STREAM_C = _Stream is not None
 where a C compiler is found; else the Python path, about a microsecond slower per call)."""
 
 _F8P = types.CPointer(types.float64)
-STREAM_SIGNATURE = types.int64(_F8P, types.intp, _F8P, types.intp, _F8P, types.intp, _F8P, _F8P, _F8P,
-                              types.float64, _F8P, types.intp)
+STREAM_SIGNATURE = types.int64(
+    _F8P, types.intp, _F8P, types.intp, _F8P, types.intp, _F8P, _F8P, _F8P, types.float64, _F8P, types.intp
+)
 """``stream(x, nx, p, np, c, nc, gyr, acc, mag, dt, diag, nd) -> status``: an estimator's step
 on raw buffers with their lengths (the vectors have three values), as the C call invokes it;
 status 1 if the step raised (a C callback cannot pass an exception on: the C call raises)."""

@@ -9,10 +9,12 @@ frame, written by :func:`publish` at the end of every step (streaming returns it
 further arithmetic in Python). Each estimator's own
 state follows from ``x[BASE]``, declared once with :func:`layout`.
 """
+
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
+
+from quadest._jit import njit
 
 
 def layout(*slots, start: int = 0):
@@ -31,8 +33,9 @@ def layout(*slots, start: int = 0):
     return namedtuple("Layout", names + ["end"])(*offsets, at)
 
 
-COMMON = layout(("q", 4), ("init", 1), ("yaw_pending", 1), ("t_last", 1), ("skipped", 1), ("restarts", 1),
-                ("decl", 2), ("q_out", 4))
+COMMON = layout(
+    ("q", 4), ("init", 1), ("yaw_pending", 1), ("t_last", 1), ("skipped", 1), ("restarts", 1), ("decl", 2), ("q_out", 4)
+)
 INIT, YAW_PENDING, T_LAST, BASE = COMMON.init, COMMON.yaw_pending, COMMON.t_last, COMMON.end
 SKIPPED, RESTARTS = COMMON.skipped, COMMON.restarts
 DECL, Q_OUT = COMMON.decl, COMMON.q_out

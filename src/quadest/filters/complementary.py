@@ -19,11 +19,12 @@ normalised, negated accelerometer points along +z (down), which is the paper's "
 NWU (``q_nwu = q_F ⊗ q_ned``, tested); ahrs has no bias estimation and uses g = 9.809196 in its
 adaptive gain.
 """
+
 from dataclasses import dataclass
 
 import numpy as np
-from numba import carray, njit
 
+from quadest._jit import carray, njit
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, P, Params, params_record
 from quadest.filters.common import BASE, Q_OUT, admit, finite3, layout, norm3, prepare, publish
@@ -35,22 +36,36 @@ B, GP, HP = S.bias, S.gyr_prev, S.have_prev
 
 @dataclass(frozen=True)
 class ComplementaryParams(Params):
-    use_mag: bool = P(True, "-", "use the magnetometer when samples are present",
-                      "quadest: 9-axis when samples are present")
-    gain_acc: float = P(0.01, "-", "accelerometer gain α (static)",
-                        "Valenti et al. 2015; authors' ROS implementation default", bounds="[0, 1]")
+    use_mag: bool = P(
+        True, "-", "use the magnetometer when samples are present", "quadest: 9-axis when samples are present"
+    )
+    gain_acc: float = P(
+        0.01,
+        "-",
+        "accelerometer gain α (static)",
+        "Valenti et al. 2015; authors' ROS implementation default",
+        bounds="[0, 1]",
+    )
     gain_mag: float = P(0.01, "-", "magnetometer gain β", "Valenti et al. 2015; ROS default", bounds="[0, 1]")
     adaptive: bool = P(True, "-", "adapt α to the acceleration magnitude error (eq 60)", "ROS default")
-    t1: float = P(0.1, "-", "magnitude error below which α is unchanged", "Valenti et al. 2015, section 5.2", bounds="[0, 10]")
-    t2: float = P(0.2, "-", "magnitude error at which α reaches zero", "Valenti et al. 2015, section 5.2", bounds="(0, 10]")
-    threshold: float = P(0.9, "-", "LERP above this scalar part, SLERP below (eq 50-52)",
-                         "Valenti et al. 2015", bounds="[0, 1]")
+    t1: float = P(
+        0.1, "-", "magnitude error below which α is unchanged", "Valenti et al. 2015, section 5.2", bounds="[0, 10]"
+    )
+    t2: float = P(
+        0.2, "-", "magnitude error at which α reaches zero", "Valenti et al. 2015, section 5.2", bounds="(0, 10]"
+    )
+    threshold: float = P(
+        0.9, "-", "LERP above this scalar part, SLERP below (eq 50-52)", "Valenti et al. 2015", bounds="[0, 1]"
+    )
     bias_estimation: bool = P(True, "-", "estimate the gyro bias in steady state", "ROS default")
     bias_alpha: float = P(0.01, "-", "low-pass gain of the bias estimate", "ROS default", bounds="[0, 1]")
     steady_acc: float = P(0.1, "m/s²", "steady state: |‖a‖ − g| below this", "ROS implementation", bounds="[0, 100]")
-    steady_rate: float = P(0.2, "rad/s", "steady state: |ω − b| below this per axis", "ROS implementation", bounds="[0, 100]")
-    steady_delta: float = P(0.01, "rad/s", "steady state: change of ω below this per axis",
-                            "ROS implementation", bounds="[0, 100]")
+    steady_rate: float = P(
+        0.2, "rad/s", "steady state: |ω − b| below this per axis", "ROS implementation", bounds="[0, 100]"
+    )
+    steady_delta: float = P(
+        0.01, "rad/s", "steady state: change of ω below this per axis", "ROS implementation", bounds="[0, 100]"
+    )
     gravity: float = P(GRAVITY, "m/s²", "gravity used for the magnitude error", "standard gravity", bounds="(0, 100]")
 
 
@@ -75,8 +90,12 @@ def _scaled_delta(d0, d1, d2, d3, gain, threshold):
 def _conj_mul(d0, d1, d2, d3, q0, q1, q2, q3):
     """``d* ⊗ q``."""
     w, a, b, c = d0, -d1, -d2, -d3
-    return (w * q0 - a * q1 - b * q2 - c * q3, w * q1 + a * q0 + b * q3 - c * q2,
-            w * q2 - a * q3 + b * q0 + c * q1, w * q3 + a * q2 - b * q1 + c * q0)
+    return (
+        w * q0 - a * q1 - b * q2 - c * q3,
+        w * q1 + a * q0 + b * q3 - c * q2,
+        w * q2 - a * q3 + b * q0 + c * q1,
+        w * q3 + a * q2 - b * q1 + c * q0,
+    )
 
 
 @njit(cache=True)
@@ -143,19 +162,28 @@ def complementary_step(x, p, c, gyr, acc, mag, dt, diag):
     diag[1], diag[2], diag[3] = x[B], x[B + 1], x[B + 2]
     publish(x)
 
+
 @njit(cache=True)
 def complementary_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
         complementary_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
-        q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
+        q_out[k] = x[Q_OUT : Q_OUT + 4]  # published: in the geographic frame
 
 
 def complementary_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
     """Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address)."""
     try:
-        complementary_step(carray(x, nx), carray(p, n_p), carray(c, nc), carray(gyr, 3), carray(acc, 3), carray(mag, 3),
-                           dt, carray(diag, nd))
+        complementary_step(
+            carray(x, nx),
+            carray(p, n_p),
+            carray(c, nc),
+            carray(gyr, 3),
+            carray(acc, 3),
+            carray(mag, 3),
+            dt,
+            carray(diag, nd),
+        )
     except Exception:  # noqa: BLE001 -- a C callback cannot raise: the C call does, from the status
         return 1
     return 0

@@ -11,11 +11,12 @@ covariances exactly; the two filters differ only through the renormalisation and
 paper reports the QUKF 0.2° more accurate than the EKF; on the simulator they come out equal
 (docs/estimators.md).
 """
+
 from dataclasses import dataclass
 
 import numpy as np
-from numba import carray, njit
 
+from quadest._jit import carray, njit
 from quadest.filters.base import Estimator, params_record
 from quadest.filters.common import Q_OUT, admit, finite3, omega_matrix, prepare, publish
 from quadest.filters.linalg import inv_spd, mm, mm_t, mv
@@ -41,7 +42,7 @@ def ekf_step(x, p, c, gyr, acc, mag, dt, diag):
     if not prepare(x, acc, mag, use_mag):
         return
     Q, R = noise(p, c, dt)
-    P = x[PB:PB + 16].copy().reshape((4, 4))
+    P = x[PB : PB + 16].copy().reshape((4, 4))
     F = omega_matrix(gyr, dt) if finite3(gyr) else np.eye(4)
     X = mv(F, x[0:4])
     P = mm_t(mm(F, P), F) + np.eye(4) * Q
@@ -54,7 +55,7 @@ def ekf_step(x, p, c, gyr, acc, mag, dt, diag):
         P = mm_t(mm(IK, P), IK) + mm_t(K, K) * R
         diag[0] = 1.0
     x[0:4] = X / np.sqrt(np.sum(X * X))
-    x[PB:PB + 16] = (0.5 * (P + P.T)).ravel()
+    x[PB : PB + 16] = (0.5 * (P + P.T)).ravel()
     diag[1] = np.trace(P)
     publish(x)
 
@@ -64,14 +65,22 @@ def ekf_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
         ekf_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
-        q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
+        q_out[k] = x[Q_OUT : Q_OUT + 4]  # published: in the geographic frame
 
 
 def ekf_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
     """Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address)."""
     try:
-        ekf_step(carray(x, nx), carray(p, n_p), carray(c, nc), carray(gyr, 3), carray(acc, 3), carray(mag, 3),
-                 dt, carray(diag, nd))
+        ekf_step(
+            carray(x, nx),
+            carray(p, n_p),
+            carray(c, nc),
+            carray(gyr, 3),
+            carray(acc, 3),
+            carray(mag, 3),
+            dt,
+            carray(diag, nd),
+        )
     except Exception:  # noqa: BLE001 -- a C callback cannot raise: the C call does, from the status
         return 1
     return 0
@@ -91,4 +100,4 @@ class Ekf(Estimator):
     stream = staticmethod(ekf_stream)
 
     def _init_state(self, x):
-        x[PB:PB + 16] = (np.eye(4) * self.params.p0).ravel()
+        x[PB : PB + 16] = (np.eye(4) * self.params.p0).ravel()

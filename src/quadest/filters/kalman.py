@@ -23,50 +23,85 @@ The paper's numerical noise values are not reproduced here (its text is not amon
 sources); the defaults below are stated per sample for the ``bebop2`` sensors and are
 documented as assumptions.
 """
+
 from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
-from numba import carray, njit
 
+from quadest._jit import carray, njit
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
 from quadest.filters.common import BASE, Q_OUT, admit, finite3, layout, norm3, prepare, publish
 from quadest.filters.linalg import inv_spd, mm, mm_t, mv
 from quadest.rotation.kernels import FASTMATH, qexp, qexp_right, rot_matrix, skew
 
-S = layout(("bias", 3),  # gyro bias, rad/s
-           ("dist", 3),  # magnetic disturbance, navigation frame, in reference-field units
-           ("ref", 3),  # unit reference field, navigation frame
-           ("norm", 1),  # reference field norm in the magnetometer's unit (0: not yet set)
-           ("P", 81),  # error covariance (orientation, bias, disturbance), row-major
-           start=BASE)
+S = layout(
+    ("bias", 3),  # gyro bias, rad/s
+    ("dist", 3),  # magnetic disturbance, navigation frame, in reference-field units
+    ("ref", 3),  # unit reference field, navigation frame
+    ("norm", 1),  # reference field norm in the magnetometer's unit (0: not yet set)
+    ("P", 81),  # error covariance (orientation, bias, disturbance), row-major
+    start=BASE,
+)
 IB, ID, IREF, INORM, IP = S.bias, S.dist, S.ref, S.norm, S.P
 
 
 @dataclass(frozen=True)
 class KalmanParams(Params):
-    use_mag: bool = P(True, "-", "use the magnetometer when samples are present",
-                      "quadest: 9-axis when samples are present")
-    gyro_noise: float = P(0.01, "rad/s", "gyroscope white noise std per sample",
-                          "chosen: the bebop2 preset's gyro", bounds="(0, 10]")
+    use_mag: bool = P(
+        True, "-", "use the magnetometer when samples are present", "quadest: 9-axis when samples are present"
+    )
+    gyro_noise: float = P(
+        0.01, "rad/s", "gyroscope white noise std per sample", "chosen: the bebop2 preset's gyro", bounds="(0, 10]"
+    )
     bias_rw: float = P(2e-4, "rad/s/√s", "gyro bias random walk", "chosen: the bebop2 preset's gyro", bounds="[0, 1]")
-    acc_noise: float = P(0.3, "m/s²", "accelerometer white noise std per sample",
-                         "chosen: the bebop2 preset's accelerometer", bounds="(0, 100]")
-    lin_acc: float = P(3.0, "m/s²", "std of the unmodelled acceleration, added to the accelerometer noise",
-                       "chosen on simulator seed 11 (not a checked seed); Roetenberg's values are not "
-                       "among quadest's sources", bounds="[0, 100]")
-    mag_noise: float = P(0.02, "-", "magnetometer noise std, in units of the reference field",
-                         "chosen: about 1 µT of a 49 µT field", bounds="(0, 10]")
-    dist_std: float = P(0.02, "-", "steady-state std of the magnetic disturbance (reference-field units)",
-                        "chosen on simulator seed 11", bounds="[0, 10]")
-    dist_tau_s: float = P(0.2, "s", "correlation time τ_d of the magnetic disturbance",
-                          "chosen on simulator seed 11", bounds="[0, 1e6]")
+    acc_noise: float = P(
+        0.3,
+        "m/s²",
+        "accelerometer white noise std per sample",
+        "chosen: the bebop2 preset's accelerometer",
+        bounds="(0, 100]",
+    )
+    lin_acc: float = P(
+        3.0,
+        "m/s²",
+        "std of the unmodelled acceleration, added to the accelerometer noise",
+        "chosen on simulator seed 11 (not a checked seed); Roetenberg's values are not among quadest's sources",
+        bounds="[0, 100]",
+    )
+    mag_noise: float = P(
+        0.02,
+        "-",
+        "magnetometer noise std, in units of the reference field",
+        "chosen: about 1 µT of a 49 µT field",
+        bounds="(0, 10]",
+    )
+    dist_std: float = P(
+        0.02,
+        "-",
+        "steady-state std of the magnetic disturbance (reference-field units)",
+        "chosen on simulator seed 11",
+        bounds="[0, 10]",
+    )
+    dist_tau_s: float = P(
+        0.2, "s", "correlation time τ_d of the magnetic disturbance", "chosen on simulator seed 11", bounds="[0, 1e6]"
+    )
     gravity: float = P(GRAVITY, "m/s²", "gravity", "standard gravity", bounds="(0, 100]")
-    p0_att: float = P(0.01, "rad²", "initial orientation error variance",
-                     "chosen: about 6° (the first sample's attitude is close)", bounds="(0, 10]")
-    p0_bias: float = P(1e-4, "(rad/s)²", "initial gyro bias variance",
-                      "chosen: 0.01 rad/s, a turn-on bias of a MEMS gyro", bounds="[0, 1]")
+    p0_att: float = P(
+        0.01,
+        "rad²",
+        "initial orientation error variance",
+        "chosen: about 6° (the first sample's attitude is close)",
+        bounds="(0, 10]",
+    )
+    p0_bias: float = P(
+        1e-4,
+        "(rad/s)²",
+        "initial gyro bias variance",
+        "chosen: 0.01 rad/s, a turn-on bias of a MEMS gyro",
+        bounds="[0, 1]",
+    )
 
 
 PR = Record = params_record(KalmanParams)
@@ -97,8 +132,8 @@ def _update(x, P, r, H, Rm, v_free, constrain):
     IKH = np.eye(9) - mm(K, H)
     P[:, :] = mm_t(mm(IKH, P), IKH) + mm_t(mm(K, Rm), K)  # Joseph form: keeps P symmetric positive definite
     qexp_right(x[0:4], dx[0], dx[1], dx[2])
-    x[IB:IB + 3] += dx[3:6]
-    x[ID:ID + 3] += dx[6:9]
+    x[IB : IB + 3] += dx[3:6]
+    x[ID : ID + 3] += dx[6:9]
     return dx
 
 
@@ -111,16 +146,16 @@ def kalman_step(x, p, c, gyr, acc, mag, dt, diag):
     diag[0] = diag[4] = 0.0
     if not prepare(x, acc, mag, use_mag):
         return
-    P = x[IP:IP + 81].copy().reshape((9, 9))
+    P = x[IP : IP + 81].copy().reshape((9, 9))
     # -- propagation ----------------------------------------------------------------------
     w = np.zeros(3)
     if finite3(gyr):
-        w[:] = gyr - x[IB:IB + 3]
+        w[:] = gyr - x[IB : IB + 3]
     else:
-        w[:] = -x[IB:IB + 3]
+        w[:] = -x[IB : IB + 3]
     qexp_right(x[0:4], w[0] * dt, w[1] * dt, w[2] * dt)
     cd = np.exp(-dt / tau) if tau > 0 else 0.0
-    x[ID:ID + 3] *= cd
+    x[ID : ID + 3] *= cd
     F = np.eye(9)
     F[0:3, 0:3] = rot_matrix(qexp(w * dt)).T
     F[0:3, 3:6] = -dt * np.eye(3)
@@ -156,12 +191,12 @@ def kalman_step(x, p, c, gyr, acc, mag, dt, diag):
                 s_dip = min(1.0, max(-1.0, s_dip))
                 x[IREF], x[IREF + 1], x[IREF + 2] = np.sqrt(1.0 - s_dip * s_dip), 0.0, s_dip
             else:
-                x[IREF:IREF + 3] = mv(rot_matrix(x[0:4]), mag / mn)
+                x[IREF : IREF + 3] = mv(rot_matrix(x[0:4]), mag / mn)
                 x[IREF + 1] = 0.0  # magnetic frame: no east component
-                x[IREF:IREF + 3] /= norm3(x[IREF:IREF + 3])
+                x[IREF : IREF + 3] /= norm3(x[IREF : IREF + 3])
         else:
             R = rot_matrix(x[0:4])
-            u = x[IREF:IREF + 3] + x[ID:ID + 3]
+            u = x[IREF : IREF + 3] + x[ID : ID + 3]
             h = mv(R.T.copy(), u)
             r = mag / x[INORM] - h
             H = np.zeros((3, 9))
@@ -169,9 +204,9 @@ def kalman_step(x, p, c, gyr, acc, mag, dt, diag):
             H[:, 6:9] = R.T
             _update(x, P, r, H, np.eye(3) * c[CO.r_mag], h, False)
             diag[4] = 1.0
-    x[IP:IP + 81] = (0.5 * (P + P.T)).ravel()
+    x[IP : IP + 81] = (0.5 * (P + P.T)).ravel()
     diag[1], diag[2], diag[3] = x[IB], x[IB + 1], x[IB + 2]
-    diag[5] = norm3(x[ID:ID + 3])
+    diag[5] = norm3(x[ID : ID + 3])
     publish(x)
 
 
@@ -180,14 +215,22 @@ def kalman_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
         kalman_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
-        q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
+        q_out[k] = x[Q_OUT : Q_OUT + 4]  # published: in the geographic frame
 
 
 def kalman_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
     """Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address)."""
     try:
-        kalman_step(carray(x, nx), carray(p, n_p), carray(c, nc), carray(gyr, 3), carray(acc, 3), carray(mag, 3),
-                    dt, carray(diag, nd))
+        kalman_step(
+            carray(x, nx),
+            carray(p, n_p),
+            carray(c, nc),
+            carray(gyr, 3),
+            carray(acc, 3),
+            carray(mag, 3),
+            dt,
+            carray(diag, nd),
+        )
     except Exception:  # noqa: BLE001 -- a C callback cannot raise: the C call does, from the status
         return 1
     return 0
@@ -209,5 +252,5 @@ class Kalman(Estimator):
 
     def _init_state(self, x):
         p = self.params
-        P0 = np.diag([p.p0_att] * 3 + [p.p0_bias] * 3 + [p.dist_std ** 2] * 3)
-        x[IP:IP + 81] = P0.ravel()
+        P0 = np.diag([p.p0_att] * 3 + [p.p0_bias] * 3 + [p.dist_std**2] * 3)
+        x[IP : IP + 81] = P0.ravel()

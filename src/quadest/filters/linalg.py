@@ -4,9 +4,10 @@ numba sends ``@`` and ``np.linalg.inv`` on 2-D arrays to BLAS/LAPACK, whose call
 (~0.3-1 µs) dominates for 3x3 to 9x9 matrices; these loops compile to a few hundred
 instructions. Each function is tested against numpy.
 """
-import numpy as np
-from numba import njit
 
+import numpy as np
+
+from quadest._jit import njit
 from quadest.rotation.kernels import FASTMATH
 
 
@@ -17,11 +18,11 @@ def mm(A, B):
     m = B.shape[1]
     C = np.zeros((n, m))
     for i in range(n):
-        for l in range(k):
-            a = A[i, l]
+        for r in range(k):
+            a = A[i, r]
             if a != 0.0:
                 for j in range(m):
-                    C[i, j] += a * B[l, j]
+                    C[i, j] += a * B[r, j]
     return C
 
 
@@ -34,8 +35,8 @@ def mm_t(A, B):
     for i in range(n):
         for j in range(m):
             s = 0.0
-            for l in range(k):
-                s += A[i, l] * B[j, l]
+            for r in range(k):
+                s += A[i, r] * B[j, r]
             C[i, j] = s
     return C
 
@@ -47,8 +48,8 @@ def mv(A, v):
     out = np.zeros(n)
     for i in range(n):
         s = 0.0
-        for l in range(k):
-            s += A[i, l] * v[l]
+        for r in range(k):
+            s += A[i, r] * v[r]
         out[i] = s
     return out
 

@@ -11,12 +11,13 @@ form of the rotation and its 4-D gradient is normalised including its radial par
 rewrite that is equal on the unit sphere takes slightly different steps (0.25° apart after 20 s).
 ahrs's implementation of the paper gives the same attitude in NWU (tested to 1e-9 rad).
 """
+
 from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
-from numba import carray, njit
 
+from quadest._jit import carray, njit
 from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
 from quadest.filters.common import BASE, Q_OUT, admit, finite3, gravity_objective, norm3, prepare, publish
 from quadest.rotation.kernels import normalize_s, qdot_s, rotate_s
@@ -24,12 +25,26 @@ from quadest.rotation.kernels import normalize_s, qdot_s, rotate_s
 
 @dataclass(frozen=True)
 class MadgwickParams(Params):
-    use_mag: bool = P(True, "-", "use the magnetometer (MARG form) when samples are present",
-                      "quadest: 9-axis when samples are present")
-    beta_marg: float = P(0.041, "-", "gradient-descent gain β in the MARG form",
-                         "Madgwick 2010 report / reference implementation", bounds="[0, 10]")
-    beta_imu: float = P(0.033, "-", "gradient-descent gain β in the IMU (6-axis) form",
-                        "Madgwick 2010 report / reference implementation", bounds="[0, 10]")
+    use_mag: bool = P(
+        True,
+        "-",
+        "use the magnetometer (MARG form) when samples are present",
+        "quadest: 9-axis when samples are present",
+    )
+    beta_marg: float = P(
+        0.041,
+        "-",
+        "gradient-descent gain β in the MARG form",
+        "Madgwick 2010 report / reference implementation",
+        bounds="[0, 10]",
+    )
+    beta_imu: float = P(
+        0.033,
+        "-",
+        "gradient-descent gain β in the IMU (6-axis) form",
+        "Madgwick 2010 report / reference implementation",
+        bounds="[0, 10]",
+    )
 
 
 PR = Record = params_record(MadgwickParams)
@@ -78,7 +93,11 @@ def madgwick_step(x, p, c, gyr, acc, mag, dt, diag):
             # J_bᵀ f_b (eq 32)
             s0 += -2.0 * bz * qy * f3 + (-2.0 * bx * qz + 2.0 * bz * qx) * f4 + 2.0 * bx * qy * f5
             s1 += 2.0 * bz * qz * f3 + (2.0 * bx * qy + 2.0 * bz * qw) * f4 + (2.0 * bx * qz - 4.0 * bz * qx) * f5
-            s2 += (-4.0 * bx * qy - 2.0 * bz * qw) * f3 + (2.0 * bx * qx + 2.0 * bz * qz) * f4 + (2.0 * bx * qw - 4.0 * bz * qy) * f5
+            s2 += (
+                (-4.0 * bx * qy - 2.0 * bz * qw) * f3
+                + (2.0 * bx * qx + 2.0 * bz * qz) * f4
+                + (2.0 * bx * qw - 4.0 * bz * qy) * f5
+            )
             s3 += (-4.0 * bx * qz + 2.0 * bz * qx) * f3 + (-2.0 * bx * qw + 2.0 * bz * qy) * f4 + 2.0 * bx * qx * f5
             diag[0] = 2.0
         else:
@@ -101,14 +120,22 @@ def madgwick_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
         madgwick_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
-        q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
+        q_out[k] = x[Q_OUT : Q_OUT + 4]  # published: in the geographic frame
 
 
 def madgwick_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
     """Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address)."""
     try:
-        madgwick_step(carray(x, nx), carray(p, n_p), carray(c, nc), carray(gyr, 3), carray(acc, 3), carray(mag, 3),
-                      dt, carray(diag, nd))
+        madgwick_step(
+            carray(x, nx),
+            carray(p, n_p),
+            carray(c, nc),
+            carray(gyr, 3),
+            carray(acc, 3),
+            carray(mag, 3),
+            dt,
+            carray(diag, nd),
+        )
     except Exception:  # noqa: BLE001 -- a C callback cannot raise: the C call does, from the status
         return 1
     return 0

@@ -11,11 +11,12 @@ prediction is the up direction ``−Rᵀ e_z``; the magnetic prediction is ``R�
 with ``h = R m``. ahrs's Mahony builds the same predictions in ENU (its magnetic reference has
 north along y), so its output equals ours after ``q_ned = q_T ⊗ q_enu`` (tested to 1e-9).
 """
+
 from dataclasses import dataclass
 
 import numpy as np
-from numba import carray, njit
 
+from quadest._jit import carray, njit
 from quadest.filters.base import Estimator, P, Params, params_record
 from quadest.filters.common import BASE, Q_OUT, admit, finite3, layout, norm3, prepare, publish
 from quadest.rotation.kernels import normalize_s, qdot_s, rotate_inv_s, rotate_s
@@ -26,11 +27,19 @@ B = S.bias
 
 @dataclass(frozen=True)
 class MahonyParams(Params):
-    use_mag: bool = P(True, "-", "use the magnetometer when samples are present",
-                      "quadest: 9-axis when samples are present")
-    k_p: float = P(1.0, "rad/s", "proportional gain k_P", "Mahony et al. 2008, experiments (k_P = 1)", bounds="[0, 1e3]")
-    k_i: float = P(0.3, "rad/s²", "integral gain k_I of the bias feedback",
-                   "Mahony et al. 2008, experiments (k_I = 0.3)", bounds="[0, 1e3]")
+    use_mag: bool = P(
+        True, "-", "use the magnetometer when samples are present", "quadest: 9-axis when samples are present"
+    )
+    k_p: float = P(
+        1.0, "rad/s", "proportional gain k_P", "Mahony et al. 2008, experiments (k_P = 1)", bounds="[0, 1e3]"
+    )
+    k_i: float = P(
+        0.3,
+        "rad/s²",
+        "integral gain k_I of the bias feedback",
+        "Mahony et al. 2008, experiments (k_I = 0.3)",
+        bounds="[0, 1e3]",
+    )
 
 
 PR = Record = params_record(MahonyParams)
@@ -90,14 +99,22 @@ def mahony_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
         mahony_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
-        q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
+        q_out[k] = x[Q_OUT : Q_OUT + 4]  # published: in the geographic frame
 
 
 def mahony_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
     """Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address)."""
     try:
-        mahony_step(carray(x, nx), carray(p, n_p), carray(c, nc), carray(gyr, 3), carray(acc, 3), carray(mag, 3),
-                    dt, carray(diag, nd))
+        mahony_step(
+            carray(x, nx),
+            carray(p, n_p),
+            carray(c, nc),
+            carray(gyr, 3),
+            carray(acc, 3),
+            carray(mag, 3),
+            dt,
+            carray(diag, nd),
+        )
     except Exception:  # noqa: BLE001 -- a C callback cannot raise: the C call does, from the status
         return 1
     return 0

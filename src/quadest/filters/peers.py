@@ -19,6 +19,7 @@ were found by running each library on simulated flights with truth and are pinne
 Magnetometer rows without a new sample (NaN) are held from the last sample for the per-sample
 Python filters that need one every step (ahrs), and given as zero (meaning "none") to VQF.
 """
+
 from __future__ import annotations
 
 import importlib.util
@@ -34,8 +35,15 @@ _S = np.sqrt(0.5)
 Q_T = np.array([0.0, _S, _S, 0.0])  # ENU <-> NED
 
 PEERS = ("vqf", "vqf-offline", "imufusion", "ahrs-madgwick", "ahrs-mahony", "ahrs-ekf", "ahrs-aqua")
-PACKAGE = {"vqf": "vqf", "vqf-offline": "vqf", "imufusion": "imufusion", "ahrs-madgwick": "ahrs",
-           "ahrs-mahony": "ahrs", "ahrs-ekf": "ahrs", "ahrs-aqua": "ahrs"}
+PACKAGE = {
+    "vqf": "vqf",
+    "vqf-offline": "vqf",
+    "imufusion": "imufusion",
+    "ahrs-madgwick": "ahrs",
+    "ahrs-mahony": "ahrs",
+    "ahrs-ekf": "ahrs",
+    "ahrs-aqua": "ahrs",
+}
 
 
 def available_peers() -> list[str]:
@@ -154,9 +162,15 @@ def run_ahrs_aqua(rec, use_mag: bool = True):
     return quat_mul(Q_F, quat_conj(q))  # q_bn in NWU -> q_nb in NED
 
 
-RUNNERS = {"vqf": run_vqf, "vqf-offline": run_vqf_offline, "imufusion": run_imufusion,
-           "ahrs-madgwick": run_ahrs_madgwick, "ahrs-mahony": run_ahrs_mahony, "ahrs-ekf": run_ahrs_ekf,
-           "ahrs-aqua": run_ahrs_aqua}
+RUNNERS = {
+    "vqf": run_vqf,
+    "vqf-offline": run_vqf_offline,
+    "imufusion": run_imufusion,
+    "ahrs-madgwick": run_ahrs_madgwick,
+    "ahrs-mahony": run_ahrs_mahony,
+    "ahrs-ekf": run_ahrs_ekf,
+    "ahrs-aqua": run_ahrs_aqua,
+}
 
 
 # -- streaming: one sample at a time, for the closed loop --------------------------------------------
@@ -217,8 +231,7 @@ class PeerStream:
         self._dq = np.array([np.cos(d / 2), 0.0, 0.0, np.sin(d / 2)])
 
     def update(self, gyr, acc, mag) -> np.ndarray:
-        return quat_mul(self._dq, self._s.step(np.asarray(gyr, float), np.asarray(acc, float),
-                                               np.asarray(mag, float)))
+        return quat_mul(self._dq, self._s.step(np.asarray(gyr, float), np.asarray(acc, float), np.asarray(mag, float)))
 
 
 def stream_peer(name: str, dt: float, declination: float = 0.0, use_mag: bool = True) -> PeerStream:

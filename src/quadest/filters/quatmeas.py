@@ -15,9 +15,10 @@ Two printed equations do not follow from the paper's own model and are corrected
 
 Both are pinned by tests: the measurement quaternion of noise-free samples equals the truth.
 """
-import numpy as np
-from numba import njit
 
+import numpy as np
+
+from quadest._jit import njit
 from quadest.filters.common import euler_to_q, finite3, mag_heading, norm3, q_to_euler, tilt_from_acc
 
 

@@ -16,12 +16,13 @@ interval ``dt`` quadest uses ``S·dt/T`` and ``R·T/dt`` with ``T = 1/rate_ref_h
 keeps the paper's time constants at any rate (``scale_with_rate=False`` takes them as they are).
 The state is renormalised after each update (section IV).
 """
+
 from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
-from numba import carray, njit
 
+from quadest._jit import carray, njit
 from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
 from quadest.filters.common import BASE, Q_OUT, admit, finite3, layout, omega_matrix, prepare, publish
 from quadest.filters.linalg import inv_spd_into
@@ -34,18 +35,31 @@ PB = S.P
 
 @dataclass(frozen=True)
 class QukfParams(Params):
-    use_mag: bool = P(True, "-", "use the magnetometer heading in the measurement",
-                      "quadest: 9-axis when samples are present")
+    use_mag: bool = P(
+        True, "-", "use the magnetometer heading in the measurement", "quadest: 9-axis when samples are present"
+    )
     lam: float = P(-1.0, "-", "sigma-point scaling λ", "Liang et al. 2023, section IV", bounds="(-4, 1e3]")
     alpha: float = P(1.0, "-", "spread α", "Liang et al. 2023, section IV", bounds="(0, 10]")
     beta: float = P(2.0, "-", "prior-distribution parameter β", "Liang et al. 2023, section IV", bounds="[0, 100]")
-    s: float = P(0.001, "-", "process noise S = s·I per reference step", "Liang et al. 2023, section IV", bounds="(0, 1e6]")
-    r: float = P(0.05, "-", "measurement noise R = r·I per reference step", "Liang et al. 2023, section IV", bounds="(0, 1e6]")
-    p0: float = P(1.0, "-", "initial covariance P0 = p0·I",
-               "chosen: large against a unit quaternion's components (the paper gives none)", bounds="(0, 1e6]")
-    rate_ref_hz: float = P(20.0, "Hz", "rate at which s and r are given", "Liang et al. 2023 (20 Hz)", bounds="(0, 1e6]")
-    scale_with_rate: bool = P(True, "-", "scale s by dt/T and r by T/dt",
-                              "quadest: keeps the paper's time constants at any rate (module doc)")
+    s: float = P(
+        0.001, "-", "process noise S = s·I per reference step", "Liang et al. 2023, section IV", bounds="(0, 1e6]"
+    )
+    r: float = P(
+        0.05, "-", "measurement noise R = r·I per reference step", "Liang et al. 2023, section IV", bounds="(0, 1e6]"
+    )
+    p0: float = P(
+        1.0,
+        "-",
+        "initial covariance P0 = p0·I",
+        "chosen: large against a unit quaternion's components (the paper gives none)",
+        bounds="(0, 1e6]",
+    )
+    rate_ref_hz: float = P(
+        20.0, "Hz", "rate at which s and r are given", "Liang et al. 2023 (20 Hz)", bounds="(0, 1e6]"
+    )
+    scale_with_rate: bool = P(
+        True, "-", "scale s by dt/T and r by T/dt", "quadest: keeps the paper's time constants at any rate (module doc)"
+    )
 
 
 PR = Record = params_record(QukfParams)
@@ -58,8 +72,9 @@ def coefficients(p: QukfParams) -> Coefficients:
     ``w_i = 1/(2(n+λ))`` (n = 4); and the reference step ``T = 1/rate_ref_hz``."""
     n = 4
     wm0 = p.lam / (n + p.lam)
-    return Coefficients(wm0=wm0, wc0=wm0 + 1.0 - p.alpha * p.alpha + p.beta, wi=1.0 / (2.0 * (n + p.lam)),
-                        T=1.0 / p.rate_ref_hz)
+    return Coefficients(
+        wm0=wm0, wc0=wm0 + 1.0 - p.alpha * p.alpha + p.beta, wi=1.0 / (2.0 * (n + p.lam)), T=1.0 / p.rate_ref_hz
+    )
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -139,7 +154,7 @@ def qukf_step(x, p, c, gyr, acc, mag, dt, diag):
         return
     n = 4
     Q, R = noise(p, c, dt)
-    P = x[PB:PB + 16].reshape((4, 4))  # a view: updated in place
+    P = x[PB : PB + 16].reshape((4, 4))  # a view: updated in place
     W = np.empty(2 * 36 + 7 * 16 + 8)  # one scratch buffer for every intermediate
     chi = W[0:36].reshape((9, 4))
     sig = W[36:72].reshape((9, 4))
@@ -183,7 +198,9 @@ def qukf_step(x, p, c, gyr, acc, mag, dt, diag):
         inv_spd_into(M, Minv)
         for i in range(4):  # eq 30: K = P_xz P_zz⁻¹
             for j in range(4):
-                K[i, j] = Pxz[i, 0] * Minv[0, j] + Pxz[i, 1] * Minv[1, j] + Pxz[i, 2] * Minv[2, j] + Pxz[i, 3] * Minv[3, j]
+                K[i, j] = (
+                    Pxz[i, 0] * Minv[0, j] + Pxz[i, 1] * Minv[1, j] + Pxz[i, 2] * Minv[2, j] + Pxz[i, 3] * Minv[3, j]
+                )
         d0, d1, d2, d3 = z[0] - Zh[0], z[1] - Zh[1], z[2] - Zh[2], z[3] - Zh[3]
         for i in range(4):  # eq 31
             Xp[i] += K[i, 0] * d0 + K[i, 1] * d1 + K[i, 2] * d2 + K[i, 3] * d3
@@ -212,14 +229,22 @@ def qukf_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
         qukf_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
-        q_out[k] = x[Q_OUT:Q_OUT + 4]  # published: in the geographic frame
+        q_out[k] = x[Q_OUT : Q_OUT + 4]  # published: in the geographic frame
 
 
 def qukf_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
     """Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address)."""
     try:
-        qukf_step(carray(x, nx), carray(p, n_p), carray(c, nc), carray(gyr, 3), carray(acc, 3), carray(mag, 3),
-                  dt, carray(diag, nd))
+        qukf_step(
+            carray(x, nx),
+            carray(p, n_p),
+            carray(c, nc),
+            carray(gyr, 3),
+            carray(acc, 3),
+            carray(mag, 3),
+            dt,
+            carray(diag, nd),
+        )
     except Exception:  # noqa: BLE001 -- a C callback cannot raise: the C call does, from the status
         return 1
     return 0
@@ -239,4 +264,4 @@ class Qukf(Estimator):
     stream = staticmethod(qukf_stream)
 
     def _init_state(self, x):
-        x[PB:PB + 16] = (np.eye(4) * self.params.p0).ravel()
+        x[PB : PB + 16] = (np.eye(4) * self.params.p0).ravel()

@@ -2,9 +2,32 @@
 a controller flies the vehicle model on what the estimator makes of the sensors, and the flight
 becomes a recording that every command reads. Layer 2: it joins the controllers, the estimators
 and the simulator's sensors."""
-from quadest.flight.common import SIM_RATE_HZ, Flight, FlightParams, position_gain
-from quadest.flight.fly import (CONTROLLERS, DEFAULT_DURATION, SCENARIOS, campaign_table, fly, fly_many,
-                                in_loop_estimators, offline_errors, resample)
 
-__all__ = ["CONTROLLERS", "DEFAULT_DURATION", "Flight", "FlightParams", "SCENARIOS", "SIM_RATE_HZ",
-           "campaign_table", "fly", "fly_many", "in_loop_estimators", "offline_errors", "position_gain", "resample"]
+from quadest.flight.common import SIM_RATE_HZ, Flight, FlightParams, position_gain
+from quadest.flight.fly import (
+    CONTROLLERS,
+    DEFAULT_DURATION,
+    SCENARIOS,
+    campaign_table,
+    fly,
+    fly_many,
+    in_loop_estimators,
+    offline_errors,
+    resample,
+)
+
+__all__ = [
+    "CONTROLLERS",
+    "DEFAULT_DURATION",
+    "Flight",
+    "FlightParams",
+    "SCENARIOS",
+    "SIM_RATE_HZ",
+    "campaign_table",
+    "fly",
+    "fly_many",
+    "in_loop_estimators",
+    "offline_errors",
+    "position_gain",
+    "resample",
+]

@@ -1,5 +1,6 @@
 """What the flights share: their parameters, the record of a flown run, the position fusion's
 gain, the sensors' draws and the error measures of the summaries."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -21,44 +22,84 @@ SIM_RATE_HZ = 1000.0
 class FlightParams:
     """What a flight assumes beyond the vehicle, its sensors and its controllers."""
 
-    mocap_rate_hz: float = param(100.0, "Hz", "position sensor rate",
-                                 "chosen: a motion-capture system (Vicon/OptiTrack class, 100-300 Hz)",
-                                 bounds="(0, 1000]")
-    mocap_noise_m: float = param(1e-3, "m", "position sensor white noise per axis",
-                                 "chosen: motion capture, millimetre noise", bounds="[0, 10]")
-    mocap_latency_s: float = param(0.01, "s", "position sensor latency",
-                                   "chosen: motion capture over a radio link, about 10 ms", bounds="[0, 1]")
+    mocap_rate_hz: float = param(
+        100.0,
+        "Hz",
+        "position sensor rate",
+        "chosen: a motion-capture system (Vicon/OptiTrack class, 100-300 Hz)",
+        bounds="(0, 1000]",
+    )
+    mocap_noise_m: float = param(
+        1e-3, "m", "position sensor white noise per axis", "chosen: motion capture, millimetre noise", bounds="[0, 10]"
+    )
+    mocap_latency_s: float = param(
+        0.01, "s", "position sensor latency", "chosen: motion capture over a radio link, about 10 ms", bounds="[0, 1]"
+    )
     position_sensor: str = param("mocap", "-", "the position sensor the loop reads: mocap or gnss", "chosen")
-    gnss_rate_hz: float = param(5.0, "Hz", "GNSS-like position sensor rate", "chosen: a u-blox M8-class receiver",
-                                bounds="(0, 1000]")
-    gnss_noise_m: tuple = param((0.5, 0.5, 1.0), "m", "GNSS-like position white noise (north, east, down)",
-                                "chosen: a single receiver without corrections, vertical worse than horizontal")
-    gnss_latency_s: float = param(0.1, "s", "GNSS-like position latency", "chosen: a receiver's fix delay",
-                                  bounds="[0, 1]")
-    gnss_fusion_acc_std: float = param(5.0, "m/s²", "acceleration noise the position fusion assumes with the "
-                                       "GNSS-like sensor", "tuned in simulation (hover, seed 4; 0.5, 2, 5, 10 tried): "
-                                       "over 0.2 s between fixes the accelerometer's error is mostly bias and "
-                                       "attitude error, which a white model underrates; at 0.5 the estimate "
-                                       "drifts 3 m RMS", bounds="(0, 100]")
-    baro_rate_hz: float = param(50.0, "Hz", "barometer rate (recorded in the flight table, not read by the loop)",
-                                "chosen: an MS5611-class sensor", bounds="(0, 1000]")
-    baro_noise_m: float = param(0.1, "m", "barometer altitude white noise", "chosen: an MS5611-class sensor, "
-                                "about 10 cm RMS", bounds="[0, 100]")
-    baro_tau_s: float = param(0.05, "s", "barometer lag (first order)", "chosen: the sensor's and its filter's",
-                              bounds="[0, 10]")
-    fusion_acc_std: float = param(0.5, "m/s²", "acceleration noise the position fusion assumes (motion capture)",
-                                  "chosen: accelerometer noise plus what a degree of attitude error makes of g",
-                                  bounds="(0, 100]")
-    height_m: float = param(3.0, "m", "height of the hover point above the ground",
-                            "chosen: room for the fall a rotor loss causes before control is regained",
-                            bounds="(0, 1e3]")
-    detect_delay_s: float = param(0.05, "s", "a rotor loss is known to the controller this long after it "
-                                  "happens (known at t + delay, not detected from measurements)",
-                                  "chosen: the order of the detection delays reported for rotor failures",
-                                  bounds="[0, 10]")
-    settle_m: float = param(0.3, "m", "a run has settled once its position error stays below this",
-                            "chosen: a relaxed hover circles a few centimetres; a drifting one does not",
-                            bounds="(0, 100]")
+    gnss_rate_hz: float = param(
+        5.0, "Hz", "GNSS-like position sensor rate", "chosen: a u-blox M8-class receiver", bounds="(0, 1000]"
+    )
+    gnss_noise_m: tuple = param(
+        (0.5, 0.5, 1.0),
+        "m",
+        "GNSS-like position white noise (north, east, down)",
+        "chosen: a single receiver without corrections, vertical worse than horizontal",
+    )
+    gnss_latency_s: float = param(
+        0.1, "s", "GNSS-like position latency", "chosen: a receiver's fix delay", bounds="[0, 1]"
+    )
+    gnss_fusion_acc_std: float = param(
+        5.0,
+        "m/s²",
+        "acceleration noise the position fusion assumes with the GNSS-like sensor",
+        "tuned in simulation (hover, seed 4; 0.5, 2, 5, 10 tried): "
+        "over 0.2 s between fixes the accelerometer's error is mostly bias and "
+        "attitude error, which a white model underrates; at 0.5 the estimate "
+        "drifts 3 m RMS",
+        bounds="(0, 100]",
+    )
+    baro_rate_hz: float = param(
+        50.0,
+        "Hz",
+        "barometer rate (recorded in the flight table, not read by the loop)",
+        "chosen: an MS5611-class sensor",
+        bounds="(0, 1000]",
+    )
+    baro_noise_m: float = param(
+        0.1, "m", "barometer altitude white noise", "chosen: an MS5611-class sensor, about 10 cm RMS", bounds="[0, 100]"
+    )
+    baro_tau_s: float = param(
+        0.05, "s", "barometer lag (first order)", "chosen: the sensor's and its filter's", bounds="[0, 10]"
+    )
+    fusion_acc_std: float = param(
+        0.5,
+        "m/s²",
+        "acceleration noise the position fusion assumes (motion capture)",
+        "chosen: accelerometer noise plus what a degree of attitude error makes of g",
+        bounds="(0, 100]",
+    )
+    height_m: float = param(
+        3.0,
+        "m",
+        "height of the hover point above the ground",
+        "chosen: room for the fall a rotor loss causes before control is regained",
+        bounds="(0, 1e3]",
+    )
+    detect_delay_s: float = param(
+        0.05,
+        "s",
+        "a rotor loss is known to the controller this long after it "
+        "happens (known at t + delay, not detected from measurements)",
+        "chosen: the order of the detection delays reported for rotor failures",
+        bounds="[0, 10]",
+    )
+    settle_m: float = param(
+        0.3,
+        "m",
+        "a run has settled once its position error stays below this",
+        "chosen: a relaxed hover circles a few centimetres; a drifting one does not",
+        bounds="(0, 100]",
+    )
 
     def __post_init__(self):
         check(self, "flight")
@@ -70,8 +111,12 @@ class FlightParams:
         """The position sensor the loop reads: rate (Hz), white noise per axis (m), latency (s),
         and the acceleration noise the fusion assumes with it (m/s²)."""
         if self.position_sensor == "gnss":
-            return (self.gnss_rate_hz, np.asarray(self.gnss_noise_m, float), self.gnss_latency_s,
-                    self.gnss_fusion_acc_std)
+            return (
+                self.gnss_rate_hz,
+                np.asarray(self.gnss_noise_m, float),
+                self.gnss_latency_s,
+                self.gnss_fusion_acc_std,
+            )
         return self.mocap_rate_hz, np.full(3, self.mocap_noise_m), self.mocap_latency_s, self.fusion_acc_std
 
     @classmethod
@@ -107,8 +152,8 @@ def position_gain(p: FlightParams, imu_rate_hz: float) -> np.ndarray:
     T = 1.0 / rate
     Fm = np.array([[1.0, T], [0.0, 1.0]])
     # acceleration noise integrated over T: std per IMU sample, white at that rate
-    q = acc_std ** 2 / imu_rate_hz
-    Q = q * np.array([[T ** 3 / 3, T ** 2 / 2], [T ** 2 / 2, T]])
+    q = acc_std**2 / imu_rate_hz
+    Q = q * np.array([[T**3 / 3, T**2 / 2], [T**2 / 2, T]])
     H = np.array([[1.0, 0.0]])
     gains = np.empty((3, 2))
     for axis in range(3):
@@ -168,5 +213,3 @@ def mean_present(values):
 
 def rms(v):
     return float(np.sqrt(np.mean(np.square(v)))) if len(v) else None
-
-

@@ -9,6 +9,7 @@ integrates each step with scipy's RK45 and holds the controller's command over i
 with one RK4 step in compiled code; RotorPy adds translational lift (``k_h``, a few mN here),
 which quadest's model does not have.
 """
+
 from __future__ import annotations
 
 import importlib.util
@@ -33,8 +34,14 @@ def _rotorpy_flight(trajectory, x0, duration, rate_hz, start=None):
     from rotorpy.vehicles.hummingbird_params import quad_params
     from rotorpy.vehicles.multirotor import Multirotor
 
-    state = {"x": np.asarray(x0 if start is None else start, float), "v": np.zeros(3), "q": np.array([0.0, 0.0, 0.0, 1.0]), "w": np.zeros(3),
-             "wind": np.zeros(3), "rotor_speeds": np.full(4, vehicle_preset("hummingbird").hover_speed())}
+    state = {
+        "x": np.asarray(x0 if start is None else start, float),
+        "v": np.zeros(3),
+        "q": np.array([0.0, 0.0, 0.0, 1.0]),
+        "w": np.zeros(3),
+        "wind": np.zeros(3),
+        "rotor_speeds": np.full(4, vehicle_preset("hummingbird").hover_speed()),
+    }
     if trajectory != "hover":
         state["v"] = np.array([0.0, RADIUS_M * 2 * np.pi * FREQ_HZ, 0.0])
     vehicle = Multirotor(quad_params, initial_state=state)
@@ -46,8 +53,9 @@ def _rotorpy_flight(trajectory, x0, duration, rate_hz, start=None):
     else:
         from rotorpy.trajectories.circular_traj import ThreeDCircularTraj
 
-        traj = ThreeDCircularTraj(center=np.zeros(3), radius=np.array([RADIUS_M, RADIUS_M, 0.0]),
-                                  freq=np.full(3, FREQ_HZ))
+        traj = ThreeDCircularTraj(
+            center=np.zeros(3), radius=np.array([RADIUS_M, RADIUS_M, 0.0]), freq=np.full(3, FREQ_HZ)
+        )
     env = Environment(vehicle=vehicle, controller=controller, trajectory=traj, sim_rate=rate_hz)
     t0 = time.perf_counter()
     res = env.run(t_final=duration, use_mocap=False, terminate=False, plot=False, animate_bool=False, verbose=False)
@@ -91,13 +99,19 @@ def crosscheck(duration: float = 10.0, rate_hz: float = 1000.0, hover_s: float =
     lap = 1.0 / FREQ_HZ
     _, _, _, w_q, _ = _quadest_flight("hover", hover_s, rate_hz)
     _, _, _, w_r, _ = _rotorpy_flight("hover", np.zeros(3), hover_s, rate_hz, start=HOVER_START_M)
-    out["hover_rotor_speed"] = {"quadest": float(np.mean(w_q[-1])), "rotorpy": float(np.mean(w_r[-1])),
-                                "model": vehicle_preset("hummingbird").hover_speed()}
+    out["hover_rotor_speed"] = {
+        "quadest": float(np.mean(w_q[-1])),
+        "rotorpy": float(np.mean(w_r[-1])),
+        "model": vehicle_preset("hummingbird").hover_speed(),
+    }
     tq, pq, rq, _, wall_q = _quadest_flight("circle", duration, rate_hz)
     tr, pr, rr, _, wall_r = _rotorpy_flight("circle", np.array([RADIUS_M, 0.0, 0.0]), duration, rate_hz)
     t_from = min(lap, 0.5 * duration)
-    out["tracking_rms_m"] = {"quadest": _rms_after(tq, pq, rq, t_from), "rotorpy": _rms_after(tr, pr, rr, t_from),
-                             "from_s": t_from}
+    out["tracking_rms_m"] = {
+        "quadest": _rms_after(tq, pq, rq, t_from),
+        "rotorpy": _rms_after(tr, pr, rr, t_from),
+        "from_s": t_from,
+    }
     steps = duration * rate_hz
     out["wall_s"] = {"quadest": wall_q, "rotorpy": wall_r}
     out["ms_per_step"] = {"quadest": 1e3 * wall_q / steps, "rotorpy": 1e3 * wall_r / steps}

@@ -5,6 +5,7 @@ the recording (what the sensors gave, as every command reads it), the true state
 loop estimated and commanded, and a summary (survived or crashed, why and when, position error
 after settling, the attitude error in the loop, the settled spin and tilt after a rotor loss).
 """
+
 from __future__ import annotations
 
 import math
@@ -18,9 +19,18 @@ from quadest.control.ftc import relaxed_hover
 from quadest.errors import UsageError
 from quadest.filters import FILTERS, Estimator, make_filter
 from quadest.filters.base import _declination_quat
-from quadest.flight.common import (SIM_RATE_HZ, Flight, FlightParams, angle_errors, barometer, mean_present,
-                                   position_gain, rms, sensors_for)
 from quadest.filters.peers import STREAMING_PEERS, available_peers, run_peer, stream_peer
+from quadest.flight.common import (
+    SIM_RATE_HZ,
+    Flight,
+    FlightParams,
+    angle_errors,
+    barometer,
+    mean_present,
+    position_gain,
+    rms,
+    sensors_for,
+)
 from quadest.flight.loop import ESTIMATE_NAN, OK, STATUS, Loop, closed_loop, no_estimator, step_act, step_sense
 from quadest.flight.throw import ThrowParams, fly_throw
 from quadest.models.multirotor import MultirotorParams, vehicle_preset, work
@@ -37,6 +47,8 @@ def in_loop_estimators() -> list[str]:
     """What can fly in the loop (besides truth): quadest's filters and the installed peers with
     a per-sample API."""
     return [*FILTERS, *[p for p in STREAMING_PEERS if p in available_peers()]]
+
+
 CONTROLLERS = ("se3", "ftc")
 DEFAULT_DURATION = {"hover": 10.0, "trajectory": 20.0, "rotor-loss": 10.0, "throw": 14.0}  # a throw: from the release
 DEFAULT_PRESET = {"throw": "fma"}  # the recovery paper's sensors (IMU 1 kHz, no magnetometer); else bebop2
@@ -56,12 +68,23 @@ def _reference(scenario, t, rng, vehicle):
     return x0, ref
 
 
-def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", controller: str | None = None,
-        duration: float | None = None, seed: int = 0, preset: str | None = None,
-        vehicle: MultirotorParams | str | None = None, failure: Failure | None = None,
-        se3: SE3Params | None = None, ftc: FtcParams | None = None,
-        params: FlightParams | None = None, config: SimConfig | None = None,
-        estimator_params: dict | None = None, throw: ThrowParams | None = None) -> Flight:
+def fly(
+    scenario: str = "trajectory",
+    *,
+    estimator: str | Estimator = "truth",
+    controller: str | None = None,
+    duration: float | None = None,
+    seed: int = 0,
+    preset: str | None = None,
+    vehicle: MultirotorParams | str | None = None,
+    failure: Failure | None = None,
+    se3: SE3Params | None = None,
+    ftc: FtcParams | None = None,
+    params: FlightParams | None = None,
+    config: SimConfig | None = None,
+    estimator_params: dict | None = None,
+    throw: ThrowParams | None = None,
+) -> Flight:
     """Fly ``scenario`` with ``estimator`` in the loop: a quadest filter by name (with the
     preset's declination), an :class:`~quadest.filters.Estimator` (it continues from its state),
     or ``truth`` (the controller reads the true state).
@@ -83,14 +106,22 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
         raise UsageError(f"unknown scenario {scenario!r}; scenarios: {', '.join(SCENARIOS)}")
     if scenario == "throw":
         if estimator not in ("recovery", "truth"):
-            raise UsageError(f"a throw is recovered by the recovery paper's bank of EKFs: estimator recovery (or "
-                             f"truth), not {estimator!r}")
+            raise UsageError(
+                f"a throw is recovered by the recovery paper's bank of EKFs: estimator recovery (or "
+                f"truth), not {estimator!r}"
+            )
         if controller not in (None, "se3"):
             raise UsageError("after a throw the SE(3) controller holds the vehicle: controller se3 (or none)")
-    elif (not isinstance(estimator, Estimator) and estimator != "truth" and estimator not in FILTERS
-          and estimator not in STREAMING_PEERS):
-        raise UsageError(f"unknown estimator {estimator!r}; estimators: truth, {', '.join(FILTERS)}, and the peers "
-                         f"{', '.join(STREAMING_PEERS)} (through their streaming API)")
+    elif (
+        not isinstance(estimator, Estimator)
+        and estimator != "truth"
+        and estimator not in FILTERS
+        and estimator not in STREAMING_PEERS
+    ):
+        raise UsageError(
+            f"unknown estimator {estimator!r}; estimators: truth, {', '.join(FILTERS)}, and the peers "
+            f"{', '.join(STREAMING_PEERS)} (through their streaming API)"
+        )
     controller = controller or ("ftc" if scenario == "rotor-loss" else "se3")
     if controller not in CONTROLLERS:
         raise UsageError(f"unknown controller {controller!r}; controllers: {', '.join(CONTROLLERS)}")
@@ -105,15 +136,18 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     if failure is not None:
         failure.check(vehicle, duration)
     if controller == "ftc" and (failure is None or failure.efficiency > 0.0):
-        raise UsageError("the fault-tolerant controller is for a complete rotor loss: give a failure with "
-                         "efficiency 0 (scenario rotor-loss)")
+        raise UsageError(
+            "the fault-tolerant controller is for a complete rotor loss: give a failure with "
+            "efficiency 0 (scenario rotor-loss)"
+        )
     preset = preset or DEFAULT_PRESET.get(scenario, "bebop2")
     cfg = (config or build_config(preset)).validate()
     rate = cfg.imu.rate_hz
     substeps = SIM_RATE_HZ / rate
     if abs(substeps - round(substeps)) > 1e-9 or substeps < 1:
-        raise UsageError(f"preset {preset!r}: its IMU rate {rate:g} Hz must divide the simulation rate "
-                         f"{SIM_RATE_HZ:g} Hz")
+        raise UsageError(
+            f"preset {preset!r}: its IMU rate {rate:g} Hz must divide the simulation rate {SIM_RATE_HZ:g} Hz"
+        )
     pos_rate, pos_noise, pos_latency, _ = params.position()
     mocap_every = rate / pos_rate
     if abs(mocap_every - round(mocap_every)) > 1e-9 or mocap_every < 1:
@@ -122,9 +156,23 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     if scenario == "throw":
         if failure is not None:
             raise UsageError("a throw has no rotor failure")
-        return fly_throw(estimator=estimator, duration=duration, seed=seed, cfg=cfg, vehicle=vehicle, params=params,
-                         se3=se3, throw=throw, meta={"scenario": "flown throw", "preset": preset, "vehicle": vehicle_name,
-                                        "controller": "se3 after recovery", "estimator": estimator})
+        return fly_throw(
+            estimator=estimator,
+            duration=duration,
+            seed=seed,
+            cfg=cfg,
+            vehicle=vehicle,
+            params=params,
+            se3=se3,
+            throw=throw,
+            meta={
+                "scenario": "flown throw",
+                "preset": preset,
+                "vehicle": vehicle_name,
+                "controller": "se3 after recovery",
+                "estimator": estimator,
+            },
+        )
     n = int(round(duration * rate))
     t = np.arange(n) / rate
     ss = np.random.SeedSequence([int(seed), 13])
@@ -148,8 +196,11 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
         step, ex, ep, ec, ediag = None, None, None, None, None
         dq = None
     else:
-        est = (estimator if isinstance(estimator, Estimator)
-               else make_filter(estimator, declination=declination, **(estimator_params or {})))
+        est = (
+            estimator
+            if isinstance(estimator, Estimator)
+            else make_filter(estimator, declination=declination, **(estimator_params or {}))
+        )
         step, ex, ep, ec, ediag = type(est).step, est._x, est._p, est._c, est._diag
         declination, estimator = est.declination, est.name
     dq = _declination_quat(declination) if peer is None else None
@@ -167,24 +218,76 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
             p_d[ftc_k:] = p_d[ftc_k]
             v_d[ftc_k:] = 0.0
             a_d[ftc_k:] = 0.0
-    tw = vehicle.rotors * vehicle.k_f * vehicle.omega_max ** 2 / (vehicle.mass_kg * vehicle.gravity)
+    tw = vehicle.rotors * vehicle.k_f * vehicle.omega_max**2 / (vehicle.mass_kg * vehicle.gravity)
 
     N = vehicle.rotors
-    out = dict(x=np.empty((n, 13 + N)), dx=np.empty((n, 13 + N)), thrust=np.empty((n, N)), eta=np.empty((n, N)),
-               cmd=np.empty((n, N)), gyr=np.empty((n, 3)), acc=np.empty((n, 3)), mag=np.empty((n, 3)),
-               q=np.empty((n, 4)), pv=np.empty((n, 6)))
+    out = dict(
+        x=np.empty((n, 13 + N)),
+        dx=np.empty((n, 13 + N)),
+        thrust=np.empty((n, N)),
+        eta=np.empty((n, N)),
+        cmd=np.empty((n, N)),
+        gyr=np.empty((n, 3)),
+        acc=np.empty((n, 3)),
+        mag=np.empty((n, 3)),
+        q=np.empty((n, 4)),
+        pv=np.empty((n, 6)),
+    )
     x = x0.copy()
     eta = np.ones(N)
     hist = np.empty((delay + 1, 3))
     hist[:] = x0[0:3]
-    L = Loop(vehicle.vehicle(), G, F, sm, use_truth, 1.0 / SIM_RATE_HZ, substeps, 1.0 / rate, p_d, v_d, a_d, yaw_d,
-             fail_rotor, fail_k, fail_eta, fail_imb, ftc_k, tw, mocap_every, delay, mocap_noise, position_gain(params, rate),
-             float(params.height_m),
-             np.zeros(N), np.empty(13 + N), np.empty(3), np.empty(3), np.empty(N), np.empty(3), np.empty(3),
-             np.empty(3), vibration_state(N), np.zeros(N), np.empty(13), np.zeros(3), x0[0:3].copy(),
-             x0[3:6].copy(), hist,  # position and velocity estimates start at the truth (on the pad)
-             out["x"], out["dx"], out["thrust"], out["eta"], out["cmd"], out["gyr"], out["acc"], out["mag"], out["q"],
-             out["pv"], work(vehicle.vehicle(), 13 + N))
+    L = Loop(
+        vehicle.vehicle(),
+        G,
+        F,
+        sm,
+        use_truth,
+        1.0 / SIM_RATE_HZ,
+        substeps,
+        1.0 / rate,
+        p_d,
+        v_d,
+        a_d,
+        yaw_d,
+        fail_rotor,
+        fail_k,
+        fail_eta,
+        fail_imb,
+        ftc_k,
+        tw,
+        mocap_every,
+        delay,
+        mocap_noise,
+        position_gain(params, rate),
+        float(params.height_m),
+        np.zeros(N),
+        np.empty(13 + N),
+        np.empty(3),
+        np.empty(3),
+        np.empty(N),
+        np.empty(3),
+        np.empty(3),
+        np.empty(3),
+        vibration_state(N),
+        np.zeros(N),
+        np.empty(13),
+        np.zeros(3),
+        x0[0:3].copy(),
+        x0[3:6].copy(),
+        hist,  # position and velocity estimates start at the truth (on the pad)
+        out["x"],
+        out["dx"],
+        out["thrust"],
+        out["eta"],
+        out["cmd"],
+        out["gyr"],
+        out["acc"],
+        out["mag"],
+        out["q"],
+        out["pv"],
+        work(vehicle.vehicle(), 13 + N),
+    )
     t0 = time.perf_counter()
     if peer is not None:
         status, flown = OK, n
@@ -201,21 +304,61 @@ def fly(scenario: str = "trajectory", *, estimator: str | Estimator = "truth", c
     if flown == 0:
         raise ValueError(f"the flight ended before its first sample ({STATUS[status]})")
 
-    meta = {"scenario": f"flown {scenario}", "preset": preset, "vehicle": vehicle_name, "controller": controller,
-            "estimator": estimator, "position_sensor": params.position_sensor}
+    meta = {
+        "scenario": f"flown {scenario}",
+        "preset": preset,
+        "vehicle": vehicle_name,
+        "controller": controller,
+        "estimator": estimator,
+        "position_sensor": params.position_sensor,
+    }
     if failure is not None:
         meta["failure"] = asdict(failure)  # imbalance in kg m
     imbalance = np.zeros((flown, N))
     if failure is not None:
         imbalance[fail_k:, failure.rotor] = failure.imbalance
-    rec = flown_recording(t[:flown], out["x"], out["dx"], out["thrust"], vehicle, cfg=cfg, seed=seed,
-                          eta=out["eta"], imbalance=imbalance, meta=meta, readings=(out["gyr"], out["acc"], out["mag"]), processes=processes)
-    flight = Flight(rec, out["x"], out["cmd"], out["q"], out["pv"], timing={"loop_s": loop_s},
-                    baro=barometer(rec.t, out["x"], params, seed), derivs=out["dx"], thrusts=out["thrust"],
-                    eta=out["eta"], imbalance=imbalance, vehicle=vehicle)
-    flight.summary = summarize(flight, scenario=scenario, status=status, duration=duration, failure=failure,
-                               controller=controller, estimator=estimator, seed=seed, params=params,
-                               ftc=ftc, vehicle=vehicle, ref=(p_d, yaw_d))
+    rec = flown_recording(
+        t[:flown],
+        out["x"],
+        out["dx"],
+        out["thrust"],
+        vehicle,
+        cfg=cfg,
+        seed=seed,
+        eta=out["eta"],
+        imbalance=imbalance,
+        meta=meta,
+        readings=(out["gyr"], out["acc"], out["mag"]),
+        processes=processes,
+    )
+    flight = Flight(
+        rec,
+        out["x"],
+        out["cmd"],
+        out["q"],
+        out["pv"],
+        timing={"loop_s": loop_s},
+        baro=barometer(rec.t, out["x"], params, seed),
+        derivs=out["dx"],
+        thrusts=out["thrust"],
+        eta=out["eta"],
+        imbalance=imbalance,
+        vehicle=vehicle,
+    )
+    flight.summary = summarize(
+        flight,
+        scenario=scenario,
+        status=status,
+        duration=duration,
+        failure=failure,
+        controller=controller,
+        estimator=estimator,
+        seed=seed,
+        params=params,
+        ftc=ftc,
+        vehicle=vehicle,
+        ref=(p_d, yaw_d),
+    )
     return flight
 
 
@@ -236,25 +379,45 @@ def resample(flight: Flight, config: SimConfig, *, imbalance=None, seed: int | N
             imb[start:] = imbalance
         else:
             imb = imbalance
-    meta = {k: rec.meta[k] for k in ("scenario", "preset", "vehicle", "controller", "estimator", "position_sensor",
-                                     "failure") if k in rec.meta}
-    return flown_recording(rec.t, flight.states, flight.derivs, flight.thrusts, flight.vehicle, cfg=config,
-                           seed=rec.meta["seed"] if seed is None else seed, eta=flight.eta, imbalance=imb,
-                           meta={**meta, "resampled": True})
+    meta = {
+        k: rec.meta[k]
+        for k in ("scenario", "preset", "vehicle", "controller", "estimator", "position_sensor", "failure")
+        if k in rec.meta
+    }
+    return flown_recording(
+        rec.t,
+        flight.states,
+        flight.derivs,
+        flight.thrusts,
+        flight.vehicle,
+        cfg=config,
+        seed=rec.meta["seed"] if seed is None else seed,
+        eta=flight.eta,
+        imbalance=imb,
+        meta={**meta, "resampled": True},
+    )
 
 
-def summarize(flight: Flight, *, scenario, status, duration, failure, controller, estimator, seed, params,
-              ftc, vehicle, ref) -> dict:
+def summarize(
+    flight: Flight, *, scenario, status, duration, failure, controller, estimator, seed, params, ftc, vehicle, ref
+) -> dict:
     """The summary of one run (module doc)."""
     rec, x = flight.recording, flight.states
     t = rec.t
     p_d, _ = ref
-    err = np.linalg.norm(x[:, 0:3] - p_d[:len(t)], axis=1)
+    err = np.linalg.norm(x[:, 0:3] - p_d[: len(t)], axis=1)
     start = failure.time_s if failure is not None else 0.0
-    s = {"scenario": scenario, "controller": controller, "estimator": estimator, "seed": int(seed),
-         "status": "survived" if status == OK else "crashed" if status in (1, 2) else "stopped",
-         "reason": STATUS[status], "duration_s": float(duration), "flown_s": float(t[-1] + (t[1] - t[0] if len(t) > 1 else 0)),
-         "end_time_s": None if status == OK else float(t[-1])}
+    s = {
+        "scenario": scenario,
+        "controller": controller,
+        "estimator": estimator,
+        "seed": int(seed),
+        "status": "survived" if status == OK else "crashed" if status in (1, 2) else "stopped",
+        "reason": STATUS[status],
+        "duration_s": float(duration),
+        "flown_s": float(t[-1] + (t[1] - t[0] if len(t) > 1 else 0)),
+        "end_time_s": None if status == OK else float(t[-1]),
+    }
     # settled: the position error stays below settle_m from then to the end
     after = t >= start
     above = np.flatnonzero(after & (err >= params.settle_m))
@@ -285,9 +448,11 @@ def summarize(flight: Flight, *, scenario, status, duration, failure, controller
             s["spin_rate_rad_s"] = float(np.mean(w_n[:, 2]))
             s["tilt_deg"] = float(np.degrees(np.mean(np.arccos(np.clip(down_b[:, 2], -1.0, 1.0)))))
         hover = relaxed_hover(ftc.model(vehicle), failure.rotor, ftc.rho)
-        s["relaxed_hover_model"] = {"spin_rate_rad_s": float(-hover.spin),
-                                    "tilt_deg": hover.tilt_deg,
-                                    "thrusts_n": [float(v) for v in hover.thrusts]}
+        s["relaxed_hover_model"] = {
+            "spin_rate_rad_s": float(-hover.spin),
+            "tilt_deg": hover.tilt_deg,
+            "thrusts_n": [float(v) for v in hover.thrusts],
+        }
     return s
 
 
@@ -303,7 +468,9 @@ def offline_errors(flight: Flight, estimator: str) -> dict:
     out = {"attitude_error_rms_deg": rms(total), "tilt_error_rms_deg": rms(tilt)}
     if rec.meta.get("failure"):
         after = rec.t >= rec.meta["failure"]["time_s"]
-        out.update(attitude_error_after_failure_rms_deg=rms(total[after]), tilt_error_after_failure_rms_deg=rms(tilt[after]))
+        out.update(
+            attitude_error_after_failure_rms_deg=rms(total[after]), tilt_error_after_failure_rms_deg=rms(tilt[after])
+        )
     return out
 
 
@@ -339,21 +506,31 @@ def campaign_table(summaries: list[dict]) -> list[dict]:
         ok = [s for s in runs if s["status"] == "survived"]
         mean = mean_present
 
-        rows.append({
-            "estimator": name, "runs": len(runs), "survived": len(ok),
-            "settled": sum(s["time_to_settle_s"] is not None for s in runs),
-            "tilt_error_in_loop_deg": mean([s["tilt_error_rms_deg"] for s in runs]),
-            "tilt_error_offline_deg": mean([s.get("offline_on_truth_flight", {}).get("tilt_error_rms_deg")
-                                            for s in runs]) if name != "truth" else 0.0,
-            "position_rms_settled_m": mean([s["position_rms_settled_m"] for s in runs]),
-            "spin_rate_rad_s": mean([s.get("spin_rate_rad_s") for s in ok]),
-            "tilt_deg": mean([s.get("tilt_deg") for s in ok]),
-        })
+        rows.append(
+            {
+                "estimator": name,
+                "runs": len(runs),
+                "survived": len(ok),
+                "settled": sum(s["time_to_settle_s"] is not None for s in runs),
+                "tilt_error_in_loop_deg": mean([s["tilt_error_rms_deg"] for s in runs]),
+                "tilt_error_offline_deg": mean(
+                    [s.get("offline_on_truth_flight", {}).get("tilt_error_rms_deg") for s in runs]
+                )
+                if name != "truth"
+                else 0.0,
+                "position_rms_settled_m": mean([s["position_rms_settled_m"] for s in runs]),
+                "spin_rate_rad_s": mean([s.get("spin_rate_rad_s") for s in ok]),
+                "tilt_deg": mean([s.get("tilt_deg") for s in ok]),
+            }
+        )
         if any("recovered" in s for s in runs):  # throws
-            rows[-1].update({
-                "recovered": sum(bool(s.get("recovered")) for s in runs),
-                "handover_s": mean([s.get("handover_s") for s in runs]),
-                "gravity_error_at_handover_deg": mean([s.get("gravity_error_at_handover_deg") for s in runs]),
-                "velocity_error_at_handover_m_s": mean([s.get("velocity_error_at_handover_m_s") for s in runs]),
-                "lowest_point_m": mean([s.get("lowest_point_m") for s in runs])})
+            rows[-1].update(
+                {
+                    "recovered": sum(bool(s.get("recovered")) for s in runs),
+                    "handover_s": mean([s.get("handover_s") for s in runs]),
+                    "gravity_error_at_handover_deg": mean([s.get("gravity_error_at_handover_deg") for s in runs]),
+                    "velocity_error_at_handover_m_s": mean([s.get("velocity_error_at_handover_m_s") for s in runs]),
+                    "lowest_point_m": mean([s.get("lowest_point_m") for s in runs]),
+                }
+            )
     return rows

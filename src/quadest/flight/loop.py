@@ -18,13 +18,14 @@ simulation rate, ``substeps`` RK4 steps per sample):
 The loop ends early with a status: ground contact, lost control (body rate or speed beyond
 what a flying vehicle has), a non-finite estimate, or a diverged simulation.
 """
+
 from __future__ import annotations
 
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
 
+from quadest._jit import njit
 from quadest.control.ftc import ftc_command
 from quadest.control.se3 import se3_command
 from quadest.models.multirotor import derivative_ws, rk4_ws
@@ -32,9 +33,13 @@ from quadest.rotation.kernels import rotate_s
 from quadest.sim.inloop import motor_current, sample_imu, sample_mag
 
 OK, GROUND, LOST_CONTROL, ESTIMATE_NAN, DIVERGED = 0, 1, 2, 3, 4
-STATUS = {OK: "survived", GROUND: "crashed: ground contact", LOST_CONTROL: "crashed: lost control",
-          ESTIMATE_NAN: "stopped: the estimator returned a non-finite attitude",
-          DIVERGED: "stopped: the simulation diverged"}
+STATUS = {
+    OK: "survived",
+    GROUND: "crashed: ground contact",
+    LOST_CONTROL: "crashed: lost control",
+    ESTIMATE_NAN: "stopped: the estimator returned a non-finite attitude",
+    DIVERGED: "stopped: the simulation diverged",
+}
 MAX_RATE = 100.0  # rad/s: beyond this the vehicle is tumbling out of control (RotorPy stops at the same)
 MAX_SPEED = 20.0  # m/s: beyond this it is falling or flying away (RotorPy stops at the same)
 
@@ -83,15 +88,38 @@ def ended(x, ground_z):
             return DIVERGED
     if x[2] > ground_z:
         return GROUND
-    if (x[10] * x[10] + x[11] * x[11] + x[12] * x[12] > MAX_RATE * MAX_RATE
-            or x[3] * x[3] + x[4] * x[4] + x[5] * x[5] > MAX_SPEED * MAX_SPEED):
+    if (
+        x[10] * x[10] + x[11] * x[11] + x[12] * x[12] > MAX_RATE * MAX_RATE
+        or x[3] * x[3] + x[4] * x[4] + x[5] * x[5] > MAX_SPEED * MAX_SPEED
+    ):
         return LOST_CONTROL
     return OK
 
 
 @njit(cache=True, inline="always")
-def record_and_fly(k, x, dx, T, cmd, gyr, acc, mag, eta, V, h, substeps, ground_z,
-                   out_x, out_dx, out_thrust, out_cmd, out_gyr, out_acc, out_mag, W):
+def record_and_fly(
+    k,
+    x,
+    dx,
+    T,
+    cmd,
+    gyr,
+    acc,
+    mag,
+    eta,
+    V,
+    h,
+    substeps,
+    ground_z,
+    out_x,
+    out_dx,
+    out_thrust,
+    out_cmd,
+    out_gyr,
+    out_acc,
+    out_mag,
+    W,
+):
     """Record sample ``k`` (state, derivative, thrusts, commands, readings), fly ``substeps``
     RK4 steps to the next sample, and say whether the flight ends there (:func:`ended`)."""
     out_x[k] = x
@@ -106,17 +134,64 @@ def record_and_fly(k, x, dx, T, cmd, gyr, acc, mag, eta, V, h, substeps, ground_
     return ended(x, ground_z)
 
 
-Loop = namedtuple("Loop", [
-    # the flight: vehicle, controllers, sensors, reference, failure, position sensor, ground
-    "V", "G", "F", "sm", "use_truth", "h", "substeps", "dt", "p_d", "v_d", "a_d", "yaw_d",
-    "fail_rotor", "fail_k", "fail_eta", "fail_imb", "ftc_k", "tw", "mocap_every", "mocap_delay", "mocap_noise", "pos_gain",
-    "ground_z",
-    # what the loop carries from sample to sample
-    "cmd", "dx", "Fb", "Mb", "T", "gyr", "acc", "mag", "vib", "imb", "xh", "integral", "ph", "vh", "hist",
-    # what it records per sample
-    "out_x", "out_dx", "out_thrust", "out_eta", "out_cmd", "out_gyr", "out_acc", "out_mag", "out_q", "out_pv",
-    # the integrator's work arrays (multirotor.work)
-    "W"])
+Loop = namedtuple(
+    "Loop",
+    [
+        # the flight: vehicle, controllers, sensors, reference, failure, position sensor, ground
+        "V",
+        "G",
+        "F",
+        "sm",
+        "use_truth",
+        "h",
+        "substeps",
+        "dt",
+        "p_d",
+        "v_d",
+        "a_d",
+        "yaw_d",
+        "fail_rotor",
+        "fail_k",
+        "fail_eta",
+        "fail_imb",
+        "ftc_k",
+        "tw",
+        "mocap_every",
+        "mocap_delay",
+        "mocap_noise",
+        "pos_gain",
+        "ground_z",
+        # what the loop carries from sample to sample
+        "cmd",
+        "dx",
+        "Fb",
+        "Mb",
+        "T",
+        "gyr",
+        "acc",
+        "mag",
+        "vib",
+        "imb",
+        "xh",
+        "integral",
+        "ph",
+        "vh",
+        "hist",
+        # what it records per sample
+        "out_x",
+        "out_dx",
+        "out_thrust",
+        "out_eta",
+        "out_cmd",
+        "out_gyr",
+        "out_acc",
+        "out_mag",
+        "out_q",
+        "out_pv",
+        # the integrator's work arrays (multirotor.work)
+        "W",
+    ],
+)
 """Everything a closed loop reads and writes (built by :func:`quadest.flight.fly`)."""
 
 
@@ -178,8 +253,29 @@ def step_act(k, x, eta, L, q_est):
     L.out_q[k] = xh[6:10]
     L.out_pv[k, 0:3] = ph
     L.out_pv[k, 3:6] = vh
-    return record_and_fly(k, x, L.dx, L.T, L.cmd, gyr, acc, L.mag, eta, V, L.h, L.substeps, L.ground_z,
-                          L.out_x, L.out_dx, L.out_thrust, L.out_cmd, L.out_gyr, L.out_acc, L.out_mag, L.W)
+    return record_and_fly(
+        k,
+        x,
+        L.dx,
+        L.T,
+        L.cmd,
+        gyr,
+        acc,
+        L.mag,
+        eta,
+        V,
+        L.h,
+        L.substeps,
+        L.ground_z,
+        L.out_x,
+        L.out_dx,
+        L.out_thrust,
+        L.out_cmd,
+        L.out_gyr,
+        L.out_acc,
+        L.out_mag,
+        L.W,
+    )
 
 
 @njit

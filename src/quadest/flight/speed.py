@@ -1,12 +1,13 @@
 """How fast the flying vehicle runs (``quadest benchmark sim``; a benchmark, never a timed test):
 the closed loop with an estimator and the fault-tolerant controller in it, and the SE(3) circle
 flown by quadest and by RotorPy in the same run."""
+
 from __future__ import annotations
 
 import time
 
-from quadest.flight.crosscheck import crosscheck, rotorpy_available
 from quadest.flight.common import SIM_RATE_HZ
+from quadest.flight.crosscheck import crosscheck, rotorpy_available
 from quadest.flight.fly import fly
 from quadest.sim import build_config
 
@@ -24,10 +25,18 @@ def time_closed_loop(estimator: str = "afckf", duration: float = 20.0, repeat: i
         f = fly("rotor-loss", estimator=estimator, duration=duration, config=cfg)
         total = min(total, time.perf_counter() - t0)
         loop = min(loop, f.timing["loop_s"])
-    return {"estimator": estimator, "controller": "ftc", "rate_hz": SIM_RATE_HZ, "duration_s": duration,
-            "status": f.summary["status"], "loop_s": loop, "total_s": total,
-            "loop_x_real_time": duration / loop, "total_x_real_time": duration / total,
-            "loop_us_per_step": 1e6 * loop / (duration * SIM_RATE_HZ)}
+    return {
+        "estimator": estimator,
+        "controller": "ftc",
+        "rate_hz": SIM_RATE_HZ,
+        "duration_s": duration,
+        "status": f.summary["status"],
+        "loop_s": loop,
+        "total_s": total,
+        "loop_x_real_time": duration / loop,
+        "total_x_real_time": duration / total,
+        "loop_us_per_step": 1e6 * loop / (duration * SIM_RATE_HZ),
+    }
 
 
 def benchmark_sim(duration: float = 20.0, rotorpy_duration: float = 10.0, estimator: str = "afckf") -> dict:

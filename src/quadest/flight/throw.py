@@ -26,6 +26,7 @@ The bank's aerodynamic model is the estimator's: fitted (eq 14, :func:`quadest.m
 from throws this simulator flies open loop at the constant rotor speed
 (:func:`fit_throw_model`, seeds not evaluated), never the simulator's own model.
 """
+
 from __future__ import annotations
 
 import functools
@@ -33,8 +34,8 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from quadest._jit import njit
 from quadest.control import SE3Params
 from quadest.control.se3 import mix, se3_command
 from quadest.flight.common import SIM_RATE_HZ, Flight, FlightParams, angle_errors, barometer, sensors_for
@@ -56,44 +57,108 @@ MODES = ("waiting", "converging", "nominal")
 
 @dataclass(frozen=True)
 class ThrowParams:
-    rotor_speed: float = param(240.0, "rad/s", "every rotor's constant speed from release to handover",
-                               "chosen: 1.5 N of thrust on the recovery vehicle, the prescribed throw's idle "
-                               "thrust (3 m/s² along the body); the paper gives none", bounds="[0, 1e4]")
-    speed_max: float = param(8.0, "m/s", "release speed drawn uniformly in [0, speed_max]",
-                             "issue #14: harder throws, up to 8 m/s", bounds="[0, 30]")
-    rate_max: float = param(20.0, "rad/s", "release body-rate magnitude drawn in [0, rate_max]",
-                            "issue #14: harder throws, tumbling up to 20 rad/s", bounds="[0, 50]")
-    any_direction: bool = param(False, "-", "release velocity in any direction (else upward or level)",
-                                "chosen: thrown upward by default, as the paper's; downward as a flagged case")
-    hand_acc_min: float = param(10.0, "m/s²", "the hand's peak acceleration is drawn in [hand_acc_min, "
-                                "hand_acc_max]", "chosen: a brisk throw", bounds="(0, 100]")
-    hand_acc_max: float = param(30.0, "m/s²", "largest peak hand acceleration", "issue #14: up to 30 m/s²",
-                                bounds="(0, 100]")
-    hand_min_s: float = param(0.15, "s", "shortest hand motion (a slow release takes this long)",
-                              "chosen: a hand does not move in less", bounds="(0, 10]")
-    beta3_deg: float = param(15.0, "deg", "the nominal estimator's accelerometer update waits until the "
-                             "attitude control error is below this", "recovery paper, section V-B",
-                             bounds="(0, 180]")
-    fit_throws: int = param(20, "-", "throws flown open loop to fit the bank's aerodynamic model",
-                            "chosen: 30 s of tumbling flight, a few thousand samples per parameter",
-                            bounds="[1, 1000]")
-    fit_seed: int = param(5000, "-", "first seed of the fitting throws", "chosen: seeds no evaluation uses",
-                          bounds="[0, 1e9]")
-    fit_duration_s: float = param(1.5, "s", "duration of each fitting throw", "chosen: a throw's free flight",
-                                  bounds="(0, 60]")
-    upright_switch_deg: float = param(30.0, "deg", "above this attitude control error the vehicle is first "
-                                      "brought upright (reduced attitude), below it SE(3) holds it",
-                                      "chosen: ArduPilot's throw mode uprights to 30° before holding height",
-                                      bounds="(0, 180]")
-    drop_m: float = param(10.0, "m", "height of the release point above the ground",
-                          "chosen: a throw high in a flight arena (the paper's is about 10 m tall)",
-                          bounds="(0, 1e3]")
-    recovered_tilt_deg: float = param(30.0, "deg", "recovered: upright within this tilt, then the height held",
-                                      "issue #14: upright within 30°", bounds="(0, 180]")
-    hover_tol_m: float = param(0.5, "m", "recovered: the height held within this of the held height",
-                               "issue #14: within 0.5 m", bounds="(0, 100]")
-    hover_s: float = param(10.0, "s", "recovered: for this long", "recovery paper, section VI (hover for at least "
-                           "10 s)", bounds="(0, 3600]")
+    rotor_speed: float = param(
+        240.0,
+        "rad/s",
+        "every rotor's constant speed from release to handover",
+        "chosen: 1.5 N of thrust on the recovery vehicle, the prescribed throw's idle "
+        "thrust (3 m/s² along the body); the paper gives none",
+        bounds="[0, 1e4]",
+    )
+    speed_max: float = param(
+        8.0,
+        "m/s",
+        "release speed drawn uniformly in [0, speed_max]",
+        "issue #14: harder throws, up to 8 m/s",
+        bounds="[0, 30]",
+    )
+    rate_max: float = param(
+        20.0,
+        "rad/s",
+        "release body-rate magnitude drawn in [0, rate_max]",
+        "issue #14: harder throws, tumbling up to 20 rad/s",
+        bounds="[0, 50]",
+    )
+    any_direction: bool = param(
+        False,
+        "-",
+        "release velocity in any direction (else upward or level)",
+        "chosen: thrown upward by default, as the paper's; downward as a flagged case",
+    )
+    hand_acc_min: float = param(
+        10.0,
+        "m/s²",
+        "the hand's peak acceleration is drawn in [hand_acc_min, hand_acc_max]",
+        "chosen: a brisk throw",
+        bounds="(0, 100]",
+    )
+    hand_acc_max: float = param(
+        30.0, "m/s²", "largest peak hand acceleration", "issue #14: up to 30 m/s²", bounds="(0, 100]"
+    )
+    hand_min_s: float = param(
+        0.15,
+        "s",
+        "shortest hand motion (a slow release takes this long)",
+        "chosen: a hand does not move in less",
+        bounds="(0, 10]",
+    )
+    beta3_deg: float = param(
+        15.0,
+        "deg",
+        "the nominal estimator's accelerometer update waits until the attitude control error is below this",
+        "recovery paper, section V-B",
+        bounds="(0, 180]",
+    )
+    fit_throws: int = param(
+        20,
+        "-",
+        "throws flown open loop to fit the bank's aerodynamic model",
+        "chosen: 30 s of tumbling flight, a few thousand samples per parameter",
+        bounds="[1, 1000]",
+    )
+    fit_seed: int = param(
+        5000, "-", "first seed of the fitting throws", "chosen: seeds no evaluation uses", bounds="[0, 1e9]"
+    )
+    fit_duration_s: float = param(
+        1.5, "s", "duration of each fitting throw", "chosen: a throw's free flight", bounds="(0, 60]"
+    )
+    upright_switch_deg: float = param(
+        30.0,
+        "deg",
+        "above this attitude control error the vehicle is first "
+        "brought upright (reduced attitude), below it SE(3) holds it",
+        "chosen: ArduPilot's throw mode uprights to 30° before holding height",
+        bounds="(0, 180]",
+    )
+    drop_m: float = param(
+        10.0,
+        "m",
+        "height of the release point above the ground",
+        "chosen: a throw high in a flight arena (the paper's is about 10 m tall)",
+        bounds="(0, 1e3]",
+    )
+    recovered_tilt_deg: float = param(
+        30.0,
+        "deg",
+        "recovered: upright within this tilt, then the height held",
+        "issue #14: upright within 30°",
+        bounds="(0, 180]",
+    )
+    hover_tol_m: float = param(
+        0.5,
+        "m",
+        "recovered: the height held within this of the held height",
+        "issue #14: within 0.5 m",
+        bounds="(0, 100]",
+    )
+    hover_s: float = param(
+        10.0,
+        "s",
+        "recovered: for this long",
+        "recovery paper, section VI (hover for at least 10 s)",
+        bounds="(0, 3600]",
+    )
+
     def __post_init__(self):
         check(self, "throw")
         if self.hand_acc_min > self.hand_acc_max:
@@ -146,14 +211,15 @@ def hand_motion(x_rel, a_peak: float, rate: float, min_s: float):
     axis = w_rel / wn if wn > 0 else np.array([0.0, 0.0, 1.0])
     t = np.arange(n + 1) / rate
     c, sn, s2 = np.cos(2 * np.pi * t / T), np.sin(2 * np.pi * t / T), np.sin(np.pi * t / T) ** 2
-    P = a * (t ** 2 / 4 - T ** 2 * (1 - c) / (8 * np.pi ** 2))
-    theta = wn * (t ** 2 / (2 * T) + T * (c - 1) / (4 * np.pi ** 2))
+    P = a * (t**2 / 4 - T**2 * (1 - c) / (8 * np.pi**2))
+    theta = wn * (t**2 / (2 * T) + T * (c - 1) / (4 * np.pi**2))
     x = np.tile(x_rel, (n + 1, 1))
     x[:, 0:3] = x_rel[0:3] + np.outer(P - P[-1], d)
     x[:, 3:6] = np.outer(a * (t / 2 - T * sn / (4 * np.pi)), d)
     # q(t) ⊗ exp(axis (θ_T − θ(t))) = q_rel: the rest of the turn is about the body-fixed axis
-    x[:, 6:10] = quat_mul(np.tile(x_rel[6:10], (n + 1, 1)), quat_conj(quat_from_rotvec(np.outer(theta[-1] - theta,
-                                                                                                 axis))))
+    x[:, 6:10] = quat_mul(
+        np.tile(x_rel[6:10], (n + 1, 1)), quat_conj(quat_from_rotvec(np.outer(theta[-1] - theta, axis)))
+    )
     x[:, 10:13] = np.outer(t / T - sn / (2 * np.pi), w_rel)
     x[-1] = x_rel
     dx = np.zeros((n, x.shape[1]))
@@ -183,21 +249,79 @@ def _fit_cached(vehicle, cfg, p):  # the records are frozen: their values are th
         cmd = np.full(vehicle.rotors, p.rotor_speed)
         out = np.empty((steps, len(x)))
         fly_open_loop(x, cmd, np.ones(vehicle.rotors), V, 1.0 / SIM_RATE_HZ, steps, out)
-        states = np.ascontiguousarray(out[every - 1::every])
+        states = np.ascontiguousarray(out[every - 1 :: every])
         n = len(states)
         dx, thrust = np.empty_like(states), np.empty((n, vehicle.rotors))
         derivatives(states, np.tile(cmd, (n, 1)), np.ones((n, vehicle.rotors)), V, dx, thrust)
-        recs.append(flown_recording(np.arange(n) / rate, states, dx, thrust, vehicle, cfg=cfg, seed=seed,
-                                    meta={"scenario": "flown throw (fit)"}))
+        recs.append(
+            flown_recording(
+                np.arange(n) / rate,
+                states,
+                dx,
+                thrust,
+                vehicle,
+                cfg=cfg,
+                seed=seed,
+                meta={"scenario": "flown throw (fit)"},
+            )
+        )
     return fit_aero(recs, vehicle.mass_kg)
 
 
 @njit(cache=True)
-def throw_loop(x, eta, V, G, sm, prm, A, B, C, Vb, Qr, Pb, Lb, prob, gd, V1, Q1, P1, L1, w_prev,
-               h, substeps, rate, tw, beta1, detect_samples, beta2, beta3, upright_rad, rotor_speed, use_truth,
-               mocap_every, mocap_delay, mocap_noise, ground_z, hand_x, hand_dx,
-               out_x, out_dx, out_thrust, out_cmd, out_gyr, out_acc, out_mag, out_q, out_pv, out_mode, out_sg,
-               out_gdir, events, hold):
+def throw_loop(
+    x,
+    eta,
+    V,
+    G,
+    sm,
+    prm,
+    A,
+    B,
+    C,
+    Vb,
+    Qr,
+    Pb,
+    Lb,
+    prob,
+    gd,
+    V1,
+    Q1,
+    P1,
+    L1,
+    w_prev,
+    h,
+    substeps,
+    rate,
+    tw,
+    beta1,
+    detect_samples,
+    beta2,
+    beta3,
+    upright_rad,
+    rotor_speed,
+    use_truth,
+    mocap_every,
+    mocap_delay,
+    mocap_noise,
+    ground_z,
+    hand_x,
+    hand_dx,
+    out_x,
+    out_dx,
+    out_thrust,
+    out_cmd,
+    out_gyr,
+    out_acc,
+    out_mag,
+    out_q,
+    out_pv,
+    out_mode,
+    out_sg,
+    out_gdir,
+    events,
+    hold,
+):
     """Fly a throw (module doc): the hand carries the vehicle through ``hand_x`` (its states
     until the release, and the release) with the derivatives ``hand_dx``, then it flies.
     ``events`` receives the samples of detection and handover, ``hold`` the height the
@@ -318,8 +442,29 @@ def throw_loop(x, eta, V, G, sm, prm, A, B, C, Vb, Qr, Pb, Lb, prob, gd, V1, Q1,
             out_pv[k, 3 + j] = xh[3 + j] if mode == NOMINAL else np.nan
         out_mode[k] = mode
         held = k < n_hand
-        status = record_and_fly(k, x, dx, T, cmd, gyr, acc, mag, eta, V, h, 0 if held else substeps, ground_z,
-                                out_x, out_dx, out_thrust, out_cmd, out_gyr, out_acc, out_mag, W)
+        status = record_and_fly(
+            k,
+            x,
+            dx,
+            T,
+            cmd,
+            gyr,
+            acc,
+            mag,
+            eta,
+            V,
+            h,
+            0 if held else substeps,
+            ground_z,
+            out_x,
+            out_dx,
+            out_thrust,
+            out_cmd,
+            out_gyr,
+            out_acc,
+            out_mag,
+            W,
+        )
         if held:
             x[:] = hand_x[k + 1]
         if status != OK:
@@ -365,9 +510,19 @@ def quat_yaw(q):
     return np.arctan2(2.0 * (q[1] * q[2] + q[0] * q[3]), 1.0 - 2.0 * (q[2] * q[2] + q[3] * q[3]))
 
 
-def fly_throw(*, estimator: str = "recovery", duration: float = 14.0, seed: int = 0, cfg=None,
-              vehicle: MultirotorParams, params: FlightParams, throw: ThrowParams | None = None,
-              recovery: RecoveryParams | None = None, se3: SE3Params | None = None, meta: dict) -> Flight:
+def fly_throw(
+    *,
+    estimator: str = "recovery",
+    duration: float = 14.0,
+    seed: int = 0,
+    cfg=None,
+    vehicle: MultirotorParams,
+    params: FlightParams,
+    throw: ThrowParams | None = None,
+    recovery: RecoveryParams | None = None,
+    se3: SE3Params | None = None,
+    meta: dict,
+) -> Flight:
     """One throw (module doc): the hand's throw (:func:`hand_motion`), then ``duration`` seconds
     from the release. ``estimator``: ``recovery`` (the bank, then its nominal EKF) or ``truth``
     (the controller takes over at the detection and reads the true state)."""
@@ -391,37 +546,117 @@ def fly_throw(*, estimator: str = "recovery", duration: float = 14.0, seed: int 
     Vb, Qr, Pb, Lb = initial_bank(rp, spread_points(H))
     V1, Q1, P1, L1 = np.zeros((1, 3)), np.zeros((1, 4)), np.zeros((1, 5, 5)), np.zeros(1)
     G = (se3 or SE3Params()).gains(vehicle)
-    tw = vehicle.rotors * vehicle.k_f * vehicle.omega_max ** 2 / (vehicle.mass_kg * vehicle.gravity)
+    tw = vehicle.rotors * vehicle.k_f * vehicle.omega_max**2 / (vehicle.mass_kg * vehicle.gravity)
     N = vehicle.rotors
-    out = dict(x=np.empty((n, 13 + N)), dx=np.empty((n, 13 + N)), thrust=np.empty((n, N)), cmd=np.empty((n, N)),
-               gyr=np.empty((n, 3)), acc=np.empty((n, 3)), mag=np.empty((n, 3)), q=np.empty((n, 4)),
-               pv=np.empty((n, 6)), mode=np.zeros(n, np.int64), sg=np.empty(n), gdir=np.empty((n, 3)))
+    out = dict(
+        x=np.empty((n, 13 + N)),
+        dx=np.empty((n, 13 + N)),
+        thrust=np.empty((n, N)),
+        cmd=np.empty((n, N)),
+        gyr=np.empty((n, 3)),
+        acc=np.empty((n, 3)),
+        mag=np.empty((n, 3)),
+        q=np.empty((n, 4)),
+        pv=np.empty((n, 6)),
+        mode=np.zeros(n, np.int64),
+        sg=np.empty(n),
+        gdir=np.empty((n, 3)),
+    )
     events = np.full(2, -1, np.int64)
     hold = np.full(1, np.nan)
     w_prev = np.zeros(3)  # the gyro before the first sample: at rest in the hand
     x = hand_x[0].copy()
     t0 = time.perf_counter()
     status, flown = throw_loop(
-        x, np.ones(N), vehicle.vehicle(), G, sm, rp.bank_record(vehicle.mass_kg), model.A, model.B, model.C,
-        Vb, Qr, Pb, Lb, np.empty(H), np.empty((H, 3)), V1, Q1, P1, L1, w_prev, 1.0 / SIM_RATE_HZ, substeps,
-        float(rate), tw, rp.beta1, rp.detect_samples, rp.beta2, np.radians(throw.beta3_deg),
-        np.radians(throw.upright_switch_deg), throw.rotor_speed,
-        estimator == "truth", mocap_every, int(round(pos_latency * rate)),
-        rng_mocap.normal(0.0, 1.0, ((n - 1) // mocap_every + 1, 3)) * pos_noise, throw.drop_m, hand_x, hand_dx,
-        out["x"], out["dx"], out["thrust"], out["cmd"], out["gyr"], out["acc"], out["mag"], out["q"], out["pv"],
-        out["mode"], out["sg"], out["gdir"], events, hold)
+        x,
+        np.ones(N),
+        vehicle.vehicle(),
+        G,
+        sm,
+        rp.bank_record(vehicle.mass_kg),
+        model.A,
+        model.B,
+        model.C,
+        Vb,
+        Qr,
+        Pb,
+        Lb,
+        np.empty(H),
+        np.empty((H, 3)),
+        V1,
+        Q1,
+        P1,
+        L1,
+        w_prev,
+        1.0 / SIM_RATE_HZ,
+        substeps,
+        float(rate),
+        tw,
+        rp.beta1,
+        rp.detect_samples,
+        rp.beta2,
+        np.radians(throw.beta3_deg),
+        np.radians(throw.upright_switch_deg),
+        throw.rotor_speed,
+        estimator == "truth",
+        mocap_every,
+        int(round(pos_latency * rate)),
+        rng_mocap.normal(0.0, 1.0, ((n - 1) // mocap_every + 1, 3)) * pos_noise,
+        throw.drop_m,
+        hand_x,
+        hand_dx,
+        out["x"],
+        out["dx"],
+        out["thrust"],
+        out["cmd"],
+        out["gyr"],
+        out["acc"],
+        out["mag"],
+        out["q"],
+        out["pv"],
+        out["mode"],
+        out["sg"],
+        out["gdir"],
+        events,
+        hold,
+    )
     loop_s = time.perf_counter() - t0
     out = {k: v[:flown] for k, v in out.items()}
-    rec = flown_recording(t[:flown], out["x"], out["dx"], out["thrust"], vehicle, cfg=cfg, seed=seed,
-                          meta={**meta, "aero_model_fitted": model.info.get("residual_rms_mps2"),
-                                "release_s": float(n_hand / rate), "hand_acc_peak_m_s2": float(2 * np.linalg.norm(
-                                    x_rel[3:6]) * rate / n_hand)},
-                          readings=(out["gyr"], out["acc"], out["mag"]), processes=processes)
-    flight = Flight(rec, out["x"], out["cmd"], out["q"], out["pv"], timing={"loop_s": loop_s},
-                    baro=barometer(rec.t, out["x"], params, seed), modes=out["mode"], derivs=out["dx"],
-                    thrusts=out["thrust"], eta=np.ones((flown, N)), imbalance=np.zeros((flown, N)), vehicle=vehicle)
-    flight.summary = summarize_throw(flight, out, events, status, duration, throw, estimator, seed, n_hand,
-                                     float(hold[0]))
+    rec = flown_recording(
+        t[:flown],
+        out["x"],
+        out["dx"],
+        out["thrust"],
+        vehicle,
+        cfg=cfg,
+        seed=seed,
+        meta={
+            **meta,
+            "aero_model_fitted": model.info.get("residual_rms_mps2"),
+            "release_s": float(n_hand / rate),
+            "hand_acc_peak_m_s2": float(2 * np.linalg.norm(x_rel[3:6]) * rate / n_hand),
+        },
+        readings=(out["gyr"], out["acc"], out["mag"]),
+        processes=processes,
+    )
+    flight = Flight(
+        rec,
+        out["x"],
+        out["cmd"],
+        out["q"],
+        out["pv"],
+        timing={"loop_s": loop_s},
+        baro=barometer(rec.t, out["x"], params, seed),
+        modes=out["mode"],
+        derivs=out["dx"],
+        thrusts=out["thrust"],
+        eta=np.ones((flown, N)),
+        imbalance=np.zeros((flown, N)),
+        vehicle=vehicle,
+    )
+    flight.summary = summarize_throw(
+        flight, out, events, status, duration, throw, estimator, seed, n_hand, float(hold[0])
+    )
     return flight
 
 
@@ -441,23 +676,30 @@ def summarize_throw(flight, out, events, status, duration, throw, estimator, see
     r = min(n_hand, len(t) - 1)
     t_rel = t[r]
     k_det, k_conv = int(events[0]), int(events[1])
-    s = {"scenario": "throw", "controller": "recovery",
-         "estimator": estimator, "seed": int(seed), "duration_s": float(duration),
-         "status": "survived" if status == OK else "crashed" if status in (1, 2) else "stopped",
-         "reason": STATUS[status], "end_time_s": None if status == OK else float(t[-1] - t_rel),
-         "release_s": float(t_rel), "hand_acc_peak_m_s2": flight.recording.meta.get("hand_acc_peak_m_s2"),
-         "release_speed_m_s": float(np.linalg.norm(x[r, 3:6])),
-         "release_rate_rad_s": float(np.linalg.norm(x[r, 10:13])),
-         "detected_s": float(t[k_det] - t_rel) if k_det >= 0 else None,
-         "handover_s": float(t[k_conv] - t_rel) if k_conv >= 0 else None,
-         "convergence_s": float(t[k_conv] - t[k_det]) if k_conv >= 0 and k_det >= 0 else None}
+    s = {
+        "scenario": "throw",
+        "controller": "recovery",
+        "estimator": estimator,
+        "seed": int(seed),
+        "duration_s": float(duration),
+        "status": "survived" if status == OK else "crashed" if status in (1, 2) else "stopped",
+        "reason": STATUS[status],
+        "end_time_s": None if status == OK else float(t[-1] - t_rel),
+        "release_s": float(t_rel),
+        "hand_acc_peak_m_s2": flight.recording.meta.get("hand_acc_peak_m_s2"),
+        "release_speed_m_s": float(np.linalg.norm(x[r, 3:6])),
+        "release_rate_rad_s": float(np.linalg.norm(x[r, 10:13])),
+        "detected_s": float(t[k_det] - t_rel) if k_det >= 0 else None,
+        "handover_s": float(t[k_conv] - t_rel) if k_conv >= 0 else None,
+        "convergence_s": float(t[k_conv] - t[k_det]) if k_conv >= 0 and k_det >= 0 else None,
+    }
     if k_conv >= 0 and estimator != "truth":
         q = x[k_conv, 6:10]
         g_true = quat_rotate(quat_conj(q[None]), np.array([[0.0, 0.0, 1.0]]))[0]
         s["gravity_error_at_handover_deg"] = float(np.degrees(np.arccos(np.clip(out["gdir"][k_conv] @ g_true, -1, 1))))
-        v_true = quat_rotate(quat_conj(q[None]), x[k_conv:k_conv + 1, 3:6])[0]
+        v_true = quat_rotate(quat_conj(q[None]), x[k_conv : k_conv + 1, 3:6])[0]
         k1 = min(k_conv + 1, len(t) - 1)
-        v_est = quat_rotate(quat_conj(out["q"][k1:k1 + 1]), out["pv"][k1:k1 + 1, 3:6])[0]
+        v_est = quat_rotate(quat_conj(out["q"][k1 : k1 + 1]), out["pv"][k1 : k1 + 1, 3:6])[0]
         s["velocity_error_at_handover_m_s"] = float(np.linalg.norm(v_est - v_true))
     tilt = _tilt_deg(x[:, 6:10])
     s["lowest_point_m"] = float(x[r:, 2].max())  # NED: metres below the release point
@@ -471,7 +713,7 @@ def summarize_throw(flight, out, events, status, duration, throw, estimator, see
         ok = after & np.isfinite(out["q"]).all(axis=1)
         if ok.any():
             total, tilt_err = angle_errors(x[ok, 6:10], out["q"][ok])
-            s["tilt_error_after_handover_rms_deg"] = float(np.sqrt(np.mean(tilt_err ** 2)))
+            s["tilt_error_after_handover_rms_deg"] = float(np.sqrt(np.mean(tilt_err**2)))
     s["held_height_m"] = None if not np.isfinite(hold_z) else float(-hold_z)
     s["final_tilt_deg"] = float(tilt[-1])
     s["final_speed_m_s"] = float(np.linalg.norm(x[-1, 3:6]))
@@ -479,7 +721,7 @@ def summarize_throw(flight, out, events, status, duration, throw, estimator, see
     s["time_to_settle_s"] = None
     s["position_rms_settled_m"] = None
     total, tilt_err = angle_errors(x[:, 6:10], np.where(np.isfinite(out["q"]), out["q"], x[:, 6:10]))
-    s["tilt_error_rms_deg"] = float(np.sqrt(np.mean(tilt_err ** 2)))
+    s["tilt_error_rms_deg"] = float(np.sqrt(np.mean(tilt_err**2)))
     return s
 
 

@@ -8,6 +8,7 @@ converted with ``P = diag(1, -1, -1)``: ``A_frd = P A P``, ``B_frd = P B P`` and
 Q(P)`` where ``Q`` maps ``ψ`` of the FRD rate to ``ψ`` of the paper's rate (see
 :func:`AeroModel.from_z_up`).
 """
+
 from __future__ import annotations
 
 import math
@@ -15,8 +16,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from numba import njit
 
+from quadest._jit import njit
 from quadest.data.files import write_json
 from quadest.data.tagged import read_tagged_json
 from quadest.rotation import quat_conj, quat_rotate
@@ -78,8 +79,11 @@ class AeroModel:
             if not np.isfinite(a).all():
                 raise ValueError(f"aero model {name}: non-finite value")
             object.__setattr__(self, name, a)
-        if isinstance(self.mass_kg, bool) or not isinstance(self.mass_kg, (int, float)) \
-                or not (math.isfinite(self.mass_kg) and self.mass_kg > 0):
+        if (
+            isinstance(self.mass_kg, bool)
+            or not isinstance(self.mass_kg, (int, float))
+            or not (math.isfinite(self.mass_kg) and self.mass_kg > 0)
+        ):
             raise ValueError(f"aero model: mass must be a positive number of kg, got {self.mass_kg!r}")
         if not isinstance(self.info, dict):
             raise ValueError("aero model: info must be a mapping")
@@ -88,21 +92,28 @@ class AeroModel:
         """Eq 7 without noise: ``f_c / m`` (m/s², body frame)."""
         return self.force(v, w) / self.mass_kg
 
-    def scaled(self, factors) -> "AeroModel":
+    def scaled(self, factors) -> AeroModel:
         """A copy with every entry of Λ = [A B C] multiplied by ``factors`` (3, 16)."""
         L = self.Lambda * np.asarray(factors, float)
         return AeroModel(L[:, :3], L[:, 3:6], L[:, 6:], self.mass_kg, dict(self.info))
 
     def to_dict(self) -> dict:
-        return {"format": FORMAT_TAG, "frame": "body FRD (quadest conventions)", "mass_kg": self.mass_kg,
-                "A": self.A.tolist(), "B": self.B.tolist(), "C": self.C.tolist(), "info": self.info}
+        return {
+            "format": FORMAT_TAG,
+            "frame": "body FRD (quadest conventions)",
+            "mass_kg": self.mass_kg,
+            "A": self.A.tolist(),
+            "B": self.B.tolist(),
+            "C": self.C.tolist(),
+            "info": self.info,
+        }
 
     def save(self, path) -> Path:
         """Write the JSON file, atomically (nothing half-written is left on a failure)."""
         return write_json(path, self.to_dict())
 
     @classmethod
-    def load(cls, path) -> "AeroModel":
+    def load(cls, path) -> AeroModel:
         d = read_tagged_json(path, FORMAT_TAG, "aero model")
         try:
             return cls(d["A"], d["B"], d["C"], d["mass_kg"], d.get("info", {}))
@@ -161,7 +172,10 @@ def fit_aero(recordings, mass_kg: float, masks=None) -> AeroModel:
     Lam_T, *_ = np.linalg.lstsq(Phi, Y, rcond=None)  # Φ Λᵀ ≈ m z
     L = Lam_T.T
     resid = (Y - Phi @ Lam_T) / mass_kg
-    info = {"samples": int(len(Phi)), "recordings": names,
-            "residual_rms_mps2": np.sqrt(np.mean(resid ** 2, axis=0)).tolist(),
-            "condition_number": float(np.linalg.cond(Phi))}
+    info = {
+        "samples": int(len(Phi)),
+        "recordings": names,
+        "residual_rms_mps2": np.sqrt(np.mean(resid**2, axis=0)).tolist(),
+        "condition_number": float(np.linalg.cond(Phi)),
+    }
     return AeroModel(L[:, :3], L[:, 3:6], L[:, 6:], mass_kg, info)

@@ -28,21 +28,41 @@ quaternion renormalised after each step) in compiled code.
 The recovery paper's reduced aerodynamic model (:mod:`quadest.models.aero`) stays the
 estimator's model: it is fitted from this model's flights, never used as its truth.
 """
+
 from __future__ import annotations
 
 from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from quadest._jit import njit
 from quadest.conventions import GRAVITY
 from quadest.errors import UsageError
 from quadest.records import check, describe, param
 from quadest.rotation.kernels import qdot_s, rotate_inv_s, rotate_s
 
-Vehicle = namedtuple("Vehicle", ["mass", "inertia", "rotor_pos", "spin", "k_f", "k_m", "k_z", "k_h", "tau",
-                                 "omega_min", "omega_max", "omega_dot_max", "c_d", "damping", "rot_drag", "gravity"])
+Vehicle = namedtuple(
+    "Vehicle",
+    [
+        "mass",
+        "inertia",
+        "rotor_pos",
+        "spin",
+        "k_f",
+        "k_m",
+        "k_z",
+        "k_h",
+        "tau",
+        "omega_min",
+        "omega_max",
+        "omega_dot_max",
+        "c_d",
+        "damping",
+        "rot_drag",
+        "gravity",
+    ],
+)
 """What the compiled dynamics read (built by :meth:`MultirotorParams.vehicle`)."""
 
 
@@ -59,37 +79,85 @@ class MultirotorParams:
     same way, so the yaw torques cancel in hover)."""
 
     mass_kg: float = param(0.5, "kg", "mass", "recovery paper, experimental setup (m = 0.5 kg)", bounds="(0, 1e3]")
-    inertia: tuple = param((0.0023, 0.0023, 0.0046), "kg m²", "principal moments of inertia (body axes)",
-                           "recovery paper, experimental setup")
-    rotor_pos: tuple = param(quad_x(0.17), "m", "rotor positions from the centre of mass (body FRD)",
-                             "recovery paper, experimental setup (arm L = 0.17 m), X layout chosen")
-    spin: tuple = param((1.0, 1.0, -1.0, -1.0), "-", "rotor sense: +1 about +z (clockwise seen from above)",
-                        "chosen: diagonal pairs alike")
-    k_f: float = param(6.5e-6, "N s²", "thrust per squared rotor speed",
-                       "chosen: hover near 430 rad/s for 0.5 kg (a 5-inch propeller)", bounds="(0, 1]")
-    k_m: float = param(1.1e-7, "N m s²", "reaction torque per squared rotor speed",
-                       "chosen: k_m/k_f = 0.017 m, typical of small propellers", bounds="[0, 1]")
-    k_z: float = param(7e-5, "N s²/m", "thrust change per rotor speed and axial hub speed (inflow)",
-                       "chosen: 10 % less thrust when climbing at 4 m/s in hover", bounds="[0, 1]")
-    k_h: float = param(1.0e-4, "N s²/m", "rotor (H-force) drag per rotor speed and in-plane hub speed",
-                       "chosen: 0.17 N per rotor at 4 m/s in hover", bounds="[0, 1]")
-    motor_tau_s: float = param(0.02, "s", "motor time constant", "chosen: small brushless motors, 15-40 ms",
-                               bounds="(0, 10]")
+    inertia: tuple = param(
+        (0.0023, 0.0023, 0.0046),
+        "kg m²",
+        "principal moments of inertia (body axes)",
+        "recovery paper, experimental setup",
+    )
+    rotor_pos: tuple = param(
+        quad_x(0.17),
+        "m",
+        "rotor positions from the centre of mass (body FRD)",
+        "recovery paper, experimental setup (arm L = 0.17 m), X layout chosen",
+    )
+    spin: tuple = param(
+        (1.0, 1.0, -1.0, -1.0),
+        "-",
+        "rotor sense: +1 about +z (clockwise seen from above)",
+        "chosen: diagonal pairs alike",
+    )
+    k_f: float = param(
+        6.5e-6,
+        "N s²",
+        "thrust per squared rotor speed",
+        "chosen: hover near 430 rad/s for 0.5 kg (a 5-inch propeller)",
+        bounds="(0, 1]",
+    )
+    k_m: float = param(
+        1.1e-7,
+        "N m s²",
+        "reaction torque per squared rotor speed",
+        "chosen: k_m/k_f = 0.017 m, typical of small propellers",
+        bounds="[0, 1]",
+    )
+    k_z: float = param(
+        7e-5,
+        "N s²/m",
+        "thrust change per rotor speed and axial hub speed (inflow)",
+        "chosen: 10 % less thrust when climbing at 4 m/s in hover",
+        bounds="[0, 1]",
+    )
+    k_h: float = param(
+        1.0e-4,
+        "N s²/m",
+        "rotor (H-force) drag per rotor speed and in-plane hub speed",
+        "chosen: 0.17 N per rotor at 4 m/s in hover",
+        bounds="[0, 1]",
+    )
+    motor_tau_s: float = param(
+        0.02, "s", "motor time constant", "chosen: small brushless motors, 15-40 ms", bounds="(0, 10]"
+    )
     omega_min: float = param(0.0, "rad/s", "lowest rotor speed (idle)", "chosen", bounds="[0, 1e4]")
-    omega_max: float = param(900.0, "rad/s", "highest rotor speed", "chosen: thrust-to-weight about 4.4",
-                             bounds="(0, 1e4]")
-    omega_dot_max: float = param(5e4, "rad/s²", "rotor acceleration limit",
-                                 "Sun et al. 2021 (their Bebop 2 simulation)", bounds="(0, 1e12]")
-    body_drag: tuple = param((0.01, 0.01, 0.01), "N s²/m²", "quadratic body drag per body axis (x, y, z)",
-                             "chosen: 0.16 N at 4 m/s")
-    damping: tuple = param((0.0, 0.0, 0.0), "N m s", "linear rotational damping per axis",
-                           "chosen: none; the body's rotational drag is quadratic (rot_drag), the rotors' drag "
-                           "acts through k_h")
-    rot_drag: tuple = param((5e-5, 5e-5, 1e-4), "N m s²", "quadratic rotational drag per axis: −sign(ω) c ω²",
-                            "Sun et al. 2021, their Bebop 2 simulation (simParams.m, aero.rotDrag)")
+    omega_max: float = param(
+        900.0, "rad/s", "highest rotor speed", "chosen: thrust-to-weight about 4.4", bounds="(0, 1e4]"
+    )
+    omega_dot_max: float = param(
+        5e4, "rad/s²", "rotor acceleration limit", "Sun et al. 2021 (their Bebop 2 simulation)", bounds="(0, 1e12]"
+    )
+    body_drag: tuple = param(
+        (0.01, 0.01, 0.01), "N s²/m²", "quadratic body drag per body axis (x, y, z)", "chosen: 0.16 N at 4 m/s"
+    )
+    damping: tuple = param(
+        (0.0, 0.0, 0.0),
+        "N m s",
+        "linear rotational damping per axis",
+        "chosen: none; the body's rotational drag is quadratic (rot_drag), the rotors' drag acts through k_h",
+    )
+    rot_drag: tuple = param(
+        (5e-5, 5e-5, 1e-4),
+        "N m s²",
+        "quadratic rotational drag per axis: −sign(ω) c ω²",
+        "Sun et al. 2021, their Bebop 2 simulation (simParams.m, aero.rotDrag)",
+    )
     gravity: float = param(GRAVITY, "m/s²", "gravity", "standard gravity", bounds="(0, 100]")
-    blades: int = param(2, "-", "blades per propeller (the vibration's blade-pass tone; not in the dynamics)",
-                        "chosen: two-blade propellers, the common small-quadrotor kind", bounds="[1, 12]")
+    blades: int = param(
+        2,
+        "-",
+        "blades per propeller (the vibration's blade-pass tone; not in the dynamics)",
+        "chosen: two-blade propellers, the common small-quadrotor kind",
+        bounds="[1, 12]",
+    )
 
     def __post_init__(self):
         check(self, "vehicle")
@@ -101,8 +169,10 @@ class MultirotorParams:
         for name in ("inertia", "damping", "body_drag", "rot_drag"):
             v = np.asarray(getattr(self, name), float)
             if v.shape != (3,) or not np.isfinite(v).all() or (v < 0).any() or (name == "inertia" and (v <= 0).any()):
-                raise ValueError(f"vehicle: {name} must be three {'positive' if name == 'inertia' else 'non-negative'} "
-                                 f"numbers, got {getattr(self, name)!r}")
+                raise ValueError(
+                    f"vehicle: {name} must be three {'positive' if name == 'inertia' else 'non-negative'} "
+                    f"numbers, got {getattr(self, name)!r}"
+                )
         if self.omega_min > self.omega_max:
             raise ValueError("vehicle: omega_min must not exceed omega_max")
 
@@ -111,11 +181,24 @@ class MultirotorParams:
         return len(self.rotor_pos)
 
     def vehicle(self) -> Vehicle:
-        return Vehicle(float(self.mass_kg), np.asarray(self.inertia, float), np.ascontiguousarray(self.rotor_pos, float),
-                       np.asarray(self.spin, float), float(self.k_f), float(self.k_m), float(self.k_z), float(self.k_h),
-                       float(self.motor_tau_s), float(self.omega_min), float(self.omega_max),
-                       float(self.omega_dot_max), np.asarray(self.body_drag, float), np.asarray(self.damping, float),
-                       np.asarray(self.rot_drag, float), float(self.gravity))
+        return Vehicle(
+            float(self.mass_kg),
+            np.asarray(self.inertia, float),
+            np.ascontiguousarray(self.rotor_pos, float),
+            np.asarray(self.spin, float),
+            float(self.k_f),
+            float(self.k_m),
+            float(self.k_z),
+            float(self.k_h),
+            float(self.motor_tau_s),
+            float(self.omega_min),
+            float(self.omega_max),
+            float(self.omega_dot_max),
+            np.asarray(self.body_drag, float),
+            np.asarray(self.damping, float),
+            np.asarray(self.rot_drag, float),
+            float(self.gravity),
+        )
 
     def hover_speed(self) -> float:
         """Rotor speed at which N equal rotors at rest carry the weight: ``√(m g / (N k_f))``."""
@@ -139,39 +222,85 @@ _ROTORPY = "RotorPy 3.0, rotorpy/vehicles/hummingbird_params.py"
 VEHICLE_PRESETS = {
     "recovery": ({}, {}),
     "bebop2": (
-        dict(mass_kg=0.375, inertia=(0.0014, 0.0013, 0.0025),
-             rotor_pos=((0.0875, 0.115, 0.0), (-0.0875, -0.115, 0.0), (0.0875, -0.115, 0.0), (-0.0875, 0.115, 0.0)),
-             spin=(1.0, 1.0, -1.0, -1.0), k_f=1.9035e-6, k_m=1.9202951e-8, k_z=3.3e-5, k_h=4.05e-5,
-             motor_tau_s=1.0 / 30.0, omega_min=0.0, omega_max=1200.0, omega_dot_max=5e4,
-             body_drag=(0.01, 0.01, 0.01), damping=(0.0, 0.0, 0.0), rot_drag=(5e-5, 5e-5, 1e-4), gravity=9.8124,
-             blades=3),
-        dict(mass_kg=f"{_SUN}: controlParams.m (the simulation's own mass is in a .mat file)",
-             inertia=f"{_SUN}: controlParams.m",
-             rotor_pos=f"{_SUN}: controlParams.m, arms l = 0.0875 m (fore-aft) and b = 0.115 m (lateral)",
-             spin=f"{_SUN}: simpleAeroModel.m (front-left and rear-right turn counter-clockwise)",
-             k_f=f"{_SUN}: simParams.m, aero.k0", k_m=f"{_SUN}: simParams.m, aero.t0",
-             k_z="chosen: 10 % less thrust climbing at 4 m/s in hover (as the default vehicle)",
-             k_h="chosen: linear rotor drag 0.3 1/s at hover (the simulator's rotor_drag, Faessler et al. 2018)",
-             motor_tau_s=f"{_SUN}: simParams.m, actuator.t_w", omega_min=f"{_SUN}: simParams.m",
-             omega_max=f"{_SUN}: simParams.m", omega_dot_max=f"{_SUN}: simParams.m, actuator.rateRise",
-             body_drag="chosen: as the default vehicle", damping="chosen: none (the drag is quadratic)",
-             rot_drag=f"{_SUN}: simParams.m, aero.rotDrag", gravity=f"{_SUN}: simParams.m (Delft)",
-             blades="the Bebop 2's stock propellers have three blades")),
+        dict(
+            mass_kg=0.375,
+            inertia=(0.0014, 0.0013, 0.0025),
+            rotor_pos=((0.0875, 0.115, 0.0), (-0.0875, -0.115, 0.0), (0.0875, -0.115, 0.0), (-0.0875, 0.115, 0.0)),
+            spin=(1.0, 1.0, -1.0, -1.0),
+            k_f=1.9035e-6,
+            k_m=1.9202951e-8,
+            k_z=3.3e-5,
+            k_h=4.05e-5,
+            motor_tau_s=1.0 / 30.0,
+            omega_min=0.0,
+            omega_max=1200.0,
+            omega_dot_max=5e4,
+            body_drag=(0.01, 0.01, 0.01),
+            damping=(0.0, 0.0, 0.0),
+            rot_drag=(5e-5, 5e-5, 1e-4),
+            gravity=9.8124,
+            blades=3,
+        ),
+        dict(
+            mass_kg=f"{_SUN}: controlParams.m (the simulation's own mass is in a .mat file)",
+            inertia=f"{_SUN}: controlParams.m",
+            rotor_pos=f"{_SUN}: controlParams.m, arms l = 0.0875 m (fore-aft) and b = 0.115 m (lateral)",
+            spin=f"{_SUN}: simpleAeroModel.m (front-left and rear-right turn counter-clockwise)",
+            k_f=f"{_SUN}: simParams.m, aero.k0",
+            k_m=f"{_SUN}: simParams.m, aero.t0",
+            k_z="chosen: 10 % less thrust climbing at 4 m/s in hover (as the default vehicle)",
+            k_h="chosen: linear rotor drag 0.3 1/s at hover (the simulator's rotor_drag, Faessler et al. 2018)",
+            motor_tau_s=f"{_SUN}: simParams.m, actuator.t_w",
+            omega_min=f"{_SUN}: simParams.m",
+            omega_max=f"{_SUN}: simParams.m",
+            omega_dot_max=f"{_SUN}: simParams.m, actuator.rateRise",
+            body_drag="chosen: as the default vehicle",
+            damping="chosen: none (the drag is quadratic)",
+            rot_drag=f"{_SUN}: simParams.m, aero.rotDrag",
+            gravity=f"{_SUN}: simParams.m (Delft)",
+            blades="the Bebop 2's stock propellers have three blades",
+        ),
+    ),
     "hummingbird": (
-        dict(mass_kg=0.5, inertia=(3.65e-3, 3.68e-3, 7.03e-3),
-             rotor_pos=tuple((x, y, 0.0) for x, y, _ in quad_x(0.17)),
-             spin=(-1.0, -1.0, 1.0, 1.0), k_f=5.57e-6, k_m=1.36e-7, k_z=2.32e-4, k_h=1.19e-4, motor_tau_s=0.005,
-             omega_min=0.0, omega_max=1500.0, omega_dot_max=1e12, body_drag=(5e-3, 5e-3, 1e-2),
-             damping=(0.0, 0.0, 0.0), rot_drag=(0.0, 0.0, 0.0), gravity=9.81, blades=2),
-        dict(mass_kg=f"{_ROTORPY}: mass", inertia=f"{_ROTORPY}: Ixx, Iyy, Izz",
-             rotor_pos=f"{_ROTORPY}: rotor_pos (d = 0.17 m, X), in FRD",
-             spin=f"{_ROTORPY}: rotor_directions [1, -1, 1, -1] (FLU order r1..r4)",
-             k_f=f"{_ROTORPY}: k_eta", k_m=f"{_ROTORPY}: k_m", k_z=f"{_ROTORPY}: k_z (induced inflow)",
-             k_h=f"{_ROTORPY}: k_d (rotor drag); its translational lift k_h and flapping are not modelled here",
-             motor_tau_s=f"{_ROTORPY}: tau_m", omega_min=f"{_ROTORPY}: rotor_speed_min",
-             omega_max=f"{_ROTORPY}: rotor_speed_max", omega_dot_max="RotorPy has no rate limit",
-             body_drag=f"{_ROTORPY}: c_Dx, c_Dy, c_Dz", damping="RotorPy has none", rot_drag="RotorPy has none",
-             gravity="RotorPy: 9.81", blades="the AscTec Hummingbird's 8-inch propellers have two blades")),
+        dict(
+            mass_kg=0.5,
+            inertia=(3.65e-3, 3.68e-3, 7.03e-3),
+            rotor_pos=tuple((x, y, 0.0) for x, y, _ in quad_x(0.17)),
+            spin=(-1.0, -1.0, 1.0, 1.0),
+            k_f=5.57e-6,
+            k_m=1.36e-7,
+            k_z=2.32e-4,
+            k_h=1.19e-4,
+            motor_tau_s=0.005,
+            omega_min=0.0,
+            omega_max=1500.0,
+            omega_dot_max=1e12,
+            body_drag=(5e-3, 5e-3, 1e-2),
+            damping=(0.0, 0.0, 0.0),
+            rot_drag=(0.0, 0.0, 0.0),
+            gravity=9.81,
+            blades=2,
+        ),
+        dict(
+            mass_kg=f"{_ROTORPY}: mass",
+            inertia=f"{_ROTORPY}: Ixx, Iyy, Izz",
+            rotor_pos=f"{_ROTORPY}: rotor_pos (d = 0.17 m, X), in FRD",
+            spin=f"{_ROTORPY}: rotor_directions [1, -1, 1, -1] (FLU order r1..r4)",
+            k_f=f"{_ROTORPY}: k_eta",
+            k_m=f"{_ROTORPY}: k_m",
+            k_z=f"{_ROTORPY}: k_z (induced inflow)",
+            k_h=f"{_ROTORPY}: k_d (rotor drag); its translational lift k_h and flapping are not modelled here",
+            motor_tau_s=f"{_ROTORPY}: tau_m",
+            omega_min=f"{_ROTORPY}: rotor_speed_min",
+            omega_max=f"{_ROTORPY}: rotor_speed_max",
+            omega_dot_max="RotorPy has no rate limit",
+            body_drag=f"{_ROTORPY}: c_Dx, c_Dy, c_Dz",
+            damping="RotorPy has none",
+            rot_drag="RotorPy has none",
+            gravity="RotorPy: 9.81",
+            blades="the AscTec Hummingbird's 8-inch propellers have two blades",
+        ),
+    ),
 }
 """Vehicles by name: the fields that differ from :class:`MultirotorParams`' defaults (the
 recovery paper's vehicle) and the source of each."""

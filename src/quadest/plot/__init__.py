@@ -1,4 +1,5 @@
 """Figures. Computing lives elsewhere; these functions only draw what they are given."""
+
 from quadest.plot.errors import plot_errors
 from quadest.plot.flight import plot_flight
 from quadest.plot.recording import plot_recording

@@ -1,4 +1,5 @@
 """Attitude error over time per axis for several estimators (like the AFCKF paper's Figs 2-7)."""
+
 from __future__ import annotations
 
 from pathlib import Path

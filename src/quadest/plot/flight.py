@@ -1,5 +1,6 @@
 """The figure of a flown run: path, attitude and the estimate the controller flew with, rotor
 speeds."""
+
 from __future__ import annotations
 
 import numpy as np

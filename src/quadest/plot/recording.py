@@ -1,4 +1,5 @@
 """Overview figure of a recording: true attitude, body rates and the sensor signals."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -17,8 +18,7 @@ def plot_recording(rec: Recording, path, title: str | None = None):
     import matplotlib.pyplot as plt
 
     panels = (["att"] if rec.true_q is not None else []) + ["gyr", "acc"] + (["mag"] if rec.has_mag else [])
-    fig, axes = plt.subplots(len(panels), 1, figsize=(10, 2.4 * len(panels)), sharex=True,
-                             constrained_layout=True)
+    fig, axes = plt.subplots(len(panels), 1, figsize=(10, 2.4 * len(panels)), sharex=True, constrained_layout=True)
     axes = np.atleast_1d(axes)
     t = rec.t - rec.t[0]
     colors = ("tab:red", "tab:green", "tab:blue")

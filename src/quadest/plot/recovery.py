@@ -1,4 +1,5 @@
 """Recovery figures: the paper's Figs 1-3."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -26,8 +27,13 @@ def plot_recovery(res, rec, path, title: str = ""):
         for i in range(H):
             ax.plot(t, angle_deg(res.hypothesis_dirs[:, i], g_true), color="0.75", lw=0.5)
     if rec.true_q is not None:
-        ax.plot(t, angle_deg(res.gravity_dir, true_gravity_dir(rec.true_q)), color="tab:blue", lw=1.5,
-                label="most likely / nominal")
+        ax.plot(
+            t,
+            angle_deg(res.gravity_dir, true_gravity_dir(rec.true_q)),
+            color="tab:blue",
+            lw=1.5,
+            label="most likely / nominal",
+        )
         ax.set_ylabel("gravity direction error [deg]")
         ax.legend(loc="upper right", fontsize=8)
     ax = axes[1]

@@ -3,6 +3,7 @@ its scripts inlined: it opens offline), drawn from what :mod:`quadest.evaluation
 computed over the whole recording. Long recordings are decimated for display only (each drawn
 point keeps its bucket's extremes); the tables' numbers come from all samples. Every time plot
 shares one x range: zooming one zooms all."""
+
 from __future__ import annotations
 
 import html
@@ -35,7 +36,7 @@ def decimate(t, y, max_points: int = MAX_POINTS):
     size = int(np.ceil(3 * n / max_points))
     keep = []
     for a in range(0, n, size):
-        seg = y[a:a + size]
+        seg = y[a : a + size]
         idx = {a}
         if np.isfinite(seg).any():
             idx |= {a + int(np.nanargmin(seg)), a + int(np.nanargmax(seg))}
@@ -46,8 +47,17 @@ def decimate(t, y, max_points: int = MAX_POINTS):
 
 def _figure(title, x_range, y_label, name, height=230):
     kw = {"x_range": x_range} if x_range is not None else {}
-    f = figure(title=title, height=height, sizing_mode="stretch_width", tools="xpan,xwheel_zoom,box_zoom,reset,save",
-               active_scroll="xwheel_zoom", x_axis_label="time [s]", y_axis_label=y_label, name=name, **kw)
+    f = figure(
+        title=title,
+        height=height,
+        sizing_mode="stretch_width",
+        tools="xpan,xwheel_zoom,box_zoom,reset,save",
+        active_scroll="xwheel_zoom",
+        x_axis_label="time [s]",
+        y_axis_label=y_label,
+        name=name,
+        **kw,
+    )
     f.toolbar.logo = None
     return f
 
@@ -55,8 +65,14 @@ def _figure(title, x_range, y_label, name, height=230):
 def _lines(f, t, series: dict, dashed=()):
     for i, (label, y) in enumerate(series.items()):
         tt, yy = decimate(t, y)
-        f.line(tt, yy, legend_label=label, color=Category10_10[i % 10], line_width=1.4,
-               line_dash="dashed" if label in dashed else "solid")
+        f.line(
+            tt,
+            yy,
+            legend_label=label,
+            color=Category10_10[i % 10],
+            line_width=1.4,
+            line_dash="dashed" if label in dashed else "solid",
+        )
     if series:
         f.legend.click_policy = "hide"
         f.legend.location = "top_left"
@@ -83,28 +99,54 @@ def _f(v, fmt="{:.2f}"):
 
 
 def summary_html(title: str, s: dict) -> str:
-    rows = [["source", s["source"]], ["vehicle or preset", s.get("vehicle") or "-"], ["file", s.get("file") or "-"], ["duration", f"{s['duration_s']:.2f} s"],
-            ["IMU rows", s["rows"]], ["IMU rate", _f(s["imu_rate_hz"], "{:.1f} Hz")],
-            ["magnetometer rate", _f(s["mag_rate_hz"], "{:.1f} Hz") if s["mag_rate_hz"] else "none"],
-            ["gaps (> 1.5 sample periods)", f"{s['gaps']} ({s['gap_time_s']:.3f} s missing, longest "
-                                            f"{s['longest_gap_s']:.3f} s)"],
-            ["rows dropped or skipped by the reader", _f(s["dropped_rows"], "{}")],
-            ["gyroscope clipped", f"{100 * s['gyro_clipped_share']:.2f} % of rows"],
-            ["accelerometer clipped", f"{100 * s['acc_clipped_share']:.2f} % of rows"],
-            ["vibration (accelerometer minus its 50 ms mean), RMS x / y / z",
-             " / ".join(f"{v:.2f}" for v in s["vibration_rms_m_s2"]) + " m/s²"],
-            ["magnetic field disturbed (norm > 10 % off its median)",
-             f"{100 * s['mag_disturbed_share']:.1f} % of samples" if "mag_disturbed_share" in s else "no magnetometer"],
-            ["attitude truth", {"true_q": "independent truth", "ref_q": "none: the autopilot's own estimate is the "
-                                "reference", None: "none: no errors can be shown"}[s["truth"]]]]
-    ev = [[e["kind"], f"{e['start_s']:.2f}", f"{e['end_s']:.2f}", _f(e.get("rate_rad_s"), "{:.1f}")]
-          for e in s["events"]]
-    return (f"{STYLE}<h1 style='font: bold 21px sans-serif'>{html.escape(title)}</h1>"
-            f"<p class='q'>quadest {__version__}: every number from all samples; the plots are decimated for "
-            f"display (each bucket's extremes kept) and share their time axis (zoom one, all follow).</p>"
-            "<h2>Summary</h2>" + _table(["", ""], rows, "summary")
-            + "<h2>Events</h2>" + (_table(["event", "from [s]", "to [s]", "rate [rad/s]"], ev, "events") if ev
-                                   else "<p class='q'>none detected</p>"))
+    rows = [
+        ["source", s["source"]],
+        ["vehicle or preset", s.get("vehicle") or "-"],
+        ["file", s.get("file") or "-"],
+        ["duration", f"{s['duration_s']:.2f} s"],
+        ["IMU rows", s["rows"]],
+        ["IMU rate", _f(s["imu_rate_hz"], "{:.1f} Hz")],
+        ["magnetometer rate", _f(s["mag_rate_hz"], "{:.1f} Hz") if s["mag_rate_hz"] else "none"],
+        [
+            "gaps (> 1.5 sample periods)",
+            f"{s['gaps']} ({s['gap_time_s']:.3f} s missing, longest {s['longest_gap_s']:.3f} s)",
+        ],
+        ["rows dropped or skipped by the reader", _f(s["dropped_rows"], "{}")],
+        ["gyroscope clipped", f"{100 * s['gyro_clipped_share']:.2f} % of rows"],
+        ["accelerometer clipped", f"{100 * s['acc_clipped_share']:.2f} % of rows"],
+        [
+            "vibration (accelerometer minus its 50 ms mean), RMS x / y / z",
+            " / ".join(f"{v:.2f}" for v in s["vibration_rms_m_s2"]) + " m/s²",
+        ],
+        [
+            "magnetic field disturbed (norm > 10 % off its median)",
+            f"{100 * s['mag_disturbed_share']:.1f} % of samples" if "mag_disturbed_share" in s else "no magnetometer",
+        ],
+        [
+            "attitude truth",
+            {
+                "true_q": "independent truth",
+                "ref_q": "none: the autopilot's own estimate is the reference",
+                None: "none: no errors can be shown",
+            }[s["truth"]],
+        ],
+    ]
+    ev = [
+        [e["kind"], f"{e['start_s']:.2f}", f"{e['end_s']:.2f}", _f(e.get("rate_rad_s"), "{:.1f}")] for e in s["events"]
+    ]
+    return (
+        f"{STYLE}<h1 style='font: bold 21px sans-serif'>{html.escape(title)}</h1>"
+        f"<p class='q'>quadest {__version__}: every number from all samples; the plots are decimated for "
+        f"display (each bucket's extremes kept) and share their time axis (zoom one, all follow).</p>"
+        "<h2>Summary</h2>"
+        + _table(["", ""], rows, "summary")
+        + "<h2>Events</h2>"
+        + (
+            _table(["event", "from [s]", "to [s]", "rate [rad/s]"], ev, "events")
+            if ev
+            else "<p class='q'>none detected</p>"
+        )
+    )
 
 
 def build_report(rec, summ: dict, att: dict, title: str) -> str:
@@ -115,22 +157,41 @@ def build_report(rec, summ: dict, att: dict, title: str) -> str:
     truth = att["truth"]
     truth_label = {"true_q": "truth", "ref_q": "autopilot's estimate", None: None}[truth]
     euler = {(truth_label if k == truth else k): v for k, v in att["euler_deg"].items()}
-    parts.append(Div(text=STYLE + "<h2>Attitude</h2>" + (
-        "" if truth else "<p class='q'>The recording has no attitude truth and no autopilot estimate: no errors "
-                         "are shown.</p>")))
+    parts.append(
+        Div(
+            text=STYLE
+            + "<h2>Attitude</h2>"
+            + (
+                ""
+                if truth
+                else "<p class='q'>The recording has no attitude truth and no autopilot estimate: no errors "
+                "are shown.</p>"
+            )
+        )
+    )
     for i, a in enumerate(AXES):
         f = _figure(f"{a} [deg]", xr, "deg", f"attitude-{a}")
         _lines(f, t, {k: v[:, i] for k, v in euler.items()}, dashed=(truth_label,))
         parts.append(f)
     if att["scores"]:
         label = "truth" if truth == "true_q" else "the autopilot's estimate (not an independent truth)"
-        rows = [[n] + [f"{s['rms_deg'][a]:.3f}" for a in AXES] + [f"{s['total_rmse_deg']:.3f}"]
-                for n, s in att["scores"].items()]
-        note = (" (no magnetometer: each estimate's constant heading offset removed)"
-                if att.get("heading_offset_removed") else "")
-        parts.append(Div(text=f"<h2>Errors against {label}{note}</h2>"
-                              + _table(["estimator", "roll RMS [deg]", "pitch RMS [deg]", "yaw RMS [deg]",
-                                        "total RMS [deg]"], rows, "rms")))
+        rows = [
+            [n] + [f"{s['rms_deg'][a]:.3f}" for a in AXES] + [f"{s['total_rmse_deg']:.3f}"]
+            for n, s in att["scores"].items()
+        ]
+        note = (
+            " (no magnetometer: each estimate's constant heading offset removed)"
+            if att.get("heading_offset_removed")
+            else ""
+        )
+        parts.append(
+            Div(
+                text=f"<h2>Errors against {label}{note}</h2>"
+                + _table(
+                    ["estimator", "roll RMS [deg]", "pitch RMS [deg]", "yaw RMS [deg]", "total RMS [deg]"], rows, "rms"
+                )
+            )
+        )
         for i, a in enumerate(AXES):
             f = _figure(f"{a} error [deg]", xr, "deg", f"error-{a}")
             _lines(f, t, {k: v[:, i] for k, v in att["error_deg"].items()})
@@ -144,8 +205,10 @@ def build_report(rec, summ: dict, att: dict, title: str) -> str:
     if att.get("mag") is not None:
         norm, dip = att["mag"]
         rows = np.isfinite(norm)
-        for label, y, unit, nm in (("magnetometer norm", norm, rec.meta.get("units", {}).get("mag", ""), "mag-norm"),
-                                   ("magnetic dip below the horizontal", dip, "deg", "mag-dip")):
+        for label, y, unit, nm in (
+            ("magnetometer norm", norm, rec.meta.get("units", {}).get("mag", ""), "mag-norm"),
+            ("magnetic dip below the horizontal", dip, "deg", "mag-dip"),
+        ):
             f = _figure(f"{label} [{unit}]", xr, unit, nm, height=200)
             _lines(f, t[rows], {label: y[rows]})
             parts.append(f)
@@ -165,12 +228,18 @@ def _failure_sections(rec, att, xr) -> list:
     t, out = rec.t, []
     if att.get("spin") is not None:
         w, tilt = att["spin"]
-        out.append(Div(text=STYLE + "<h2>Sustained spin (a rotor loss?): spin and tilt</h2><p class='q'>With the "
-                            "attitude of "
-                            f"{html.escape(str(att['reference']))}: the body rate about the vertical and the tilt of "
-                            "the body's z axis (a relaxed hover settles both).</p>"))
-        for label, y, unit, nm in (("spin rate about the vertical", w, "rad/s", "spin-rate"),
-                                   ("tilt of body z from the vertical", tilt, "deg", "tilt")):
+        out.append(
+            Div(
+                text=STYLE + "<h2>Sustained spin (a rotor loss?): spin and tilt</h2><p class='q'>With the "
+                "attitude of "
+                f"{html.escape(str(att['reference']))}: the body rate about the vertical and the tilt of "
+                "the body's z axis (a relaxed hover settles both).</p>"
+            )
+        )
+        for label, y, unit, nm in (
+            ("spin rate about the vertical", w, "rad/s", "spin-rate"),
+            ("tilt of body z from the vertical", tilt, "deg", "tilt"),
+        ):
             f = _figure(f"{label} [{unit}]", xr, unit, nm, height=200)
             _lines(f, t, {label: y})
             out.append(f)
@@ -178,13 +247,21 @@ def _failure_sections(rec, att, xr) -> list:
     if res is not None:
         s = res.summary
         ev = [[e["state"], f"{e['t_s']:.3f}"] for e in s["events"]]
-        conv = (f"converged {1e3 * s['t_converge_from_detection_s']:.0f} ms after the detection"
-                if s.get("converged") else "the bank did not converge")
+        conv = (
+            f"converged {1e3 * s['t_converge_from_detection_s']:.0f} ms after the detection"
+            if s.get("converged")
+            else "the bank did not converge"
+        )
         model = att.get("recovery_model") or "a given aerodynamic model"
-        out.append(Div(text=STYLE + "<h2>Throw: the recovery's bank of EKFs</h2>"
-                            f"<p class='q'>With {html.escape(model)}: {html.escape(conv)}" + (f"; gravity error there {s['gravity_err_deg']:.2f}°"
-                                                                   if "gravity_err_deg" in s else "") + "</p>"
-                            + _table(["state", "from [s]"], ev, "recovery-states")))
+        out.append(
+            Div(
+                text=STYLE + "<h2>Throw: the recovery's bank of EKFs</h2>"
+                f"<p class='q'>With {html.escape(model)}: {html.escape(conv)}"
+                + (f"; gravity error there {s['gravity_err_deg']:.2f}°" if "gravity_err_deg" in s else "")
+                + "</p>"
+                + _table(["state", "from [s]"], ev, "recovery-states")
+            )
+        )
         if res.probabilities is not None and np.isfinite(res.probabilities).any():
             f = _figure("each hypothesis's probability", xr, "probability", "hypotheses", height=260)
             for j in range(res.probabilities.shape[1]):
@@ -213,9 +290,16 @@ def _spectrogram(rec, xr):
     step = max(1, S.shape[1] // 800)  # at most about 800 columns drawn
     S = S[:, ::step]
     f = _figure("accelerometer norm: spectrogram [dB]", xr, "frequency [Hz]", "spectrogram", height=260)
-    f.image(image=[S], x=float(t[0]), y=0.0, dw=float(t[-1] - t[0]), dh=float(fs / 2),
-            color_mapper=LinearColorMapper(palette=Viridis256, low=float(np.percentile(S, 5)),
-                                           high=float(np.percentile(S, 99.5))))
+    f.image(
+        image=[S],
+        x=float(t[0]),
+        y=0.0,
+        dw=float(t[-1] - t[0]),
+        dh=float(fs / 2),
+        color_mapper=LinearColorMapper(
+            palette=Viridis256, low=float(np.percentile(S, 5)), high=float(np.percentile(S, 99.5))
+        ),
+    )
     f.y_range = Range1d(0.0, fs / 2)
     return f
 
@@ -225,36 +309,54 @@ def write_report(rec, summ: dict, att: dict, path, title: str) -> Path:
     return write_bytes(path, build_report(rec, summ, att, title).encode())
 
 
-
-
 def build_sweep_report(summ: dict, title: str) -> str:
     """A sweep's results page: per filter, its parameter sets (best first) with their mean
     metrics, and the metric against each swept parameter."""
     metrics = summ["metrics"]
-    head = (f"{STYLE}<h1 style='font: bold 21px sans-serif'>{html.escape(title)}</h1>"
-            f"<p class='q'>quadest {__version__}: {summ['runs']} runs ({summ['ok']} ok, {summ['failed']} failed) on "
-            f"{summ['sources']} sources; each figure is the mean over the sources a parameter set ran on.</p>")
+    head = (
+        f"{STYLE}<h1 style='font: bold 21px sans-serif'>{html.escape(title)}</h1>"
+        f"<p class='q'>quadest {__version__}: {summ['runs']} runs ({summ['ok']} ok, {summ['failed']} failed) on "
+        f"{summ['sources']} sources; each figure is the mean over the sources a parameter set ran on.</p>"
+    )
     parts = [Div(text=head, sizing_mode="stretch_width")]
     for name, f in summ["filters"].items():
-        rows = [[json.dumps(e["params"], sort_keys=True), e["runs"]] + [_f(e.get(m), "{:.3f}") for m in metrics]
-                + ([e["survived"]] if "survived" in e else []) for e in f["sets"]]
+        rows = [
+            [json.dumps(e["params"], sort_keys=True), e["runs"]]
+            + [_f(e.get(m), "{:.3f}") for m in metrics]
+            + ([e["survived"]] if "survived" in e else [])
+            for e in f["sets"]
+        ]
         header = ["parameters", "runs"] + metrics + (["survived"] if f["sets"] and "survived" in f["sets"][0] else [])
-        parts.append(Div(text=f"{STYLE}<h2>{html.escape(name)}</h2>"
-                              + (f"<p class='q'>{f['failed']} runs failed</p>" if f["failed"] else "")
-                              + _table(header, rows[:50], f"sweep-{name}")
-                              + ("<p class='q'>(the 50 best of " + str(len(rows)) + ")</p>" if len(rows) > 50 else ""),
-                         sizing_mode="stretch_width"))
+        parts.append(
+            Div(
+                text=f"{STYLE}<h2>{html.escape(name)}</h2>"
+                + (f"<p class='q'>{f['failed']} runs failed</p>" if f["failed"] else "")
+                + _table(header, rows[:50], f"sweep-{name}")
+                + ("<p class='q'>(the 50 best of " + str(len(rows)) + ")</p>" if len(rows) > 50 else ""),
+                sizing_mode="stretch_width",
+            )
+        )
         for key in f["params"]:
-            pts = sorted((e["params"][key], e.get("total_rmse_deg")) for e in f["sets"]
-                         if key in e["params"] and e.get("total_rmse_deg") is not None)
+            pts = sorted(
+                (e["params"][key], e.get("total_rmse_deg"))
+                for e in f["sets"]
+                if key in e["params"] and e.get("total_rmse_deg") is not None
+            )
             if len(pts) < 2:
                 continue
             x = np.array([p[0] for p in pts], float)
             y = np.array([p[1] for p in pts], float)
             log = x.min() > 0 and x.max() / x.min() > 20
-            fig = figure(title=f"{name}: total RMS error against {key}", height=260, sizing_mode="stretch_width",
-                         x_axis_type="log" if log else "linear", x_axis_label=key, y_axis_label="total RMS [deg]",
-                         name=f"sweep-{name}-{key}", tools="pan,wheel_zoom,box_zoom,reset,save")
+            fig = figure(
+                title=f"{name}: total RMS error against {key}",
+                height=260,
+                sizing_mode="stretch_width",
+                x_axis_type="log" if log else "linear",
+                x_axis_label=key,
+                y_axis_label="total RMS [deg]",
+                name=f"sweep-{name}-{key}",
+                tools="pan,wheel_zoom,box_zoom,reset,save",
+            )
             fig.toolbar.logo = None
             fig.scatter(x, y, size=6, color=Category10_10[0])
             parts.append(fig)

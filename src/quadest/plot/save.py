@@ -1,4 +1,5 @@
 """Saving a figure like every other output: atomically (:mod:`quadest.data.files`)."""
+
 from __future__ import annotations
 
 from pathlib import Path

@@ -18,6 +18,7 @@ repoimu       RepoIMU CSV
 
 Every failure is a :class:`ReaderError` (a ValueError) with one line naming the file.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -30,9 +31,15 @@ FORMATS = ("quadest", "csv", "ulog", "dataflash", "rosbag", "broad", "dido", "bl
 
 
 def _reader(fmt):
-    return {"csv": generic.read_csv_mapped, "ulog": logs.read_ulog, "dataflash": logs.read_dataflash,
-            "rosbag": ros.read_rosbag, "dido": datasets.read_dido, "blackbird": datasets.read_blackbird,
-            "repoimu": datasets.read_repoimu}[fmt]
+    return {
+        "csv": generic.read_csv_mapped,
+        "ulog": logs.read_ulog,
+        "dataflash": logs.read_dataflash,
+        "rosbag": ros.read_rosbag,
+        "dido": datasets.read_dido,
+        "blackbird": datasets.read_blackbird,
+        "repoimu": datasets.read_repoimu,
+    }[fmt]
 
 
 def _first_bytes(p: Path, n=256) -> bytes:
@@ -53,8 +60,10 @@ def detect_format(path) -> str:
             return "rosbag"
         if (p / "data.hdf5").is_file() and (p / "stamped_groundtruth_imu.txt").is_file():
             return "blackbird"
-        raise ReaderError(f"{path}: a folder that is neither a ROS 2 bag (metadata.yaml) nor a Blackbird "
-                          "sequence (data.hdf5 + stamped_groundtruth_imu.txt)")
+        raise ReaderError(
+            f"{path}: a folder that is neither a ROS 2 bag (metadata.yaml) nor a Blackbird "
+            "sequence (data.hdf5 + stamped_groundtruth_imu.txt)"
+        )
     ext = p.suffix.lower()
     head = _first_bytes(p)
     if head.startswith(b"ULog"):
@@ -81,8 +90,10 @@ def detect_format(path) -> str:
             return "dido"
         if {"ts", "gyro_raw", "accel_raw"} <= keys:
             return "blackbird"
-        raise ReaderError(f"{path}: HDF5 file of unknown layout (datasets {', '.join(sorted(keys)[:8])}); "
-                          "known: BROAD, DIDO, Blackbird")
+        raise ReaderError(
+            f"{path}: HDF5 file of unknown layout (datasets {', '.join(sorted(keys)[:8])}); "
+            "known: BROAD, DIDO, Blackbird"
+        )
     if ext == ".csv" or ext == ".txt":
         if head.startswith(b"# quadest recording"):
             return "quadest"
@@ -91,9 +102,11 @@ def detect_format(path) -> str:
         first = head.split(b"\n")[0].decode("utf-8", "replace")
         if first.startswith("t,gyr_x"):
             return "quadest"
-        raise ReaderError(f"{path}: a CSV that is not quadest's own; say which columns are what: "
-                          "--format csv --map t=COL --map gyr=X,Y,Z --map acc=X,Y,Z [--map mag=...] "
-                          "[--units gyr=deg/s ...] (docs/readers.md)")
+        raise ReaderError(
+            f"{path}: a CSV that is not quadest's own; say which columns are what: "
+            "--format csv --map t=COL --map gyr=X,Y,Z --map acc=X,Y,Z [--map mag=...] "
+            "[--units gyr=deg/s ...] (docs/readers.md)"
+        )
     raise ReaderError(f"{path}: unknown file type {ext!r}; give --format (one of {', '.join(FORMATS)})")
 
 

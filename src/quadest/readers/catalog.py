@@ -9,6 +9,7 @@ download that breaks off keeps what arrived in ``<cache>/.partial`` and the next
 with an HTTP range request. A dataset without published terms for redistribution or without a
 stable address is listed with instructions instead of fetched.
 """
+
 from __future__ import annotations
 
 import os
@@ -59,79 +60,152 @@ class Dataset:
 _BROAD = "https://github.com/dlaidig/broad/raw/afbaa4d75c4cd7c8ca76b8145b1812312d87fb7f/"
 _BROAD_TRIALS = (
     ("02_undisturbed_slow_rotation_B", "33ed3432ece89cfbd8c5c069a176106a05dad019302759353244c71d70d7e5f5", 3926925),
-    ("05_undisturbed_slow_rotation_with_breaks_B", "d74cc90958fc05a9fc1a6d58465a62c75a61f205a75ea2e6207ef37d7b1c89a7",
-     4073405),
+    (
+        "05_undisturbed_slow_rotation_with_breaks_B",
+        "d74cc90958fc05a9fc1a6d58465a62c75a61f205a75ea2e6207ef37d7b1c89a7",
+        4073405,
+    ),
     ("07_undisturbed_fast_rotation_B", "bff6444d38b836482040a328d6060741816ed0150cf2640db94550c6a796b3d8", 4080123),
-    ("09_undisturbed_fast_rotation_with_breaks_B", "40a6e3e69805ba056a53362ca17e75199cc8873aa167b8cf783bb9f71d133f55",
-     4075108),
+    (
+        "09_undisturbed_fast_rotation_with_breaks_B",
+        "40a6e3e69805ba056a53362ca17e75199cc8873aa167b8cf783bb9f71d133f55",
+        4075108,
+    ),
     ("11_undisturbed_slow_translation_B", "ea4ecb8a27d040cecdfb97cdee45023ea461e065bfc402ce7fe6a7c9a0f325e0", 3710735),
-    ("14_undisturbed_slow_translation_with_breaks_B", "a4e6d406a64350e4ea7f7352e39db794b7327d89dc4cd4e7c9caf10bb9c22ebe",
-     3559034),
+    (
+        "14_undisturbed_slow_translation_with_breaks_B",
+        "a4e6d406a64350e4ea7f7352e39db794b7327d89dc4cd4e7c9caf10bb9c22ebe",
+        3559034,
+    ),
     ("16_undisturbed_fast_translation_B", "eebc009755c4fc53c49369a19bae942cf093342a13a51a1ca0eeb23b2cc74abc", 3994996),
-    ("18_undisturbed_fast_translation_with_breaks_B", "1b81785ff4310cc33bb0ee24620f502ede7ca0c79f7f08ebcc9f240d26f7ac6e",
-     3944680),
+    (
+        "18_undisturbed_fast_translation_with_breaks_B",
+        "1b81785ff4310cc33bb0ee24620f502ede7ca0c79f7f08ebcc9f240d26f7ac6e",
+        3944680,
+    ),
     ("25_disturbed_tapping_B", "d6d9b55c5c84821eaaae96d93cc857b852af24fcb7c93a5fa98b7e6c1e9cae5d", 3651796),
     ("27_disturbed_phone_vibration_B", "9041093636cd2c2e992651f4cd7f7f25c4b585971fd5d4821b020ca3c5d15dff", 3684968),
     ("31_disturbed_stationary_magnet_D", "b65d5da814f8fdd9e7a1ecea502888d1ffef472bd3e3605767293bdc65285ae1", 3925668),
     ("33_disturbed_attached_magnet_2cm", "b81855b453629e023635d966f77c87cd17b195c919888d725b57b1cca037962d", 3316402),
 )
-_BLACKBIRD = ("https://github.com/uzh-rpg/learned_inertial_model_odometry/raw/580ea06440bf59badc9c941b61a71cdf173d9131/"
-              "datasets/Blackbird/clover/yawForward/maxSpeed5p0/")
+_BLACKBIRD = (
+    "https://github.com/uzh-rpg/learned_inertial_model_odometry/raw/580ea06440bf59badc9c941b61a71cdf173d9131/"
+    "datasets/Blackbird/clover/yawForward/maxSpeed5p0/"
+)
 
-DATASETS = {d.name: d for d in (
-    Dataset(
-        "broad", "BROAD, the Berlin Robust Orientation Estimation Assessment Dataset (12 of its 39 trials)",
-        "D. Laidig, M. Caruso, A. Cereatti, T. Seel, Data 6(7), 2021, doi:10.3390/data6070072",
-        "CC BY 4.0", "9-axis IMU at 286 Hz with optical motion-capture orientation; slow and fast rotation and "
-        "translation, rest breaks, tapping, vibration, magnets", "https://github.com/dlaidig/broad",
-        files=tuple(DataFile(f"{name}.hdf5", f"{_BROAD}data_hdf5/{name}.hdf5", h, n) for name, h, n in _BROAD_TRIALS)
-        + (DataFile("trials.json", f"{_BROAD}data_mat/trials.json",
-                    "9f4a680062fd5b6b500653fe7f8e7dd774dedbf4fe573210328ec8d0d263c2fd", 12177),),
-        trials=True, notes=("quadest's benchmark uses these 12 trials (docs/readers.md); the other 27 are in the "
-                            "same repository",)),
-    Dataset(
-        "blackbird_clover", "Blackbird UAV dataset, 'clover' at 5 m/s, train and val as prepared by UZH-RPG",
-        "A. Antonini et al., ISER 2018 (Blackbird); G. Cioffi et al., RA-L 2023 (learned inertial model odometry)",
-        "GPL-3.0 (the repository that prepared it)", "aggressive quadrotor flight, IMU at 100 Hz, Vicon pose and "
-        "velocity", "https://github.com/uzh-rpg/learned_inertial_model_odometry",
-        files=(DataFile("train/data.hdf5", f"{_BLACKBIRD}train/data.hdf5",
-                        "7df533a8ea854fa9963ad0162206702d9943a3d71f43ce15109cc4d6dccd26fc", 1899072),
-               DataFile("train/stamped_groundtruth_imu.txt", f"{_BLACKBIRD}train/stamped_groundtruth_imu.txt",
-                        "0044a2e46ec937886193f84fd664aa9a36768aca4833e25a960947fb963a3363", 1617298),
-               DataFile("val/data.hdf5", f"{_BLACKBIRD}val/data.hdf5",
-                        "27ff7bf6fa3169a2c1f52fb02e2a399bcbb6069ac3017beda2949aa2f0d02e7f", 630272),
-               DataFile("val/stamped_groundtruth_imu.txt", f"{_BLACKBIRD}val/stamped_groundtruth_imu.txt",
-                        "535f1879ea9e09280efa428b032f7c41c80e7f8237f19dd2ad3693fe9aae051e", 533008))),
-    Dataset(
-        "px4_ulog", "PX4's pyulog test log (sample.ulg)", "PX4 pyulog, test/sample.ulg", "BSD-3-Clause",
-        "a real PX4 log, about 69 s moved by hand: raw IMU and magnetometer at about 250 Hz, the onboard EKF2 "
-        "attitude as a reference", "https://github.com/PX4/pyulog",
-        files=(DataFile("sample.ulg", "https://github.com/PX4/pyulog/raw/6e74ac3a454f96a30fdb1c147b2a0d92fe380d4d/"
-                        "test/sample.ulg", "81952e6059bc095717e7911c010e07f85749d6b04d332a5ffc51575a3fd0a558",
-                        4053364),)),
-    Dataset(
-        "dido", "DIDO quadrotor flights", "K. Zhang et al., 'DIDO: Deep Inertial Quadrotor Dynamical Odometry', "
-        "IEEE RA-L 2022, arXiv:2203.03149", "no license published: evaluation use only",
-        "real quadrotor flights at 400 Hz with motion-capture pose, velocity and acceleration",
-        "https://arxiv.org/abs/2203.03149",
-        instructions="The authors publish no license and quadest knows no stable download address: get the flights "
-                     "from the address the paper gives, and put the HDF5 files (circle_*, eight_*, random_*) in "
-                     "<cache>/dido/ (quadest data path dido)."),
-    Dataset(
-        "repoimu", "RepoIMU, T-stick and pendulum trials", "A. Szczęsna et al., 'Reference Data Set for Accuracy "
-        "Evaluation of Orientation Estimation Algorithms for Inertial Motion Capture Systems', ICCVG 2016",
-        "no license stated: evaluation use only", "9-axis IMU at 100 Hz with Vicon orientation",
-        "the RepoIMU page of the Silesian University of Technology (named in the paper)",
-        instructions="No license is stated and the files are offered from the authors' page only: download the "
-                     "T-stick and pendulum CSV files there and put them in <cache>/repoimu/TStick and "
-                     "<cache>/repoimu/Pendulum."),
-    Dataset(
-        "ardupilot", "An ArduCopter 4.1 DataFlash log (hover, intact propellers)", "a fault-tolerance study's log",
-        "no license stated: evaluation use only", "IMU, MAG and ATT (onboard EKF3 attitude) messages",
-        "not published at a stable address",
-        instructions="quadest's tests read one such log; it has no public address. Any ArduPilot .BIN log of yours "
-                     "reads the same way (quadest info LOG.BIN)."),
-)}
+DATASETS = {
+    d.name: d
+    for d in (
+        Dataset(
+            "broad",
+            "BROAD, the Berlin Robust Orientation Estimation Assessment Dataset (12 of its 39 trials)",
+            "D. Laidig, M. Caruso, A. Cereatti, T. Seel, Data 6(7), 2021, doi:10.3390/data6070072",
+            "CC BY 4.0",
+            "9-axis IMU at 286 Hz with optical motion-capture orientation; slow and fast rotation and "
+            "translation, rest breaks, tapping, vibration, magnets",
+            "https://github.com/dlaidig/broad",
+            files=tuple(
+                DataFile(f"{name}.hdf5", f"{_BROAD}data_hdf5/{name}.hdf5", h, n) for name, h, n in _BROAD_TRIALS
+            )
+            + (
+                DataFile(
+                    "trials.json",
+                    f"{_BROAD}data_mat/trials.json",
+                    "9f4a680062fd5b6b500653fe7f8e7dd774dedbf4fe573210328ec8d0d263c2fd",
+                    12177,
+                ),
+            ),
+            trials=True,
+            notes=(
+                "quadest's benchmark uses these 12 trials (docs/readers.md); the other 27 are in the same repository",
+            ),
+        ),
+        Dataset(
+            "blackbird_clover",
+            "Blackbird UAV dataset, 'clover' at 5 m/s, train and val as prepared by UZH-RPG",
+            "A. Antonini et al., ISER 2018 (Blackbird); G. Cioffi et al., RA-L 2023 (learned inertial model odometry)",
+            "GPL-3.0 (the repository that prepared it)",
+            "aggressive quadrotor flight, IMU at 100 Hz, Vicon pose and velocity",
+            "https://github.com/uzh-rpg/learned_inertial_model_odometry",
+            files=(
+                DataFile(
+                    "train/data.hdf5",
+                    f"{_BLACKBIRD}train/data.hdf5",
+                    "7df533a8ea854fa9963ad0162206702d9943a3d71f43ce15109cc4d6dccd26fc",
+                    1899072,
+                ),
+                DataFile(
+                    "train/stamped_groundtruth_imu.txt",
+                    f"{_BLACKBIRD}train/stamped_groundtruth_imu.txt",
+                    "0044a2e46ec937886193f84fd664aa9a36768aca4833e25a960947fb963a3363",
+                    1617298,
+                ),
+                DataFile(
+                    "val/data.hdf5",
+                    f"{_BLACKBIRD}val/data.hdf5",
+                    "27ff7bf6fa3169a2c1f52fb02e2a399bcbb6069ac3017beda2949aa2f0d02e7f",
+                    630272,
+                ),
+                DataFile(
+                    "val/stamped_groundtruth_imu.txt",
+                    f"{_BLACKBIRD}val/stamped_groundtruth_imu.txt",
+                    "535f1879ea9e09280efa428b032f7c41c80e7f8237f19dd2ad3693fe9aae051e",
+                    533008,
+                ),
+            ),
+        ),
+        Dataset(
+            "px4_ulog",
+            "PX4's pyulog test log (sample.ulg)",
+            "PX4 pyulog, test/sample.ulg",
+            "BSD-3-Clause",
+            "a real PX4 log, about 69 s moved by hand: raw IMU and magnetometer at about 250 Hz, the onboard EKF2 "
+            "attitude as a reference",
+            "https://github.com/PX4/pyulog",
+            files=(
+                DataFile(
+                    "sample.ulg",
+                    "https://github.com/PX4/pyulog/raw/6e74ac3a454f96a30fdb1c147b2a0d92fe380d4d/test/sample.ulg",
+                    "81952e6059bc095717e7911c010e07f85749d6b04d332a5ffc51575a3fd0a558",
+                    4053364,
+                ),
+            ),
+        ),
+        Dataset(
+            "dido",
+            "DIDO quadrotor flights",
+            "K. Zhang et al., 'DIDO: Deep Inertial Quadrotor Dynamical Odometry', IEEE RA-L 2022, arXiv:2203.03149",
+            "no license published: evaluation use only",
+            "real quadrotor flights at 400 Hz with motion-capture pose, velocity and acceleration",
+            "https://arxiv.org/abs/2203.03149",
+            instructions="The authors publish no license and quadest knows no stable download address: get the flights "
+            "from the address the paper gives, and put the HDF5 files (circle_*, eight_*, random_*) in "
+            "<cache>/dido/ (quadest data path dido).",
+        ),
+        Dataset(
+            "repoimu",
+            "RepoIMU, T-stick and pendulum trials",
+            "A. Szczęsna et al., 'Reference Data Set for Accuracy "
+            "Evaluation of Orientation Estimation Algorithms for Inertial Motion Capture Systems', ICCVG 2016",
+            "no license stated: evaluation use only",
+            "9-axis IMU at 100 Hz with Vicon orientation",
+            "the RepoIMU page of the Silesian University of Technology (named in the paper)",
+            instructions="No license is stated and the files are offered from the authors' page only: download the "
+            "T-stick and pendulum CSV files there and put them in <cache>/repoimu/TStick and "
+            "<cache>/repoimu/Pendulum.",
+        ),
+        Dataset(
+            "ardupilot",
+            "An ArduCopter 4.1 DataFlash log (hover, intact propellers)",
+            "a fault-tolerance study's log",
+            "no license stated: evaluation use only",
+            "IMU, MAG and ATT (onboard EKF3 attitude) messages",
+            "not published at a stable address",
+            instructions="quadest's tests read one such log; it has no public address. Any ArduPilot .BIN log of yours "
+            "reads the same way (quadest info LOG.BIN).",
+        ),
+    )
+}
 """The datasets by name (``quadest data list``)."""
 
 
@@ -187,13 +261,20 @@ def fetch(name: str, *, root=None, trials=None, progress: bool = True, catalog=N
     for f in select_files(d, trials):
         target = folder / f.path
         try:
-            pooch.retrieve(f.url, known_hash=f"sha256:{f.sha256}", fname=target.name, path=target.parent,
-                           downloader=ResumingDownloader(partial, f, progress))
+            pooch.retrieve(
+                f.url,
+                known_hash=f"sha256:{f.sha256}",
+                fname=target.name,
+                path=target.parent,
+                downloader=ResumingDownloader(partial, f, progress),
+            )
         except ValueError as e:
             if "hash" not in str(e).lower():
                 raise
-            raise ValueError(f"{f.url}: its SHA-256 differs from the known {f.sha256[:12]}…: refused, nothing of it "
-                             f"was kept (the source may have changed; the dataset's page: {d.source})") from None
+            raise ValueError(
+                f"{f.url}: its SHA-256 differs from the known {f.sha256[:12]}…: refused, nothing of it "
+                f"was kept (the source may have changed; the dataset's page: {d.source})"
+            ) from None
     return folder
 
 
@@ -219,9 +300,18 @@ class ResumingDownloader:
             with urllib.request.urlopen(urllib.request.Request(url, headers=headers), timeout=60) as r:
                 if start and r.status != 206:  # the server sends the whole file
                     start = 0
-                with open(part, "ab" if start else "wb") as out, \
-                        tqdm(total=self.f.size, initial=start, unit="B", unit_scale=True, leave=False,
-                             desc=Path(self.f.path).name, disable=not self.progress) as bar:
+                with (
+                    open(part, "ab" if start else "wb") as out,
+                    tqdm(
+                        total=self.f.size,
+                        initial=start,
+                        unit="B",
+                        unit_scale=True,
+                        leave=False,
+                        desc=Path(self.f.path).name,
+                        disable=not self.progress,
+                    ) as bar,
+                ):
                     while True:
                         chunk = r.read(1 << 16)
                         if not chunk:
@@ -230,12 +320,16 @@ class ResumingDownloader:
                         bar.update(len(chunk))
         except (urllib.error.URLError, OSError) as e:
             have = part.stat().st_size if part.is_file() else 0
-            raise ConnectionError(f"{url}: the download broke off after {have} of {self.f.size} bytes ({e}); run "
-                                  "the same command again to resume it") from None
+            raise ConnectionError(
+                f"{url}: the download broke off after {have} of {self.f.size} bytes ({e}); run "
+                "the same command again to resume it"
+            ) from None
         have = part.stat().st_size
         if have < self.f.size:
-            raise ConnectionError(f"{url}: the download broke off after {have} of {self.f.size} bytes; run the same "
-                                  "command again to resume it")
+            raise ConnectionError(
+                f"{url}: the download broke off after {have} of {self.f.size} bytes; run the same "
+                "command again to resume it"
+            )
         # the whole file goes to pooch, which checks its hash: a wrong one is deleted, not resumed
         os.replace(part, output_file)
 

@@ -1,6 +1,7 @@
 """What every reader shares: unit factors, frame changes, putting magnetometer samples on IMU
 rows, resampling a reference attitude, and building the Recording with the file's name in any
 error (docs/readers.md)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -101,12 +102,20 @@ def make_recording(path, fmt: str, t, gyr, acc, mag=None, meta=None, **truth) ->
     if not good.any():
         raise ReaderError(f"{path}: no valid IMU sample")
     if (~good).sum() > MAX_DROPPED_SHARE * len(t):
-        raise ReaderError(f"{path}: {int((~good).sum())} of {len(t)} rows have a repeated or decreasing time or a "
-                          "non-finite IMU value (more than {:.0f} %): is the file sorted by time, and are the "
-                          "columns the right ones?".format(100 * MAX_DROPPED_SHARE))
+        raise ReaderError(
+            f"{path}: {int((~good).sum())} of {len(t)} rows have a repeated or decreasing time or a "
+            "non-finite IMU value (more than {:.0f} %): is the file sorted by time, and are the "
+            "columns the right ones?".format(100 * MAX_DROPPED_SHARE)
+        )
     kw = {k: (np.asarray(v, float)[good] if v is not None else None) for k, v in truth.items()}
     try:
-        return Recording(t=t[good] - t[good][0], gyr=np.asarray(gyr, float)[good], acc=np.asarray(acc, float)[good],
-                         mag=None if mag is None else np.asarray(mag, float)[good], meta=meta, **kw)
+        return Recording(
+            t=t[good] - t[good][0],
+            gyr=np.asarray(gyr, float)[good],
+            acc=np.asarray(acc, float)[good],
+            mag=None if mag is None else np.asarray(mag, float)[good],
+            meta=meta,
+            **kw,
+        )
     except ValueError as exc:
         raise ReaderError(f"{path}: {exc}") from None

@@ -2,6 +2,7 @@
 by UZH-RPG (data.hdf5 + stamped_groundtruth_imu.txt), RepoIMU (CSV). Frame conversions are in
 docs/readers.md; each was checked on the real files by rotating the measured specific force
 into the truth's navigation frame (it must average to +g up)."""
+
 from __future__ import annotations
 
 from contextlib import contextmanager
@@ -11,7 +12,6 @@ import numpy as np
 
 from quadest.readers.common import ReaderError, make_recording, resample_quat, z_up_nav_to_ned
 from quadest.rotation.frames import quat_enu_flu_to_ned_frd, vec_enu_to_ned, vec_flu_to_frd
-
 
 DAMAGE = (OSError, RuntimeError, KeyError, TypeError, IndexError, AttributeError, OverflowError)
 """What h5py raises from a damaged file, anywhere in reading it."""
@@ -51,8 +51,10 @@ def _h5_read(f, name, path):
     declared = ds.size * ds.dtype.itemsize
     stored = ds.id.get_storage_size()
     if declared > MAX_DECLARED_BYTES or (declared > 64e6 and stored * 1000 < declared):
-        raise ReaderError(f"{path}: {name!r} declares {ds.shape} values ({declared / 1e6:.0f} MB) but the file "
-                          f"stores {stored / 1e6:.3g} MB of it: the file is damaged or not what it claims")
+        raise ReaderError(
+            f"{path}: {name!r} declares {ds.shape} values ({declared / 1e6:.0f} MB) but the file "
+            f"stores {stored / 1e6:.3g} MB of it: the file is damaged or not what it claims"
+        )
     try:
         return ds[()]
     except (OSError, ValueError, TypeError) as exc:
@@ -85,13 +87,20 @@ def _broad(path, d, rate, info=""):
     q_ned = quat_enu_flu_to_ned_frd(np.where(bad[:, None], [1.0, 0, 0, 0], q))
     q_ned[bad] = np.nan
     movement = np.asarray(d["movement"], bool).ravel() if "movement" in d else np.ones(n, bool)
-    meta = {"dataset": "BROAD", "trial": Path(path).stem, "imu_rate_hz": float(rate),
-            "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT"},
-            "evaluate_intervals_s": _intervals(t, movement), "frames": "ENU/sensor z-up -> NED/FRD",
-            "truth_source": "optical motion capture (BROAD opt_quat)"}
+    meta = {
+        "dataset": "BROAD",
+        "trial": Path(path).stem,
+        "imu_rate_hz": float(rate),
+        "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT"},
+        "evaluate_intervals_s": _intervals(t, movement),
+        "frames": "ENU/sensor z-up -> NED/FRD",
+        "truth_source": "optical motion capture (BROAD opt_quat)",
+    }
     if info:
         meta["description"] = info.splitlines()[3] if len(info.splitlines()) > 3 else info
-    return make_recording(path, "broad", t, vec_flu_to_frd(gyr), vec_flu_to_frd(acc), vec_flu_to_frd(mag), meta, true_q=q_ned)
+    return make_recording(
+        path, "broad", t, vec_flu_to_frd(gyr), vec_flu_to_frd(acc), vec_flu_to_frd(mag), meta, true_q=q_ned
+    )
 
 
 def read_broad_hdf5(path, **_):
@@ -128,13 +137,17 @@ def _loadmat_isolated(path):
 
     with tempfile.TemporaryDirectory() as d:
         out = Path(d) / "vars.npz"
-        r = subprocess.run([sys.executable, "-c", _LOADMAT, str(path), str(out)], capture_output=True, text=True,
-                           timeout=600)
+        r = subprocess.run(
+            [sys.executable, "-c", _LOADMAT, str(path), str(out)], capture_output=True, text=True, timeout=600
+        )
         if r.returncode == 3:
             return None
         if r.returncode != 0:
-            why = r.stderr.strip().splitlines()[-1] if r.returncode == 2 and r.stderr.strip() else \
-                f"the reader crashed on it (exit {r.returncode})"
+            why = (
+                r.stderr.strip().splitlines()[-1]
+                if r.returncode == 2 and r.stderr.strip()
+                else f"the reader crashed on it (exit {r.returncode})"
+            )
             raise ReaderError(f"{path}: not a readable MAT file ({why})")
         with np.load(out, allow_pickle=False) as z:
             return {k: z[k] for k in z.files}
@@ -162,9 +175,14 @@ def read_dido(path, **_):
         truth["true_vel"] = vec_enu_to_ned(d["gt_v"])
     if "gt_gyr" in d:
         truth["true_gyr"] = vec_flu_to_frd(d["gt_gyr"])
-    meta = {"dataset": "DIDO", "flight": Path(path).stem, "units": {"gyr": "rad/s", "acc": "m/s^2"},
-            "frames": "gravity-aligned z-up / body z-up -> NED/FRD (heading offset arbitrary)",
-            "truth_source": "motion capture (DIDO gt_*)", "align": {"nav": "heading"}}
+    meta = {
+        "dataset": "DIDO",
+        "flight": Path(path).stem,
+        "units": {"gyr": "rad/s", "acc": "m/s^2"},
+        "frames": "gravity-aligned z-up / body z-up -> NED/FRD (heading offset arbitrary)",
+        "truth_source": "motion capture (DIDO gt_*)",
+        "align": {"nav": "heading"},
+    }
     return make_recording(path, "dido", t, vec_flu_to_frd(d["gyr"]), vec_flu_to_frd(d["acc"]), None, meta, **truth)
 
 
@@ -196,9 +214,14 @@ def read_blackbird(path, *, calibrated: bool = False, **_):
         truth["true_pos"] = vec_enu_to_ned(gt[:, 1:4])
         if gt.shape[1] >= 11:
             truth["true_vel"] = vec_enu_to_ned(gt[:, 8:11])
-    meta = {"dataset": "Blackbird", "sequence": folder.name, "units": {"gyr": "rad/s", "acc": "m/s^2"},
-            "frames": "Vicon z-up world -> NED; body = the IMU's own axes",
-            "truth_source": "Vicon (stamped_groundtruth_imu.txt, x y z w)", "align": {"nav": "heading"}}
+    meta = {
+        "dataset": "Blackbird",
+        "sequence": folder.name,
+        "units": {"gyr": "rad/s", "acc": "m/s^2"},
+        "frames": "Vicon z-up world -> NED; body = the IMU's own axes",
+        "truth_source": "Vicon (stamped_groundtruth_imu.txt, x y z w)",
+        "align": {"nav": "heading"},
+    }
     return make_recording(path, "blackbird", t, gyr, acc, None, meta, **truth)
 
 
@@ -219,10 +242,23 @@ def read_repoimu(path, **_):
     q[none] = [1.0, 0, 0, 0]
     q = quat_enu_flu_to_ned_frd(q / np.linalg.norm(q, axis=1, keepdims=True))
     q[none] = np.nan
-    meta = {"dataset": "RepoIMU", "trial": Path(path).stem,
-            "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "normalised"},
-            "frames": "Vicon z-up world and sensor z-up -> NED/FRD; the IMU and marker bodies are not "
-                      "aligned (evaluation estimates the body rotation)",
-            "truth_source": "Vicon", "rows_without_truth": int(none.sum()), "align": {"nav": "heading", "body": True}}
-    return make_recording(path, "repoimu", data[:, 0], vec_flu_to_frd(data[:, 8:11]), vec_flu_to_frd(data[:, 5:8]),
-                          vec_flu_to_frd(data[:, 11:14]), meta, true_q=q)
+    meta = {
+        "dataset": "RepoIMU",
+        "trial": Path(path).stem,
+        "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "normalised"},
+        "frames": "Vicon z-up world and sensor z-up -> NED/FRD; the IMU and marker bodies are not "
+        "aligned (evaluation estimates the body rotation)",
+        "truth_source": "Vicon",
+        "rows_without_truth": int(none.sum()),
+        "align": {"nav": "heading", "body": True},
+    }
+    return make_recording(
+        path,
+        "repoimu",
+        data[:, 0],
+        vec_flu_to_frd(data[:, 8:11]),
+        vec_flu_to_frd(data[:, 5:8]),
+        vec_flu_to_frd(data[:, 11:14]),
+        meta,
+        true_q=q,
+    )

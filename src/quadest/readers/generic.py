@@ -9,6 +9,7 @@
 ``frame``: ``"ned-frd"`` (default) or ``"enu-flu"``; ``quat_order``: ``"wxyz"`` or ``"xyzw"``.
 From the command line: ``--format csv --map t=timestamp --map gyr=gx,gy,gz ... --units gyr=deg/s
 --frame enu-flu`` (docs/readers.md)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -26,8 +27,9 @@ def parse_columns(items) -> dict:
         key, sep, val = item.partition("=")
         key = key.strip()
         if not sep or key not in FIELDS:
-            raise ReaderError(f"--map {item!r}: expected FIELD=COLUMN[,COLUMN...] with FIELD one of "
-                              f"{', '.join(FIELDS)}")
+            raise ReaderError(
+                f"--map {item!r}: expected FIELD=COLUMN[,COLUMN...] with FIELD one of {', '.join(FIELDS)}"
+            )
         cols = [c.strip() for c in val.split(",")]
         if len(cols) != FIELDS[key]:
             raise ReaderError(f"--map {item!r}: {key} needs {FIELDS[key]} column(s), got {len(cols)}")
@@ -40,15 +42,17 @@ def parse_units(items) -> dict:
     for item in items or []:
         key, sep, val = item.partition("=")
         if not sep or key.strip() not in ("t", "gyr", "acc", "mag"):
-            raise ReaderError(f"--units {item!r}: expected t=s|ms|us|ns, gyr=rad/s|deg/s, acc=m/s^2|g|mg or "
-                              "mag=uT|nT|T|gauss|mgauss")
+            raise ReaderError(
+                f"--units {item!r}: expected t=s|ms|us|ns, gyr=rad/s|deg/s, acc=m/s^2|g|mg or mag=uT|nT|T|gauss|mgauss"
+            )
         unit_factor(key.strip(), val.strip())  # validates
         out[key.strip()] = val.strip()
     return out
 
 
-def read_csv_mapped(path, *, columns=None, units=None, frame: str = "ned-frd", quat_order: str = "wxyz",
-                    delimiter=None, **_):
+def read_csv_mapped(
+    path, *, columns=None, units=None, frame: str = "ned-frd", quat_order: str = "wxyz", delimiter=None, **_
+):
     import pyarrow as pa
     import pyarrow.csv as pcsv
 
@@ -56,14 +60,15 @@ def read_csv_mapped(path, *, columns=None, units=None, frame: str = "ned-frd", q
     units = dict(units or {})
     missing = [k for k in ("t", "gyr", "acc") if k not in columns]
     if missing:
-        raise ReaderError(f"{path}: a generic CSV needs the column mapping for {', '.join(missing)} "
-                          "(--map t=COL --map gyr=X,Y,Z --map acc=X,Y,Z)")
+        raise ReaderError(
+            f"{path}: a generic CSV needs the column mapping for {', '.join(missing)} "
+            "(--map t=COL --map gyr=X,Y,Z --map acc=X,Y,Z)"
+        )
     if frame not in ("ned-frd", "enu-flu"):
         raise ReaderError(f"unknown frame {frame!r}; ned-frd or enu-flu")
     parse = pcsv.ParseOptions(delimiter=delimiter) if delimiter else pcsv.ParseOptions()
     try:
-        table = pcsv.read_csv(path, parse_options=parse,
-                              read_options=pcsv.ReadOptions(skip_rows=0))
+        table = pcsv.read_csv(path, parse_options=parse, read_options=pcsv.ReadOptions(skip_rows=0))
     except (pa.ArrowException, OSError) as exc:
         raise ReaderError(f"{path}: malformed CSV ({str(exc).splitlines()[0]})") from None
     names = [c.strip() for c in table.column_names]
@@ -111,6 +116,10 @@ def read_csv_mapped(path, *, columns=None, units=None, frame: str = "ned-frd", q
     if "true_q" in truth:
         n = np.linalg.norm(truth["true_q"], axis=1, keepdims=True)
         truth["true_q"] = np.where(n > 0.5, truth["true_q"] / np.where(n > 0, n, 1), np.nan)
-    meta = {"units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT" if mag is not None else "unknown"},
-            "column_map": columns, "units_in_file": units, "frames": f"{frame} -> NED/FRD"}
+    meta = {
+        "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT" if mag is not None else "unknown"},
+        "column_map": columns,
+        "units_in_file": units,
+        "frames": f"{frame} -> NED/FRD",
+    }
     return make_recording(path, "csv", t, gyr, acc, mag, meta, **truth)

@@ -1,5 +1,6 @@
 """Autopilot logs: PX4 ULog (pyulog) and ArduPilot DataFlash .bin (pymavlink). Both
 autopilots already use NED / FRD, so only units change (docs/readers.md)."""
+
 from __future__ import annotations
 
 import struct
@@ -7,9 +8,8 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from quadest.readers.common import ReaderError, make_recording, mag_on_imu_rows, resample_quat
+from quadest.readers.common import ReaderError, mag_on_imu_rows, make_recording, resample_quat
 from quadest.rotation import euler_to_quat
-
 
 # -- PX4 ----------------------------------------------------------------------------------------------
 LOG_DAMAGE = (KeyError, IndexError, TypeError, AttributeError, OverflowError, struct.error, UnicodeDecodeError)
@@ -46,8 +46,14 @@ def _read_ulog(path, *, instance: int = 0):
     attitude ``vehicle_attitude.q`` as ``ref_q``."""
     from pyulog import ULog
 
-    topics = ["sensor_combined", "sensor_gyro", "sensor_accel", "vehicle_magnetometer", "sensor_mag",
-              "vehicle_attitude"]
+    topics = [
+        "sensor_combined",
+        "sensor_gyro",
+        "sensor_accel",
+        "vehicle_magnetometer",
+        "sensor_mag",
+        "vehicle_attitude",
+    ]
     try:
         ulog = ULog(str(path), topics)
     except Exception as exc:  # pyulog raises plain Exceptions and struct errors on bad files
@@ -67,13 +73,16 @@ def _read_ulog(path, *, instance: int = 0):
         gyr = np.column_stack([sg[a] for a in "xyz"])
         acc = np.column_stack([np.interp(t, sa["timestamp"] * 1e-6, sa[a]) for a in "xyz"])
     else:
-        raise ReaderError(f"{path}: the ULog has no raw IMU topic (sensor_combined or sensor_gyro/"
-                          "sensor_accel); log it with SDLOG_PROFILE including sensor data")
+        raise ReaderError(
+            f"{path}: the ULog has no raw IMU topic (sensor_combined or sensor_gyro/"
+            "sensor_accel); log it with SDLOG_PROFILE including sensor data"
+        )
     mag = None
     if "vehicle_magnetometer" in data:
         m = data["vehicle_magnetometer"]
-        mag = mag_on_imu_rows(t, m["timestamp"] * 1e-6,
-                              _gauss_to_ut(np.column_stack([m[f"magnetometer_ga[{i}]"] for i in range(3)])))
+        mag = mag_on_imu_rows(
+            t, m["timestamp"] * 1e-6, _gauss_to_ut(np.column_stack([m[f"magnetometer_ga[{i}]"] for i in range(3)]))
+        )
     elif "sensor_mag" in data:
         m = data["sensor_mag"]
         mag = mag_on_imu_rows(t, m["timestamp"] * 1e-6, _gauss_to_ut(np.column_stack([m[a] for a in "xyz"])))
@@ -91,13 +100,19 @@ def _read_ulog(path, *, instance: int = 0):
         va = data["vehicle_attitude"]
         truth["ref_q"] = resample_quat(va["timestamp"] * 1e-6, np.column_stack([va[f"q[{i}]"] for i in range(4)]), t)
     corrupt = bool(getattr(ulog, "file_corruption", False)) or _ulog_cut(path)
-    meta = {"source_format": "PX4 ULog", "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT"},
-            "frames": "NED/FRD (PX4's own)", "reference": "vehicle_attitude (EKF2) as ref_q",
-            "ulog_corrupt": corrupt}
+    meta = {
+        "source_format": "PX4 ULog",
+        "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT"},
+        "frames": "NED/FRD (PX4's own)",
+        "reference": "vehicle_attitude (EKF2) as ref_q",
+        "ulog_corrupt": corrupt,
+    }
     if corrupt:
-        meta["warnings"] = [f"the log is damaged or cut short inside a message: what could be read ends at "
-                            f"t = {t[-1] - t[0]:.3f} s (a log cut exactly between two messages cannot be told "
-                            "from a complete one)"]
+        meta["warnings"] = [
+            f"the log is damaged or cut short inside a message: what could be read ends at "
+            f"t = {t[-1] - t[0]:.3f} s (a log cut exactly between two messages cannot be told "
+            "from a complete one)"
+        ]
     return make_recording(path, "ulog", t, gyr, acc, mag, meta, **truth)
 
 
@@ -130,8 +145,9 @@ def _read_dataflash(path, *, instance: int = 0):
         try:
             _read_dataflash_messages(log, instance, imu, mag, att)
         except Exception as exc:
-            raise ReaderError(f"{path}: DataFlash log broken after {len(imu)} IMU messages "
-                              f"({type(exc).__name__}: {exc})") from None
+            raise ReaderError(
+                f"{path}: DataFlash log broken after {len(imu)} IMU messages ({type(exc).__name__}: {exc})"
+            ) from None
     warnings = _dataflash_damage(said)
     if not imu:
         raise ReaderError(f"{path}: no IMU messages (instance {instance}) in the DataFlash log")
@@ -145,8 +161,12 @@ def _read_dataflash(path, *, instance: int = 0):
     if att:
         att = np.array(att, float)
         truth["ref_q"] = resample_quat(att[:, 0] * 1e-6, euler_to_quat(np.radians(att[:, 1:4])), t, max_gap=0.5)
-    meta = {"source_format": "ArduPilot DataFlash", "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT"},
-            "frames": "NED/FRD (ArduPilot's own)", "reference": "ATT (EKF attitude) as ref_q"}
+    meta = {
+        "source_format": "ArduPilot DataFlash",
+        "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT"},
+        "frames": "NED/FRD (ArduPilot's own)",
+        "reference": "ATT (EKF attitude) as ref_q",
+    }
     if warnings:
         meta["warnings"] = warnings
     return make_recording(path, "dataflash", t, imu[:, 1:4], imu[:, 4:7], magv, meta, **truth)
@@ -201,6 +221,8 @@ def _dataflash_damage(printed: list[str]) -> list[str]:
     cannot be told from a complete one.)"""
     bad = sum(1 for line in printed if line.startswith(("bad header", "Skipped", "Failed to parse")))
     if bad:
-        return [f"the log is damaged: pymavlink skipped {bad} byte(s) or message(s) it could not read; what "
-                "lies there is missing"]
+        return [
+            f"the log is damaged: pymavlink skipped {bad} byte(s) or message(s) it could not read; what "
+            "lies there is missing"
+        ]
     return []

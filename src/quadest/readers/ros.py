@@ -4,20 +4,28 @@ ROS follows REP 103 / 145: IMU and magnetometer in the sensor's body frame with 
 orientation of a pose relative to an ENU world, magnetic field in tesla. quadest converts to
 FRD / NED and µT (docs/readers.md). Topics are found by message type; with several candidates
 give ``imu_topic`` / ``mag_topic`` / ``truth_topic``."""
+
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
 
-from quadest.readers.common import ReaderError, make_recording, mag_on_imu_rows, resample_quat
+from quadest.readers.common import ReaderError, mag_on_imu_rows, make_recording, resample_quat
 from quadest.rotation.frames import quat_enu_flu_to_ned_frd, vec_enu_to_ned, vec_flu_to_frd
 
 IMU = ("sensor_msgs/msg/Imu", "sensor_msgs/Imu")
 MAG = ("sensor_msgs/msg/MagneticField", "sensor_msgs/MagneticField")
-POSE = ("geometry_msgs/msg/PoseStamped", "geometry_msgs/PoseStamped", "nav_msgs/msg/Odometry",
-        "nav_msgs/Odometry", "geometry_msgs/msg/TransformStamped", "geometry_msgs/TransformStamped",
-        "geometry_msgs/msg/PoseWithCovarianceStamped", "geometry_msgs/PoseWithCovarianceStamped")
+POSE = (
+    "geometry_msgs/msg/PoseStamped",
+    "geometry_msgs/PoseStamped",
+    "nav_msgs/msg/Odometry",
+    "nav_msgs/Odometry",
+    "geometry_msgs/msg/TransformStamped",
+    "geometry_msgs/TransformStamped",
+    "geometry_msgs/msg/PoseWithCovarianceStamped",
+    "geometry_msgs/PoseWithCovarianceStamped",
+)
 
 
 def _stamp(msg, t_log):
@@ -106,9 +114,16 @@ def read_rosbag(path, *, imu_topic=None, mag_topic=None, truth_topic=None, **_):
         truth["true_q"] = quat_enu_flu_to_ned_frd(resample_quat(pose[:, 0], pose[:, 1:5], t))
         inside = np.isfinite(truth["true_q"][:, 0])
         pos = np.full((len(t), 3), np.nan)
-        pos[inside] = vec_enu_to_ned(np.column_stack([np.interp(t[inside], pose[:, 0], pose[:, 5 + i]) for i in range(3)]))
+        pos[inside] = vec_enu_to_ned(
+            np.column_stack([np.interp(t[inside], pose[:, 0], pose[:, 5 + i]) for i in range(3)])
+        )
         truth["true_pos"] = pos
-    meta = {"source_format": "ROS bag", "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT"},
-            "frames": "REP 103: ENU world, FLU body -> NED/FRD; tesla -> µT",
-            "topics": {"imu": ci.topic, "mag": cm.topic if cm else None, "truth": ct.topic if ct else None}}
-    return make_recording(path, "rosbag", t, vec_flu_to_frd(imu[:, 1:4]), vec_flu_to_frd(imu[:, 4:7]), magv, meta, **truth)
+    meta = {
+        "source_format": "ROS bag",
+        "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT"},
+        "frames": "REP 103: ENU world, FLU body -> NED/FRD; tesla -> µT",
+        "topics": {"imu": ci.topic, "mag": cm.topic if cm else None, "truth": ct.topic if ct else None},
+    }
+    return make_recording(
+        path, "rosbag", t, vec_flu_to_frd(imu[:, 1:4]), vec_flu_to_frd(imu[:, 4:7]), magv, meta, **truth
+    )

@@ -30,13 +30,14 @@ Corrections of the printed appendix (pinned by finite-difference tests):
 - eq 33 prints the normaliser ``1/√(2π|W|)``; for the 3-D accelerometer residual it is
   ``(2π)^{−3/2} |W|^{−1/2}`` (the constant cancels between hypotheses, |W| does not).
 """
+
 from __future__ import annotations
 
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
 
+from quadest._jit import njit
 from quadest.rotation.kernels import FASTMATH, qexp_right
 
 BankRecord = namedtuple("BankRecord", ["gravity", "mass", "acc_var", "q_vel", "q_att"])
@@ -187,9 +188,11 @@ def bank_step(V, Qr, P, L, w_prev, gyr, acc, dt, prm, A, B, C, update=True):
                 Pi[r, c] = 0.5 * (T[r, c] + T[c, r])
         qexp_right(Qr[i], dx[3], dx[4], 0.0)  # eq 30; δ back to zero
         # eq 33 in the log domain
-        maha = (r0 * (Wi[0, 0] * r0 + Wi[0, 1] * r1 + Wi[0, 2] * r2)
-                + r1 * (Wi[1, 0] * r0 + Wi[1, 1] * r1 + Wi[1, 2] * r2)
-                + r2 * (Wi[2, 0] * r0 + Wi[2, 1] * r1 + Wi[2, 2] * r2))
+        maha = (
+            r0 * (Wi[0, 0] * r0 + Wi[0, 1] * r1 + Wi[0, 2] * r2)
+            + r1 * (Wi[1, 0] * r0 + Wi[1, 1] * r1 + Wi[1, 2] * r2)
+            + r2 * (Wi[2, 0] * r0 + Wi[2, 1] * r1 + Wi[2, 2] * r2)
+        )
         L[i] += -0.5 * maha - 0.5 * (3.0 * LOG_2PI + np.log(det))
     top = L[0]
     for i in range(1, n):

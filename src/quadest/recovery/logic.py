@@ -8,19 +8,20 @@ covariance, eq 35, initialise one EKF of the same kind, which continues with att
 velocity kept). The paper's detection is per sample; requiring a few consecutive samples
 (default 3, i.e. 3 ms at 1 kHz) keeps a single vibration spike from starting a recovery.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from numba import njit
 
+from quadest._jit import njit
 from quadest.conventions import GRAVITY
 from quadest.models.aero import AeroModel
 from quadest.records import describe, param
-from quadest.rotation import quat_conj, quat_rotate
 from quadest.recovery.bank import BankRecord, bank_step, gravity_body, summarize
 from quadest.recovery.sphere import spread_points
+from quadest.rotation import quat_conj, quat_rotate
 from quadest.rotation.kernels import FASTMATH
 
 _P = param
@@ -31,24 +32,42 @@ class RecoveryParams:
     n_hypotheses: int = _P(40, "-", "hypotheses of the bank (spread on the sphere)", "recovery paper, §V (N = 40)")
     beta1: float = _P(7.0, "m/s²", "throw detection: ‖z_acc‖ below this (eq 37)", "recovery paper, §V.A")
     beta2: float = _P(0.06, "-", "convergence: spherical variance S_g below this (eq 38)", "recovery paper, §V.A")
-    detect_samples: int = _P(3, "samples", "consecutive samples below β1 to detect a throw",
-                           "chosen: 3 ms at 1 kHz keeps one vibration spike from starting a recovery")
-    sigma_v0: float = _P(3.0, "m/s", "initial velocity std per axis (eq 20)",
-                           "chosen: the speeds of a hand throw")
-    sigma_delta0: float = _P(1.0, "rad", "initial error-rotation std (eq 20)",
-                             "chosen on simulated throws 5000-5079 (not evaluated ones)")
-    acc_std: float = _P(2.0, "m/s²", "accelerometer noise std in Σ_acc, model error included (eq 27)",
-                        "chosen on simulated throws 5000-5079")
-    q_vel: float = _P(0.5, "(m/s²)² s", "velocity process noise intensity (aerodynamic model error)",
-                      "chosen on simulated throws 5000-5079")
-    q_att: float = _P(1e-4, "rad²/s", "error-rotation process noise intensity (gyro noise)",
-                         "chosen: a MEMS gyro's white noise")
+    detect_samples: int = _P(
+        3,
+        "samples",
+        "consecutive samples below β1 to detect a throw",
+        "chosen: 3 ms at 1 kHz keeps one vibration spike from starting a recovery",
+    )
+    sigma_v0: float = _P(3.0, "m/s", "initial velocity std per axis (eq 20)", "chosen: the speeds of a hand throw")
+    sigma_delta0: float = _P(
+        1.0, "rad", "initial error-rotation std (eq 20)", "chosen on simulated throws 5000-5079 (not evaluated ones)"
+    )
+    acc_std: float = _P(
+        2.0,
+        "m/s²",
+        "accelerometer noise std in Σ_acc, model error included (eq 27)",
+        "chosen on simulated throws 5000-5079",
+    )
+    q_vel: float = _P(
+        0.5,
+        "(m/s²)² s",
+        "velocity process noise intensity (aerodynamic model error)",
+        "chosen on simulated throws 5000-5079",
+    )
+    q_att: float = _P(
+        1e-4, "rad²/s", "error-rotation process noise intensity (gyro noise)", "chosen: a MEMS gyro's white noise"
+    )
     gravity: float = _P(GRAVITY, "m/s²", "gravity", "standard gravity")
 
     def bank_record(self, mass: float) -> BankRecord:
         """What the compiled bank reads, by name."""
-        return BankRecord(gravity=float(self.gravity), mass=float(mass), acc_var=float(self.acc_std ** 2),
-                          q_vel=float(self.q_vel), q_att=float(self.q_att))
+        return BankRecord(
+            gravity=float(self.gravity),
+            mass=float(mass),
+            acc_var=float(self.acc_std**2),
+            q_vel=float(self.q_vel),
+            q_att=float(self.q_att),
+        )
 
     @classmethod
     def describe(cls) -> list[dict]:
@@ -71,14 +90,14 @@ def initial_bank(p: RecoveryParams, dirs):
     """The bank at the detection (eq 20): one hypothesis per gravity direction ``dirs`` (body),
     at rest, with the initial covariance; equal likelihoods. Returns ``(V, Q_ref, P, L)``."""
     H = len(dirs)
-    P0 = np.diag([p.sigma_v0 ** 2] * 3 + [p.sigma_delta0 ** 2] * 2)
-    return (np.zeros((H, 3)), np.array([shortest_arc(d) for d in dirs]), np.repeat(P0[None], H, axis=0),
-            np.zeros(H))
+    P0 = np.diag([p.sigma_v0**2] * 3 + [p.sigma_delta0**2] * 2)
+    return (np.zeros((H, 3)), np.array([shortest_arc(d) for d in dirs]), np.repeat(P0[None], H, axis=0), np.zeros(H))
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def _run_bank(V, Qr, P, L, w_prev, t, gyr, acc, k0, prm, A, B, C, beta2, best_out, sg_out, prob_out,
-              gd_out, v_out, record_all):
+def _run_bank(
+    V, Qr, P, L, w_prev, t, gyr, acc, k0, prm, A, B, C, beta2, best_out, sg_out, prob_out, gd_out, v_out, record_all
+):
     """The bank from sample k0 until S_g < β2 (returns that index) or the end (returns −1)."""
     n = V.shape[0]
     prob = np.empty(n)
@@ -152,8 +171,15 @@ def detect_throw(acc, beta1: float, samples: int) -> int | None:
     return int(idx[0]) if len(idx) else None
 
 
-def recover(rec, model: AeroModel, params: RecoveryParams | None = None, *, record_all: bool = False,
-            t_release: float | None = None, dirs=None) -> RecoveryResult:
+def recover(
+    rec,
+    model: AeroModel,
+    params: RecoveryParams | None = None,
+    *,
+    record_all: bool = False,
+    t_release: float | None = None,
+    dirs=None,
+) -> RecoveryResult:
     """Run the recovery logic over a recording (IMU only). With truth in the recording the
     summary holds the errors at convergence; ``t_release`` (or a simulated throw's metadata)
     gives the time from release to convergence. ``dirs`` (H, 3) replaces the hypotheses' gravity
@@ -184,8 +210,28 @@ def recover(rec, model: AeroModel, params: RecoveryParams | None = None, *, reco
         events.append(("converging", float(t[k_det])))
         V, Qr, P, L = initial_bank(p, spread_points(H) if dirs is None else dirs)
         w_prev = gyr[k_det - 1].copy() if k_det > 0 else gyr[k_det].copy()
-        kc = _run_bank(V, Qr, P, L, w_prev, t, gyr, acc, k_det, prm, model.A, model.B, model.C, p.beta2,
-                       best, s_g, prob, gd_all, vel, record_all)
+        kc = _run_bank(
+            V,
+            Qr,
+            P,
+            L,
+            w_prev,
+            t,
+            gyr,
+            acc,
+            k_det,
+            prm,
+            model.A,
+            model.B,
+            model.C,
+            p.beta2,
+            best,
+            s_g,
+            prob,
+            gd_all,
+            vel,
+            record_all,
+        )
         if record_all:
             idx = np.arange(n)[best >= 0]
             gdir[idx] = gd_all[idx, best[idx]]
@@ -196,11 +242,35 @@ def recover(rec, model: AeroModel, params: RecoveryParams | None = None, *, reco
             events.append(("nominal", float(t[k_conv])))
             i = best[k_conv]
             if k_conv + 1 < n:
-                _run_single(V[i:i + 1].copy(), Qr[i:i + 1].copy(), P[i:i + 1].copy(), np.zeros(1), w_prev,
-                            t, gyr, acc, k_conv + 1, prm, model.A, model.B, model.C, gdir, vel)
-    res = RecoveryResult(t=t, events=events, detect_index=k_det, converge_index=k_conv, best=best, s_g=s_g,
-                         gravity_dir=gdir, velocity=vel, probabilities=prob if record_all else None,
-                         hypothesis_dirs=gd_all if record_all else None)
+                _run_single(
+                    V[i : i + 1].copy(),
+                    Qr[i : i + 1].copy(),
+                    P[i : i + 1].copy(),
+                    np.zeros(1),
+                    w_prev,
+                    t,
+                    gyr,
+                    acc,
+                    k_conv + 1,
+                    prm,
+                    model.A,
+                    model.B,
+                    model.C,
+                    gdir,
+                    vel,
+                )
+    res = RecoveryResult(
+        t=t,
+        events=events,
+        detect_index=k_det,
+        converge_index=k_conv,
+        best=best,
+        s_g=s_g,
+        gravity_dir=gdir,
+        velocity=vel,
+        probabilities=prob if record_all else None,
+        hypothesis_dirs=gd_all if record_all else None,
+    )
     res.summary = _summarize(res, rec, t_release, p)
     return res
 
@@ -222,9 +292,15 @@ def _summarize(res: RecoveryResult, rec, t_release, p) -> dict:
     info = rec.meta.get("scenario_info", {}) if isinstance(rec.meta, dict) else {}
     if t_release is None:
         t_release = info.get("release_time_s")
-    out = {"events": [{"state": s, "t_s": t} for s, t in res.events], "detected": res.detect_index is not None,
-           "converged": res.converge_index is not None, "release_time_s": t_release,
-           "n_hypotheses": p.n_hypotheses, "beta1": p.beta1, "beta2": p.beta2}
+    out = {
+        "events": [{"state": s, "t_s": t} for s, t in res.events],
+        "detected": res.detect_index is not None,
+        "converged": res.converge_index is not None,
+        "release_time_s": t_release,
+        "n_hypotheses": p.n_hypotheses,
+        "beta1": p.beta1,
+        "beta2": p.beta2,
+    }
     if res.detect_index is not None:
         out["t_detect_s"] = float(res.t[res.detect_index])
     if res.converge_index is not None:

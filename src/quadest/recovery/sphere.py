@@ -11,6 +11,7 @@ quadest computes them by a deterministic optimisation, so any N is available wit
 For N = 4, 6, 12 this reaches the tetrahedron, octahedron and icosahedron within 0.003°
 (tested to 0.01°); for N = 40 a smallest angle of 33.07° (the Fejes Tóth bound is 34.6°).
 """
+
 from __future__ import annotations
 
 from functools import lru_cache
@@ -39,8 +40,7 @@ def _normalize(p):
 
 
 # (exponent s, iterations, step decay per iteration)
-SCHEDULE = ((2.0, 300, 0.997), (8.0, 300, 0.997), (32.0, 300, 0.997), (128.0, 600, 0.997),
-            (512.0, 4000, 0.998))
+SCHEDULE = ((2.0, 300, 0.997), (8.0, 300, 0.997), (32.0, 300, 0.997), (128.0, 600, 0.997), (512.0, 4000, 0.998))
 
 
 def _riesz(p, s, iters, decay, step0=0.05):

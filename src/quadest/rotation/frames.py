@@ -5,6 +5,7 @@ ENU -> NED about the axis ``(1, 1, 0)/√2``, FLU -> FRD about the body x axis. 
 ``q_nb`` given for an ENU navigation frame and an FLU body frame becomes quadest's ``q_nb`` by
 ``q_T ⊗ q ⊗ q_F`` with ``q_T = [0, 1/√2, 1/√2, 0]`` and ``q_F = [0, 1, 0, 0]``.
 """
+
 import numpy as np
 
 from quadest.conventions import ENU_TO_NED, FLU_TO_FRD

@@ -6,8 +6,10 @@ Same convention as :mod:`quadest.conventions`; each kernel mirrors a vectorised 
 ``*_s`` kernels take and return scalars: they allocate nothing, which matters in steps that
 run millions of times.
 """
+
 import numpy as np
-from numba import njit
+
+from quadest._jit import njit
 
 # Floating-point flags for quadest's compiled steps: LLVM may fuse and reorder arithmetic
 # (contract, reassoc, arcp); NaN and Inf keep their meaning (no nnan/ninf), which bad-input
@@ -62,25 +64,33 @@ def qexp(rv):
 @njit(cache=True, inline="always")
 def rotate_s(w, x, y, z, v0, v1, v2):
     """``R(q) v`` for ``q = [w, x, y, z]`` (unit), scalars in and out."""
-    return (v0 * (1 - 2 * (y * y + z * z)) + v1 * 2 * (x * y - w * z) + v2 * 2 * (x * z + w * y),
-            v0 * 2 * (x * y + w * z) + v1 * (1 - 2 * (x * x + z * z)) + v2 * 2 * (y * z - w * x),
-            v0 * 2 * (x * z - w * y) + v1 * 2 * (y * z + w * x) + v2 * (1 - 2 * (x * x + y * y)))
+    return (
+        v0 * (1 - 2 * (y * y + z * z)) + v1 * 2 * (x * y - w * z) + v2 * 2 * (x * z + w * y),
+        v0 * 2 * (x * y + w * z) + v1 * (1 - 2 * (x * x + z * z)) + v2 * 2 * (y * z - w * x),
+        v0 * 2 * (x * z - w * y) + v1 * 2 * (y * z + w * x) + v2 * (1 - 2 * (x * x + y * y)),
+    )
 
 
 @njit(cache=True, inline="always")
 def rotate_inv_s(w, x, y, z, v0, v1, v2):
     """``R(q)ᵀ v``: a navigation-frame vector in the body frame, scalars in and out."""
-    return (v0 * (1 - 2 * (y * y + z * z)) + v1 * 2 * (x * y + w * z) + v2 * 2 * (x * z - w * y),
-            v0 * 2 * (x * y - w * z) + v1 * (1 - 2 * (x * x + z * z)) + v2 * 2 * (y * z + w * x),
-            v0 * 2 * (x * z + w * y) + v1 * 2 * (y * z - w * x) + v2 * (1 - 2 * (x * x + y * y)))
+    return (
+        v0 * (1 - 2 * (y * y + z * z)) + v1 * 2 * (x * y + w * z) + v2 * 2 * (x * z - w * y),
+        v0 * 2 * (x * y - w * z) + v1 * (1 - 2 * (x * x + z * z)) + v2 * 2 * (y * z + w * x),
+        v0 * 2 * (x * z + w * y) + v1 * 2 * (y * z - w * x) + v2 * (1 - 2 * (x * x + y * y)),
+    )
 
 
 @njit(cache=True, inline="always")
 def qdot_s(w, x, y, z, g0, g1, g2):
     """``½ q ⊗ [0, ω]``: the rate of change of ``q_nb`` for a body rate ω (first-order
     quaternion integration is ``q + Δt · qdot``)."""
-    return (0.5 * (-x * g0 - y * g1 - z * g2), 0.5 * (w * g0 + y * g2 - z * g1),
-            0.5 * (w * g1 - x * g2 + z * g0), 0.5 * (w * g2 + x * g1 - y * g0))
+    return (
+        0.5 * (-x * g0 - y * g1 - z * g2),
+        0.5 * (w * g0 + y * g2 - z * g1),
+        0.5 * (w * g1 - x * g2 + z * g0),
+        0.5 * (w * g2 + x * g1 - y * g0),
+    )
 
 
 @njit(cache=True, inline="always")
@@ -98,8 +108,12 @@ def qexp_right(q, a, b, c):
     k = 0.5 - th * th / 48.0 if th < 1e-6 else np.sin(0.5 * th) / th
     ex, ey, ez = k * a, k * b, k * c
     w, x, y, z = q[0], q[1], q[2], q[3]
-    q[0], q[1], q[2], q[3] = normalize_s(w * cw - x * ex - y * ey - z * ez, w * ex + x * cw + y * ez - z * ey,
-                                         w * ey - x * ez + y * cw + z * ex, w * ez + x * ey - y * ex + z * cw)
+    q[0], q[1], q[2], q[3] = normalize_s(
+        w * cw - x * ex - y * ey - z * ez,
+        w * ex + x * cw + y * ez - z * ey,
+        w * ey - x * ez + y * cw + z * ex,
+        w * ez + x * ey - y * ex + z * cw,
+    )
 
 
 @njit(cache=True, inline="always")

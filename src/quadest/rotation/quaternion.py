@@ -4,6 +4,7 @@ Quaternions are Hamilton, scalar first ``[w, x, y, z]``, and ``q_nb`` rotates bo
 vectors into the navigation frame (:mod:`quadest.conventions`). Every function accepts a single
 quaternion ``(4,)`` / vector ``(3,)`` or a stack ``(N, 4)`` / ``(N, 3)`` and broadcasts.
 """
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -23,12 +24,15 @@ def quat_mul(p, q):
     p, q = _as_float(p), _as_float(q)
     pw, px, py, pz = np.moveaxis(p, -1, 0)
     qw, qx, qy, qz = np.moveaxis(q, -1, 0)
-    return np.stack([
-        pw * qw - px * qx - py * qy - pz * qz,
-        pw * qx + px * qw + py * qz - pz * qy,
-        pw * qy - px * qz + py * qw + pz * qx,
-        pw * qz + px * qy - py * qx + pz * qw,
-    ], axis=-1)
+    return np.stack(
+        [
+            pw * qw - px * qx - py * qy - pz * qz,
+            pw * qx + px * qw + py * qz - pz * qy,
+            pw * qy - px * qz + py * qw + pz * qx,
+            pw * qz + px * qy - py * qx + pz * qw,
+        ],
+        axis=-1,
+    )
 
 
 def quat_conj(q):
@@ -133,12 +137,15 @@ def euler_to_quat(euler):
     e = _as_float(euler)
     hr, hp, hy = 0.5 * e[..., 0], 0.5 * e[..., 1], 0.5 * e[..., 2]
     cr, sr, cp, sp, cy, sy = np.cos(hr), np.sin(hr), np.cos(hp), np.sin(hp), np.cos(hy), np.sin(hy)
-    return np.stack([
-        cy * cp * cr + sy * sp * sr,
-        cy * cp * sr - sy * sp * cr,
-        cy * sp * cr + sy * cp * sr,
-        sy * cp * cr - cy * sp * sr,
-    ], axis=-1)
+    return np.stack(
+        [
+            cy * cp * cr + sy * sp * sr,
+            cy * cp * sr - sy * sp * cr,
+            cy * sp * cr + sy * cp * sr,
+            sy * cp * cr - cy * sp * sr,
+        ],
+        axis=-1,
+    )
 
 
 def angle_between(q1, q2):

@@ -2,6 +2,7 @@
 (:mod:`quadest.models.multirotor`) become a :class:`~quadest.data.Recording` with the same
 sensor models as the prescribed scenarios (:func:`quadest.sim.simulator.sample_sensors`), so
 every command (estimate, compare, recover, calibrate) reads a flown flight."""
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -16,9 +17,21 @@ from quadest.sim.simulator import build_config, sample_sensors
 from quadest.sim.truth import Truth, motor_current
 
 
-def flown_recording(t, states, derivs, thrusts, vehicle: MultirotorParams, *, cfg: SimConfig | None = None,
-                    seed: int = 0, eta=None, imbalance=None, meta: dict | None = None, readings=None,
-                    processes=None) -> Recording:
+def flown_recording(
+    t,
+    states,
+    derivs,
+    thrusts,
+    vehicle: MultirotorParams,
+    *,
+    cfg: SimConfig | None = None,
+    seed: int = 0,
+    eta=None,
+    imbalance=None,
+    meta: dict | None = None,
+    readings=None,
+    processes=None,
+) -> Recording:
     """A recording of a flight: ``states``, their derivatives and the rotor thrusts at the IMU
     instants ``t`` (one row each, at ``cfg.imu.rate_hz``). ``cfg`` gives the sensors (default:
     the bebop2 preset's); the vehicle's own mass, thrust and rotors set the vibration load and
@@ -40,17 +53,31 @@ def flown_recording(t, states, derivs, thrusts, vehicle: MultirotorParams, *, cf
         raise ValueError("flown_recording: t, states, derivs and thrusts must have one row per IMU sample")
     eta = np.ones(vehicle.rotors) if eta is None else np.asarray(eta, float)
     eta = np.broadcast_to(eta, (n, vehicle.rotors))
-    imbalance = np.broadcast_to(np.zeros(vehicle.rotors) if imbalance is None else np.asarray(imbalance, float),
-                                (n, vehicle.rotors))
+    imbalance = np.broadcast_to(
+        np.zeros(vehicle.rotors) if imbalance is None else np.asarray(imbalance, float), (n, vehicle.rotors)
+    )
     active = np.maximum(1, (eta > 0).sum(axis=1))
     hover_thrust = vehicle.mass_kg * vehicle.gravity / vehicle.rotors
     load = thrusts.sum(axis=1) / active / hover_thrust
-    thrust_to_weight = vehicle.rotors * vehicle.k_f * vehicle.omega_max ** 2 / (vehicle.mass_kg * vehicle.gravity)
-    truth = Truth(t=t, q=states[:, 6:10], gyr=states[:, 10:13], gyr_dot=derivs[:, 10:13], pos=states[:, 0:3],
-                  vel=states[:, 3:6], acc_n=derivs[:, 3:6], current=motor_current(load, active, thrust_to_weight),
-                  rotor_load=load, meta={"flown": True, "rotor_efficiency_end": eta[-1].tolist(),
-                                         "rotor_imbalance_end_kg_m": imbalance[-1].tolist()},
-                  rotor_speeds=states[:, 13:], rotor_imbalance=imbalance)
+    thrust_to_weight = vehicle.rotors * vehicle.k_f * vehicle.omega_max**2 / (vehicle.mass_kg * vehicle.gravity)
+    truth = Truth(
+        t=t,
+        q=states[:, 6:10],
+        gyr=states[:, 10:13],
+        gyr_dot=derivs[:, 10:13],
+        pos=states[:, 0:3],
+        vel=states[:, 3:6],
+        acc_n=derivs[:, 3:6],
+        current=motor_current(load, active, thrust_to_weight),
+        rotor_load=load,
+        meta={
+            "flown": True,
+            "rotor_efficiency_end": eta[-1].tolist(),
+            "rotor_imbalance_end_kg_m": imbalance[-1].tolist(),
+        },
+        rotor_speeds=states[:, 13:],
+        rotor_imbalance=imbalance,
+    )
     rng = [np.random.default_rng(s) for s in np.random.SeedSequence(int(seed)).spawn(4)]
     k = np.round((t - t[0]) * cfg.imu.rate_hz).astype(np.int64)
     has_mag = S.mag_rows(k, cfg.imu.rate_hz, cfg.mag.rate_hz)
@@ -63,9 +90,15 @@ def flown_recording(t, states, derivs, thrusts, vehicle: MultirotorParams, *, cf
             got = np.asarray(got, float)
             same = np.isnan(ref) == np.isnan(got)
             diff = np.abs(np.nan_to_num(got) - np.nan_to_num(ref))
-            if got.shape != ref.shape or not same.all() or (diff > READINGS_RTOL * (1.0 + np.abs(np.nan_to_num(ref)))).any():
-                raise ValueError(f"flown_recording: the closed loop's {name} readings differ from the sensor model's "
-                                 f"(largest difference {np.nanmax(diff) if diff.size else 0:.3g})")
+            if (
+                got.shape != ref.shape
+                or not same.all()
+                or (diff > READINGS_RTOL * (1.0 + np.abs(np.nan_to_num(ref)))).any()
+            ):
+                raise ValueError(
+                    f"flown_recording: the closed loop's {name} readings differ from the sensor model's "
+                    f"(largest difference {np.nanmax(diff) if diff.size else 0:.3g})"
+                )
             loop[name] = got
         rec = replace(rec, **loop)
     return rec

@@ -14,27 +14,59 @@ checks it on every flown recording). Per IMU sample ``k``::
     mag = clip(S Rᵀ B_n(p) + b_hard + k_motor · current + n_m)   on magnetometer rows, R, p and
           current as they were latency_s before
 """
+
 from __future__ import annotations
 
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
 
+from quadest._jit import njit
+from quadest.models.multirotor import MultirotorParams
 from quadest.rotation.kernels import rotate_inv_s
 from quadest.sim import sensors as S
-from quadest.models.multirotor import MultirotorParams
 from quadest.sim.params import SimConfig
-from quadest.sim.sensors import (distortion_at, distortion_sources, lowpass_step, rotor_vibration_model,
-                                 rotor_vibration_step)
+from quadest.sim.sensors import (
+    distortion_at,
+    distortion_sources,
+    lowpass_step,
+    rotor_vibration_model,
+    rotor_vibration_step,
+)
 
-SensorModel = namedtuple("SensorModel", [
-    "gyr_matrix", "gyr_bias", "gyr_noise", "gyr_range",
-    "acc_matrix", "acc_bias", "acc_noise", "acc_range", "lever", "gravity",
-    "rv", "vib_acc", "vib_gyr",
-    "has_mag", "mag_index", "mag_soft", "mag_hard", "mag_motor", "mag_noise", "mag_range", "field_n",
-    "dist_src", "dist_mom", "has_dist",
-    "mag_hist", "gyr_alpha", "acc_alpha", "lp"])
+SensorModel = namedtuple(
+    "SensorModel",
+    [
+        "gyr_matrix",
+        "gyr_bias",
+        "gyr_noise",
+        "gyr_range",
+        "acc_matrix",
+        "acc_bias",
+        "acc_noise",
+        "acc_range",
+        "lever",
+        "gravity",
+        "rv",
+        "vib_acc",
+        "vib_gyr",
+        "has_mag",
+        "mag_index",
+        "mag_soft",
+        "mag_hard",
+        "mag_motor",
+        "mag_noise",
+        "mag_range",
+        "field_n",
+        "dist_src",
+        "dist_mom",
+        "has_dist",
+        "mag_hist",
+        "gyr_alpha",
+        "acc_alpha",
+        "lp",
+    ],
+)
 """What the compiled sampler reads: the configuration's constants and one run's draws."""
 
 
@@ -47,19 +79,35 @@ def sensor_model(cfg: SimConfig, processes, has_mag, vehicle: MultirotorParams) 
     sources = distortion_sources(cfg.environment)
     src, mom = sources if sources is not None else (np.zeros((0, 3)), np.zeros((0, 3)))
     return SensorModel(
-        np.ascontiguousarray(processes.gyro_errors["matrix"]), np.ascontiguousarray(processes.gyr_bias),
-        np.ascontiguousarray(processes.gyr_noise), float(cfg.gyro.range),
-        np.ascontiguousarray(processes.acc_errors["matrix"]), np.ascontiguousarray(processes.acc_bias),
-        np.ascontiguousarray(processes.acc_noise), float(cfg.acc.range), np.asarray(cfg.acc.lever_arm, float),
+        np.ascontiguousarray(processes.gyro_errors["matrix"]),
+        np.ascontiguousarray(processes.gyr_bias),
+        np.ascontiguousarray(processes.gyr_noise),
+        float(cfg.gyro.range),
+        np.ascontiguousarray(processes.acc_errors["matrix"]),
+        np.ascontiguousarray(processes.acc_bias),
+        np.ascontiguousarray(processes.acc_noise),
+        float(cfg.acc.range),
+        np.asarray(cfg.acc.lever_arm, float),
         float(cfg.environment.gravity),
         rotor_vibration_model(vehicle, cfg.acc.vibration_amp, processes.vib_offsets, cfg.acc.lever_arm),
-        np.zeros(3), np.zeros(3),
-        has_mag, index.astype(np.int64), np.ascontiguousarray(cfg.mag.soft_iron, dtype=float),
-        np.asarray(cfg.mag.hard_iron, float), np.asarray(cfg.mag.motor_coef, float), np.ascontiguousarray(mag_noise),
-        float(cfg.mag.range), S.earth_field(cfg.environment), src, mom, sources is not None,
+        np.zeros(3),
+        np.zeros(3),
+        has_mag,
+        index.astype(np.int64),
+        np.ascontiguousarray(cfg.mag.soft_iron, dtype=float),
+        np.asarray(cfg.mag.hard_iron, float),
+        np.asarray(cfg.mag.motor_coef, float),
+        np.ascontiguousarray(mag_noise),
+        float(cfg.mag.range),
+        S.earth_field(cfg.environment),
+        src,
+        mom,
+        sources is not None,
         np.zeros((int(round(cfg.mag.latency_s * cfg.imu.rate_hz)) + 1, 8)),
-        S.dlpf_alpha(cfg.gyro.dlpf_hz, cfg.imu.rate_hz), S.dlpf_alpha(cfg.acc.dlpf_hz, cfg.imu.rate_hz),
-        np.zeros(6))
+        S.dlpf_alpha(cfg.gyro.dlpf_hz, cfg.imu.rate_hz),
+        S.dlpf_alpha(cfg.acc.dlpf_hz, cfg.imu.rate_hz),
+        np.zeros(6),
+    )
 
 
 @njit(cache=True)
@@ -75,8 +123,10 @@ def sample_imu(m, k, t, q, acc_n, w, wdot, speeds, imbalance, vib_state, gyr, ac
     angles (start with :func:`quadest.sim.sensors.vibration_state`)."""
     rotor_vibration_step(m.rv, t, speeds, imbalance, vib_state, m.vib_acc, m.vib_gyr)
     for i in range(3):
-        u = ((m.gyr_matrix[i, 0] * w[0] + m.gyr_matrix[i, 1] * w[1] + m.gyr_matrix[i, 2] * w[2]
-              + m.gyr_bias[k, i]) + m.vib_gyr[i]) + m.gyr_noise[k, i]
+        u = (
+            (m.gyr_matrix[i, 0] * w[0] + m.gyr_matrix[i, 1] * w[1] + m.gyr_matrix[i, 2] * w[2] + m.gyr_bias[k, i])
+            + m.vib_gyr[i]
+        ) + m.gyr_noise[k, i]
         if m.gyr_alpha < 1.0:  # the DLPF, settled at the first sample
             m.lp[i] = lowpass_step(m.lp[i], u, m.gyr_alpha) if k > 0 else u
             u = m.lp[i]

@@ -7,6 +7,7 @@ acceleration exactly (``[ω]× = Rᵀ Ṙ``, ``[ω̇]× = Rᵀ R̈ − [ω]×²`
 differentiation, so the simulated gyroscope and accelerometer agree with the true attitude to
 rounding error. All arrays carry a leading sample axis ``N``.
 """
+
 import numpy as np
 
 
@@ -49,8 +50,7 @@ class Jet:
 
 def bilinear(op, a: Jet, b: Jet) -> Jet:
     """Product rule for any bilinear ``op``: (ab)' = a'b + ab', (ab)'' = a''b + 2a'b' + ab''."""
-    return Jet(op(a.v, b.v), op(a.d1, b.v) + op(a.v, b.d1),
-               op(a.d2, b.v) + 2.0 * op(a.d1, b.d1) + op(a.v, b.d2))
+    return Jet(op(a.v, b.v), op(a.d1, b.v) + op(a.v, b.d1), op(a.d2, b.v) + 2.0 * op(a.d1, b.d1) + op(a.v, b.d2))
 
 
 def scale(s: Jet, x: Jet) -> Jet:
@@ -81,7 +81,7 @@ def transpose(A: Jet) -> Jet:
 
 def chain(x: Jet, f, f1, f2) -> Jet:
     """Chain rule for a scalar function with derivatives ``f1``, ``f2`` (elementwise)."""
-    return Jet(f(x.v), f1(x.v) * x.d1, f2(x.v) * x.d1 ** 2 + f1(x.v) * x.d2)
+    return Jet(f(x.v), f1(x.v) * x.d1, f2(x.v) * x.d1**2 + f1(x.v) * x.d2)
 
 
 def sin(x: Jet) -> Jet:
@@ -94,20 +94,20 @@ def cos(x: Jet) -> Jet:
 
 def norm(u: Jet) -> Jet:
     """Euclidean norm over the last axis."""
-    return chain(dot(u, u), np.sqrt, lambda w: 0.5 / np.sqrt(w), lambda w: -0.25 * w ** -1.5)
+    return chain(dot(u, u), np.sqrt, lambda w: 0.5 / np.sqrt(w), lambda w: -0.25 * w**-1.5)
 
 
 def normalize(u: Jet) -> Jet:
     """``u / |u|`` over the last axis."""
-    inv = chain(dot(u, u), lambda w: w ** -0.5, lambda w: -0.5 * w ** -1.5,
-                lambda w: 0.75 * w ** -2.5)
+    inv = chain(dot(u, u), lambda w: w**-0.5, lambda w: -0.5 * w**-1.5, lambda w: 0.75 * w**-2.5)
     return scale(inv, u)
 
 
 def columns(x: Jet, y: Jet, z: Jet) -> Jet:
     """The matrix jet whose columns are the vector jets ``x, y, z``."""
-    return Jet(*(np.stack([a, b, c], axis=-1) for a, b, c in zip(
-        (x.v, x.d1, x.d2), (y.v, y.d1, y.d2), (z.v, z.d1, z.d2))))
+    return Jet(
+        *(np.stack([a, b, c], axis=-1) for a, b, c in zip((x.v, x.d1, x.d2), (y.v, y.d1, y.d2), (z.v, z.d1, z.d2)))
+    )
 
 
 def rot_z(angle: Jet) -> Jet:
@@ -125,19 +125,22 @@ def rot_axis(axis, angle: Jet) -> Jet:
     one_minus_c = 1.0 - c
     n = angle.v.shape
     eye = Jet.const(np.broadcast_to(np.eye(3), n + (3, 3)))
-    return eye + scale(s, Jet.const(np.broadcast_to(K, n + (3, 3)))) + scale(
-        one_minus_c, Jet.const(np.broadcast_to(K @ K, n + (3, 3))))
+    return (
+        eye
+        + scale(s, Jet.const(np.broadcast_to(K, n + (3, 3))))
+        + scale(one_minus_c, Jet.const(np.broadcast_to(K @ K, n + (3, 3))))
+    )
 
 
 def _stack3(a: Jet, b: Jet, c: Jet) -> Jet:
-    return Jet(*(np.stack(t, axis=-1) for t in zip((a.v, a.d1, a.d2), (b.v, b.d1, b.d2),
-                                                     (c.v, c.d1, c.d2))))
+    return Jet(*(np.stack(t, axis=-1) for t in zip((a.v, a.d1, a.d2), (b.v, b.d1, b.d2), (c.v, c.d1, c.d2))))
 
 
 def vee(W):
     """Vector of the skew part of ``W`` (..., 3, 3): ``vee(skew(w)) == w``."""
-    return 0.5 * np.stack([W[..., 2, 1] - W[..., 1, 2], W[..., 0, 2] - W[..., 2, 0],
-                           W[..., 1, 0] - W[..., 0, 1]], axis=-1)
+    return 0.5 * np.stack(
+        [W[..., 2, 1] - W[..., 1, 2], W[..., 0, 2] - W[..., 2, 0], W[..., 1, 0] - W[..., 0, 1]], axis=-1
+    )
 
 
 def body_rates(R: Jet):

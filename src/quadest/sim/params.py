@@ -5,15 +5,16 @@ overrides on the defaults; ``--set section.field=value`` and TOML files override
 ``param_table(config)`` lists every value with its unit and source (``quadest simulate
 --list-params``); docs/simulator.md shows the same table.
 """
+
 from __future__ import annotations
 
 import json
 import math
 import tomllib
-
-import numpy as np
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
+
+import numpy as np
 
 from quadest.conventions import GRAVITY
 from quadest.records import param as P
@@ -25,17 +26,31 @@ class Environment:
     field_ut: float = P(49.0, "µT", "earth magnetic field intensity", "WMM, Delft (52.0°N 4.4°E), 2022")
     inclination_deg: float = P(67.0, "deg", "field inclination, positive down", "WMM, Delft, 2022")
     declination_deg: float = P(2.0, "deg", "field declination, positive east", "WMM, Delft, 2022")
-    distortion_ut: float = P(0.0, "µT", "indoor field distortion: the field of magnetised steel below the "
-                             "flight, its magnitude at the origin (0: none)",
-                             "chosen per case: near steel structures indoor fields deviate by several µT to tens "
-                             "of µT", bounds="[0, 1000]")
-    distortion_depth_m: float = P(3.0, "m", "depth of the distortion's sources below the origin",
-                                  "chosen: steel in the floor under a vehicle hovering at 3 m", bounds="(0, 100]")
-    distortion_spacing_m: float = P(1.5, "m", "spacing of the distortion's sources (3 x 3 dipoles in a "
-                                    "horizontal plane)", "chosen: the spacing of beams or rebar mats",
-                                    bounds="(0, 100]")
-    distortion_seed: int = P(0, "-", "which room: the dipoles' directions are drawn from this seed", "chosen",
-                             bounds="[0, 1e9]")
+    distortion_ut: float = P(
+        0.0,
+        "µT",
+        "indoor field distortion: the field of magnetised steel below the "
+        "flight, its magnitude at the origin (0: none)",
+        "chosen per case: near steel structures indoor fields deviate by several µT to tens of µT",
+        bounds="[0, 1000]",
+    )
+    distortion_depth_m: float = P(
+        3.0,
+        "m",
+        "depth of the distortion's sources below the origin",
+        "chosen: steel in the floor under a vehicle hovering at 3 m",
+        bounds="(0, 100]",
+    )
+    distortion_spacing_m: float = P(
+        1.5,
+        "m",
+        "spacing of the distortion's sources (3 x 3 dipoles in a horizontal plane)",
+        "chosen: the spacing of beams or rebar mats",
+        bounds="(0, 100]",
+    )
+    distortion_seed: int = P(
+        0, "-", "which room: the dipoles' directions are drawn from this seed", "chosen", bounds="[0, 1e9]"
+    )
 
 
 @dataclass(frozen=True)
@@ -82,8 +97,9 @@ class Accelerometer:
     range: float = P(8 * GRAVITY, "m/s²", "saturation limit per axis")
     lever_arm: tuple = P((0.0, 0.0, 0.0), "m", "IMU position from the centre of mass, body frame")
     dlpf_hz: float = P(0.0, "Hz", "anti-alias low-pass (first order) cut-off before saturation (0: none)")
-    vibration_amp: tuple = P((0.0, 0.0, 0.0), "m/s²",
-                             "rotor vibration tone amplitude per axis at hover (grows with rotor load)")
+    vibration_amp: tuple = P(
+        (0.0, 0.0, 0.0), "m/s²", "rotor vibration tone amplitude per axis at hover (grows with rotor load)"
+    )
 
 
 @dataclass(frozen=True)
@@ -91,9 +107,14 @@ class Magnetometer:
     rate_hz: float = P(100.0, "Hz", "sample rate (0: no magnetometer)")
     noise_std: float = P(0.5, "µT", "white noise std per sample")
     hard_iron: tuple = P((0.0, 0.0, 0.0), "µT", "hard-iron offset, body frame")
-    soft_iron: tuple = P(((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)), "-",
-                         "soft-iron matrix applied to the earth field in the body frame")
-    motor_coef: tuple = P((0.0, 0.0, 0.0), "µT", "disturbance at maximum motor current (all rotors at full thrust), body frame")
+    soft_iron: tuple = P(
+        ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
+        "-",
+        "soft-iron matrix applied to the earth field in the body frame",
+    )
+    motor_coef: tuple = P(
+        (0.0, 0.0, 0.0), "µT", "disturbance at maximum motor current (all rotors at full thrust), body frame"
+    )
     range: float = P(4900.0, "µT", "saturation limit per axis")
     latency_s: float = P(0.0, "s", "age of the field a sample reads (rounded to IMU samples; 0: none)")
 
@@ -101,8 +122,12 @@ class Magnetometer:
 @dataclass(frozen=True)
 class Hover:
     duration_s: float = P(30.0, "s", "default duration of the hover scenario")
-    gust_acc_rms: float = P(0.3, "m/s²", "RMS horizontal acceleration from gusts",
-                            "chosen: light air; a few tenths of m/s² of position-hold residual")
+    gust_acc_rms: float = P(
+        0.3,
+        "m/s²",
+        "RMS horizontal acceleration from gusts",
+        "chosen: light air; a few tenths of m/s² of position-hold residual",
+    )
     gust_band_hz: tuple = P((0.1, 1.5), "Hz", "frequency band of the gust motion")
     vertical_ratio: float = P(0.5, "-", "vertical over horizontal gust amplitude")
     yaw_amp_deg: float = P(5.0, "deg", "peak slow yaw change")
@@ -113,8 +138,12 @@ class Hover:
 @dataclass(frozen=True)
 class Nominal:
     duration_s: float = P(60.0, "s", "default duration of the nominal scenario")
-    acc_max: float = P(3.0, "m/s²", "peak acceleration of the path",
-                     "chosen: brisk manual flight (the AFCKF paper's normal flight is not published)")
+    acc_max: float = P(
+        3.0,
+        "m/s²",
+        "peak acceleration of the path",
+        "chosen: brisk manual flight (the AFCKF paper's normal flight is not published)",
+    )
     band_hz: tuple = P((0.1, 0.5), "Hz", "frequency band of the path's accelerations (periods 2-10 s)")
     ramp_s: float = P(1.0, "s", "time constant with which the manoeuvres start from hover")
     vertical_ratio: float = P(0.3, "-", "vertical over horizontal path amplitude")
@@ -126,22 +155,34 @@ class Nominal:
 @dataclass(frozen=True)
 class DamagedRotor:
     duration_s: float = P(30.0, "s", "default duration of the damaged-rotor scenario")
-    failure_s: float = P(5.0, "s", "time of the rotor loss (hover before it)",
-                        "chosen: the filters have converged in hover by then")
-    spin_rate_mean: float = P(15.5, "rad/s", "mean spin rate after the failure",
-                              "AFCKF paper, section IV.B.1")
-    spin_rate_var: float = P(3.0, "rad/s", "peak slow deviation of the spin rate",
-                            "chosen, not from the paper: a wandering spin; with the ±1000 °/s gyro it makes the gyro clip")
+    failure_s: float = P(
+        5.0, "s", "time of the rotor loss (hover before it)", "chosen: the filters have converged in hover by then"
+    )
+    spin_rate_mean: float = P(15.5, "rad/s", "mean spin rate after the failure", "AFCKF paper, section IV.B.1")
+    spin_rate_var: float = P(
+        3.0,
+        "rad/s",
+        "peak slow deviation of the spin rate",
+        "chosen, not from the paper: a wandering spin; with the ±1000 °/s gyro it makes the gyro clip",
+    )
     spin_band_hz: tuple = P((0.03, 0.15), "Hz", "frequency band of the spin-rate variation")
-    spin_up_tau_s: float = P(0.5, "s", "time constant of the spin-up",
-                            "chosen: the spin settles within about 2 s of the loss")
+    spin_up_tau_s: float = P(
+        0.5, "s", "time constant of the spin-up", "chosen: the spin settles within about 2 s of the loss"
+    )
     spin_sign: float = P(1.0, "-", "+1: positive yaw rate (clockwise seen from above), -1: negative")
-    tilt_deg: float = P(4.0, "deg",
-                        "angle between body z and the spin axis at the mean spin rate (grows with rate²)",
-                        "relaxed hover, Mueller & D'Andrea 2014; value assumed")
+    tilt_deg: float = P(
+        4.0,
+        "deg",
+        "angle between body z and the spin axis at the mean spin rate (grows with rate²)",
+        "relaxed hover, Mueller & D'Andrea 2014; value assumed",
+    )
     tilt_azimuth_deg: float = P(45.0, "deg", "direction in the body x-y plane the spin axis leans to")
-    manoeuvre_acc_max: float = P(1.0, "m/s²", "peak acceleration of the spin centre after the failure",
-                                 "chosen: a damaged vehicle drifting slowly around its position")
+    manoeuvre_acc_max: float = P(
+        1.0,
+        "m/s²",
+        "peak acceleration of the spin centre after the failure",
+        "chosen: a damaged vehicle drifting slowly around its position",
+    )
     manoeuvre_band_hz: tuple = P((0.02, 0.2), "Hz", "frequency band of the spin-centre manoeuvres")
     active_rotors: int = P(3, "-", "rotors producing thrust after the failure (vibration, motor current)")
 
@@ -151,13 +192,16 @@ class Throw:
     duration_s: float = P(3.0, "s", "default duration of the throw scenario")
     hold_s: float = P(0.75, "s", "time held still in the hand before the throwing motion")
     throw_s: float = P(0.25, "s", "duration of the throwing motion before release")
-    speed_max: float = P(5.0, "m/s", "release speed drawn uniformly in [0, speed_max]",
-                         "chosen: a gentle hand throw")
-    any_direction: bool = P(False, "-",
-                            "release velocity of any direction (default: upward or horizontal only; a "
-                            "downward throw makes the hand's own acceleration trigger eq 37 before release)")
-    rate_max: float = P(10.0, "rad/s", "release body-rate magnitude drawn in [0, rate_max]",
-                         "chosen: a throw with some tumble")
+    speed_max: float = P(5.0, "m/s", "release speed drawn uniformly in [0, speed_max]", "chosen: a gentle hand throw")
+    any_direction: bool = P(
+        False,
+        "-",
+        "release velocity of any direction (default: upward or horizontal only; a "
+        "downward throw makes the hand's own acceleration trigger eq 37 before release)",
+    )
+    rate_max: float = P(
+        10.0, "rad/s", "release body-rate magnitude drawn in [0, rate_max]", "chosen: a throw with some tumble"
+    )
     tremor_acc: float = P(0.2, "m/s²", "hand tremor acceleration amplitude while held")
     release_height_m: float = P(1.5, "m", "height of the release point above the origin")
     max_step_s: float = P(2.5e-4, "s", "largest RK4 step of the free flight (>= 4 kHz)")
@@ -166,6 +210,7 @@ class Throw:
 @dataclass(frozen=True)
 class Calibration:
     """Motions a user performs to calibrate, hand-held with the motors off."""
+
     rest_s: float = P(30.0, "s", "default duration of the rest scenario")
     hold_s: float = P(6.0, "s", "six-position: time held in each orientation")
     turn_s: float = P(2.0, "s", "six-position: time of each turn between orientations")
@@ -178,15 +223,30 @@ class Calibration:
 @dataclass(frozen=True)
 class Aero:
     """Recovery paper eq 9, in quadest's body frame (FRD): f_c = A v + B|v|v + C ψ(ω), N."""
-    A: tuple = P(((-0.20, 0.0, 0.0), (0.0, -0.20, 0.0), (0.0, 0.0, -0.30)), "N s/m",
-                 "linear drag matrix (rotor drag and inflow), body frame", "assumption, form from Beffa eq 9")
-    B: tuple = P(((-0.012, 0.0, 0.0), (0.0, -0.012, 0.0), (0.0, 0.0, -0.030)), "N s²/m²",
-                 "quadratic drag matrix (frame drag)", "assumption, form from Beffa eq 9")
-    C: tuple = P(((0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
-                  (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
-                  (0.0, 0.0, 0.0, 0.0015, 0.0015, 0.0, 0.0, 0.0, 0.0, -1.5)), "N, N s/rad, N s²/rad²",
-                 "rate terms on ψ(ω) = (ωx, ωy, ωz, ωx², ωy², ωz², ωxωy, ωyωz, ωzωx, 1); the last "
-                 "column is the idle thrust (-1.5 N: 3 m/s² up the body)", "assumption, form from Beffa eq 10")
+
+    A: tuple = P(
+        ((-0.20, 0.0, 0.0), (0.0, -0.20, 0.0), (0.0, 0.0, -0.30)),
+        "N s/m",
+        "linear drag matrix (rotor drag and inflow), body frame",
+        "assumption, form from Beffa eq 9",
+    )
+    B: tuple = P(
+        ((-0.012, 0.0, 0.0), (0.0, -0.012, 0.0), (0.0, 0.0, -0.030)),
+        "N s²/m²",
+        "quadratic drag matrix (frame drag)",
+        "assumption, form from Beffa eq 9",
+    )
+    C: tuple = P(
+        (
+            (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+            (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+            (0.0, 0.0, 0.0, 0.0015, 0.0015, 0.0, 0.0, 0.0, 0.0, -1.5),
+        ),
+        "N, N s/rad, N s²/rad²",
+        "rate terms on ψ(ω) = (ωx, ωy, ωz, ωx², ωy², ωz², ωxωy, ωyωz, ωzωx, 1); the last "
+        "column is the idle thrust (-1.5 N: 3 m/s² up the body)",
+        "assumption, form from Beffa eq 10",
+    )
     rate_damping: tuple = P((0.002, 0.002, 0.001), "N m s/rad", "body-rate damping torque -D ω")
 
 
@@ -205,7 +265,7 @@ class SimConfig:
     calibration: Calibration = field(default_factory=Calibration)
     aero: Aero = field(default_factory=Aero)
 
-    def with_overrides(self, overrides: dict, source: str = "--set") -> "SimConfig":
+    def with_overrides(self, overrides: dict, source: str = "--set") -> SimConfig:
         """Apply ``{"section.field": value}`` or ``{"section": {"field": value}}`` overrides."""
         flat = {}
         for k, v in overrides.items():
@@ -217,37 +277,43 @@ class SimConfig:
         for key, value in flat.items():
             section, _, name = key.partition(".")
             if section not in SECTIONS:
-                raise ValueError(f"{source}: unknown section {section!r} in {key!r}; sections: "
-                                 + ", ".join(SECTIONS))
+                raise ValueError(f"{source}: unknown section {section!r} in {key!r}; sections: " + ", ".join(SECTIONS))
             rec = getattr(cfg, section)
             names = [f.name for f in fields(rec)]
             if name not in names:
-                raise ValueError(f"{source}: {section} has no parameter {name!r}; it has: "
-                                 + ", ".join(names))
+                raise ValueError(f"{source}: {section} has no parameter {name!r}; it has: " + ", ".join(names))
             rec = replace(rec, **{name: _coerce(key, getattr(rec, name), value)})
             cfg = replace(cfg, **{section: rec})
         return cfg
 
-    def idealized(self) -> "SimConfig":
+    def idealized(self) -> SimConfig:
         """Ideal sensors: no noise, bias, scale error, misalignment, saturation, disturbance,
         vibration, jitter or drops; lever arm and sample rates kept."""
         zero3 = (0.0, 0.0, 0.0)
         eye = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
-        inertial = dict(noise_std=0.0, bias_std=0.0, bias=None, bias_rw_std=0.0, scale_std=0.0,
-                        scale=None, misalignment_std=0.0, misalignment=None, range=math.inf)
+        inertial = dict(
+            noise_std=0.0,
+            bias_std=0.0,
+            bias=None,
+            bias_rw_std=0.0,
+            scale_std=0.0,
+            scale=None,
+            misalignment_std=0.0,
+            misalignment=None,
+            range=math.inf,
+        )
         return replace(
             self,
             imu=replace(self.imu, jitter_std_s=0.0, drop_prob=0.0),
             gyro=replace(self.gyro, **inertial),
             acc=replace(self.acc, **inertial, vibration_amp=zero3),
-            mag=replace(self.mag, noise_std=0.0, hard_iron=zero3, soft_iron=eye, motor_coef=zero3,
-                        range=math.inf),
+            mag=replace(self.mag, noise_std=0.0, hard_iron=zero3, soft_iron=eye, motor_coef=zero3, range=math.inf),
         )
 
     def to_dict(self) -> dict:
         return json.loads(json.dumps(asdict(self), default=_jsonable))
 
-    def validate(self) -> "SimConfig":
+    def validate(self) -> SimConfig:
         """Refuse values no sensor or flight has (docs/reliability.md): every number finite
         (a range may be inf: no saturation); noise, standard deviations, amplitudes, times and
         probabilities not negative; probabilities at most 1; rates at most 100 kHz; the
@@ -259,8 +325,9 @@ class SimConfig:
                 values = np.ravel(np.asarray(v, dtype=float)) if v is not None and not isinstance(v, bool) else []
                 if len(values) and not np.isfinite(values).all() and not (f.name == "range" and values[0] == math.inf):
                     raise ValueError(f"{key} must be finite, got {v!r}")
-                negative_forbidden = (f.name.endswith(("_std", "_s", "_prob", "_amp", "_hz", "_max", "_rms"))
-                                      or f.name in NOT_NEGATIVE)
+                negative_forbidden = (
+                    f.name.endswith(("_std", "_s", "_prob", "_amp", "_hz", "_max", "_rms")) or f.name in NOT_NEGATIVE
+                )
                 if negative_forbidden and len(values) and (values < 0).any():
                     raise ValueError(f"{key} must not be negative, got {v!r}")
                 if f.name.endswith("_prob") and len(values) and (values > 1).any():
@@ -268,8 +335,9 @@ class SimConfig:
                 if f.name.endswith("rate_hz") and len(values) and (values > MAX_RATE_HZ).any():
                     raise ValueError(f"{key} = {v!r} Hz: beyond any sensor (at most {MAX_RATE_HZ:.0e} Hz)")
         if abs(np.linalg.det(np.asarray(self.mag.soft_iron, float))) < 1e-6:
-            raise ValueError(f"mag.soft_iron {self.mag.soft_iron!r} is singular: a soft-iron distortion is close "
-                             "to the identity")
+            raise ValueError(
+                f"mag.soft_iron {self.mag.soft_iron!r} is singular: a soft-iron distortion is close to the identity"
+            )
         if not self.imu.rate_hz > 0:
             raise ValueError("imu.rate_hz must be positive")
         return self
@@ -277,9 +345,28 @@ class SimConfig:
 
 SECTIONS = [f.name for f in fields(SimConfig)]
 MAX_RATE_HZ = 1e5
-NOT_NEGATIVE = {"range", "mass_kg", "inertia", "arm_m", "field_ut", "gravity", "thrust_to_weight", "rotor_drag",
-                "vibration_amp", "tremor_acc", "spin_rate_var", "components", "active_rotors", "rate_damping",
-                "tilt_deg", "six_tilt_deg", "tilt_amp_deg", "yaw_amp_deg", "vertical_ratio", "release_height_m"}
+NOT_NEGATIVE = {
+    "range",
+    "mass_kg",
+    "inertia",
+    "arm_m",
+    "field_ut",
+    "gravity",
+    "thrust_to_weight",
+    "rotor_drag",
+    "vibration_amp",
+    "tremor_acc",
+    "spin_rate_var",
+    "components",
+    "active_rotors",
+    "rate_damping",
+    "tilt_deg",
+    "six_tilt_deg",
+    "tilt_amp_deg",
+    "yaw_amp_deg",
+    "vertical_ratio",
+    "release_height_m",
+}
 
 
 def _jsonable(x):
@@ -334,14 +421,20 @@ def _shape(t):
 PRESETS = {
     "bebop2": {
         "description": "Parrot Bebop 2, the AFCKF paper's vehicle: MPU6050 IMU at 500 Hz, AK8963 "
-                       "magnetometer at 100 Hz, vibration-dominated noise",
+        "magnetometer at 100 Hz, vibration-dominated noise",
         "overrides": {
-            "vehicle.mass_kg": 0.5, "vehicle.inertia": (0.0015, 0.0015, 0.0026), "vehicle.arm_m": 0.085,
-            "imu.rate_hz": 500.0, "mag.rate_hz": 100.0,
-            "gyro.noise_std": 0.01, "gyro.range": math.radians(1000.0),
-            "acc.noise_std": 0.25, "acc.vibration_amp": (0.25, 0.25, 0.25),
+            "vehicle.mass_kg": 0.5,
+            "vehicle.inertia": (0.0015, 0.0015, 0.0026),
+            "vehicle.arm_m": 0.085,
+            "imu.rate_hz": 500.0,
+            "mag.rate_hz": 100.0,
+            "gyro.noise_std": 0.01,
+            "gyro.range": math.radians(1000.0),
+            "acc.noise_std": 0.25,
+            "acc.vibration_amp": (0.25, 0.25, 0.25),
             "acc.lever_arm": (0.015, -0.010, 0.005),
-            "mag.noise_std": 0.5, "mag.hard_iron": (0.5, -0.3, 0.4),
+            "mag.noise_std": 0.5,
+            "mag.hard_iron": (0.5, -0.3, 0.4),
             "mag.soft_iron": ((1.005, 0.002, 0.0), (0.002, 0.997, 0.001), (0.0, 0.001, 1.002)),
             "mag.motor_coef": (0.8, -0.4, 1.5),
         },
@@ -362,32 +455,50 @@ PRESETS = {
     "lowcost-20hz": {
         "description": "QUKF paper's low-cost system: MPU6050 + HMC5883L sampled at 20 Hz",
         "overrides": {
-            "vehicle.mass_kg": 1.2, "vehicle.inertia": (0.012, 0.012, 0.022), "vehicle.arm_m": 0.225,
+            "vehicle.mass_kg": 1.2,
+            "vehicle.inertia": (0.012, 0.012, 0.022),
+            "vehicle.arm_m": 0.225,
             "vehicle.rotor_hz_hover": 90.0,
-            "imu.rate_hz": 20.0, "mag.rate_hz": 20.0,
-            "gyro.noise_std": 0.005, "gyro.bias_std": 0.002, "gyro.range": math.radians(2000.0),
-            "acc.noise_std": 0.1, "acc.bias_std": 0.05, "acc.range": 2 * GRAVITY,
+            "imu.rate_hz": 20.0,
+            "mag.rate_hz": 20.0,
+            "gyro.noise_std": 0.005,
+            "gyro.bias_std": 0.002,
+            "gyro.range": math.radians(2000.0),
+            "acc.noise_std": 0.1,
+            "acc.bias_std": 0.05,
+            "acc.range": 2 * GRAVITY,
             "acc.vibration_amp": (0.0, 0.0, 0.0),
-            "mag.noise_std": 0.2, "mag.range": 130.0, "mag.motor_coef": (0.5, 0.3, 1.0),
+            "mag.noise_std": 0.2,
+            "mag.range": 130.0,
+            "mag.motor_coef": (0.5, 0.3, 1.0),
         },
         "sources": {
-            "imu.rate_hz": "QUKF paper, section IV (20 Hz)", "mag.rate_hz": "QUKF paper, section IV",
+            "imu.rate_hz": "QUKF paper, section IV (20 Hz)",
+            "mag.rate_hz": "QUKF paper, section IV",
             "gyro.range": "QUKF paper eq 4: c = 16.4 LSB/(°/s), MPU6050 ±2000 °/s",
             "acc.range": "QUKF paper eq 4: b = 1638.35, MPU6050 ±2 g",
             "gyro.noise_std": "assumption: MPU6050 0.005 °/s/√Hz plus flight vibration behind the DLPF",
             "acc.noise_std": "assumption: MPU6050 400 µg/√Hz plus flight vibration behind the DLPF",
-            "mag.noise_std": "HMC5883L datasheet: 2 mG noise floor", "mag.range": "HMC5883L ±1.3 G",
+            "mag.noise_std": "HMC5883L datasheet: 2 mG noise floor",
+            "mag.range": "HMC5883L ±1.3 G",
         },
     },
     "fma": {
         "description": "Recovery paper's vehicle in the Flying Machine Arena: IMU at 1000 Hz, no "
-                       "magnetometer, idle propellers",
+        "magnetometer, idle propellers",
         "overrides": {
-            "vehicle.mass_kg": 0.5, "vehicle.inertia": (0.0023, 0.0023, 0.0046), "vehicle.arm_m": 0.17,
+            "vehicle.mass_kg": 0.5,
+            "vehicle.inertia": (0.0023, 0.0023, 0.0046),
+            "vehicle.arm_m": 0.17,
             "vehicle.rotor_hz_hover": 150.0,
-            "imu.rate_hz": 1000.0, "mag.rate_hz": 0.0,
-            "gyro.noise_std": 0.005, "gyro.bias_std": 0.001, "gyro.range": math.radians(2000.0),
-            "acc.noise_std": 0.1, "acc.bias_std": 0.02, "acc.range": 16 * GRAVITY,
+            "imu.rate_hz": 1000.0,
+            "mag.rate_hz": 0.0,
+            "gyro.noise_std": 0.005,
+            "gyro.bias_std": 0.001,
+            "gyro.range": math.radians(2000.0),
+            "acc.noise_std": 0.1,
+            "acc.bias_std": 0.02,
+            "acc.range": 16 * GRAVITY,
             "acc.vibration_amp": (0.05, 0.05, 0.05),
         },
         "sources": {
@@ -436,6 +547,13 @@ def param_table(cfg: SimConfig, preset: str | None = None) -> list[dict]:
         rec = getattr(cfg, sec)
         for f in fields(rec):
             key = f"{sec}.{f.name}"
-            rows.append({"key": key, "value": getattr(rec, f.name), "unit": f.metadata["unit"],
-                         "doc": f.metadata["doc"], "source": srcs.get(key, f.metadata["source"])})
+            rows.append(
+                {
+                    "key": key,
+                    "value": getattr(rec, f.name),
+                    "unit": f.metadata["unit"],
+                    "doc": f.metadata["doc"],
+                    "source": srcs.get(key, f.metadata["source"]),
+                }
+            )
     return rows

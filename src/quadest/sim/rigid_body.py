@@ -9,9 +9,10 @@ quadest's conventions, with Euler's equation written with the inertia as it shou
 with the aerodynamic force ``f_c`` of eq 9 (:mod:`quadest.models.aero`) and a body-rate
 damping torque ``−D ω``. The quaternion is renormalised after every step.
 """
-import numpy as np
-from numba import njit
 
+import numpy as np
+
+from quadest._jit import njit
 from quadest.models.aero import aero_force
 from quadest.rotation.kernels import qmul, qrotate, qrotate_inv
 

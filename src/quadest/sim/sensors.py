@@ -22,13 +22,14 @@ position ``p``), a soft-iron matrix
 ``S``, a hard-iron offset and a disturbance proportional to the motor current (which grows
 with thrust, and at equal thrust when a rotor is lost).
 """
+
 from __future__ import annotations
 
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
 
+from quadest._jit import njit
 from quadest.models.multirotor import MultirotorParams
 from quadest.rotation import quat_conj, quat_rotate
 from quadest.sim.params import Accelerometer, Environment, Gyroscope, Magnetometer
@@ -111,7 +112,9 @@ def inertial(true, t, model: Gyroscope | Accelerometer, errors, rng, extra=None)
     Returns the readings and the bias at each sample (constant part plus random walk)."""
     bias, noise = inertial_processes(t, model, errors, rng)
     rate = 1.0 / np.median(np.diff(t)) if len(t) > 1 else 1.0
-    return apply_inertial(true, errors["matrix"], bias, noise, model.range, extra, dlpf_alpha(model.dlpf_hz, rate)), bias
+    return apply_inertial(
+        true, errors["matrix"], bias, noise, model.range, extra, dlpf_alpha(model.dlpf_hz, rate)
+    ), bias
 
 
 def specific_force_at_imu(q, acc_n, w, wdot, lever, gravity):
@@ -138,8 +141,10 @@ def vibration(t, rotor_load, rotor_hz_hover, amp, rng=None, offsets=None):
     return np.sin(phase[:, None] + offs) * amp * rotor_load[:, None]
 
 
-RotorVibration = namedtuple("RotorVibration", ["pos", "spin", "inv_inertia", "mass", "omega_hover", "blades",
-                                               "bp_amp", "has_bp", "offsets", "lever"])
+RotorVibration = namedtuple(
+    "RotorVibration",
+    ["pos", "spin", "inv_inertia", "mass", "omega_hover", "blades", "bp_amp", "has_bp", "offsets", "lever"],
+)
 """What :func:`rotor_vibration_step` reads: the vehicle's rotors, the blade-pass amplitude per
 rotor and axis, one run's phases and the IMU's lever arm (built by :func:`rotor_vibration_model`)."""
 
@@ -153,10 +158,18 @@ def rotor_vibration_model(vehicle: MultirotorParams, amp, offsets, lever) -> Rot
     offsets = np.ascontiguousarray(offsets, dtype=float)
     if offsets.shape != (vehicle.rotors, 4):
         raise ValueError(f"rotor vibration: offsets must be {vehicle.rotors} rows of 4, got shape {offsets.shape}")
-    return RotorVibration(np.ascontiguousarray(vehicle.rotor_pos, dtype=float), np.asarray(vehicle.spin, float),
-                          1.0 / np.asarray(vehicle.inertia, float), float(vehicle.mass_kg), vehicle.hover_speed(),
-                          float(vehicle.blades), amp / np.sqrt(vehicle.rotors), bool(amp.any()), offsets,
-                          np.asarray(lever, float))
+    return RotorVibration(
+        np.ascontiguousarray(vehicle.rotor_pos, dtype=float),
+        np.asarray(vehicle.spin, float),
+        1.0 / np.asarray(vehicle.inertia, float),
+        float(vehicle.mass_kg),
+        vehicle.hover_speed(),
+        float(vehicle.blades),
+        amp / np.sqrt(vehicle.rotors),
+        bool(amp.any()),
+        offsets,
+        np.asarray(lever, float),
+    )
 
 
 def rotor_vibration_offsets(rotors: int, rng) -> np.ndarray:
@@ -216,7 +229,11 @@ def rotor_vibration_step(rv, t, speeds, imbalance, state, acc, gyr):
             h0, h1 = u * w * sn, -u * w * sp * c  # its zero-mean time integral
             r0, r1, r2 = rv.pos[i, 0], rv.pos[i, 1], rv.pos[i, 2]
             # δω̇ = J⁻¹ (r × F), δω = J⁻¹ (r × ∫F dt), F and ∫F dt in the disc plane
-            d0, d1, d2 = -r2 * f1 * rv.inv_inertia[0], r2 * f0 * rv.inv_inertia[1], (r0 * f1 - r1 * f0) * rv.inv_inertia[2]
+            d0, d1, d2 = (
+                -r2 * f1 * rv.inv_inertia[0],
+                r2 * f0 * rv.inv_inertia[1],
+                (r0 * f1 - r1 * f0) * rv.inv_inertia[2],
+            )
             gyr[0] += -r2 * h1 * rv.inv_inertia[0]
             gyr[1] += r2 * h0 * rv.inv_inertia[1]
             gyr[2] += (r0 * h1 - r1 * h0) * rv.inv_inertia[2]
@@ -229,7 +246,7 @@ def rotor_vibration_step(rv, t, speeds, imbalance, state, acc, gyr):
 @njit(cache=True)
 def _rotor_vibration(rv, t, speeds, imbalance, acc, gyr):
     state = np.zeros(2 * speeds.shape[1] + 1)
-    state[speeds.shape[1]:] = np.nan
+    state[speeds.shape[1] :] = np.nan
     for k in range(t.shape[0]):
         rotor_vibration_step(rv, t[k], speeds[k], imbalance[k], state, acc[k], gyr[k])
 
@@ -239,8 +256,9 @@ def rotor_vibration(rv: RotorVibration, t, speeds, imbalance):
     ``imbalance``): the accelerometer's and the gyroscope's vibration, each (n, 3)."""
     t = np.ascontiguousarray(t, dtype=float)
     acc, gyr = np.zeros((len(t), 3)), np.zeros((len(t), 3))
-    _rotor_vibration(rv, t, np.ascontiguousarray(speeds, dtype=float), np.ascontiguousarray(imbalance, dtype=float),
-                     acc, gyr)
+    _rotor_vibration(
+        rv, t, np.ascontiguousarray(speeds, dtype=float), np.ascontiguousarray(imbalance, dtype=float), acc, gyr
+    )
     return acc, gyr
 
 

@@ -1,4 +1,5 @@
 """Smooth random signals: sums of sinusoids with analytic derivatives of any order."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -28,7 +29,7 @@ class Sinusoids:
         phase = rng.uniform(0, 2 * np.pi, size=(components, dims))
         return cls(w, amp, phase)
 
-    def scaled(self, factor) -> "Sinusoids":
+    def scaled(self, factor) -> Sinusoids:
         return Sinusoids(self.w, self.amp * np.asarray(factor, float), self.phase)
 
     def deriv(self, t, k: int = 0):
@@ -37,7 +38,7 @@ class Sinusoids:
         arg = t[:, None] * self.w[None, :]
         out = np.zeros((len(t), self.amp.shape[1]))
         for d in range(self.amp.shape[1]):
-            out[:, d] = np.sin(arg + self.phase[:, d] + k * np.pi / 2) @ (self.amp[:, d] * self.w ** k)
+            out[:, d] = np.sin(arg + self.phase[:, d] + k * np.pi / 2) @ (self.amp[:, d] * self.w**k)
         return out
 
     def jet(self, t, k0: int = 0) -> Jet:
@@ -83,14 +84,14 @@ class RampedSinusoids:
         mu = np.concatenate([1j * w, 1j * w - 1 / tau, 1j * w - 2 / tau])
         return cls(c, mu, float(t0))
 
-    def scaled(self, factor) -> "RampedSinusoids":
+    def scaled(self, factor) -> RampedSinusoids:
         return RampedSinusoids(self.c * factor, self.mu, self.t0)
 
     def deriv(self, t, k: int = 0):
         x = np.maximum(np.asarray(t, float) - self.t0, 0.0)
         e = np.exp(np.outer(x, self.mu))  # (N, M)
         if k == 0:
-            F = (e - 1 - np.outer(x, self.mu)) / self.mu ** 2
+            F = (e - 1 - np.outer(x, self.mu)) / self.mu**2
         elif k == 1:
             F = (e - 1) / self.mu
         else:

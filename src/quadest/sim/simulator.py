@@ -1,4 +1,5 @@
 """``simulate``: a scenario, a preset and a seed in, a :class:`~quadest.data.Recording` out."""
+
 from __future__ import annotations
 
 import math
@@ -19,8 +20,7 @@ MAX_SAMPLES = 2e7
 CHUNK_S = 10.0  # simulated seconds per chunk (memory and progress granularity)
 
 
-def build_config(preset: str = "bebop2", overrides: dict | None = None, toml=None,
-                 ideal: bool = False) -> SimConfig:
+def build_config(preset: str = "bebop2", overrides: dict | None = None, toml=None, ideal: bool = False) -> SimConfig:
     """A preset; ``ideal`` removes every sensor error (:meth:`SimConfig.idealized`); then a TOML
     file's overrides and ``overrides`` (``{"gyro.noise_std": 0.02}``), so that chosen errors can
     be put back on ideal sensors."""
@@ -44,14 +44,26 @@ def aero_model_of(rec: Recording) -> AeroModel:
     """The aerodynamic model a simulated recording was made with (from its metadata)."""
     cfg = rec.meta.get("config") if isinstance(rec.meta, dict) else None
     if not cfg or "aero" not in cfg:
-        raise ValueError("this recording does not carry a simulation's aerodynamic model: give one "
-                         "(quadest fit-aero, or an aero calibration)")
+        raise ValueError(
+            "this recording does not carry a simulation's aerodynamic model: give one "
+            "(quadest fit-aero, or an aero calibration)"
+        )
     return aero_model(SimConfig().with_overrides({"aero": cfg["aero"], "vehicle.mass_kg": cfg["vehicle"]["mass_kg"]}))
 
 
-def simulate(scenario: str, preset: str = "bebop2", seed: int = 0, duration: float | None = None,
-             overrides: dict | None = None, *, config: SimConfig | None = None, ideal: bool = False,
-             toml=None, progress: bool = False, return_truth: bool = False):
+def simulate(
+    scenario: str,
+    preset: str = "bebop2",
+    seed: int = 0,
+    duration: float | None = None,
+    overrides: dict | None = None,
+    *,
+    config: SimConfig | None = None,
+    ideal: bool = False,
+    toml=None,
+    progress: bool = False,
+    return_truth: bool = False,
+):
     """Simulate one flight and its sensors. Deterministic for a given seed and configuration.
 
     Parameters
@@ -79,8 +91,10 @@ def simulate(scenario: str, preset: str = "bebop2", seed: int = 0, duration: flo
         raise ValueError(f"duration must be a positive number of seconds, got {duration}")
     rate = cfg.imu.rate_hz
     if duration * rate > MAX_SAMPLES:
-        raise ValueError(f"{duration:g} s at {rate:g} Hz is {duration * rate:.3g} samples, more than the "
-                         f"{MAX_SAMPLES:.0e} one simulation holds; simulate shorter flights")
+        raise ValueError(
+            f"{duration:g} s at {rate:g} Hz is {duration * rate:.3g} samples, more than the "
+            f"{MAX_SAMPLES:.0e} one simulation holds; simulate shorter flights"
+        )
     ss = np.random.SeedSequence(int(seed))
     rng_motion, rng_gyro, rng_acc, rng_mag, rng_time, rng_vib = (np.random.default_rng(s) for s in ss.spawn(6))
 
@@ -97,21 +111,29 @@ def simulate(scenario: str, preset: str = "bebop2", seed: int = 0, duration: flo
     parts = []
     from tqdm.auto import tqdm
 
-    with tqdm(total=len(t), unit="sample", desc=f"simulate {scenario}", delay=1.0,
-              disable=not progress, leave=False) as bar:
+    with tqdm(
+        total=len(t), unit="sample", desc=f"simulate {scenario}", delay=1.0, disable=not progress, leave=False
+    ) as bar:
         for i in range(0, len(t), chunk):
-            parts.append(motion.evaluate(t[i:i + chunk]))
+            parts.append(motion.evaluate(t[i : i + chunk]))
             bar.update(len(parts[-1].t))
     truth = Truth.concat(parts)
     truth.meta = motion.meta
     truth.q = quat_continuous(truth.q)
 
-    meta = {"source": "quadest simulate", "scenario": scenario, "preset": preset, "seed": int(seed),
-            "ideal_sensors": bool(ideal)}
+    meta = {
+        "source": "quadest simulate",
+        "scenario": scenario,
+        "preset": preset,
+        "seed": int(seed),
+        "ideal_sensors": bool(ideal),
+    }
     rec, gyr_bias, acc_bias = sample_sensors(truth, cfg, keep, has_mag, (rng_gyro, rng_acc, rng_mag, rng_vib), meta)
     if return_truth:
-        sel = {n: getattr(truth, n)[keep] for n in ("t", "q", "gyr", "gyr_dot", "pos", "vel", "acc_n",
-                                                    "current", "rotor_load")}
+        sel = {
+            n: getattr(truth, n)[keep]
+            for n in ("t", "q", "gyr", "gyr_dot", "pos", "vel", "acc_n", "current", "rotor_load")
+        }
         return rec, Truth(**sel, meta=truth.meta, gyr_bias=gyr_bias[keep], acc_bias=acc_bias[keep])
     return rec
 
@@ -121,8 +143,10 @@ def mag_delay(cfg: SimConfig) -> int:
     return int(round(cfg.mag.latency_s * cfg.imu.rate_hz))
 
 
-Processes = namedtuple("Processes", ["gyro_errors", "acc_errors", "gyr_bias", "gyr_noise", "acc_bias", "acc_noise",
-                                     "vib_offsets", "mag_noise"])
+Processes = namedtuple(
+    "Processes",
+    ["gyro_errors", "acc_errors", "gyr_bias", "gyr_noise", "acc_bias", "acc_noise", "vib_offsets", "mag_noise"],
+)
 """Every sensor error that does not depend on the motion, drawn for one run (:func:`draw_processes`)."""
 
 
@@ -137,15 +161,24 @@ def draw_processes(cfg: SimConfig, t, has_mag, rngs, rotors: int = 0) -> Process
     g_err = S.draw_errors(cfg.gyro, rng_gyro)
     a_err = S.draw_errors(cfg.acc, rng_acc)
     gyr_bias, gyr_noise = S.inertial_processes(t, cfg.gyro, g_err, rng_gyro)
-    vib_offsets = (S.rotor_vibration_offsets(rotors, rng_vib) if rotors
-                   else S.vibration_offsets(cfg.acc.vibration_amp, rng_vib))
+    vib_offsets = (
+        S.rotor_vibration_offsets(rotors, rng_vib) if rotors else S.vibration_offsets(cfg.acc.vibration_amp, rng_vib)
+    )
     acc_bias, acc_noise = S.inertial_processes(t, cfg.acc, a_err, rng_acc)
     mag_noise = S.mag_noise(int(np.count_nonzero(has_mag)), cfg.mag, rng_mag)
     return Processes(g_err, a_err, gyr_bias, gyr_noise, acc_bias, acc_noise, vib_offsets, mag_noise)
 
 
-def sample_sensors(truth: Truth, cfg: SimConfig, keep, has_mag, rngs, meta: dict, processes: Processes | None = None,
-                   vehicle: MultirotorParams | None = None):
+def sample_sensors(
+    truth: Truth,
+    cfg: SimConfig,
+    keep,
+    has_mag,
+    rngs,
+    meta: dict,
+    processes: Processes | None = None,
+    vehicle: MultirotorParams | None = None,
+):
     """The sensors of ``cfg`` sampled from a true motion (prescribed or flown) at its instants:
     IMU with lever arm, errors, vibration and saturation, magnetometer on the rows ``has_mag``;
     rows ``keep`` are recorded (the others were dropped). Returns the recording and the true
@@ -163,31 +196,52 @@ def sample_sensors(truth: Truth, cfg: SimConfig, keep, has_mag, rngs, meta: dict
         pr = draw_processes(cfg, t, has_mag, rngs, rotors=vehicle.rotors if flown else 0)
     else:
         n, m = len(t), int(np.count_nonzero(has_mag))
-        pr = processes._replace(gyr_bias=processes.gyr_bias[:n], gyr_noise=processes.gyr_noise[:n],
-                                acc_bias=processes.acc_bias[:n], acc_noise=processes.acc_noise[:n],
-                                mag_noise=processes.mag_noise[:m])
+        pr = processes._replace(
+            gyr_bias=processes.gyr_bias[:n],
+            gyr_noise=processes.gyr_noise[:n],
+            acc_bias=processes.acc_bias[:n],
+            acc_noise=processes.acc_noise[:n],
+            mag_noise=processes.mag_noise[:m],
+        )
     g_err, a_err = pr.gyro_errors, pr.acc_errors
-    f_imu = S.specific_force_at_imu(truth.q, truth.acc_n, truth.gyr, truth.gyr_dot, cfg.acc.lever_arm,
-                                    cfg.environment.gravity)
+    f_imu = S.specific_force_at_imu(
+        truth.q, truth.acc_n, truth.gyr, truth.gyr_dot, cfg.acc.lever_arm, cfg.environment.gravity
+    )
     if flown:
         rv = S.rotor_vibration_model(vehicle, cfg.acc.vibration_amp, pr.vib_offsets, cfg.acc.lever_arm)
         imbalance = np.zeros_like(truth.rotor_speeds) if truth.rotor_imbalance is None else truth.rotor_imbalance
         vib, gyr_vib = S.rotor_vibration(rv, t, truth.rotor_speeds, imbalance)
     else:
-        vib = S.vibration(t, truth.rotor_load, cfg.vehicle.rotor_hz_hover, cfg.acc.vibration_amp,
-                          offsets=pr.vib_offsets)
+        vib = S.vibration(
+            t, truth.rotor_load, cfg.vehicle.rotor_hz_hover, cfg.acc.vibration_amp, offsets=pr.vib_offsets
+        )
         gyr_vib = None
-    gyr = S.apply_inertial(truth.gyr, g_err["matrix"], pr.gyr_bias, pr.gyr_noise, cfg.gyro.range, extra=gyr_vib,
-                           alpha=S.dlpf_alpha(cfg.gyro.dlpf_hz, rate))
-    acc = S.apply_inertial(f_imu, a_err["matrix"], pr.acc_bias, pr.acc_noise, cfg.acc.range, extra=vib,
-                           alpha=S.dlpf_alpha(cfg.acc.dlpf_hz, rate))
+    gyr = S.apply_inertial(
+        truth.gyr,
+        g_err["matrix"],
+        pr.gyr_bias,
+        pr.gyr_noise,
+        cfg.gyro.range,
+        extra=gyr_vib,
+        alpha=S.dlpf_alpha(cfg.gyro.dlpf_hz, rate),
+    )
+    acc = S.apply_inertial(
+        f_imu,
+        a_err["matrix"],
+        pr.acc_bias,
+        pr.acc_noise,
+        cfg.acc.range,
+        extra=vib,
+        alpha=S.dlpf_alpha(cfg.acc.dlpf_hz, rate),
+    )
     gyr_bias, acc_bias = pr.gyr_bias, pr.acc_bias
     mag = np.full((len(t), 3), np.nan)
     if has_mag.any():
         rows = np.flatnonzero(has_mag)
         src = np.maximum(rows - mag_delay(cfg), 0)  # the field the sample reads is latency_s old
-        mag[rows] = S.magnetometer(truth.q[src], truth.current[src], cfg.environment, cfg.mag, noise=pr.mag_noise,
-                                   pos=truth.pos[src])
+        mag[rows] = S.magnetometer(
+            truth.q[src], truth.current[src], cfg.environment, cfg.mag, noise=pr.mag_noise, pos=truth.pos[src]
+        )
 
     sat = np.abs(truth.gyr @ g_err["matrix"].T + (0.0 if gyr_vib is None else gyr_vib)) > cfg.gyro.range
     meta = {
@@ -205,8 +259,17 @@ def sample_sensors(truth: Truth, cfg: SimConfig, keep, has_mag, rngs, meta: dict
         "scenario_info": truth.meta,
         "config": cfg.to_dict(),
     }
-    rec = Recording(t=t[keep], gyr=gyr[keep], acc=acc[keep], mag=mag[keep], true_q=truth.q[keep],
-                    true_gyr=truth.gyr[keep], true_pos=truth.pos[keep], true_vel=truth.vel[keep],
-                    true_acc=f_imu[keep], meta=meta, check_units=False)
+    rec = Recording(
+        t=t[keep],
+        gyr=gyr[keep],
+        acc=acc[keep],
+        mag=mag[keep],
+        true_q=truth.q[keep],
+        true_gyr=truth.gyr[keep],
+        true_pos=truth.pos[keep],
+        true_vel=truth.vel[keep],
+        true_acc=f_imu[keep],
+        meta=meta,
+        check_units=False,
+    )
     return rec, gyr_bias, acc_bias
-

@@ -6,14 +6,23 @@ direction, so the accelerometer sees thrust and rotor drag as on a real quadcopt
 ``throw`` scenario is a hand motion followed by rigid-body free flight
 (:mod:`quadest.sim.rigid_body`).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from quadest.rotation import (euler_to_quat, matrix_to_quat, quat_conj, quat_continuous, quat_from_rotvec, quat_mul,
-                              quat_to_matrix, quat_to_rotvec)
+from quadest.rotation import (
+    euler_to_quat,
+    matrix_to_quat,
+    quat_conj,
+    quat_continuous,
+    quat_from_rotvec,
+    quat_mul,
+    quat_to_matrix,
+    quat_to_rotvec,
+)
 from quadest.sim import jets as J
 from quadest.sim.jets import Jet
 from quadest.sim.params import SimConfig
@@ -98,9 +107,18 @@ class FlightMotion:
         g = self.cfg.environment.gravity
         v = self.cfg.vehicle
         load = (thrust_spec / n_active) / (g / 4.0)
-        return Truth(t=t, q=_quat(R.v), gyr=w, gyr_dot=wdot, pos=pos.v, vel=pos.d1, acc_n=pos.d2,
-                     current=motor_current(load, n_active, v.thrust_to_weight), rotor_load=load,
-                     meta=self.meta)
+        return Truth(
+            t=t,
+            q=_quat(R.v),
+            gyr=w,
+            gyr_dot=wdot,
+            pos=pos.v,
+            vel=pos.d1,
+            acc_n=pos.d2,
+            current=motor_current(load, n_active, v.thrust_to_weight),
+            rotor_load=load,
+            meta=self.meta,
+        )
 
 
 class HoverMotion(FlightMotion):
@@ -141,8 +159,9 @@ class NominalMotion(HoverMotion):
     def __init__(self, cfg, rng, duration):
         FlightMotion.__init__(self, cfg)
         n = cfg.nominal
-        path = RampedSinusoids.random(rng, n.band_hz, n.components, 3, 0.0, n.ramp_s,
-                                      scale_dims=[1.0, 1.0, n.vertical_ratio])
+        path = RampedSinusoids.random(
+            rng, n.band_hz, n.components, 3, 0.0, n.ramp_s, scale_dims=[1.0, 1.0, n.vertical_ratio]
+        )
         self.path = path.scaled(n.acc_max / path.peak(duration, k=2))
         self.start = np.array([0.0, 0.0, -20.0])
         yaw = Sinusoids.random(rng, n.yaw_band_hz, n.components, 1, power=1.0)
@@ -168,8 +187,9 @@ class DamagedRotorMotion(HoverMotion):
         HoverMotion.__init__(self, cfg, rng, duration)
         dm = cfg.damaged
         self.tf = dm.failure_s
-        man = RampedSinusoids.random(rng, dm.manoeuvre_band_hz, cfg.hover.components, 3, self.tf,
-                                     dm.spin_up_tau_s, scale_dims=[1.0, 1.0, 0.3])
+        man = RampedSinusoids.random(
+            rng, dm.manoeuvre_band_hz, cfg.hover.components, 3, self.tf, dm.spin_up_tau_s, scale_dims=[1.0, 1.0, 0.3]
+        )
         peak = man.peak(max(duration, self.tf + 1.0), k=2)
         self.man = man.scaled(dm.manoeuvre_acc_max / peak)
         var = Sinusoids.random(rng, dm.spin_band_hz, cfg.hover.components, 1, power=0.0)
@@ -191,7 +211,7 @@ class DamagedRotorMotion(HoverMotion):
         x = np.maximum(t - self.tf, 0.0)
         on = t >= self.tf
         e = np.exp(-x / self.tau)
-        return np.where(on, 1 - e, 0.0), np.where(on, e / self.tau, 0.0), np.where(on, -e / self.tau ** 2, 0.0)
+        return np.where(on, 1 - e, 0.0), np.where(on, e / self.tau, 0.0), np.where(on, -e / self.tau**2, 0.0)
 
     def spin(self, t):
         """Spin angle φ_s and its first three derivatives, analytic (including the integral)."""
@@ -200,7 +220,7 @@ class DamagedRotorMotion(HoverMotion):
         arg = np.outer(t, w) + p
         Om = self.Om + np.sin(arg) @ A
         Om1 = np.cos(arg) @ (A * w)
-        Om2 = -np.sin(arg) @ (A * w ** 2)
+        Om2 = -np.sin(arg) @ (A * w**2)
         x = np.maximum(t - self.tf, 0.0)
         on = t >= self.tf
         # ∫_tf^t s(τ') Ω(τ') dτ', with s = 1 − exp(−x/τ): the constant, the sinusoids, and the
@@ -212,15 +232,21 @@ class DamagedRotorMotion(HoverMotion):
         i2 = np.imag(np.exp(1j * th)[None, :] * (np.exp(np.outer(x, lam)) - 1.0) / lam)
         phi = phi + (i1 - i2) @ A
         phi = np.where(on, phi, 0.0)
-        return (self.sign * phi, self.sign * s * Om, self.sign * (s1 * Om + s * Om1),
-                self.sign * (s2 * Om + 2 * s1 * Om1 + s * Om2))
+        return (
+            self.sign * phi,
+            self.sign * s * Om,
+            self.sign * (s1 * Om + s * Om1),
+            self.sign * (s2 * Om + 2 * s1 * Om1 + s * Om2),
+        )
 
     def evaluate(self, t):
         s, s1, s2 = self.ramp(t)
         ramp = Jet(s, s1, s2)
+
         # spin-centre path: the hover gusts plus manoeuvres that start from rest at the failure
         def centre(k0):
             return self.path.jet(t, k0) + self.man.jet(t, k0)
+
         pc, vc, ac = centre(0), centre(1), centre(2)
         u = Jet.const(np.broadcast_to(self.g, ac.v.shape)) - ac - vc * self.d
         n_axis = J.normalize(u)
@@ -228,8 +254,8 @@ class DamagedRotorMotion(HoverMotion):
         ph, ph1, ph2, ph3 = self.spin(t)
         yaw_h = self.yaw.jet(t)
         phi = Jet(ph + yaw_h.v[:, 0], ph1 + yaw_h.d1[:, 0], ph2 + yaw_h.d2[:, 0])
-        k = self.alpha_f / self.Om ** 2
-        alpha = Jet(k * ph1 ** 2, 2 * k * ph1 * ph2, 2 * k * (ph2 ** 2 + ph1 * ph3))
+        k = self.alpha_f / self.Om**2
+        alpha = Jet(k * ph1**2, 2 * k * ph1 * ph2, 2 * k * (ph2**2 + ph1 * ph3))
         R_tilt = J.rot_axis(self.e_tilt, alpha)
         Rspin = J.matmul(R_axis, J.rot_z(phi))
         R = J.matmul(Rspin, J.transpose(R_tilt))
@@ -245,11 +271,11 @@ def _smoothstep(x):
     """S(x) = 3x² − 2x³ on [0, 1] (0 before, 1 after), its integral and derivatives."""
     x = np.clip(x, 0.0, 1.0)
     inside = (x > 0) & (x < 1)
-    S = 3 * x ** 2 - 2 * x ** 3
-    I = x ** 3 - 0.5 * x ** 4
-    S1 = np.where(inside, 6 * x - 6 * x ** 2, 0.0)
+    S = 3 * x**2 - 2 * x**3
+    integral = x**3 - 0.5 * x**4
+    S1 = np.where(inside, 6 * x - 6 * x**2, 0.0)
     S2 = np.where(inside, 6 - 12 * x, 0.0)
-    return I, S, S1, S2
+    return integral, S, S1, S2
 
 
 def uniform_quaternion(rng):
@@ -268,7 +294,8 @@ class ThrowMotion:
     """Held in the hand, thrown, released with a random state, then free flight.
 
     Release state: attitude uniform on SO(3), velocity of uniform direction over the upper
-    hemisphere (any direction with ``any_direction``) and speed in ``[0, speed_max]``, body rate of uniform direction and magnitude in ``[0, rate_max]``. The
+    hemisphere (any direction with ``any_direction``) and speed in ``[0, speed_max]``,
+    body rate of uniform direction and magnitude in ``[0, rate_max]``. The
     hand motion before release is a smooth ramp of velocity ``v0 S(x)`` and body rate
     ``ω0 S(x)`` over ``throw_s`` (S the smoothstep), after ``hold_s`` held still with a small
     tremor, so that the release state is reached continuously. Propellers idle throughout; the
@@ -295,8 +322,12 @@ class ThrowMotion:
         self.g = np.array([0.0, 0.0, cfg.environment.gravity])
         self.idle = -self.C[2, 9] / self.m  # idle specific thrust, m/s² (up the body)
         self.state = None  # free-flight state carried between chunks: (t, x)
-        self.meta = {"release_time_s": self.t_release, "release_q": self.q_r.tolist(),
-                     "release_vel": self.v0.tolist(), "release_gyr": self.w0.tolist()}
+        self.meta = {
+            "release_time_s": self.t_release,
+            "release_q": self.q_r.tolist(),
+            "release_vel": self.v0.tolist(),
+            "release_gyr": self.w0.tolist(),
+        }
 
     def release_state(self):
         x = np.zeros(13)
@@ -306,9 +337,9 @@ class ThrowMotion:
     def _hand(self, t) -> Truth:
         T = self.cfg.throw.throw_s
         x = (t - (self.t_release - T)) / T
-        I, S, S1, S2 = _smoothstep(x)
-        sigma = Jet(T * (I - 0.5), S, S1 / T)  # ∫ S: zero at release
-        hold = Jet(1 - S, -S1 / T, -S2 / T ** 2)  # tremor fades out during the throw
+        integral, S, S1, S2 = _smoothstep(x)
+        sigma = Jet(T * (integral - 0.5), S, S1 / T)  # ∫ S: zero at release
+        hold = Jet(1 - S, -S1 / T, -S2 / T**2)  # tremor fades out during the throw
         pos = J.scale(sigma, Jet.const(np.broadcast_to(self.v0, (len(t), 3)))) + self.p_r
         pos = pos + J.scale(hold, self.tremor.jet(t))
         wn = np.linalg.norm(self.w0)
@@ -316,9 +347,18 @@ class ThrowMotion:
         Rr = Jet.const(np.broadcast_to(quat_to_matrix(self.q_r), (len(t), 3, 3)))
         R = J.matmul(Rr, J.rot_axis(axis, sigma * wn))
         n = len(t)
-        return Truth(t=t, q=_quat(R.v), gyr=np.outer(S, self.w0), gyr_dot=np.outer(S1 / T, self.w0),
-                     pos=pos.v, vel=pos.d1, acc_n=pos.d2, current=self._current(n),
-                     rotor_load=self._load(n), meta=self.meta)
+        return Truth(
+            t=t,
+            q=_quat(R.v),
+            gyr=np.outer(S, self.w0),
+            gyr_dot=np.outer(S1 / T, self.w0),
+            pos=pos.v,
+            vel=pos.d1,
+            acc_n=pos.d2,
+            current=self._current(n),
+            rotor_load=self._load(n),
+            meta=self.meta,
+        )
 
     def _current(self, n):
         return np.full(n, motor_current(self._load(1)[0], 4, self.cfg.vehicle.thrust_to_weight))
@@ -330,13 +370,23 @@ class ThrowMotion:
         if self.state is None:
             self.state = (self.t_release, self.release_state())
         t0, x0 = self.state
-        X, dX = integrate(x0, t0, t, self.cfg.throw.max_step_s, self.m, self.Jd, self.Dd,
-                          self.A, self.B, self.C, self.g)
+        X, dX = integrate(
+            x0, t0, t, self.cfg.throw.max_step_s, self.m, self.Jd, self.Dd, self.A, self.B, self.C, self.g
+        )
         self.state = (t[-1], X[-1].copy())
         n = len(t)
-        return Truth(t=t, q=quat_continuous(X[:, 6:10]), gyr=X[:, 10:13], gyr_dot=dX[:, 10:13],
-                     pos=X[:, 0:3], vel=X[:, 3:6], acc_n=dX[:, 3:6], current=self._current(n),
-                     rotor_load=self._load(n), meta=self.meta)
+        return Truth(
+            t=t,
+            q=quat_continuous(X[:, 6:10]),
+            gyr=X[:, 10:13],
+            gyr_dot=dX[:, 10:13],
+            pos=X[:, 0:3],
+            vel=X[:, 3:6],
+            acc_n=dX[:, 3:6],
+            current=self._current(n),
+            rotor_load=self._load(n),
+            meta=self.meta,
+        )
 
     def evaluate(self, t) -> Truth:
         hand = t < self.t_release
@@ -381,8 +431,9 @@ class CalibrationMotion:
             self.hold, self.turn = c.hold_s, c.turn_s
             # the body axis that points down or up in each position (pitch +90°: nose up)
             self.meta["positions"] = ["z down", "z up", "x up", "x down", "y up", "y down"]
-            self.meta["segments_s"] = [[k * (self.hold + self.turn), k * (self.hold + self.turn) + self.hold]
-                                       for k in range(6)]
+            self.meta["segments_s"] = [
+                [k * (self.hold + self.turn), k * (self.hold + self.turn) + self.hold] for k in range(6)
+            ]
 
     def evaluate(self, t) -> Truth:
         n = len(t)
@@ -402,7 +453,7 @@ class CalibrationMotion:
             k = np.clip((t // period).astype(int), 0, 5)
             x = np.clip((t - k * period - self.hold) / self.turn, 0.0, 1.0)
             x = np.where(k >= 5, 0.0, x)
-            I, S, S1, S2 = _smoothstep(x)
+            integral, S, S1, S2 = _smoothstep(x)
             Rs = np.empty((n, 3, 3))
             axis = np.zeros((n, 3))
             ang = np.zeros(n)
@@ -417,20 +468,33 @@ class CalibrationMotion:
                 Rs[sel] = quat_to_matrix(q0)
                 axis[sel] = rv / a if a > 0 else np.array([0.0, 0.0, 1.0])
                 ang[sel] = a
-            th = Jet(ang * S, ang * S1 / self.turn, ang * S2 / self.turn ** 2)
+            th = Jet(ang * S, ang * S1 / self.turn, ang * S2 / self.turn**2)
             # per-sample axis: Rodrigues with the jet of the angle (axis constant within a turn)
             c_, s_ = J.cos(th), J.sin(th)
             K = np.zeros((n, 3, 3))
             K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
             K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = axis[:, 2], -axis[:, 1], axis[:, 0]
             KK = K @ K
-            rot = Jet.const(np.broadcast_to(np.eye(3), (n, 3, 3))) + J.scale(s_, Jet.const(K)) + J.scale(1.0 - c_, Jet.const(KK))
+            rot = (
+                Jet.const(np.broadcast_to(np.eye(3), (n, 3, 3)))
+                + J.scale(s_, Jet.const(K))
+                + J.scale(1.0 - c_, Jet.const(KK))
+            )
             R = J.matmul(Jet.const(Rs), rot)
         w, wdot = J.body_rates(R)
         zeros = np.zeros((n, 3))
-        return Truth(t=t, q=_quat(R.v), gyr=w, gyr_dot=wdot, pos=np.broadcast_to(self.pos, (n, 3)).copy(),
-                     vel=zeros.copy(), acc_n=zeros.copy(), current=np.zeros(n), rotor_load=np.zeros(n),
-                     meta=self.meta)
+        return Truth(
+            t=t,
+            q=_quat(R.v),
+            gyr=w,
+            gyr_dot=wdot,
+            pos=np.broadcast_to(self.pos, (n, 3)).copy(),
+            vel=zeros.copy(),
+            acc_n=zeros.copy(),
+            current=np.zeros(n),
+            rotor_load=np.zeros(n),
+            meta=self.meta,
+        )
 
 
 def euler_q(roll, pitch, yaw):
@@ -441,8 +505,12 @@ def make_motion(scenario: str, cfg: SimConfig, rng, duration: float):
     """The motion model of a scenario (its random draws come from ``rng``)."""
     if scenario in CALIBRATION_SCENARIOS:
         return CalibrationMotion(scenario, cfg, rng, duration)
-    cls = {"hover": HoverMotion, "nominal": NominalMotion, "damaged-rotor": DamagedRotorMotion,
-           "throw": ThrowMotion}.get(scenario)
+    cls = {
+        "hover": HoverMotion,
+        "nominal": NominalMotion,
+        "damaged-rotor": DamagedRotorMotion,
+        "throw": ThrowMotion,
+    }.get(scenario)
     if cls is None:
         raise ValueError(f"unknown scenario {scenario!r}; scenarios: {', '.join(SCENARIOS)}")
     return cls(cfg, rng, duration)
@@ -456,6 +524,5 @@ def default_duration(scenario: str, cfg: SimConfig) -> float:
         return 6 * c.hold_s + 5 * c.turn_s
     if scenario == "figure-eight":
         return c.figure8_s
-    sec = {"hover": cfg.hover, "nominal": cfg.nominal, "damaged-rotor": cfg.damaged,
-           "throw": cfg.throw}[scenario]
+    sec = {"hover": cfg.hover, "nominal": cfg.nominal, "damaged-rotor": cfg.damaged, "throw": cfg.throw}[scenario]
     return sec.duration_s

@@ -9,6 +9,7 @@ without redoing finished runs.
 Each run's row is written once: Dask may execute a task twice when a worker dies, but the
 client receives each future's result once, and only the client writes.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -56,8 +57,10 @@ class ResultStore:
             have = {f.name: str(f.type) for f in schema}
             wrong = [f"{c} ({have.get(c, 'missing')}, not {t})" for c, t in row_types.items() if have.get(c) != t]
             if wrong:
-                raise ValueError(f"{p}: not a results file of this quadest's sweeps (columns {', '.join(wrong[:4])}"
-                                 f"{' ...' if len(wrong) > 4 else ''}); give another -o, or move it away")
+                raise ValueError(
+                    f"{p}: not a results file of this quadest's sweeps (columns {', '.join(wrong[:4])}"
+                    f"{' ...' if len(wrong) > 4 else ''}); give another -o, or move it away"
+                )
 
     def _tables(self):
         import pyarrow as pa
@@ -142,8 +145,15 @@ class ResultStore:
         shutil.rmtree(self.parts, ignore_errors=True)
 
 
-def run_sweep(runs, out, *, workers: int | None = 0, scheduler: str | None = None, retry_failed: bool = False,
-              progress: bool = True) -> dict:
+def run_sweep(
+    runs,
+    out,
+    *,
+    workers: int | None = 0,
+    scheduler: str | None = None,
+    retry_failed: bool = False,
+    progress: bool = True,
+) -> dict:
     """Execute the runs not yet in ``out`` and append their rows. Returns counts and timing.
     Runs on the same flight go to one task (up to 32 runs), so each flight is simulated or
     read once; rows are still written one per run as the tasks finish."""
@@ -171,14 +181,32 @@ def run_sweep(runs, out, *, workers: int | None = 0, scheduler: str | None = Non
     t0 = time.perf_counter()
     stats: dict = {}
     try:
-        execute(run_group, groups, keys=group_keys, workers=workers, scheduler=scheduler, on_result=on_result,
-                progress=progress, desc="sweep", stats=stats, weights=[len(g) for g in groups])
+        execute(
+            run_group,
+            groups,
+            keys=group_keys,
+            workers=workers,
+            scheduler=scheduler,
+            on_result=on_result,
+            progress=progress,
+            desc="sweep",
+            stats=stats,
+            weights=[len(g) for g in groups],
+        )
     finally:
         store.compact()  # also on Ctrl-C; a killed process leaves its parts for the next sweep
     wall = time.perf_counter() - t0
     compute = stats.get("compute_s", wall)
     table = store.read()
     status = table.column("status").to_pylist() if table is not None else []
-    return {"runs": len(runs), "skipped": len(runs) - len(todo), "executed": len(todo), "wall_s": wall,
-            "compute_s": compute, "runs_per_s": len(todo) / compute if compute > 0 and todo else float("nan"),
-            "ok": status.count("ok"), "failed": status.count("failed"), "executed_ok": new_ok[0]}
+    return {
+        "runs": len(runs),
+        "skipped": len(runs) - len(todo),
+        "executed": len(todo),
+        "wall_s": wall,
+        "compute_s": compute,
+        "runs_per_s": len(todo) / compute if compute > 0 and todo else float("nan"),
+        "ok": status.count("ok"),
+        "failed": status.count("failed"),
+        "executed_ok": new_ok[0],
+    }

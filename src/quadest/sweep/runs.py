@@ -6,6 +6,7 @@ scenario with its seed, or a recording file) and how to evaluate. Its ``run_id``
 that dict, so the same run has the same id in every sweep, which is what resuming relies on,
 and the result depends on nothing else: the seed travels with the task.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -25,28 +26,51 @@ from quadest.flight import fly, in_loop_estimators
 from quadest.readers import read_recording
 from quadest.sim import simulate
 
-METRICS = ("total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg", "roll_rms_deg", "pitch_rms_deg",
-           "yaw_rms_deg")
+METRICS = ("total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg", "roll_rms_deg", "pitch_rms_deg", "yaw_rms_deg")
 
 
-ROW_TYPES = {"run_id": "string", "filter": "string", "params": "string", "source": "string", "seed": "int64",
-             "spec": "string", "status": "string", "error": "string", **{k: "double" for k in METRICS},
-             "samples": "int64", "seconds": "double"}
+ROW_TYPES = {
+    "run_id": "string",
+    "filter": "string",
+    "params": "string",
+    "source": "string",
+    "seed": "int64",
+    "spec": "string",
+    "status": "string",
+    "error": "string",
+    **{k: "double" for k in METRICS},
+    "samples": "int64",
+    "seconds": "double",
+}
 """The columns of a results row and their Arrow types (a results file must hold these)."""
 
 
-FLOWN_ROW_TYPES = {**ROW_TYPES, "flight": "string", "reason": "string", "end_time_s": "double",
-                   "time_to_settle_s": "double", "position_rms_m": "double", "spin_rate_rad_s": "double",
-                   "tilt_deg": "double", "recovered": "int64", "handover_s": "double",
-                   "gravity_error_at_handover_deg": "double"}
+FLOWN_ROW_TYPES = {
+    **ROW_TYPES,
+    "flight": "string",
+    "reason": "string",
+    "end_time_s": "double",
+    "time_to_settle_s": "double",
+    "position_rms_m": "double",
+    "spin_rate_rad_s": "double",
+    "tilt_deg": "double",
+    "recovered": "int64",
+    "handover_s": "double",
+    "gravity_error_at_handover_deg": "double",
+}
 """A flown run's row: the estimation columns (``total_rmse_deg``: the attitude error the
 controller flew with, ``inclination_rmse_deg``: its tilt error; the others NaN) and the
 flight's outcome (``flight``: survived, crashed or stopped; ``recovered`` 1/0 for a throw, −1
 otherwise)."""
-FLOWN_FIELDS = {"end_time_s": "end_time_s", "time_to_settle_s": "time_to_settle_s",
-                "position_rms_m": "position_rms_settled_m", "spin_rate_rad_s": "spin_rate_rad_s",
-                "tilt_deg": "tilt_deg", "handover_s": "handover_s",
-                "gravity_error_at_handover_deg": "gravity_error_at_handover_deg"}
+FLOWN_FIELDS = {
+    "end_time_s": "end_time_s",
+    "time_to_settle_s": "time_to_settle_s",
+    "position_rms_m": "position_rms_settled_m",
+    "spin_rate_rad_s": "spin_rate_rad_s",
+    "tilt_deg": "tilt_deg",
+    "handover_s": "handover_s",
+    "gravity_error_at_handover_deg": "gravity_error_at_handover_deg",
+}
 
 
 def row_types(runs) -> dict:
@@ -60,9 +84,16 @@ def row_types(runs) -> dict:
 def empty_row(spec: dict, error: str = "") -> dict:
     """A run's row before (or without) its results: NaN metrics, status failed when ``error``."""
     layout = FLOWN_ROW_TYPES if spec["source"]["kind"] == "flown" else ROW_TYPES
-    row = {"run_id": run_id(spec), "filter": spec["filter"], "params": json.dumps(spec["params"], sort_keys=True),
-           "source": source_label(spec["source"]), "seed": spec["source"].get("seed", -1),
-           "spec": json.dumps(spec, sort_keys=True), "status": "failed" if error else "ok", "error": error}
+    row = {
+        "run_id": run_id(spec),
+        "filter": spec["filter"],
+        "params": json.dumps(spec["params"], sort_keys=True),
+        "source": source_label(spec["source"]),
+        "seed": spec["source"].get("seed", -1),
+        "spec": json.dumps(spec, sort_keys=True),
+        "status": "failed" if error else "ok",
+        "error": error,
+    }
     for k, t in layout.items():
         if k not in row:
             row[k] = {"double": math.nan, "int64": -1 if k == "recovered" else 0, "string": ""}[t]
@@ -112,16 +143,39 @@ def param_sets(grid: dict) -> list[dict]:
 
 
 def sim_sources(scenario, preset, seeds, duration=None, overrides=None, t_from=None) -> list[dict]:
-    return [{"kind": "sim", "scenario": scenario, "preset": preset, "seed": int(s), "duration": duration,
-             "set": dict(overrides or {}), "from_s": t_from} for s in seeds]
+    return [
+        {
+            "kind": "sim",
+            "scenario": scenario,
+            "preset": preset,
+            "seed": int(s),
+            "duration": duration,
+            "set": dict(overrides or {}),
+            "from_s": t_from,
+        }
+        for s in seeds
+    ]
 
 
-def flown_sources(scenario, seeds, *, controller=None, failures=(None,), duration=None, vehicle="recovery",
-                  preset=None) -> list[dict]:
+def flown_sources(
+    scenario, seeds, *, controller=None, failures=(None,), duration=None, vehicle="recovery", preset=None
+) -> list[dict]:
     """Flown flights (:func:`quadest.flight.fly`): one per (failure, seed); a failure as
     ``{"rotor", "time_s", "efficiency"[, "imbalance"]}`` or None."""
-    return [{"kind": "flown", "scenario": scenario, "controller": controller, "failure": f, "seed": int(s),
-             "duration": duration, "vehicle": vehicle, "preset": preset} for f in failures for s in seeds]
+    return [
+        {
+            "kind": "flown",
+            "scenario": scenario,
+            "controller": controller,
+            "failure": f,
+            "seed": int(s),
+            "duration": duration,
+            "vehicle": vehicle,
+            "preset": preset,
+        }
+        for f in failures
+        for s in seeds
+    ]
 
 
 def file_sources(paths, fmt=None) -> list[dict]:
@@ -129,9 +183,11 @@ def file_sources(paths, fmt=None) -> list[dict]:
     for p in paths:
         p = Path(p)
         if p.is_dir() and not (p / "metadata.yaml").is_file() and not (p / "data.hdf5").is_file():
-            out += [{"kind": "file", "path": str(f.resolve()), "format": fmt}
-                    for f in sorted(p.iterdir()) if f.suffix.lower() in (".hdf5", ".h5", ".mat", ".csv", ".parquet",
-                                                                           ".ulg", ".bin", ".bag")]
+            out += [
+                {"kind": "file", "path": str(f.resolve()), "format": fmt}
+                for f in sorted(p.iterdir())
+                if f.suffix.lower() in (".hdf5", ".h5", ".mat", ".csv", ".parquet", ".ulg", ".bin", ".bag")
+            ]
         else:
             out.append({"kind": "file", "path": str(p.resolve()), "format": fmt})
     if not out:
@@ -147,8 +203,9 @@ def flown_names(filters, scenario: str) -> list[str]:
     names = known if spec in ("all", "quadest") else [n.strip() for n in spec.split(",") if n.strip()]
     bad = [n for n in names if n not in known]
     if bad or not names:
-        raise UsageError(f"unknown estimator(s) in the loop for {scenario}: {', '.join(bad) or spec!r}; known: "
-                         f"{', '.join(known)}")
+        raise UsageError(
+            f"unknown estimator(s) in the loop for {scenario}: {', '.join(bad) or spec!r}; known: {', '.join(known)}"
+        )
     return names
 
 
@@ -177,9 +234,15 @@ def build_runs(filters, grid: dict, sources, align: str | None = None) -> list[d
 def source_label(src: dict) -> str:
     if src["kind"] == "flown":
         f = src.get("failure")
-        fail = (f"/rotor{f['rotor']}@{f['time_s']:g}" + (f":{f['efficiency']:g}" if f["efficiency"] or f.get("imbalance")
-                                                         else "")
-                + (f":{f['imbalance']:g}" if f.get("imbalance") else "")) if f else ""
+        fail = (
+            (
+                f"/rotor{f['rotor']}@{f['time_s']:g}"
+                + (f":{f['efficiency']:g}" if f["efficiency"] or f.get("imbalance") else "")
+                + (f":{f['imbalance']:g}" if f.get("imbalance") else "")
+            )
+            if f
+            else ""
+        )
         return f"flown {src['scenario']}{fail}/seed{src['seed']}"
     if src["kind"] == "sim":
         return f"{src['scenario']}/{src['preset']}/seed{src['seed']}"
@@ -199,8 +262,13 @@ def _file(path, fmt):
 
 def load_source(src: dict):
     if src["kind"] == "sim":
-        return _sim(src["scenario"], src["preset"], src["seed"], src.get("duration"),
-                    json.dumps(src.get("set") or {}, sort_keys=True))
+        return _sim(
+            src["scenario"],
+            src["preset"],
+            src["seed"],
+            src.get("duration"),
+            json.dumps(src.get("set") or {}, sort_keys=True),
+        )
     return _file(src["path"], src.get("format"))
 
 
@@ -225,15 +293,28 @@ def fly_one(spec: dict, row: dict) -> None:
     """A flown run: fly it and put its summary into ``row``."""
     src = spec["source"]
     f = src.get("failure")
-    flight = fly(src["scenario"], estimator=spec["filter"], controller=src.get("controller"),
-                 duration=src.get("duration"), seed=src["seed"], preset=src.get("preset"),
-                 vehicle=src.get("vehicle") or "recovery", failure=Failure(**f) if f else None,
-                 estimator_params=spec["params"] or None)
+    flight = fly(
+        src["scenario"],
+        estimator=spec["filter"],
+        controller=src.get("controller"),
+        duration=src.get("duration"),
+        seed=src["seed"],
+        preset=src.get("preset"),
+        vehicle=src.get("vehicle") or "recovery",
+        failure=Failure(**f) if f else None,
+        estimator_params=spec["params"] or None,
+    )
     s = flight.summary
-    row.update({"flight": s["status"], "reason": s["reason"], "samples": len(flight.recording),
-                "total_rmse_deg": s.get("attitude_error_rms_deg", math.nan),
-                "inclination_rmse_deg": s.get("tilt_error_rms_deg", math.nan),
-                "recovered": int(s["recovered"]) if "recovered" in s else -1})
+    row.update(
+        {
+            "flight": s["status"],
+            "reason": s["reason"],
+            "samples": len(flight.recording),
+            "total_rmse_deg": s.get("attitude_error_rms_deg", math.nan),
+            "inclination_rmse_deg": s.get("tilt_error_rms_deg", math.nan),
+            "recovered": int(s["recovered"]) if "recovered" in s else -1,
+        }
+    )
     for col, key in FLOWN_FIELDS.items():
         v = s.get(key)
         row[col] = math.nan if v is None else float(v)
@@ -255,10 +336,17 @@ def run_one(spec: dict) -> dict:
         rec = load_source(spec["source"])
         q = estimate(rec, spec["filter"], spec["params"]).q
         s = score(rec, q, nav=spec.get("align"), t_from=spec["source"].get("from_s"))
-        row.update({"total_rmse_deg": s["total_rmse_deg"], "heading_rmse_deg": s["heading_rmse_deg"],
-                    "inclination_rmse_deg": s["inclination_rmse_deg"], "roll_rms_deg": s["rms_deg"]["roll"],
-                    "pitch_rms_deg": s["rms_deg"]["pitch"], "yaw_rms_deg": s["rms_deg"]["yaw"],
-                    "samples": s["samples"]})
+        row.update(
+            {
+                "total_rmse_deg": s["total_rmse_deg"],
+                "heading_rmse_deg": s["heading_rmse_deg"],
+                "inclination_rmse_deg": s["inclination_rmse_deg"],
+                "roll_rms_deg": s["rms_deg"]["roll"],
+                "pitch_rms_deg": s["rms_deg"]["pitch"],
+                "yaw_rms_deg": s["rms_deg"]["yaw"],
+                "samples": s["samples"],
+            }
+        )
     except Exception as exc:  # a failing run is recorded and the sweep goes on
         row["status"] = "failed"
         row["error"] = f"{type(exc).__name__}: {exc}"

@@ -1,6 +1,7 @@
 """A sweep's results for a person (``quadest report RESULTS.parquet``, issue #16): per filter,
 each parameter set's mean metrics over the sources it ran on, and the metric against each
 swept parameter."""
+
 from __future__ import annotations
 
 import json
@@ -29,8 +30,14 @@ def sweep_summary(table) -> dict:
     ok = [r for r in rows if r["status"] == "ok"]
     metrics = [m for m in METRICS if m in (rows[0] if rows else {})]
     extra = [k for k in ("position_rms_m", "time_to_settle_s", "spin_rate_rad_s") if rows and k in rows[0]]
-    out = {"runs": len(rows), "ok": len(ok), "failed": len(rows) - len(ok),
-           "sources": len({r["source"] for r in rows}), "metrics": metrics + extra, "filters": {}}
+    out = {
+        "runs": len(rows),
+        "ok": len(ok),
+        "failed": len(rows) - len(ok),
+        "sources": len({r["source"] for r in rows}),
+        "metrics": metrics + extra,
+        "filters": {},
+    }
     for name in sorted({r["filter"] for r in rows}):
         mine = [r for r in ok if r["filter"] == name]
         sets: dict = {}
@@ -47,6 +54,9 @@ def sweep_summary(table) -> dict:
             entries.append(e)
         entries.sort(key=lambda e: (e.get("total_rmse_deg") is None, e.get("total_rmse_deg") or 0.0))
         keys = sorted({k for e in entries for k, v in e["params"].items() if isinstance(v, (int, float))})
-        out["filters"][name] = {"sets": entries, "params": keys,
-                                "failed": sum(1 for r in rows if r["filter"] == name and r["status"] != "ok")}
+        out["filters"][name] = {
+            "sets": entries,
+            "params": keys,
+            "failed": sum(1 for r in rows if r["filter"] == name and r["status"] != "ok"),
+        }
     return out

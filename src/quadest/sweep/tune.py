@@ -1,6 +1,7 @@
 """Choosing parameters from a sweep's results (docs/sweeps.md): one set for all trials, the
 one with the lowest mean metric over the trials (BROAD's "trial-agnostic" choice), and the best
 set per trial."""
+
 from __future__ import annotations
 
 import json
@@ -35,11 +36,15 @@ def select(table, filter_name: str, metric: str = "total_rmse_deg") -> dict:
         cand = [(r[metric], r["params"]) for r in rows if r["source"] == s]
         m, p = min(cand)
         per_trial[s] = {"params": json.loads(p), metric: m, "with_agnostic": by_params[best].get(s)}
-    return {"filter": filter_name, "metric": metric, "trials": len(sources), "parameter_sets": len(by_params),
-            "trial_agnostic": {"params": json.loads(best), metric: means[best],
-                               "per_trial": by_params[best]},
-            "per_trial": per_trial,
-            "per_trial_mean": float(np.mean([v[metric] for v in per_trial.values()]))}
+    return {
+        "filter": filter_name,
+        "metric": metric,
+        "trials": len(sources),
+        "parameter_sets": len(by_params),
+        "trial_agnostic": {"params": json.loads(best), metric: means[best], "per_trial": by_params[best]},
+        "per_trial": per_trial,
+        "per_trial_mean": float(np.mean([v[metric] for v in per_trial.values()])),
+    }
 
 
 def halves(sources) -> tuple[list[str], list[str]]:
@@ -70,25 +75,54 @@ def split_select(table, filter_name: str, metric: str = "total_rmse_deg") -> dic
     for name, tune_on, held in (("A", a, b), ("B", b, a)):
         mean = {p: float(np.mean([v[s] for s in tune_on])) for p, v in complete.items()}
         best = min(mean, key=mean.get)
-        folds.append({"tuned_on": name, "tuned_on_trials": tune_on, "params": json.loads(best),
-                      "tuned_mean": mean[best], "held_out": "B" if name == "A" else "A", "held_out_trials": held,
-                      "held_out_mean": float(np.mean([complete[best][s] for s in held]))})
-    sets = sorted(({"params": json.loads(p), "mean_A": float(np.mean([v[s] for s in a])),
-                    "mean_B": float(np.mean([v[s] for s in b])), "mean": float(np.mean([v[s] for s in a + b]))}
-                   for p, v in complete.items()), key=lambda r: r["mean"])
-    return {"filter": filter_name, "metric": metric, "parameter_sets": len(complete), "folds": folds,
-            "halves": {"A": a, "B": b}, "sets": sets}
+        folds.append(
+            {
+                "tuned_on": name,
+                "tuned_on_trials": tune_on,
+                "params": json.loads(best),
+                "tuned_mean": mean[best],
+                "held_out": "B" if name == "A" else "A",
+                "held_out_trials": held,
+                "held_out_mean": float(np.mean([complete[best][s] for s in held])),
+            }
+        )
+    sets = sorted(
+        (
+            {
+                "params": json.loads(p),
+                "mean_A": float(np.mean([v[s] for s in a])),
+                "mean_B": float(np.mean([v[s] for s in b])),
+                "mean": float(np.mean([v[s] for s in a + b])),
+            }
+            for p, v in complete.items()
+        ),
+        key=lambda r: r["mean"],
+    )
+    return {
+        "filter": filter_name,
+        "metric": metric,
+        "parameter_sets": len(complete),
+        "folds": folds,
+        "halves": {"A": a, "B": b},
+        "sets": sets,
+    }
 
 
 def format_split(sel: dict) -> str:
     m = sel["metric"]
-    lines = [f"{sel['filter']}: {sel['parameter_sets']} parameter set(s), metric {m}, split into halves "
-             "(sorted trials, alternately)"]
+    lines = [
+        f"{sel['filter']}: {sel['parameter_sets']} parameter set(s), metric {m}, split into halves "
+        "(sorted trials, alternately)"
+    ]
     for f in sel["folds"]:
-        lines.append(f"tuned on {f['tuned_on']} ({', '.join(t[:12] for t in f['tuned_on_trials'])}): "
-                     f"{f['params']}  mean {f['tuned_mean']:.3f} (in-sample)")
-        lines.append(f"  held-out {f['held_out']} ({', '.join(t[:12] for t in f['held_out_trials'])}): "
-                     f"mean {f['held_out_mean']:.3f}")
+        lines.append(
+            f"tuned on {f['tuned_on']} ({', '.join(t[:12] for t in f['tuned_on_trials'])}): "
+            f"{f['params']}  mean {f['tuned_mean']:.3f} (in-sample)"
+        )
+        lines.append(
+            f"  held-out {f['held_out']} ({', '.join(t[:12] for t in f['held_out_trials'])}): "
+            f"mean {f['held_out_mean']:.3f}"
+        )
     return "\n".join(lines)
 
 
@@ -101,8 +135,9 @@ def _tuning_table(runs, out, **engine):
     return table.filter(pc.is_in(table.column("run_id"), value_set=wanted)), res
 
 
-def tune(runs, out, filter_name: str, metric: str = "total_rmse_deg", *, split: bool = False,
-         **engine) -> tuple[dict, dict]:
+def tune(
+    runs, out, filter_name: str, metric: str = "total_rmse_deg", *, split: bool = False, **engine
+) -> tuple[dict, dict]:
     """Run (or resume) a tuning sweep and choose parameters over exactly these runs: one set for
     all (:func:`select`) or, with ``split``, by halves (:func:`split_select`). Returns
     ``(selection, sweep summary)``; ``engine``: the keyword arguments of
@@ -114,10 +149,12 @@ def tune(runs, out, filter_name: str, metric: str = "total_rmse_deg", *, split: 
 def format_selection(sel: dict) -> str:
     m = sel["metric"]
     ta = sel["trial_agnostic"]
-    lines = [f"{sel['filter']}: {sel['parameter_sets']} parameter set(s) on {sel['trials']} trial(s), metric {m}",
-             f"trial-agnostic best: {ta['params']}  mean {ta[m]:.3f}",
-             f"per-trial best: mean {sel['per_trial_mean']:.3f}",
-             f"{'trial':<40}{'per-trial best':>16}{'agnostic':>10}  parameters"]
+    lines = [
+        f"{sel['filter']}: {sel['parameter_sets']} parameter set(s) on {sel['trials']} trial(s), metric {m}",
+        f"trial-agnostic best: {ta['params']}  mean {ta[m]:.3f}",
+        f"per-trial best: mean {sel['per_trial_mean']:.3f}",
+        f"{'trial':<40}{'per-trial best':>16}{'agnostic':>10}  parameters",
+    ]
     for s, v in sel["per_trial"].items():
         lines.append(f"{s[:39]:<40}{v[m]:>16.3f}{v['with_agnostic']:>10.3f}  {v['params']}")
     return "\n".join(lines)

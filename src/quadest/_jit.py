@@ -1,20 +1,23 @@
-"""numba's on-disk cache, keyed on quadest's whole source (docs/developing.md, the cache rule).
+"""numba's decorators, with quadest's cache folder set before any compiled function is defined
+(docs/developing.md, the cache rule).
 
 numba keys each compiled function's cache entry on that function's own file. quadest's steps
 take constants and kernels from shared modules (``filters/common.py``, ``filters/linalg.py``,
 ``rotation/kernels.py``); an edit there would leave every filter's cached machine code in use,
-and results silently stale. So quadest points numba's cache at a folder named by a hash of every
-``.py`` file of the package: any edit anywhere gives a new folder and a fresh compile. Folders of
-older hashes are removed, keeping the few most recently used (another checkout or version may
-still use them).
+and results silently stale. So numba's cache is a folder named by a hash of every ``.py`` file
+of the package: any edit anywhere gives a new folder and a fresh compile.
+
+Every compiled function of quadest is defined with ``from quadest._jit import njit`` (a test
+refuses ``from numba import njit``), so the folder is chosen exactly when compiled code is first
+imported, never by ``import quadest`` alone. Housekeeping happens only where a compile follows
+anyway: when the current folder is new, folders of older hashes beyond the few most recently
+used are removed. ``make clean-cache`` removes them all.
 
 ``NUMBA_CACHE_DIR`` set by the user is respected as it is. The folder is
 ``$XDG_CACHE_HOME/quadest/numba/<hash>`` (``~/.cache`` without ``XDG_CACHE_HOME``), or under the
 temporary directory where that cannot be written.
-
-This module must run before any compiled function is defined: ``quadest/__init__.py`` calls
-:func:`configure` first.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -46,27 +49,30 @@ def cache_root() -> Path:
     return Path(base) / "quadest" / "numba"
 
 
-def _usable(folder: Path) -> bool:
+def _made(folder: Path) -> bool | None:
+    """Make ``folder`` if it is missing: True if it was made now, False if it was there and is
+    writable, None if it cannot be used."""
+    if folder.is_dir():
+        return False if os.access(folder, os.W_OK | os.X_OK) else None
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        os.utime(folder)  # marks it as recently used
         probe = folder / f".probe-{os.getpid()}"
         probe.write_bytes(b"")
         probe.unlink()
         return True
     except OSError:
-        return False
+        return None
 
 
 def clean(root: Path, current: Path, keep: int = KEEP) -> list[Path]:
-    """Remove cache folders of other hashes beyond the ``keep − 1`` most recently used."""
+    """Remove cache folders of other hashes beyond the ``keep − 1`` most recently changed."""
     try:
         others = [d for d in root.iterdir() if d.is_dir() and d != current]
     except OSError:
         return []
     others.sort(key=lambda d: d.stat().st_mtime, reverse=True)
     removed = []
-    for d in others[max(0, keep - 1):]:
+    for d in others[max(0, keep - 1) :]:
         shutil.rmtree(d, ignore_errors=True)
         removed.append(d)
     return removed
@@ -79,14 +85,16 @@ def configure() -> str | None:
     if user and user != os.environ.get(_MARK):
         return None
     digest = source_hash()
-    folder = None
-    for root in (cache_root(), Path(tempfile.gettempdir()) / f"quadest-numba-{getattr(os, 'getuid', lambda: 0)()}"):
-        if _usable(root / digest):
-            folder = root / digest
-            clean(root, folder)
+    uid = getattr(os, "getuid", lambda: 0)()
+    for root in (cache_root(), Path(tempfile.gettempdir()) / f"quadest-numba-{uid}"):
+        made = _made(root / digest)
+        if made is not None:
             break
-    if folder is None:
+    else:
         return None
+    folder = root / digest
+    if made:  # a new source: everything compiles now, and older folders may go
+        clean(root, folder)
     from numba.core import config
 
     # both: numba re-reads its environment before compiling when a NUMBA_ variable changed,
@@ -94,3 +102,11 @@ def configure() -> str | None:
     os.environ["NUMBA_CACHE_DIR"] = os.environ[_MARK] = str(folder)
     config.CACHE_DIR = str(folder)
     return str(folder)
+
+
+CACHE_DIR = configure()
+"""Where compiled code is cached (None when ``NUMBA_CACHE_DIR`` was set by the user)."""
+
+from numba import carray, cfunc, njit, types  # noqa: E402  (after the cache folder is set)
+
+__all__ = ["CACHE_DIR", "carray", "cfunc", "njit", "types"]
