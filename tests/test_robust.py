@@ -12,7 +12,7 @@ import pytest
 
 from quadest.conventions import GRAVITY
 from quadest.filters import make_filter
-from quadest.filters.robust import UNKNOWN_HEADING_VAR, S, _mag_rate_terms
+from quadest.filters.robust import UNKNOWN_HEADING_VAR, S, mag_rate_terms
 from quadest.rotation import quat_conj, quat_from_rotvec, quat_mul, quat_rotate
 from quadest.sim import simulate
 
@@ -138,7 +138,7 @@ def test_rate_from_the_field_least_squares():
     w, dt = 15.0, 0.01
     m = [np.array([20.0 * math.cos(-w * t), 20.0 * math.sin(-w * t), 45.0]) for t in (0.0, dt)]
     c, d = 0.5 * (m[0] + m[1]), (m[1] - m[0]) / dt
-    num, den = _mag_rate_terms(c[2], c[0], c[1], d[0], d[1], 0.0, 0.0)
+    num, den = mag_rate_terms(c[2], c[0], c[1], d[0], d[1], 0.0, 0.0)
     half = 0.5 * w * dt
     assert num / den == pytest.approx(w * math.tan(half) / half, rel=1e-9)
 

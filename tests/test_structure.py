@@ -261,3 +261,47 @@ def test_compiled_code_is_defined_through_quadest_jit():
             elif isinstance(n, ast.Import) and any(a.name.split(".")[0] == "numba" for a in n.names):
                 problems.append(f"{path.relative_to(SRC)}:{n.lineno} imports numba")
     assert not problems, "\n".join(problems)
+
+
+def _estimator_private_names() -> set[str]:
+    from quadest.filters.base import Estimator
+    from quadest.filters.madgwick import Madgwick
+
+    est = Madgwick()
+    names = set(vars(est)) | set(vars(Estimator))
+    return {n for n in names if n.startswith("_") and not n.startswith("__")}
+
+
+def test_nothing_outside_filters_reads_an_estimator_private_field():
+    """A loop in compiled code takes what it needs from ``Estimator.compiled()``; nothing outside
+    ``filters/`` reads an estimator's private fields or imports a private name of ``filters``."""
+    private = _estimator_private_names()
+    assert {"_x", "_p", "_c", "_diag"} <= private
+    problems = []
+    for path in sorted(SRC.rglob("*.py")):
+        if "filters" in path.relative_to(SRC).parts:
+            continue
+        for n in ast.walk(ast.parse(path.read_text())):
+            where = f"{path.relative_to(SRC)}:{getattr(n, 'lineno', 0)}"
+            if isinstance(n, ast.Attribute) and n.attr in private:
+                problems.append(f"{where} reads .{n.attr}")
+            if isinstance(n, ast.ImportFrom) and (n.module or "").startswith("quadest.filters"):
+                problems += [f"{where} imports {a.name}" for a in n.names if a.name.startswith("_")]
+    assert not problems, "\n".join(problems)
+
+
+def test_compiled_gives_the_live_state():
+    """``compiled()`` hands out the estimator's own arrays: a step run on them is the step the
+    estimator's next update continues from."""
+    import numpy as np
+
+    from quadest.filters import make_filter
+
+    est = make_filter("robust", declination=0.2)
+    c = est.compiled()
+    gyr, acc, mag = np.array([0.1, 0.0, 0.0]), np.array([0.0, 0.0, -9.81]), np.array([20.0, 0.0, 40.0])
+    c.step(c.state, c.params, c.coefficients, gyr, acc, mag, 0.01, c.diag)
+    other = make_filter("robust", declination=0.2)
+    other.update(gyr, acc, mag, dt=0.01)
+    np.testing.assert_array_equal(est.get_state(), other.get_state())
+    np.testing.assert_allclose(c.declination_quat, [np.cos(0.1), 0.0, 0.0, np.sin(0.1)], rtol=0, atol=1e-15)

@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 from collections import namedtuple
 from dataclasses import dataclass, fields, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -119,8 +120,27 @@ class FilterResult:
         return quat_to_euler(self.q)
 
 
-def _declination_quat(declination):
+def declination_quat(declination: float) -> np.ndarray:
+    """``[cos δ/2, 0, 0, sin δ/2]``: the rotation about down that takes the magnetic frame's
+    attitude into the geographic frame (``q_geo = dq ⊗ q_mag``), δ the declination (rad)."""
     return np.array([math.cos(0.5 * declination), 0.0, 0.0, math.sin(0.5 * declination)])
+
+
+class CompiledEstimator(NamedTuple):
+    """What a compiled loop needs to run an estimator's step (:meth:`Estimator.compiled`)."""
+
+    step: object
+    """The compiled step ``step(state, params, coefficients, gyr, acc, mag, dt, diag)``: the
+    function the batch run and streaming call."""
+    state: np.ndarray
+    """The estimator's own state, written in place: the estimator goes on from where a loop
+    leaves it (its attitude in the magnetic frame at ``state[0:4]``)."""
+    params: np.ndarray
+    coefficients: np.ndarray
+    diag: np.ndarray
+    """Written by each step: the estimator's diagnostics (``diag_names``)."""
+    declination_quat: np.ndarray
+    """:func:`declination_quat` of the estimator's declination."""
 
 
 class Estimator:
@@ -173,6 +193,14 @@ class Estimator:
         self.reset()
 
     # -- state ----------------------------------------------------------------------------
+    def compiled(self) -> CompiledEstimator:
+        """The compiled step and the live arrays it works on, for a loop in compiled code (the
+        closed loop of :mod:`quadest.flight`): nothing outside ``filters`` reads a private field.
+        A new state (:meth:`reset`, :meth:`set_state`) makes new arrays: call it again after."""
+        return CompiledEstimator(
+            type(self).step, self._x, self._p, self._c, self._diag, declination_quat(self.declination)
+        )
+
     def _init_state(self, x: np.ndarray) -> None:
         """Estimator-specific initial values of ``x[BASE:]`` (zeros by default)."""
 
@@ -185,7 +213,7 @@ class Estimator:
         x[T_LAST] = np.nan
         if self._q0 is not None:
             # the estimator's frame is magnetic; q0 is given in the geographic frame
-            x[0:4] = quat_mul(_declination_quat(-self.declination), self._q0)
+            x[0:4] = quat_mul(declination_quat(-self.declination), self._q0)
             x[INIT] = 1.0
         self._init_state(x)
         self._set_declination(x)

@@ -18,7 +18,7 @@ from quadest.control import Failure, FtcParams, SE3Params, circle_reference, hov
 from quadest.control.ftc import relaxed_hover
 from quadest.errors import UsageError
 from quadest.filters import FILTERS, Estimator, make_filter
-from quadest.filters.base import _declination_quat
+from quadest.filters.base import declination_quat
 from quadest.filters.peers import STREAMING_PEERS, available_peers, run_peer, stream_peer
 from quadest.flight.common import (
     SIM_RATE_HZ,
@@ -191,6 +191,7 @@ def fly(
     peer = None
     if use_truth:
         step, ex, ep, ec, ediag = no_estimator(), np.zeros(4), 0.0, 0.0, np.zeros(1)
+        dq = declination_quat(declination)
     elif isinstance(estimator, str) and estimator in STREAMING_PEERS:
         peer = stream_peer(estimator, 1.0 / rate, declination, use_mag=cfg.mag.rate_hz > 0)
         step, ex, ep, ec, ediag = None, None, None, None, None
@@ -201,9 +202,8 @@ def fly(
             if isinstance(estimator, Estimator)
             else make_filter(estimator, declination=declination, **(estimator_params or {}))
         )
-        step, ex, ep, ec, ediag = type(est).step, est._x, est._p, est._c, est._diag
-        declination, estimator = est.declination, est.name
-    dq = _declination_quat(declination) if peer is None else None
+        step, ex, ep, ec, ediag, dq = est.compiled()
+        estimator = est.name
 
     fail_rotor, fail_k, fail_eta, fail_imb, ftc_k = -1, -1, 1.0, 0.0, -1
     G = (se3 or SE3Params()).gains(vehicle)

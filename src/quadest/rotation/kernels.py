@@ -62,6 +62,17 @@ def qexp(rv):
 
 
 @njit(cache=True, inline="always")
+def qmul_s(a0, a1, a2, a3, b0, b1, b2, b3):
+    """``a ⊗ b`` (Hamilton), scalars in and out."""
+    return (
+        a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
+        a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
+        a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1,
+        a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0,
+    )
+
+
+@njit(cache=True, inline="always")
 def rotate_s(w, x, y, z, v0, v1, v2):
     """``R(q) v`` for ``q = [w, x, y, z]`` (unit), scalars in and out."""
     return (

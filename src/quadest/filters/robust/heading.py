@@ -1,0 +1,179 @@
+"""Heading (docs/estimators.md, robust, items 3, 5, 8, 9, 10): a separate offset δ about down,
+``q_nb = Rz(δ) ⊗ q_EI ⊗ q_Ib``, corrected by the magnetometer (eq R2) with a time constant that
+shortens in a sustained spin (eq R7) and while a vertical axis clips; the field's disturbance
+detected and rejected; the magnetometer's latency rotated out (eq R5); the vertical bias from
+the heading correction's rate; the heading's reported variance (eq R6)."""
+
+from __future__ import annotations
+
+import math
+
+from quadest._jit import njit
+from quadest.filters.common import wrap_angle
+from quadest.filters.robust.bias import bias_update
+from quadest.filters.robust.params import CO, PR, UNKNOWN_HEADING_VAR, S
+from quadest.rotation.kernels import qmul_s, rotate_s
+
+
+@njit(cache=True, inline="always")
+def latency_corrected(p, mag, w0, w1, w2):
+    """Eq R5: a sample ``τ_m`` old rotated forward by the gyro, ``m ← Exp(−ω τ_m) m``."""
+    m0, m1, m2 = mag[0], mag[1], mag[2]
+    if p[PR.mag_latency_s] > 0.0:
+        t = p[PR.mag_latency_s]
+        qw, qx, qy, qz = 1.0, 0.0, 0.0, 0.0
+        th = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2) * t
+        if th > 0.0:
+            s = math.sin(0.5 * th) / (th / t)
+            qw, qx, qy, qz = math.cos(0.5 * th), -w0 * s, -w1 * s, -w2 * s
+        m0, m1, m2 = rotate_s(qw, qx, qy, qz, m0, m1, m2)
+    return m0, m1, m2
+
+
+@njit(cache=True, inline="always")
+def heading_time_constant(x, p, h20, h21, h22, spin, nclip):
+    """Eq R7: ``τ_ψ / (1 + max(0, |lp(ω_D)| − spin_min) / spin_rate)``, and while an axis clips at
+    most ``clip_heading_tau`` over the clipped axes' squared share about down (a spin's vertical
+    axis fully, a stick's horizontal one not at all: there it is the tilt that errs, and the
+    field's heading with it). Returns τ and the shares."""
+    tau = p[PR.tau_mag] / (1.0 + max(0.0, spin - p[PR.spin_min]) / p[PR.spin_rate])
+    s0, s1, s2 = h20 * h20 * x[S.clipped], h21 * h21 * x[S.clipped + 1], h22 * h22 * x[S.clipped + 2]
+    if nclip:
+        share = s0 + s1 + s2
+        if share > 0.0:
+            tau = min(tau, p[PR.clip_heading_tau] / min(1.0, share))
+    return tau, s0, s1, s2
+
+
+@njit(cache=True, inline="always")
+def heading_drift_variance(x, p, h20, h21, h22, spin, s0, s1, s2, nclip):
+    """Eq R6: the heading's drift rate has the variance of the vertical bias (``h P_b hᵀ``), of
+    the scale-factor error times the spin, and of a clipped axis's rate from the field (eq R4b)
+    seen about down."""
+    pbv = (
+        h20 * (x[S.Pb] * h20 + x[S.Pb + 1] * h21 + x[S.Pb + 2] * h22)
+        + h21 * (x[S.Pb + 3] * h20 + x[S.Pb + 4] * h21 + x[S.Pb + 5] * h22)
+        + h22 * (x[S.Pb + 6] * h20 + x[S.Pb + 7] * h21 + x[S.Pb + 8] * h22)
+    )
+    drift2 = pbv + (p[PR.scale_max] * spin) ** 2
+    if nclip:
+        drift2 += s0 * x[S.Pw] + s1 * x[S.Pw + 1] + s2 * x[S.Pw + 2]
+    return drift2
+
+
+@njit(cache=True, inline="always")
+def disturbance_gain(x, p, mn, dip, mdt):
+    """Item 5: the field's norm and dip, low-passed, against a reference learnt while undisturbed;
+    a new field that stays consistent for ``mag_new_time`` (``mag_new_first`` the first time)
+    becomes the reference. Returns the factor of the heading's gain: 1 undisturbed, 0 while a
+    disturbance is rejected, ``1 / mag_reject_factor`` once rejected for ``mag_max_reject``."""
+    if x[S.ref] == 0.0:
+        x[S.ref], x[S.ref + 1] = mn, dip
+        x[S.cur], x[S.cur + 1] = mn, dip
+        x[S.cand], x[S.cand + 1] = mn, dip
+        x[S.undist_t] = p[PR.mag_min_undist]
+    km = 1.0 - math.exp(-mdt / p[PR.mag_lp_tau])
+    x[S.cur] += km * (mn - x[S.cur])
+    x[S.cur + 1] += km * (dip - x[S.cur + 1])
+    cn, cd = x[S.cur], x[S.cur + 1]
+    ok = abs(cn - x[S.ref]) <= p[PR.mag_norm_th] * x[S.ref] and abs(cd - x[S.ref + 1]) <= p[PR.mag_dip_th]
+    if ok:
+        x[S.undist_t] += mdt
+        if x[S.undist_t] >= p[PR.mag_min_undist]:
+            x[S.disturbed] = 0.0
+            kr = 1.0 - math.exp(-mdt / p[PR.mag_ref_tau])
+            x[S.ref] += kr * (cn - x[S.ref])
+            x[S.ref + 1] += kr * (cd - x[S.ref + 1])
+            x[S.reject_t] = max(0.0, x[S.reject_t] - p[PR.mag_reject_factor] * mdt)
+            x[S.ref_conf] = 1.0 if x[S.undist_t] >= p[PR.mag_new_first] else x[S.ref_conf]
+        x[S.cand], x[S.cand + 1], x[S.cand_t] = cn, cd, 0.0
+    else:
+        x[S.undist_t] = 0.0
+        x[S.disturbed] = 1.0
+        x[S.reject_t] += mdt
+        if abs(cn - x[S.cand]) <= p[PR.mag_norm_th] * x[S.cand] and abs(cd - x[S.cand + 1]) <= p[PR.mag_dip_th]:
+            x[S.cand_t] += mdt
+            kc = 1.0 - math.exp(-mdt / p[PR.mag_lp_tau]) if x[S.cand_t] < 1.0 else mdt / x[S.cand_t]
+            x[S.cand] += kc * (cn - x[S.cand])
+            x[S.cand + 1] += kc * (cd - x[S.cand + 1])
+        else:
+            x[S.cand], x[S.cand + 1], x[S.cand_t] = cn, cd, 0.0
+        need = p[PR.mag_new_time] if x[S.ref_conf] != 0.0 else p[PR.mag_new_first]
+        if x[S.cand_t] >= need:
+            x[S.ref], x[S.ref + 1] = x[S.cand], x[S.cand + 1]
+            x[S.disturbed], x[S.reject_t], x[S.ref_conf] = 0.0, 0.0, 1.0
+            x[S.undist_t] = p[PR.mag_min_undist]
+    gain_div = 1.0
+    if x[S.disturbed] != 0.0:
+        gain_div = 0.0 if x[S.reject_t] <= p[PR.mag_max_reject] else 1.0 / p[PR.mag_reject_factor]
+    return gain_div
+
+
+@njit(cache=True, inline="always")
+def heading_from_field(x, p, ew, ex, ey, ez, m0, m1, m2, h20, h21, h22, tau, delta, ph, at_rest, nclip, clip_b):
+    """Eq R2 with the magnetometer sample ``m``: ``δ ← δ + k wrap(δ_m − δ)``, ``k = 1 −
+    exp(−Δt_m / τ)`` (at least ``1 / n`` during the initial averaging), scaled by the disturbance's
+    factor; in steady state the correction's rate measures the vertical bias (gain at most
+    ``bias_heading_gain · k``, eq R3b). Returns δ, its variance and whether it was updated."""
+    mdt = x[S.mag_dt]
+    x[S.mag_dt] = 0.0
+    me0, me1, me2 = rotate_s(ew, ex, ey, ez, m0, m1, m2)
+    mn = math.sqrt(me0 * me0 + me1 * me1 + me2 * me2)
+    mh = math.sqrt(me0 * me0 + me1 * me1)
+    if not mn > 0.0:
+        return delta, ph, 0.0
+    dip = math.atan2(me2, mh)
+    gain_div = disturbance_gain(x, p, mn, dip, mdt)
+    if not (gain_div > 0.0 and mh > 0.0):
+        return delta, ph, 0.0
+    dm = -math.atan2(me1, me0)  # eq R2
+    x[S.mag_n] += 1.0
+    k = 1.0 - math.exp(-mdt / tau)
+    if x[S.moved] <= 0.0 or x[S.mag_n] == 1.0:
+        k = max(k, 1.0 / x[S.mag_n])
+    k *= gain_div
+    e = wrap_angle(dm - delta)
+    if x[S.mag_n] == 1.0:
+        ph = x[S.Rm] = 0.25  # first sample: the heading from one noisy field (0.5 rad chosen)
+    else:
+        x[S.Rm] += x[S.coef + 5] * (e * e - x[S.Rm])
+        ph = (1.0 - k) ** 2 * ph + k * k * x[S.Rm]
+    delta = wrap_angle(delta + k * e)
+    # the heading correction's rate measures the vertical drift of a bias error, in steady state
+    # only (not during the initial averaging, k = 1/n)
+    steady = x[S.mag_n] * k > 1.0 or x[S.moved] > 0.0
+    if p[PR.bias_from_heading] != 0.0 and steady and nclip == 0 and not at_rest and x[S.disturbed] == 0.0:
+        r = p[PR.bias_heading_std] * p[PR.bias_heading_std] * tau / mdt
+        bias_update(x, h20, h21, h22, -(k * e) / mdt, r, clip_b, p[PR.bias_heading_gain] * k)
+    return delta, ph, 1.0
+
+
+@njit(cache=True, inline="always")
+def heading(x, p, c, m0, m1, m2, have_mag, u0, u1, u2, at_rest, nclip, clip_b, dt):
+    """The heading's time constant and variance, its correction by the field, and the attitude
+    ``q_nb = Rz(δ) ⊗ q_EI ⊗ q_Ib`` it completes (into ``x[0:4]``). Returns 1.0 if the field
+    corrected the heading."""
+    iw, ix, iy, iz = x[S.qi], x[S.qi + 1], x[S.qi + 2], x[S.qi + 3]
+    gw, gx, gy, gz = x[S.qg], x[S.qg + 1], x[S.qg + 2], x[S.qg + 3]
+    ew, ex, ey, ez = qmul_s(iw, ix, iy, iz, gw, gx, gy, gz)
+    h20, h21, h22 = 2 * (ex * ez - ew * ey), 2 * (ey * ez + ew * ex), 1 - 2 * (ex * ex + ey * ey)
+    wd = h20 * u0 + h21 * u1 + h22 * u2  # rate about down
+    x[S.spin] += (1.0 - math.exp(-dt / p[PR.spin_tau])) * (wd - x[S.spin])
+    spin = abs(x[S.spin])
+    tau, s0, s1, s2 = heading_time_constant(x, p, h20, h21, h22, spin, nclip)
+    ph = x[S.Ph]
+    if x[S.ref] > 0.0 or have_mag:
+        ph += (c[CO.sg2] + tau * heading_drift_variance(x, p, h20, h21, h22, spin, s0, s1, s2, nclip)) * dt
+    delta = x[S.delta]
+    mupd = 0.0
+    if have_mag:
+        delta, ph, mupd = heading_from_field(
+            x, p, ew, ex, ey, ez, m0, m1, m2, h20, h21, h22, tau, delta, ph, at_rest, nclip, clip_b
+        )
+    if x[S.ref] == 0.0:
+        ph = UNKNOWN_HEADING_VAR
+    x[S.Ph] = min(ph, UNKNOWN_HEADING_VAR)
+    x[S.delta] = delta
+    cz, sz = math.cos(0.5 * delta), math.sin(0.5 * delta)
+    x[0], x[1], x[2], x[3] = qmul_s(cz, 0.0, 0.0, sz, ew, ex, ey, ez)
+    return mupd

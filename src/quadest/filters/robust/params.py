@@ -1,0 +1,325 @@
+"""``robust``'s parameters, the layout of its state and its coefficients (docs/estimators.md,
+robust: the equations R1-R8 and how each default was chosen)."""
+
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+from dataclasses import dataclass
+
+from quadest.conventions import GRAVITY
+from quadest.filters.base import P, Params, coefficient_offsets, params_record
+from quadest.filters.common import BASE, layout
+
+DEG = math.pi / 180.0
+VQF = "Laidig & Seel 2023 (VQF), the published default"
+
+S = layout(
+    ("qg", 4),  # q_Ib: gyro strapdown, body -> almost-inertial frame I
+    ("qi", 4),  # q_EI: inclination correction, I -> E
+    ("delta", 1),  # heading offset δ about down, E -> n (rad)
+    ("lp", 6),  # Butterworth state of f_I: (s1, s2) per axis
+    ("lpy", 3),  # the low-pass output (f_I filtered)
+    ("mean_n", 1),  # samples in the initial averaging (until τ_acc has passed)
+    ("coef_dt", 1),  # Δt the cached coefficients were computed for
+    ("coef", 8),  # b0, a1, a2, k_acc, k_rest, k_mag_lp, k_init, spare
+    ("bias", 3),  # gyro bias, body, rad/s
+    ("Pb", 9),  # its covariance, row-major
+    ("rest_g", 3),
+    ("rest_a", 3),  # low-passed gyro and accelerometer for rest detection
+    ("rest_t", 1),  # time at rest so far, s
+    ("mag_n", 1),  # magnetometer updates so far (initial averaging of the heading)
+    ("moved", 1),  # 1: the initial averaging ended at an acceleration (eq R8); -1: started turning
+    ("ys", 3),  # f_I low-passed over init_tau during the initial averaging
+    ("fprev", 3),  # the previous f_I (its noise from successive differences)
+    ("yok", 3),  # the mean when the recent specific force was last within half the threshold
+    ("fvar", 1),  # mean square of f_I's noise, summed over the axes (m²/s⁴)
+    ("mag_dt", 1),  # time since the last magnetometer sample, s
+    ("ref", 2),  # reference field norm (magnetometer's unit) and dip (rad); norm 0: not set
+    ("cur", 2),  # low-passed current norm and dip
+    ("cand", 2),  # candidate new reference norm and dip
+    ("cand_t", 1),  # time the candidate has been consistent, s
+    ("ref_conf", 1),  # 1 once a reference has been confirmed (the first acceptance is faster)
+    ("undist_t", 1),  # time undisturbed so far, s
+    ("reject_t", 1),  # accumulated rejection time, s
+    ("disturbed", 1),
+    ("mprev", 3),  # previous magnetometer sample (body), NaN: none
+    ("gsum", 3),  # the gyro integrated since the last magnetometer sample (rad)
+    ("gclip", 3),  # 1 if the axis clipped since the last magnetometer sample
+    ("rate", 3),
+    ("Pw", 3),  # eq R4: a clipped axis's rate (rad/s) and its variance
+    ("Vn", 3),  # variance of the numerator of eq R4 (the field's noise), learnt while unclipped
+    ("Vt", 3),  # time it has been learnt, s
+    ("peak", 3),
+    ("trough", 3),  # largest and smallest gyro reading seen per axis
+    ("peak_n", 3),
+    ("trough_n", 3),  # samples since each was set
+    ("level", 3),  # the reading a flat top began at
+    ("flat", 3),
+    ("gflat", 3),  # a flat top not yet confirmed a clip: now, since the last magnetometer sample
+    ("ev_s", 3),
+    ("ev_w", 3),  # the field's evidence on it (eq R4c): Σ excess/variance, Σ 1/variance
+    ("lim_pos", 3),
+    ("lim_neg", 3),  # confirmed limits per axis and sign (0: none)
+    ("rep", 3),  # exact repeats of the reading on the flat top so far
+    ("gprev", 3),  # previous raw gyro sample
+    ("clipped", 3),  # 1 while an axis is clipped
+    ("hold", 3),  # the rate held on a clipped axis
+    ("debt", 3),  # rotation owed on a clipped axis (rad, ≤ 0): the limit's excess over the field's rate
+    ("spin", 1),  # low-passed rate about down (signed), rad/s
+    ("Pt", 1),
+    ("Ph", 1),  # tilt and heading error variances (rad²)
+    ("Ra", 1),
+    ("Rm", 1),  # low-passed squared accelerometer / heading innovations (rad²)
+    start=BASE,
+)
+
+UNKNOWN_HEADING_VAR = math.pi**2 / 3.0  # variance of a heading uniform on the circle
+
+
+@dataclass(frozen=True)
+class RobustParams(Params):
+    use_mag: bool = P(True, "-", "use the magnetometer when samples are present", "quadest: 9-axis when present")
+    tau_acc: float = P(
+        4.0,
+        "s",
+        "time constant of the specific force's low-pass in the almost-inertial frame",
+        "chosen: the 2nd-order low-pass (cut-off √2/(2π τ)) attenuates a vehicle's 2 m/s² manoeuvre at "
+        "0.2 Hz to 1° of tilt; on BROAD's split 3-5 s are within 0.04° (VQF: 3 s)",
+        bounds="(0, 1e3]",
+    )
+    tau_mag: float = P(
+        15.0,
+        "s",
+        "time constant of the heading correction",
+        "BROAD split (docs/estimators.md): the halves chose 15 and 25 s; the shorter one (VQF: 9 s)",
+        bounds="(0, 1e4]",
+    )
+    spin_min: float = P(
+        3.0,
+        "rad/s",
+        "sustained rate about the vertical above which the vehicle is spinning",
+        "chosen: a hand rarely keeps turning one way at 3 rad/s for seconds; a quadcopter "
+        "spinning after a rotor loss turns at 10-20 rad/s",
+        bounds="[0, 1e3]",
+    )
+    spin_rate: float = P(
+        0.6,
+        "rad/s",
+        "each this much of sustained rate above spin_min divides the heading's time constant once more",
+        "chosen: at 15 rad/s the time constant is 0.7 s, which follows "
+        "a 0.5 % scale-factor drift of the spin (4 °/s) within 3°",
+        bounds="(0, 1e3]",
+    )
+    spin_tau: float = P(
+        2.0,
+        "s",
+        "time constant of the low-pass of the (signed) rate about the vertical",
+        "chosen: a spin lasts seconds; a hand's back-and-forth turns cancel within two",
+        bounds="(0, 1e3]",
+    )
+    bias_from_heading: bool = P(
+        True,
+        "-",
+        "the heading correction's rate measures the vertical bias",
+        "quadest's addition (VQF: inclination only)",
+    )
+    gyro_noise: float = P(
+        0.005,
+        "rad/√s",
+        "gyroscope noise density (for the reported covariance)",
+        "chosen: a consumer MEMS gyro (0.3 °/s/√Hz)",
+        bounds="[0, 1]",
+    )
+    acc_corr_s: float = P(
+        0.02,
+        "s",
+        "correlation time of unmodelled accelerations (for the reported covariance)",
+        "chosen on simulator seeds 11-15 (docs/estimators.md)",
+        bounds="[0, 100]",
+    )
+    bias_init: float = P(0.5 * DEG, "rad/s", "initial gyro bias std", VQF + " (σ_bias,init 0.5 °/s)", bounds="[0, 1]")
+    bias_drift: float = P(
+        0.1 * DEG / 10.0,
+        "rad/s/√s",
+        "gyro bias random walk",
+        "from VQF's σ_motion 0.1 °/s over its 100 s forgetting time",
+        bounds="[0, 1]",
+    )
+    bias_motion_std: float = P(
+        0.2 * DEG,
+        "rad/s",
+        "noise of the bias measurement from the inclination correction, per τ_acc",
+        "BROAD split (docs/estimators.md): the halves chose "
+        "0.2 and 0.8 °/s; the smaller one (the simulator's flights need the bias in motion)",
+        bounds="(0, 1]",
+    )
+    bias_gain: float = P(
+        0.25,
+        "-",
+        "largest gain of the bias loop closed by the inclination correction, in units "
+        "of Δt/τ_acc (0.25: critically damped; more rings)",
+        "quadest: critical damping (eq R3b)",
+        bounds="(0, 1]",
+    )
+    bias_heading_std: float = P(
+        0.2 * DEG,
+        "rad/s",
+        "noise of the bias measurement from the heading correction, per τ_ψ",
+        "chosen: as bias_motion_std",
+        bounds="(0, 1]",
+    )
+    bias_heading_gain: float = P(
+        1.0,
+        "-",
+        "largest gain of the bias loop closed by the heading correction, in "
+        "units of the heading's gain k (0.25: critically damped; 1: damping 0.5)",
+        "chosen on simulator seeds 1-5 (docs/estimators.md)",
+        bounds="(0, 4]",
+    )
+    bias_rest_std: float = P(
+        0.03 * DEG, "rad/s", "noise of the bias measurement at rest", VQF + " (σ_rest 0.03 °/s)", bounds="(0, 1]"
+    )
+    bias_clip: float = P(2.0 * DEG, "rad/s", "largest gyro bias estimated at rest", VQF + " (2 °/s)", bounds="(0, 1]")
+    scale_max: float = P(
+        0.005,
+        "-",
+        "largest gyro scale-factor error: in motion the bias (which then also absorbs "
+        "the scale error times the rate) may reach bias_clip + scale_max |ω|",
+        "chosen: consumer MEMS gyros are specified to ±0.5 % or better (the bebop2 preset: σ 0.3 %)",
+        bounds="[0, 1]",
+    )
+    rest_tau: float = P(0.5, "s", "low-pass time constant of the rest detection", VQF, bounds="(0, 100]")
+    rest_gyr: float = P(
+        2.0 * DEG, "rad/s", "rest: largest gyro deviation from its low-pass", VQF + " (2 °/s)", bounds="(0, 10]"
+    )
+    rest_acc: float = P(0.5, "m/s²", "rest: largest accelerometer deviation from its low-pass", VQF, bounds="(0, 100]")
+    rest_time: float = P(1.5, "s", "rest: how long both must hold", VQF, bounds="[0, 1e3]")
+    mag_lp_tau: float = P(0.05, "s", "low-pass time constant of the field's norm and dip", VQF, bounds="(0, 100]")
+    mag_norm_th: float = P(
+        0.1, "-", "disturbed: relative deviation of the norm from the reference", VQF, bounds="(0, 10]"
+    )
+    mag_dip_th: float = P(
+        10.0 * DEG, "rad", "disturbed: deviation of the dip from the reference", VQF + " (10°)", bounds="(0, 3.2]"
+    )
+    mag_ref_tau: float = P(
+        20.0, "s", "time constant of the reference's update while undisturbed", VQF, bounds="(0, 1e6]"
+    )
+    mag_new_time: float = P(
+        20.0, "s", "a new consistent field becomes the reference after this long", VQF, bounds="[0, 1e6]"
+    )
+    mag_new_first: float = P(5.0, "s", "the same for the first reference", VQF, bounds="[0, 1e6]")
+    mag_min_undist: float = P(0.5, "s", "undisturbed after this long within the thresholds", VQF, bounds="[0, 1e3]")
+    mag_max_reject: float = P(60.0, "s", "longest rejection of a disturbed field", VQF, bounds="[0, 1e6]")
+    mag_reject_factor: float = P(
+        2.0,
+        "-",
+        "after the longest rejection: the gain divided by this; rejection time "
+        "is paid back this much faster while undisturbed",
+        VQF,
+        bounds="[1, 1e3]",
+    )
+    clip_learn_tau: float = P(
+        1.0,
+        "s",
+        "time constant over which the field's noise is learnt for a clipped axis's rate (eq R4b)",
+        "chosen: many magnetometer samples, yet recent",
+        bounds="(0, 1e4]",
+    )
+    clip_heading_tau: float = P(
+        0.25,
+        "s",
+        "longest time constant of the heading correction while a vertical axis "
+        "is clipped (divided by the clipped axes' squared share about down)",
+        "chosen: a 1 % rate error at 15 rad/s drifts 9 °/s, held to about 2° by 0.25 s (docs/estimators.md)",
+        bounds="(0, 1e4]",
+    )
+    gyro_range: float = P(
+        0.0,
+        "rad/s",
+        "the gyroscope's range (0: detect clipping from a flat top)",
+        "quadest: unknown unless given",
+        bounds="[0, 1e3]",
+    )
+    clip_flat: float = P(
+        0.005,
+        "-",
+        "relative spread of a clipped axis's readings (flat top and known range)",
+        "chosen: RepoIMU's calibrated readings wander by 0.3 % on a clipped axis",
+        bounds="[0, 0.1]",
+    )
+    clip_plateau: float = P(
+        1.0,
+        "samples",
+        "a flat top's extreme must have stood this long before a reading at it counts as clipped",
+        "chosen: a ramp sets a new extreme at every sample; a clipped axis repeats its limit",
+        bounds="[0, 1e3]",
+    )
+    clip_repeat: float = P(
+        20.0,
+        "samples",
+        "exact repeats of a flat top's reading that confirm it a clip",
+        "chosen: a quantised reading (BROAD's 0.06 °/s steps at 286 Hz) holds a few samples at "
+        "a smooth peak, a clipped one as long as the clip",
+        bounds="[1, 1e6]",
+    )
+    clip_confirm: float = P(
+        3.0,
+        "-",
+        "standard errors by which the field's rate must exceed a flat top's readings to confirm it a clip (eq R4c)",
+        "chosen: a one-sided 3σ test; a steady spin at its fastest is no clip",
+        bounds="(0, 1e3]",
+    )
+    clip_rate_q: float = P(
+        16.0,
+        "rad²/s³",
+        "random-walk intensity of a clipped axis's rate (eq R4b)",
+        "chosen: the rate wanders 4 rad/s in 1 s (a tumble's or a swing's changes); with the "
+        "field's noise learnt, the rate follows a clean field within a sample or two and "
+        "averages a noisy one over a fraction of a second",
+        bounds="(0, 1e6]",
+    )
+    clip_min_rate: float = P(
+        4.3,
+        "rad/s",
+        "smallest rate a flat top can be clipping at",
+        "chosen: the smallest common MEMS range, ±250 °/s",
+        bounds="(0, 1e3]",
+    )
+    lever_x: float = P(
+        0.0, "m", "IMU position from the centre of gravity, forward", "chosen: unknown, none", bounds="[-10, 10]"
+    )
+    lever_y: float = P(
+        0.0, "m", "IMU position from the centre of gravity, right", "chosen: unknown, none", bounds="[-10, 10]"
+    )
+    lever_z: float = P(
+        0.0, "m", "IMU position from the centre of gravity, down", "chosen: unknown, none", bounds="[-10, 10]"
+    )
+    mag_latency_s: float = P(0.0, "s", "age of a magnetometer sample", "chosen: unknown, none", bounds="[0, 1]")
+    init_tau: float = P(
+        0.05,
+        "s",
+        "the initial averaging: time constant of the recent specific force compared with its mean (eq R8)",
+        "chosen: a maneuver's onset within a few tens of ms, the noise averaged over 25 samples at 500 Hz",
+        bounds="(0, 100]",
+    )
+    init_acc: float = P(
+        0.5,
+        "m/s²",
+        "the initial averaging ends once the recent specific force leaves its mean by this much (eq R8)",
+        "chosen: VQF's rest threshold (rest_acc)",
+        bounds="[0, 1e6]",
+    )
+    gravity: float = P(GRAVITY, "m/s²", "gravity", "standard gravity", bounds="(0, 100]")
+
+
+PR = Record = params_record(RobustParams)
+Coefficients = namedtuple("Coefficients", ["has_lever", "sg2"])
+CO = coefficient_offsets(Coefficients)
+
+
+def coefficients(p: RobustParams) -> Coefficients:
+    """Whether a lever arm is given; the gyro's noise variance density."""
+    return Coefficients(
+        has_lever=float(p.lever_x != 0.0 or p.lever_y != 0.0 or p.lever_z != 0.0), sg2=p.gyro_noise * p.gyro_noise
+    )

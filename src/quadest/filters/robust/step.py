@@ -1,0 +1,129 @@
+"""``robust``'s step, joining its phases in the order of the block diagram (docs/estimators.md,
+robust), the batch loop and the stream function over it, and the estimator's class."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from quadest._jit import NO_ALLOCATION, carray, njit
+from quadest.filters.base import Estimator
+from quadest.filters.common import INIT, Q_OUT, admit, publish
+from quadest.filters.robust.bias import rest_and_bias
+from quadest.filters.robust.clipping import detect_clipping, held_rates, hold_clipped, rates_from_field
+from quadest.filters.robust.heading import heading, latency_corrected
+from quadest.filters.robust.params import PR, UNKNOWN_HEADING_VAR, Record, RobustParams, S, coefficients
+from quadest.filters.robust.tilt import lever_arm, step_coefficients, strapdown, tilt
+from quadest.rotation.kernels import FASTMATH
+
+
+@njit(cache=True, fastmath=FASTMATH, **NO_ALLOCATION)
+def robust_step(x, p, c, gyr, acc, mag, dt, diag):
+    """One sample: clipping and the field's rates, the strapdown, rest and bias, tilt, heading."""
+    if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
+        return
+    have_mag = (
+        p[PR.use_mag] != 0.0
+        and not (np.isnan(mag[0]) or np.isnan(mag[1]) or np.isnan(mag[2]))
+        and (mag[0] != 0.0 or mag[1] != 0.0 or mag[2] != 0.0)
+    )
+    step_coefficients(x, p, dt)
+    x[S.mag_dt] += dt
+    nclip = detect_clipping(x, p, gyr, dt)
+    w0, w1, w2 = held_rates(x, gyr, nclip)  # the latency is rotated out with the last rate held
+    m0 = m1 = m2 = 0.0
+    if have_mag:
+        m0, m1, m2 = latency_corrected(p, mag, w0, w1, w2)
+        rates_from_field(x, p, m0, m1, m2)
+    if nclip:
+        hold_clipped(x, gyr, dt)
+        w0, w1, w2 = held_rates(x, gyr, nclip)
+    f0, f1, f2 = lever_arm(p, c, acc, w0, w1, w2)
+    fn = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+    # initialisation: the strapdown starts from q0 (or the identity), the rest detection's
+    # low-passes from the first sample
+    if x[INIT] == 0.0:
+        if not fn > 0.0:
+            return
+        x[INIT] = 1.0
+    if x[S.mean_n] == 0.0:
+        for i in range(3):
+            x[S.rest_g + i] = gyr[i]
+            x[S.rest_a + i] = acc[i]
+    u0, u1, u2 = strapdown(x, w0, w1, w2, dt)
+    clip_b = p[PR.bias_clip] + p[PR.scale_max] * math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+    at_rest, rest_rate2 = rest_and_bias(x, p, gyr, acc, nclip, dt)
+    tilt(x, p, c, gyr, f0, f1, f2, fn, u0, u1, u2, at_rest, nclip, rest_rate2, clip_b, dt)
+    mupd = heading(x, p, c, m0, m1, m2, have_mag, u0, u1, u2, at_rest, nclip, clip_b, dt)
+    diag[0] = 1.0 if at_rest else 0.0
+    diag[1] = x[S.disturbed]
+    diag[2] = float(nclip)
+    diag[3], diag[4], diag[5] = x[S.bias], x[S.bias + 1], x[S.bias + 2]
+    diag[6] = x[S.Pt]
+    diag[7] = x[S.Ph]
+    diag[8] = mupd
+    publish(x)
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def robust_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
+    """Batch: the same step over every sample, in compiled code."""
+    for k in range(len(dt)):
+        robust_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
+        q_out[k] = x[Q_OUT : Q_OUT + 4]  # published: in the geographic frame
+
+
+def robust_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
+    """Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address)."""
+    try:
+        robust_step(
+            carray(x, nx),
+            carray(p, n_p),
+            carray(c, nc),
+            carray(gyr, 3),
+            carray(acc, 3),
+            carray(mag, 3),
+            dt,
+            carray(diag, nd),
+        )
+    except Exception:  # noqa: BLE001 -- a C callback cannot raise: the C call does, from the status
+        return 1
+    return 0
+
+
+class Robust(Estimator):
+    """quadest's own estimator. Diagnostics: ``rest`` (1 at rest), ``mag_disturbed``,
+    ``clipped_axes``, the bias ``bias_x/y/z`` (rad/s), the reported error variances ``var_tilt``
+    (about north and about east, each) and ``var_heading`` (about down), rad², and
+    ``mag_update``."""
+
+    name = "robust"
+    Params = RobustParams
+    Record = Record
+    coefficients = staticmethod(coefficients)
+    state_size = S.end
+    diag_names = (
+        "rest",
+        "mag_disturbed",
+        "clipped_axes",
+        "bias_x",
+        "bias_y",
+        "bias_z",
+        "var_tilt",
+        "var_heading",
+        "mag_update",
+    )
+    step = staticmethod(robust_step)
+    batch = staticmethod(robust_run)
+    stream = staticmethod(robust_stream)
+
+    def _init_state(self, x):
+        p = self.params
+        x[S.qg : S.qg + 4] = x[0:4]  # q0 (in the magnetic frame) or the identity: δ = 0, q_EI = 1
+        x[S.qi] = 1.0
+        x[S.Pb : S.Pb + 9] = (np.eye(3) * p.bias_init**2).ravel()
+        x[S.mprev : S.mprev + 3] = np.nan
+        x[S.Pt] = 0.0
+        x[S.Ph] = UNKNOWN_HEADING_VAR
+        x[S.coef_dt] = -1.0
