@@ -12,7 +12,7 @@ from quadest.data.recording import Recording
 from quadest.records import check, check_triples, describe, param
 from quadest.rotation import quat_conj, quat_mul, quat_rotate
 from quadest.sim import sensors as S
-from quadest.sim.inloop import sensor_model
+from quadest.sim.sensors import sensor_model
 from quadest.sim.simulator import draw_processes
 
 SIM_RATE_HZ = 1000.0

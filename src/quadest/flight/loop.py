@@ -4,7 +4,8 @@ Per IMU sample ``k`` (time ``k / rate``; the controller runs at the IMU rate, th
 simulation rate, ``substeps`` RK4 steps per sample):
 
 1. a failure due at ``k`` strikes (the rotor's efficiency changes);
-2. the sensors are sampled from the true state (:mod:`quadest.sim.inloop`): IMU, magnetometer,
+2. the sensors are sampled from the true state (:mod:`quadest.sim.sensors`, the model every
+   simulation samples): IMU, magnetometer,
    and every ``mocap_every`` samples the position sensor, motion capture or GNSS-like (its
    reading ``delay`` samples old);
 3. the estimator takes one step (its compiled ``step``, the same function its batch run calls);
@@ -30,7 +31,7 @@ from quadest.control.ftc import ftc_command
 from quadest.control.se3 import se3_command
 from quadest.models.multirotor import derivative_ws, rk4_ws
 from quadest.rotation.kernels import rotate_s
-from quadest.sim.inloop import motor_current, sample_imu, sample_mag
+from quadest.sim.sensors import motor_current, rotor_vibration_step, sample_imu, sample_mag
 
 OK, GROUND, LOST_CONTROL, ESTIMATE_NAN, DIVERGED = 0, 1, 2, 3, 4
 STATUS = {
@@ -76,7 +77,8 @@ def sample(x, dx, eta, imb, V, sm, k, dt, tw, T, vib, gyr, acc, mag):
             active += 1
     active = max(active, 1)
     load = total / active / (V.mass * V.gravity / n_rot)
-    sample_imu(sm, k, k * dt, x[6:10], dx[3:6], x[10:13], dx[10:13], x[13:], imb, vib, gyr, acc)
+    rotor_vibration_step(sm.rv, k * dt, x[13:], imb, vib, sm.vib_acc, sm.vib_gyr)
+    sample_imu(sm, k, x[6:10], dx[3:6], x[10:13], dx[10:13], sm.vib_acc, sm.vib_gyr, gyr, acc)
     sample_mag(sm, k, x[6:10], x[0:3], motor_current(load, active, tw), mag)
 
 

@@ -13,8 +13,9 @@ from quadest.data.recording import Recording
 from quadest.models.multirotor import MultirotorParams
 from quadest.sim import sensors as S
 from quadest.sim.params import SimConfig
+from quadest.sim.sensors import motor_current
 from quadest.sim.simulator import build_config, sample_sensors
-from quadest.sim.truth import Truth, motor_current
+from quadest.sim.truth import Truth
 
 
 def flown_recording(
@@ -40,9 +41,9 @@ def flown_recording(
     propeller's imbalance in kg m (default: none). The rotor speeds (the states' last columns)
     and imbalances set each rotor's vibration
     (:func:`quadest.sim.sensors.rotor_vibration_step`). ``readings``: ``(gyr, acc, mag)``
-    sampled in a closed loop from the same flight and seed (:mod:`quadest.sim.inloop`); they
-    must agree with what this function samples to rounding (else ValueError: the two sensor
-    implementations have parted), and they are what the recording holds, as the estimator in
+    sampled in a closed loop from the same flight and seed (the same compiled sensors); they
+    must agree with what this function samples (else ValueError: the loop's inputs to the
+    sensors have parted from the flight's), and they are what the recording holds, as the estimator in
     the loop read them. ``processes``: the sensor draws the loop made (for the rows it
     planned; a run that ended early uses their first rows), instead of drawing them from ``seed``."""
     cfg = (cfg or build_config("bebop2")).validate()

@@ -20,7 +20,13 @@ with the earth field ``B_n = F [cos I cos D, cos I sin D, sin I]`` (NED), indoor
 magnetised steel below the flight (:func:`distortion_sources`: a field that varies with the
 position ``p``), a soft-iron matrix
 ``S``, a hard-iron offset and a disturbance proportional to the motor current (which grows
-with thrust, and at equal thrust when a rotor is lost).
+with thrust, and at equal thrust when a rotor is lost); on magnetometer rows, with ``R``, ``p``
+and the current as they were ``latency_s`` before.
+
+The model is one compiled function per sensor, called one sample at a time
+(:func:`sample_imu`, :func:`sample_mag` on a :class:`SensorModel` from :func:`sensor_model`): a
+closed loop calls them as the vehicle flies, and a whole trajectory is sampled by the compiled
+loop :func:`sample_all` over the same functions, so the two are the same by construction.
 """
 
 from __future__ import annotations
@@ -31,8 +37,8 @@ import numpy as np
 
 from quadest._jit import njit
 from quadest.models.multirotor import MultirotorParams
-from quadest.rotation import quat_conj, quat_rotate
-from quadest.sim.params import Accelerometer, Environment, Gyroscope, Magnetometer
+from quadest.rotation.kernels import rotate_inv_s
+from quadest.sim.params import Accelerometer, Environment, Gyroscope, Magnetometer, SimConfig
 
 
 def earth_field(env: Environment) -> np.ndarray:
@@ -83,47 +89,6 @@ def lowpass_step(y, u, alpha):
     return alpha * u + (1.0 - alpha) * y
 
 
-@njit(cache=True)
-def _lowpass(u, alpha):
-    out = np.empty_like(u)
-    for j in range(u.shape[1]):
-        y = u[0, j]
-        for k in range(u.shape[0]):
-            y = lowpass_step(y, u[k, j], alpha) if k > 0 else u[0, j]
-            out[k, j] = y
-    return out
-
-
-def apply_inertial(true, matrix, bias, noise, limit, extra=None, alpha: float = 1.0):
-    """``clip(DLPF(M true + bias + extra + noise), ±limit)`` over rows, the low-pass starting
-    settled at the first sample (the order of the sums is the one :mod:`quadest.sim.inloop`
-    keeps sample by sample)."""
-    out = true @ matrix.T + bias
-    if extra is not None:
-        out = out + extra
-    out = out + noise
-    if alpha < 1.0 and len(out):
-        out = _lowpass(np.ascontiguousarray(out), alpha)
-    return np.clip(out, -limit, limit)
-
-
-def inertial(true, t, model: Gyroscope | Accelerometer, errors, rng, extra=None):
-    """Apply scale/misalignment, bias, random walk, extra terms, noise and saturation.
-    Returns the readings and the bias at each sample (constant part plus random walk)."""
-    bias, noise = inertial_processes(t, model, errors, rng)
-    rate = 1.0 / np.median(np.diff(t)) if len(t) > 1 else 1.0
-    return apply_inertial(
-        true, errors["matrix"], bias, noise, model.range, extra, dlpf_alpha(model.dlpf_hz, rate)
-    ), bias
-
-
-def specific_force_at_imu(q, acc_n, w, wdot, lever, gravity):
-    """``f_imu = Rᵀ(a − g) + ω̇ × r + ω × (ω × r)``, body frame, m/s²."""
-    f = quat_rotate(quat_conj(q), acc_n - np.array([0.0, 0.0, gravity]))
-    r = np.broadcast_to(np.asarray(lever, float), w.shape)
-    return f + np.cross(wdot, r) + np.cross(w, np.cross(w, r))
-
-
 def vibration_offsets(amp, rng) -> np.ndarray:
     """The tone's phase offset per axis (drawn only when there is a tone)."""
     return rng.uniform(0, 2 * np.pi, 3) if np.asarray(amp, float).any() else np.zeros(3)
@@ -168,6 +133,23 @@ def rotor_vibration_model(vehicle: MultirotorParams, amp, offsets, lever) -> Rot
         amp / np.sqrt(vehicle.rotors),
         bool(amp.any()),
         offsets,
+        np.asarray(lever, float),
+    )
+
+
+def no_rotor_vibration(lever) -> RotorVibration:
+    """The vibration model of a prescribed motion, which has no rotors: its tone comes from
+    :func:`vibration` and is given to :func:`sample_imu` as it is."""
+    return RotorVibration(
+        np.zeros((0, 3)),
+        np.zeros(0),
+        np.ones(3),
+        1.0,
+        1.0,
+        1.0,
+        np.zeros(3),
+        False,
+        np.zeros((0, 4)),
         np.asarray(lever, float),
     )
 
@@ -315,21 +297,6 @@ def field_at(env: Environment, pos) -> np.ndarray:
     return out + earth_field(env)
 
 
-def magnetometer(q, current, env: Environment, model: Magnetometer, rng=None, noise=None, pos=None):
-    """``clip(S Rᵀ B_n + b_hard + k_motor current + noise)``; the noise drawn from ``rng`` or given.
-    With an indoor distortion (``env.distortion_ut``) the field depends on the positions ``pos``."""
-    if env.distortion_ut > 0:
-        if pos is None:
-            raise ValueError("magnetometer: an indoor distortion needs the positions")
-        B_b = quat_rotate(quat_conj(q), field_at(env, pos))
-    else:
-        B_b = quat_rotate(quat_conj(q), earth_field(env))
-    m = B_b @ np.array(model.soft_iron, float).T + np.array(model.hard_iron, float)
-    m = m + np.outer(current, np.array(model.motor_coef, float))
-    m = m + (mag_noise(len(q), model, rng) if noise is None else noise)
-    return np.clip(m, -model.range, model.range)
-
-
 def mag_rows(k, imu_rate, mag_rate):
     """Rows (by nominal IMU index ``k``) at which a new magnetometer sample arrives: the first
     IMU row at or after each magnetometer tick."""
@@ -337,3 +304,150 @@ def mag_rows(k, imu_rate, mag_rate):
         return np.zeros(len(k), bool)
     tick = np.floor(k * (mag_rate / imu_rate) + 1e-9)
     return np.concatenate([[True], tick[1:] > tick[:-1]])
+
+
+@njit(cache=True)
+def motor_current(load, n_active, thrust_to_weight):
+    """Motor current over its maximum, the magnetometer's disturbance. A rotor's power grows as
+    thrust^1.5 (momentum theory): ``(n_active/4) (load/TW)^1.5`` with ``load`` the thrust per
+    rotor over its hover value and ``TW`` the thrust-to-weight ratio (the load at full thrust).
+    Losing a rotor at equal total thrust raises the current by √(4/3). Scalars or arrays."""
+    return (n_active / 4.0) * (np.maximum(load, 0.0) / thrust_to_weight) ** 1.5
+
+
+SensorModel = namedtuple(
+    "SensorModel",
+    [
+        "gyr_matrix", "gyr_bias", "gyr_noise", "gyr_range",
+        "acc_matrix", "acc_bias", "acc_noise", "acc_range", "lever", "gravity",
+        "rv", "vib_acc", "vib_gyr",
+        "has_mag", "mag_index", "mag_soft", "mag_hard", "mag_motor", "mag_noise", "mag_range", "field_n",
+        "dist_src", "dist_mom", "has_dist",
+        "mag_hist", "gyr_alpha", "acc_alpha", "lp",
+    ],
+)  # fmt: skip
+"""What the compiled sensors read: the configuration's constants, one run's draws, the rotors'
+vibration model (``rv``; none for a prescribed motion) with its output, and the state the
+sensors carry from sample to sample (the low-passes ``lp``, the magnetometer's history)."""
+
+
+def sensor_model(cfg: SimConfig, processes, has_mag, vehicle: MultirotorParams | None = None) -> SensorModel:
+    """Pack a configuration and one run's draws (``draw_processes``, with the vehicle's rotors for
+    a flown ``vehicle``, whose rotors vibrate) for :func:`sample_imu` and :func:`sample_mag`.
+    Stateful: one per run."""
+    has_mag = np.asarray(has_mag, bool)
+    index = np.cumsum(has_mag) - 1  # row k's magnetometer noise is mag_noise[index[k]]
+    mag_noise = processes.mag_noise if len(processes.mag_noise) else np.zeros((1, 3))
+    sources = distortion_sources(cfg.environment)
+    src, mom = sources if sources is not None else (np.zeros((0, 3)), np.zeros((0, 3)))
+    if vehicle is None:
+        rv = no_rotor_vibration(cfg.acc.lever_arm)
+    else:
+        rv = rotor_vibration_model(vehicle, cfg.acc.vibration_amp, processes.vib_offsets, cfg.acc.lever_arm)
+    c = np.ascontiguousarray
+    return SensorModel(
+        c(processes.gyro_errors["matrix"]), c(processes.gyr_bias), c(processes.gyr_noise), float(cfg.gyro.range),
+        c(processes.acc_errors["matrix"]), c(processes.acc_bias), c(processes.acc_noise), float(cfg.acc.range),
+        np.asarray(cfg.acc.lever_arm, float), float(cfg.environment.gravity),
+        rv, np.zeros(3), np.zeros(3),
+        has_mag, index.astype(np.int64), c(cfg.mag.soft_iron, dtype=float), np.asarray(cfg.mag.hard_iron, float),
+        np.asarray(cfg.mag.motor_coef, float), c(mag_noise), float(cfg.mag.range), earth_field(cfg.environment),
+        src, mom, sources is not None,
+        np.zeros((int(round(cfg.mag.latency_s * cfg.imu.rate_hz)) + 1, 8)),
+        dlpf_alpha(cfg.gyro.dlpf_hz, cfg.imu.rate_hz), dlpf_alpha(cfg.acc.dlpf_hz, cfg.imu.rate_hz), np.zeros(6),
+    )  # fmt: skip
+
+
+@njit(cache=True, inline="always")
+def _clip(v, limit):
+    return min(max(v, -limit), limit)
+
+
+@njit(cache=True, inline="always")
+def sample_imu(m, k, q, acc_n, w, wdot, vib_acc, vib_gyr, gyr, acc):
+    """IMU sample ``k`` from the true attitude ``q``, acceleration ``acc_n`` (navigation frame),
+    rate ``w`` and angular acceleration ``wdot`` (body), and the vibration at the IMU
+    (``vib_acc``, ``vib_gyr``: :func:`rotor_vibration_step` or a prescribed motion's tone), into
+    ``gyr`` and ``acc``::
+
+        gyr = clip(DLPF(M_g ω + b_g[k] + δω + n_g[k]))
+        acc = clip(DLPF(M_a f_imu + b_a[k] + δa + n_a[k])),  f_imu = Rᵀ(a − g) + ω̇ × r + ω × (ω × r)
+
+    Returns ``f_imu``, the true specific force at the IMU."""
+    for i in range(3):
+        u = (
+            (m.gyr_matrix[i, 0] * w[0] + m.gyr_matrix[i, 1] * w[1] + m.gyr_matrix[i, 2] * w[2] + m.gyr_bias[k, i])
+            + vib_gyr[i]
+        ) + m.gyr_noise[k, i]
+        if m.gyr_alpha < 1.0:  # the DLPF, settled at the first sample
+            m.lp[i] = lowpass_step(m.lp[i], u, m.gyr_alpha) if k > 0 else u
+            u = m.lp[i]
+        gyr[i] = _clip(u, m.gyr_range)
+    f0, f1, f2 = rotate_inv_s(q[0], q[1], q[2], q[3], acc_n[0], acc_n[1], acc_n[2] - m.gravity)
+    r0, r1, r2 = m.lever[0], m.lever[1], m.lever[2]
+    # ω̇ × r + ω × (ω × r)
+    c0, c1, c2 = w[1] * r2 - w[2] * r1, w[2] * r0 - w[0] * r2, w[0] * r1 - w[1] * r0
+    f0 += (wdot[1] * r2 - wdot[2] * r1) + (w[1] * c2 - w[2] * c1)
+    f1 += (wdot[2] * r0 - wdot[0] * r2) + (w[2] * c0 - w[0] * c2)
+    f2 += (wdot[0] * r1 - wdot[1] * r0) + (w[0] * c1 - w[1] * c0)
+    for i in range(3):
+        a = m.acc_matrix[i, 0] * f0 + m.acc_matrix[i, 1] * f1 + m.acc_matrix[i, 2] * f2 + m.acc_bias[k, i]
+        u = (a + vib_acc[i]) + m.acc_noise[k, i]
+        if m.acc_alpha < 1.0:
+            m.lp[3 + i] = lowpass_step(m.lp[3 + i], u, m.acc_alpha) if k > 0 else u
+            u = m.lp[3 + i]
+        acc[i] = _clip(u, m.acc_range)
+    return f0, f1, f2
+
+
+@njit(cache=True, inline="always")
+def sample_mag(m, k, q, pos, current, mag):
+    """Magnetometer sample on IMU row ``k`` into ``mag`` (NaN where no sample arrives), from the
+    attitude, position and motor current of ``latency`` samples before (``m.mag_hist`` keeps
+    them; call it every sample, the first at ``k = 0``)."""
+    h = m.mag_hist
+    d = h.shape[0] - 1
+    if k == 0:
+        for r in range(d + 1):
+            _keep(h, r, q, pos, current)
+    _keep(h, k % (d + 1), q, pos, current)
+    if not m.has_mag[k]:
+        mag[0], mag[1], mag[2] = np.nan, np.nan, np.nan
+        return
+    j = max(k - d, 0) % (d + 1)
+    current = h[j, 4]
+    f0, f1, f2 = m.field_n[0], m.field_n[1], m.field_n[2]
+    if m.has_dist:
+        d0, d1, d2 = distortion_at(h[j, 5], h[j, 6], h[j, 7], m.dist_src, m.dist_mom)
+        f0, f1, f2 = d0 + f0, d1 + f1, d2 + f2
+    b0, b1, b2 = rotate_inv_s(h[j, 0], h[j, 1], h[j, 2], h[j, 3], f0, f1, f2)
+    j = m.mag_index[k]
+    for i in range(3):
+        v = m.mag_soft[i, 0] * b0 + m.mag_soft[i, 1] * b1 + m.mag_soft[i, 2] * b2 + m.mag_hard[i]
+        mag[i] = _clip(v + current * m.mag_motor[i] + m.mag_noise[j, i], m.mag_range)
+
+
+@njit(cache=True, inline="always")
+def _keep(h, r, q, pos, current):
+    h[r, 0], h[r, 1], h[r, 2], h[r, 3], h[r, 4] = q[0], q[1], q[2], q[3], current
+    h[r, 5], h[r, 6], h[r, 7] = pos[0], pos[1], pos[2]
+
+
+@njit(cache=True)
+def _sample_rows(m, q, acc_n, w, wdot, vib_acc, vib_gyr, pos, current, gyr, acc, mag, f_imu):
+    for k in range(q.shape[0]):
+        f_imu[k] = sample_imu(m, k, q[k], acc_n[k], w[k], wdot[k], vib_acc[k], vib_gyr[k], gyr[k], acc[k])
+        sample_mag(m, k, q[k], pos[k], current[k], mag[k])
+
+
+def sample_all(m: SensorModel, q, acc_n, w, wdot, vib_acc, vib_gyr, pos, current):
+    """:func:`sample_imu` and :func:`sample_mag` over a whole trajectory, row by row (``m`` fresh
+    from :func:`sensor_model`). Returns the gyroscope, accelerometer, magnetometer (NaN rows where
+    none) and the true specific force at the IMU, each (n, 3)."""
+    c = np.ascontiguousarray
+    n = len(q)
+    gyr, acc, mag, f_imu = (np.empty((n, 3)) for _ in range(4))
+    _sample_rows(m, c(q, dtype=float), c(acc_n, dtype=float), c(w, dtype=float), c(wdot, dtype=float),
+                 c(vib_acc, dtype=float), c(vib_gyr, dtype=float), c(pos, dtype=float),
+                 c(current, dtype=float), gyr, acc, mag, f_imu)  # fmt: skip
+    return gyr, acc, mag, f_imu

@@ -138,11 +138,6 @@ def simulate(
     return rec
 
 
-def mag_delay(cfg: SimConfig) -> int:
-    """The magnetometer's latency in IMU samples."""
-    return int(round(cfg.mag.latency_s * cfg.imu.rate_hz))
-
-
 Processes = namedtuple(
     "Processes",
     ["gyro_errors", "acc_errors", "gyr_bias", "gyr_noise", "acc_bias", "acc_noise", "vib_offsets", "mag_noise"],
@@ -154,7 +149,7 @@ def draw_processes(cfg: SimConfig, t, has_mag, rngs, rotors: int = 0) -> Process
     """Draw a run's sensor errors at the IMU instants ``t`` (magnetometer noise on the rows
     ``has_mag``), always in the same order from the four generators ``(gyro, acc, mag,
     vibration)``: the sensors sampled from a whole trajectory (:func:`sample_sensors`) and
-    sample by sample in a closed loop (:mod:`quadest.sim.inloop`) read the same draws.
+    sample by sample in a closed loop read the same draws (:func:`quadest.sim.sensors.sensor_model`).
     ``rotors``: a flown vehicle's rotor count (its vibration's phases per rotor,
     :func:`quadest.sim.sensors.rotor_vibration_offsets`); 0 for a prescribed motion (one tone)."""
     rng_gyro, rng_acc, rng_mag, rng_vib = rngs
@@ -204,46 +199,20 @@ def sample_sensors(
             mag_noise=processes.mag_noise[:m],
         )
     g_err, a_err = pr.gyro_errors, pr.acc_errors
-    f_imu = S.specific_force_at_imu(
-        truth.q, truth.acc_n, truth.gyr, truth.gyr_dot, cfg.acc.lever_arm, cfg.environment.gravity
-    )
+    sm = S.sensor_model(cfg, pr, has_mag, vehicle)
     if flown:
-        rv = S.rotor_vibration_model(vehicle, cfg.acc.vibration_amp, pr.vib_offsets, cfg.acc.lever_arm)
         imbalance = np.zeros_like(truth.rotor_speeds) if truth.rotor_imbalance is None else truth.rotor_imbalance
-        vib, gyr_vib = S.rotor_vibration(rv, t, truth.rotor_speeds, imbalance)
+        vib, gyr_vib = S.rotor_vibration(sm.rv, t, truth.rotor_speeds, imbalance)
     else:
         vib = S.vibration(
             t, truth.rotor_load, cfg.vehicle.rotor_hz_hover, cfg.acc.vibration_amp, offsets=pr.vib_offsets
         )
-        gyr_vib = None
-    gyr = S.apply_inertial(
-        truth.gyr,
-        g_err["matrix"],
-        pr.gyr_bias,
-        pr.gyr_noise,
-        cfg.gyro.range,
-        extra=gyr_vib,
-        alpha=S.dlpf_alpha(cfg.gyro.dlpf_hz, rate),
-    )
-    acc = S.apply_inertial(
-        f_imu,
-        a_err["matrix"],
-        pr.acc_bias,
-        pr.acc_noise,
-        cfg.acc.range,
-        extra=vib,
-        alpha=S.dlpf_alpha(cfg.acc.dlpf_hz, rate),
+        gyr_vib = np.zeros_like(vib)
+    gyr, acc, mag, f_imu = S.sample_all(
+        sm, truth.q, truth.acc_n, truth.gyr, truth.gyr_dot, vib, gyr_vib, truth.pos, truth.current
     )
     gyr_bias, acc_bias = pr.gyr_bias, pr.acc_bias
-    mag = np.full((len(t), 3), np.nan)
-    if has_mag.any():
-        rows = np.flatnonzero(has_mag)
-        src = np.maximum(rows - mag_delay(cfg), 0)  # the field the sample reads is latency_s old
-        mag[rows] = S.magnetometer(
-            truth.q[src], truth.current[src], cfg.environment, cfg.mag, noise=pr.mag_noise, pos=truth.pos[src]
-        )
-
-    sat = np.abs(truth.gyr @ g_err["matrix"].T + (0.0 if gyr_vib is None else gyr_vib)) > cfg.gyro.range
+    sat = np.abs(truth.gyr @ g_err["matrix"].T + gyr_vib) > cfg.gyro.range
     meta = {
         **{k: v for k, v in meta.items() if k != "ideal_sensors"},
         "imu_rate_hz": rate,

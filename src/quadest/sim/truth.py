@@ -27,6 +27,7 @@ from quadest.sim import jets as J
 from quadest.sim.jets import Jet
 from quadest.sim.params import SimConfig
 from quadest.sim.rigid_body import integrate
+from quadest.sim.sensors import motor_current
 from quadest.sim.signals import RampedSinusoids, Sinusoids
 
 SCENARIOS = ("hover", "nominal", "damaged-rotor", "throw", "rest", "six-position", "figure-eight")
@@ -58,14 +59,6 @@ class Truth:
         out = cls(**{k: np.concatenate([getattr(p, k) for p in parts]) for k in names})
         out.meta = parts[0].meta if parts else {}
         return out
-
-
-def motor_current(load, n_active, thrust_to_weight):
-    """Motor current over its maximum. A rotor's power grows as thrust^1.5 (momentum theory):
-    ``(n_active/4) (load/TW)^1.5`` with ``load`` the thrust per rotor over its hover value and
-    ``TW`` the thrust-to-weight ratio (the load at full thrust). Losing a rotor at equal total
-    thrust raises the current by √(4/3)."""
-    return (np.asarray(n_active) / 4.0) * (np.maximum(load, 0.0) / thrust_to_weight) ** 1.5
 
 
 def _quat(R):
