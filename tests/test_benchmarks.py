@@ -1,4 +1,4 @@
-"""Alignment, the peers' frame conversions, and the benchmark commands (issue #5)."""
+"""Alignment, the peers' frame conversions, and the benchmark commands."""
 
 import json
 import os
@@ -195,7 +195,7 @@ def test_real_flights_benchmark(tmp_path, capsys):
 
 @needs_data
 def test_real_repoimu_benchmark(tmp_path):
-    """`benchmark repoimu` (issue #15 asks for RepoIMU in a benchmark): every trial in the shared
+    """`benchmark repoimu` (RepoIMU as a benchmark): every trial in the shared
     copy, each filter's errors after the reader's alignment, means over the trials."""
     out = tmp_path / "r.json"
     assert (
@@ -259,6 +259,6 @@ def test_estimate_with_a_peer(tmp_path, marg):
     q = np.column_stack([t.column(c).to_numpy() for c in ("q_w", "q_x", "q_y", "q_z")])
     late = marg.t > 10
     assert np.degrees(angle_between(q[late], marg.true_q[late])).mean() < 3.0
-    # a parameter for a filter that is not run is refused, not silently ignored (issue #12)
+    # a parameter for a filter that is not run is refused, not silently ignored
     assert main(["estimate", str(src), "--filter", "vqf", "--param", "madgwick.beta_marg=1", "-o", str(out)]) == 2
     assert main(["estimate", str(src), "--filter", "vqf", "--param", "vqf.x=1", "-o", str(out)]) == 2

@@ -1,4 +1,4 @@
-"""Calibration (issue #6): each fit against the errors the simulator put in, the refusals, and the
+"""Calibration: each fit against the errors the simulator put in, the refusals, and the
 file/apply path. Targets from the issue; bebop2 preset; the motions are the simulator's
 calibration scenarios (docs/calibration.md)."""
 

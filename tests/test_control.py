@@ -1,9 +1,10 @@
-"""The SE(3) controller flying the vehicle model on the true state (issue #13, part 2)."""
+"""The SE(3) controller flying the vehicle model on the true state."""
 
 import numpy as np
 import pytest
 
-from quadest.control import SE3Params, allocation, circle_reference, fly_se3, hover_reference
+from quadest.control import SE3Params, allocation, circle_reference, hover_reference
+from quadest.flight.truth import fly_se3
 from quadest.models.multirotor import MultirotorParams
 from quadest.rotation import angle_between, euler_to_quat
 

@@ -1,4 +1,4 @@
-"""`quadest data` (issue #17): datasets fetched from a local HTTP server on 127.0.0.1 that serves
+"""`quadest data`: datasets fetched from a local HTTP server on 127.0.0.1 that serves
 small files laid out like the real sources: fetch, a checksum that differs (refused, nothing
 half-written left), a download that breaks off (resumed with a range request), a dataset that is
 not there (one line saying how to get it). No test reaches outside the machine."""

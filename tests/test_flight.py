@@ -1,4 +1,4 @@
-"""Flights with the estimator in the loop (issue #13): sensors sampled in the loop equal the
+"""Flights with the estimator in the loop: sensors sampled in the loop equal the
 batch sensor model, the fault-tolerant controller's relaxed hover (solved here independently),
 what the nominal controller does after a rotor loss, and runs that end with a status."""
 
@@ -164,7 +164,7 @@ def test_thrown_vehicles_are_recovered_by_the_bank_in_the_loop(throws):
     the first samples after the release, the bank converges (S_g < β2) within 1 s with the
     gravity direction within 20° and the velocity within 1 m/s (over 100 throws the largest were
     about 18° and 0.6 m/s: docs/vehicle.md), then upright within 30° and its height held within
-    0.5 m for 10 s (issue #14), having fallen less than the 10 m to the ground."""
+    0.5 m for 10 s, having fallen less than the 10 m to the ground."""
     for f in throws:
         s = f.summary
         assert s["status"] == "survived" and s["recovered"], s

@@ -1,4 +1,4 @@
-"""Generated and damaged files (issue #12): every reader and configuration loader either reads a
+"""Generated and damaged files: every reader and configuration loader either reads a
 file or refuses it with a ValueError (ReaderError is one) naming it; never another exception, a
 hang, or a recording with NaN where a value must be. Through the command line: one line, no
 internal error."""

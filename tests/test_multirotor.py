@@ -1,4 +1,4 @@
-"""The rotor-level vehicle model (issue #13, part 1), held to physics: a free rigid body keeps
+"""The rotor-level vehicle model, held to physics: a free rigid body keeps
 its energy and angular momentum, rotors at the hover speed hold the vehicle still, a lost rotor
 removes exactly its force and moment, inflow and motors behave as stated."""
 

@@ -1,4 +1,4 @@
-"""Readers (issue #5): every format is written here from a simulated flight in that format's own
+"""Readers: every format is written here from a simulated flight in that format's own
 frames and units, read back, and compared with the simulation (which is in quadest's); broken
 files give one clear line; the real samples in ../shared/data are read when present."""
 

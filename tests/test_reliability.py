@@ -1,4 +1,4 @@
-"""Nothing lost, nothing silent (issue #12, docs/reliability.md): bad samples are skipped and
+"""Nothing lost, nothing silent (docs/reliability.md): bad samples are skipped and
 counted, never turned into NaN for the rest of a run; gaps restart the estimators; parameters
 are checked when a filter is built; outputs never destroy inputs."""
 

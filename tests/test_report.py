@@ -1,4 +1,4 @@
-"""`quadest report` (issue #16), checked as a person would: the page opened in headless Chromium
+"""`quadest report`, checked as a person would: the page opened in headless Chromium
 (Debian's, driven by Playwright) shows no console error, every plot draws, the RMS table shows
 the figures computed here independently, zooming one plot zooms the others, and a recording
 without truth says so instead of showing errors. The browser tests skip, saying why, only where

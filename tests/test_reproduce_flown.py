@@ -1,4 +1,4 @@
-"""The AFCKF paper's experiment on the flying vehicle (issue #14, parts 1 and 2): the flights
+"""The AFCKF paper's experiment on the flying vehicle: the flights
 survive the loss, spin and tilt are outputs, and the ablation table has every row, each
 changing what physics says it changes."""
 

@@ -1,6 +1,6 @@
 """The simulator's physics: every sensor sample against the truth it claims, with ideal sensors.
 
-Tolerances: 0.05° for gyro integration over a whole run (issue #2), 1e-9 m/s² for the
+Tolerances: 0.05° for gyro integration over a whole run, 1e-9 m/s² for the
 accelerometer against the specific force recomputed here with scipy (rounding only), 1e-9 µT for
 the magnetometer. Integration here is independent of the simulator: a 4th-order Magnus
 expansion on scipy rotations.

@@ -1,4 +1,4 @@
-"""Each scenario moves as issue #2 describes, measured on the truth it produces."""
+"""Each scenario moves as docs/simulator.md describes, measured on the truth it produces."""
 
 import numpy as np
 import pytest

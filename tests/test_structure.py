@@ -305,3 +305,62 @@ def test_compiled_gives_the_live_state():
     other.update(gyr, acc, mag, dt=0.01)
     np.testing.assert_array_equal(est.get_state(), other.get_state())
     np.testing.assert_allclose(c.declination_quat, [np.cos(0.1), 0.0, 0.0, np.sin(0.1)], rtol=0, atol=1e-15)
+
+
+MAX_LINES, MAX_PARAMS = 120, 15
+
+
+def _functions(root: Path):
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                yield path, node
+
+
+def test_functions_are_short_and_take_few_parameters():
+    """No function of the package is longer than 120 lines or takes more than 15 parameters
+    (related values travel as a record or a tuple: a loop's ``L``, a bank's ``(V, Qr, P, L, w)``)."""
+    problems = []
+    for path, fn in _functions(SRC):
+        a = fn.args
+        params = len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs) + bool(a.vararg) + bool(a.kwarg)
+        lines = fn.end_lineno - fn.lineno + 1
+        if lines > MAX_LINES or params > MAX_PARAMS:
+            problems.append(f"{path.relative_to(SRC)}:{fn.lineno} {fn.name}: {lines} lines, {params} parameters")
+    assert not problems, "\n".join(problems)
+
+
+def test_no_issue_numbers_in_code():
+    """What an issue asked for is in the repository's history, not in the code (it goes stale)."""
+    root = SRC.parents[1]
+    hits = [
+        f"{p.relative_to(root)}:{i}"
+        for folder in ("src", "tests", "tools")
+        for p in sorted((root / folder).rglob("*.py"))
+        for i, line in enumerate(p.read_text().splitlines(), 1)
+        if "issue " + "#" in line.lower()
+    ]
+    assert not hits, "issue numbers in code: " + ", ".join(hits)
+
+
+def test_one_closed_loop_and_one_sensor_model():
+    """Every flight flies through flight/loop.py's closed_loop, and every simulation samples the
+    one compiled sensor model of sim/sensors.py."""
+    defs = {}
+    for path, fn in _functions(SRC):
+        defs.setdefault(fn.name, []).append(str(path.relative_to(SRC)))
+    assert defs["closed_loop"] == ["flight/loop.py"]
+    assert defs["sample_imu"] == ["sim/sensors.py"] and defs["sample_mag"] == ["sim/sensors.py"]
+    # a controller runs only through the registry's command, the vehicle flies a controller's
+    # commands only in the loop (multirotor's own open-loop integration takes given commands)
+    calls = {}
+    for path, fn in _functions(SRC):
+        for node in ast.walk(fn):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name):
+                calls.setdefault(node.func.id, set()).add(f"{path.relative_to(SRC)}:{fn.name}")
+    assert calls["rk4_ws"] <= {
+        "flight/loop.py:record_and_fly",
+        "models/multirotor.py:rk4",
+        "models/multirotor.py:fly_open_loop",
+    }
+    assert calls["ftc_command"] == {"control/registry.py:command"}

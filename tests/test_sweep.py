@@ -1,4 +1,4 @@
-"""Sweeps and tuning on Dask (issue #7): results independent of where runs execute, a real
+"""Sweeps and tuning on Dask: results independent of where runs execute, a real
 scheduler and two workers on loopback, a worker killed mid-sweep, an interrupted sweep resumed."""
 
 import json
@@ -340,7 +340,7 @@ def test_reproduce_runs_on_the_same_engine():
 
 
 def test_flown_runs_sweep_resume_and_tune(tmp_path, capsys):
-    """Flown flights in a sweep (issue #13): estimator x failure x seed, one row per run with
+    """Flown flights in a sweep: estimator x failure x seed, one row per run with
     the flight's outcome; the same run twice is skipped (resume); tuning reads the tilt error
     the controller flew with; a sweep that mixes flown and estimation runs is refused."""
     import pyarrow.parquet as pq

@@ -1,4 +1,4 @@
-"""The accuracy targets of issue #3, measured as `quadest reproduce afckf --prescribed` measures them.
+"""The accuracy targets on the prescribed flights, measured as `quadest reproduce afckf --prescribed` measures them.
 
 Deterministic (simulated seeds), so they guard against regressions; speed targets are measured
 by `quadest benchmark speed`, never here.
@@ -45,7 +45,7 @@ def test_nominal_flight_roll_pitch():
 
 
 def test_recovery_targets():
-    """Issue #4: with the simulation's model >= 95 % of throws converge within 1.5 s of release,
+    """The recovery paper's targets: with the simulation's model >= 95 % of throws converge within 1.5 s of release,
     gravity error at convergence median <= 5°, p90 <= 15°; the fitted model at most 5 points
     worse. 100 throws, seeds 1-100 (the filter's noise values were chosen on throws 5000-5079)."""
     from quadest.evaluation.reproduce import reproduce_recovery

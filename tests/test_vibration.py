@@ -1,4 +1,4 @@
-"""A flown vehicle's vibration (issue #13, part 2): each rotor's blade-pass tone follows its own
+"""A flown vehicle's vibration: each rotor's blade-pass tone follows its own
 speed, and a damaged propeller's imbalance shakes the IMU as the rigid body answers its
 rotating force (checked against the Euler equations integrated here), in the closed loop as
 in the batch sensor model."""

@@ -1,4 +1,4 @@
-"""Bad input, tried as a careless user and a hostile file would (issue #12, docs/reliability.md).
+"""Bad input, tried as a careless user and a hostile file would (docs/reliability.md).
 
 Runs every case in a temporary folder through the command line (in this process) and prints a
 Markdown table: the case, what quadest did (exit code and the first line of stderr) and whether

@@ -323,7 +323,7 @@ SPEED_TARGET_US = {
     "mahony": 0.2,
     "complementary": 0.2,
     "kalman": 5.0,
-}  # batch targets of issue #3 (targets, not measurements)
+}  # the batch speed targets (targets, not measurements)
 BROAD_GROUPS = (("all_trials", "all"), ("undisturbed", "undisturbed"), ("disturbed", "disturbed"))
 
 
@@ -598,7 +598,7 @@ def _params(p: dict) -> str:
 
 
 def results_robust_targets() -> str:
-    """docs/estimators.md and README: issue #15's targets, measured."""
+    """docs/estimators.md and README: robust's targets, measured."""
     broad, flights, repo, speed = _load("broad"), _load("flights"), _load("repoimu"), _load("speed")
     pres, flown, loop = _load("afckf-prescribed"), _load("afckf"), _load("afckf-in-loop")
     rows = []

@@ -107,7 +107,20 @@ def configure() -> str | None:
 CACHE_DIR = configure()
 """Where compiled code is cached (None when ``NUMBA_CACHE_DIR`` was set by the user)."""
 
-from numba import carray, cfunc, njit, types  # noqa: E402  (after the cache folder is set)
+from numba import carray, cfunc, types  # noqa: E402  (after the cache folder is set)
+from numba import njit as _numba_njit  # noqa: E402
+
+
+def njit(*args, **options):
+    """numba's ``njit`` with reference counting stated, never inherited: numba compiles a
+    function called from code without it (:data:`NO_ALLOCATION`) without it too, unless the
+    function says otherwise, so a step that allocates would fail to compile (or, compiled
+    first there, lose its counts) depending on who called it first."""
+    options.setdefault("_nrt", True)
+    if args and callable(args[0]):
+        return _numba_njit(**options)(args[0])
+    return _numba_njit(*args, **options)
+
 
 NO_ALLOCATION = {"_nrt": False}
 """``njit`` options for a compiled step that allocates no array: numba's reference counting is
@@ -115,4 +128,13 @@ left out, and with it the counts of the arrays the step passes to its inlined ph
 call (robust's step: 0.43 -> 0.24 µs a sample; docs/developing.md). A step that does allocate
 fails to compile ("NRT required but not enabled"), never runs wrong."""
 
-__all__ = ["CACHE_DIR", "NO_ALLOCATION", "carray", "cfunc", "njit", "types"]
+
+@njit(cache=True, inline="always")
+def copy_into(dst, src):
+    """``dst[:] = src`` for one-dimensional arrays of one length, in code compiled with
+    :data:`NO_ALLOCATION` (numba's slice assignment needs its reference counting)."""
+    for i in range(dst.shape[0]):
+        dst[i] = src[i]
+
+
+__all__ = ["CACHE_DIR", "NO_ALLOCATION", "carray", "cfunc", "copy_into", "njit", "types"]

@@ -5,6 +5,8 @@ the simulator's parameters are all declared with :func:`param`."""
 from __future__ import annotations
 
 import math
+import sys
+from collections import namedtuple
 from dataclasses import field, fields
 
 import numpy as np
@@ -61,3 +63,42 @@ def check(record, owner: str = "") -> None:
 def describe(record_cls) -> list[dict]:
     """``[{name, default, unit, doc, source}]`` of a parameter record's fields, in order."""
     return [{"name": f.name, "default": f.default, **f.metadata} for f in fields(record_cls)]
+
+
+_KINDS = {"f8": float, "i8": int, "b1": bool}
+
+
+def compiled_record(name: str, doc: str, **spec):
+    """A record that compiled code reads by field name (a namedtuple, which numba passes by
+    value at no cost), made only through ``make(**fields)``, which checks every field: each
+    named once, scalars of their kind (``"f8"``, ``"i8"``, ``"b1"``), arrays (``"f8[:]"``,
+    ``"i8[:]"``, ``"f8[:, :]"`` ...) of their dtype and dimensions and C-contiguous (they are
+    written in place, never copied), anything else (``"any"``) as given."""
+    # the caller's module: numba's cache pickles the record's class by where it is defined
+    cls = namedtuple(name, list(spec), module=sys._getframe(1).f_globals["__name__"])
+    cls.__doc__ = doc
+
+    def make(**fields):
+        missing, unknown = sorted(set(spec) - set(fields)), sorted(set(fields) - set(spec))
+        if missing or unknown:
+            raise TypeError(f"{name}: missing fields {missing}, unknown fields {unknown}")
+        return cls(**{k: _checked(name, k, fields[k], kind) for k, kind in spec.items()})
+
+    cls.make = staticmethod(make)
+    return cls
+
+
+def _checked(record: str, field_name: str, value, kind: str):
+    if kind == "any":
+        return value
+    if kind in _KINDS:
+        if isinstance(value, np.ndarray):
+            raise TypeError(f"{record}.{field_name}: a scalar ({kind}), got an array")
+        return _KINDS[kind](value)
+    dtype, ndim = kind[:2], kind.count(":")
+    if not isinstance(value, np.ndarray) or value.dtype != np.dtype(dtype) or value.ndim != ndim:
+        got = f"{value.dtype}, {value.ndim} dimensions" if isinstance(value, np.ndarray) else type(value).__name__
+        raise TypeError(f"{record}.{field_name}: an array of {dtype} in {ndim} dimensions, got {got}")
+    if not value.flags.c_contiguous:
+        raise TypeError(f"{record}.{field_name}: the array must be C-contiguous")
+    return value

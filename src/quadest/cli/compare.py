@@ -332,6 +332,12 @@ def cmd_benchmark(args):
 
 
 def add_parsers(sub):
+    _add_compare(sub)
+    _add_reproduce(sub)
+    _add_benchmark(sub)
+
+
+def _add_compare(sub):
     c = sub.add_parser(
         "compare",
         help="run estimators on one recording and tabulate their errors",
@@ -380,6 +386,8 @@ def add_parsers(sub):
     add_report_arg(c)
     c.set_defaults(func=cmd_compare)
 
+
+def _add_reproduce(sub):
     r = sub.add_parser(
         "reproduce",
         help="reproduce a paper's experiments on the simulator",
@@ -430,6 +438,8 @@ def add_parsers(sub):
     add_engine_args(r, default_workers=0)
     r.set_defaults(func=cmd_reproduce)
 
+
+def _add_benchmark(sub):
     b = sub.add_parser(
         "benchmark",
         help="benchmarks: BROAD, quadrotor flights, speed, the flying vehicle",

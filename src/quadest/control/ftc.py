@@ -1,4 +1,4 @@
-"""Fault-tolerant control after the complete loss of one rotor (issue #13): the reduced-attitude
+"""Fault-tolerant control after the complete loss of one rotor: the reduced-attitude
 strategy of Mueller & D'Andrea, "Stability and control of a quadrocopter despite the complete
 loss of one, two, or three propellers" (ICRA 2014) and "Relaxed hover solutions for
 multicopters" (2016), on quadest's conventions (NED, FRD, ``q_nb``).

@@ -1,5 +1,5 @@
 """The geometric tracking controller on SE(3) of Lee, Leok & McClamroch, "Geometric tracking
-control of a quadrotor UAV on SE(3)", IEEE CDC 2010 (issue #13: the nominal controller), on
+control of a quadrotor UAV on SE(3)", IEEE CDC 2010 (the nominal controller), on
 quadest's conventions (NED, FRD, ``q_nb``), with rotor-speed allocation for a quadrotor.
 
 With ``e_p = p − p_d``, ``e_v = v − v_d`` and gains per unit mass (as RotorPy's ``SE3Control``):

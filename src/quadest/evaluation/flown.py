@@ -1,4 +1,4 @@
-"""The AFCKF paper's experiment on the flying vehicle (issue #14, parts 1 and 2).
+"""The AFCKF paper's experiment on the flying vehicle.
 
 The prescribed damaged-rotor scenario (docs/simulator.md) takes its spin rate, tilt and spin-up
 as inputs. Here a Bebop 2 (the paper's vehicle, Sun et al.'s parameters) *flies*: it hovers, or
@@ -249,7 +249,7 @@ IN_LOOP_VARIANTS = [
 range and the magnetometer's latency."""
 
 IN_LOOP_AFTER_S = 20.0
-"""How long after the loss a run must stay up (issue #14: 20 s)."""
+"""How long after the loss a run must stay up (20 s)."""
 
 
 def in_loop_seed(task) -> list[dict]:

@@ -1,4 +1,4 @@
-"""What a flight report shows (issue #16), computed from the whole recording: its sensors and
+"""What a flight report shows, computed from the whole recording: its sensors and
 rates, gaps, clipping, vibration, magnetic disturbance, the events in it, and each estimator's
 attitude with its errors where there is a truth (or the autopilot's own estimate, labelled so).
 The figures are drawn by :mod:`quadest.plot.report`; every number here comes from all samples,

@@ -507,7 +507,7 @@ def reproduce_recovery_flown(
     keep_runs: bool = False,
     duration: float = 14.0,
 ) -> dict:
-    """The recovery paper's experiment flown (issue #14, part 4): ``throws`` throws of the
+    """The recovery paper's experiment flown: ``throws`` throws of the
     rotor-level vehicle (seeds ``seed``..), thrown upward (or in any direction), recovered by the
     bank of EKFs with the aerodynamic model fitted on separate flown throws, then flown to a
     hover (:mod:`quadest.flight.throw`)."""

@@ -11,7 +11,7 @@ import numpy as np
 from quadest.filters import FILTERS, make_filter
 from quadest.filters.base import STREAM_C
 from quadest.filters.peers import run_peer
-from quadest.recovery.logic import RecoveryParams, _run_bank, shortest_arc
+from quadest.recovery.logic import RecoveryParams, run_bank, shortest_arc
 from quadest.recovery.sphere import spread_points
 from quadest.rotation.frames import vec_frd_to_flu
 from quadest.sim import aero_model, build_config, simulate
@@ -94,26 +94,14 @@ def time_bank(n_hypotheses: int = 40, duration: float = 20.0, seed: int = 1) -> 
         Qr = np.array([shortest_arc(d) for d in dirs])
         P = np.repeat(np.diag([9.0, 9, 9, 1, 1])[None], n_hypotheses, axis=0)
         t0 = time.perf_counter()
-        _run_bank(
-            V,
-            Qr,
-            P,
-            np.zeros(n_hypotheses),
-            rec.gyr[0].copy(),
-            rec.t,
-            rec.gyr,
-            rec.acc,
+        run_bank(
+            (V, Qr, P, np.zeros(n_hypotheses), rec.gyr[0].copy()),
+            (rec.t, rec.gyr, rec.acc),
             1,
             p.bank_record(model.mass_kg),
-            model.A,
-            model.B,
-            model.C,
+            (model.A, model.B, model.C),
             p.beta2,
-            bufs["best_out"],
-            bufs["sg_out"],
-            bufs["prob_out"],
-            bufs["gd_out"],
-            bufs["v_out"],
+            tuple(bufs[k] for k in ("best_out", "sg_out", "prob_out", "gd_out", "v_out")),
             False,
         )
         return time.perf_counter() - t0

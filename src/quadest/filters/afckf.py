@@ -246,114 +246,111 @@ def fuzzy_gain(rho, lam_m, w_abs, w_sat, th_m, th_w, k1, k2, k3, k4):
     return (w1 * k1 + w2 * k2 + w3 * k3 + w4 * k4) / s
 
 
-@njit(cache=True, fastmath=FASTMATH)
-def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
-    if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
-        return
-    use_mag = p[PR.use_mag] != 0.0
-    om1, om2, beta, sg, grav = p[PR.omega1], p[PR.omega2], p[PR.beta], p[PR.gyro_std], p[PR.gravity]
-    for i in range(7):
-        diag[i] = 0.0
-    pending = x[YAW_PENDING] != 0.0
-    if not prepare(x, acc, mag, use_mag):
-        return
-    if x[ISTART] == 0.0 or (pending and x[YAW_PENDING] == 0.0):
-        # channels start from the initial attitude (or the heading just set by the magnetometer)
-        x[IQ : IQ + 4] = _to_up(x[0:4])
-        P0 = np.eye(4) * p[PR.p0]
-        x[IP : IP + 16] = P0.ravel()
-        x[IPSI] = q_to_euler(x[0:4])[2]
-        s0, c0 = np.sin(x[IPSI]), np.cos(x[IPSI])
-        for i in range(WMAX):
-            x[IBUF + i] = s0
-            x[IBUF + WMAX + i] = c0
-        x[ISTART] = 1.0
-    # the Kalman channel works in place on the state: P is a view of x
-    P = x[IP : IP + 16].reshape((4, 4))
-    qw, qx, qy, qz = x[IQ], x[IQ + 1], x[IQ + 2], x[IQ + 3]
-    # D. eq 39: ω_cor = ω − b
-    if finite3(gyr):
-        w0, w1, w2 = gyr[0] - x[IB], gyr[1] - x[IB + 1], gyr[2] - x[IB + 2]
-    else:
-        w0, w1, w2 = 0.0, 0.0, 0.0
-    # C. eqs 25-26: q̇_ω = ½ q ⊗ [0, ω], q_ω = q + q̇_ω Δt (normalised)
-    d0, d1, d2, d3 = qdot_s(qw, qx, qy, qz, w0, w1, w2)
-    qdot_norm = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2 + d3 * d3)
-    pw, px, py, pz = normalize_s(qw + d0 * dt, qx + d1 * dt, qy + d2 * dt, qz + d3 * dt)
-    # eq 31, corrected: P⁻ = P + Δt²/4 σ² Ξ(q) Ξ(q)ᵀ (Φ = Λ = I)
-    add_process_noise(P, qw, qx, qy, qz, dt * dt / 4.0 * sg * sg)
-    nw, nx, ny, nz = pw, px, py, pz
-    r_off = 1.0
+@njit(cache=True, inline="always")
+def start_channels(x, p):
+    """The channels start from the initial attitude (or the heading just set by the
+    magnetometer): the Kalman channel's q' and P, the yaw and its averaging buffer."""
+    x[IQ : IQ + 4] = _to_up(x[0:4])
+    P0 = np.eye(4) * p[PR.p0]
+    x[IP : IP + 16] = P0.ravel()
+    x[IPSI] = q_to_euler(x[0:4])[2]
+    s0, c0 = np.sin(x[IPSI]), np.cos(x[IPSI])
+    for i in range(WMAX):
+        x[IBUF + i] = s0
+        x[IBUF + WMAX + i] = c0
+    x[ISTART] = 1.0
+
+
+@njit(cache=True, inline="always")
+def kalman_update(P, J0, J1, J2, cr, q, e):
+    """Eq 33, corrected: ``M = P⁻ + R`` with ``R = cr J_gᵀ J_g``; ``K = P⁻ M⁻¹``, the attitude
+    ``q + K e`` (``e`` the innovation ``q_∇ − q_ω``) and ``P = (I − K) P⁻`` in place."""
+    W = np.empty(48)  # scratch: M, its inverse, K
+    M = W[0:16].reshape((4, 4))
+    for i in range(4):
+        for j in range(4):
+            M[i, j] = P[i, j] + cr * (J0[i] * J0[j] + J1[i] * J1[j] + J2[i] * J2[j])
+    Minv = W[16:32].reshape((4, 4))
+    inv_spd_into(M, Minv)
+    K = W[32:48].reshape((4, 4))  # K = P⁻ M⁻¹
+    for i in range(4):
+        for j in range(4):
+            K[i, j] = P[i, 0] * Minv[0, j] + P[i, 1] * Minv[1, j] + P[i, 2] * Minv[2, j] + P[i, 3] * Minv[3, j]
+    e0, e1, e2, e3 = e
+    nw = q[0] + K[0, 0] * e0 + K[0, 1] * e1 + K[0, 2] * e2 + K[0, 3] * e3
+    nx = q[1] + K[1, 0] * e0 + K[1, 1] * e1 + K[1, 2] * e2 + K[1, 3] * e3
+    ny = q[2] + K[2, 0] * e0 + K[2, 1] * e1 + K[2, 2] * e2 + K[2, 3] * e3
+    nz = q[3] + K[3, 0] * e0 + K[3, 1] * e1 + K[3, 2] * e2 + K[3, 3] * e3
+    # P = (I − K) P⁻, in place through M as a copy of P⁻
+    for i in range(4):
+        for j in range(4):
+            M[i, j] = P[i, j]
+    for i in range(4):
+        for j in range(4):
+            P[i, j] = M[i, j] - (K[i, 0] * M[0, j] + K[i, 1] * M[1, j] + K[i, 2] * M[2, j] + K[i, 3] * M[3, j])
+    return nw, nx, ny, nz
+
+
+@njit(cache=True, inline="always")
+def accelerometer_update(x, P, p, c, acc, q, w2, qdot_norm, dt):
+    """A-D: the centrifugally compensated accelerometer (eqs 13-15), one gradient step from the
+    gyro prediction ``q`` (eqs 21-24), fused when ``|ξ| ≤ λ_a`` (eqs 33, 36, 38), and the bias
+    by integral feedback (eqs 40-42). Returns the attitude, μ and whether R was off (1.0)."""
+    pw, px, py, pz = q
     mu = 0.0
     an = norm3(acc) if finite3(acc) else 0.0
-    if an > 0.0:
-        # A. eqs 13-15: centrifugal compensation about body z, normalised by g
-        wz2 = w2 * w2
-        a0 = (acc[0] - wz2 * om1) / grav
-        a1 = (acc[1] - wz2 * om2) / grav
-        a2 = acc[2] / grav
-        xi_a = np.sqrt(a0 * a0 + a1 * a1 + a2 * a2) - 1.0  # eq 36
-        lam_a = c[CO.lam_a]  # eq 38, corrected
-        # B. eqs 21-24: one gradient-descent step, from the gyro prediction q_ω,t (eq 23
-        # corrected, see the module doc); f_g of eq 21 and J_g of eq 22 at q_ω
-        f0, f1, f2, J0, J1, J2 = gravity_objective(pw, px, py, pz, a0, a1, a2)
-        g0 = J0[0] * f0 + J1[0] * f1 + J2[0] * f2
-        g1 = J0[1] * f0 + J1[1] * f1 + J2[1] * f2
-        g2 = J0[2] * f0 + J1[2] * f1 + J2[2] * f2
-        g3 = J0[3] * f0 + J1[3] * f1 + J2[3] * f2
-        gn = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2 + g3 * g3)
-        mu = beta * qdot_norm * dt  # eq 24
-        if abs(xi_a) <= lam_a and gn > 0.0 and mu > 0.0:
-            # eq 33, corrected: R = μ²/‖∇f‖² J_gᵀ (Σ_acc/g)² J_g; M = P⁻ + R
-            sa_g = c[CO.sa_g]
-            cr = mu * mu / (gn * gn) * sa_g * sa_g
-            W = np.empty(48)  # scratch: M, its inverse, K
-            M = W[0:16].reshape((4, 4))
-            for i in range(4):
-                for j in range(4):
-                    M[i, j] = P[i, j] + cr * (J0[i] * J0[j] + J1[i] * J1[j] + J2[i] * J2[j])
-            Minv = W[16:32].reshape((4, 4))
-            inv_spd_into(M, Minv)
-            K = W[32:48].reshape((4, 4))  # K = P⁻ M⁻¹
-            for i in range(4):
-                for j in range(4):
-                    K[i, j] = P[i, 0] * Minv[0, j] + P[i, 1] * Minv[1, j] + P[i, 2] * Minv[2, j] + P[i, 3] * Minv[3, j]
-            # innovation q_∇ − q_ω = −μ ∇f/‖∇f‖ (eq 23)
-            s_ = -mu / gn
-            e0, e1, e2, e3 = s_ * g0, s_ * g1, s_ * g2, s_ * g3
-            nw = pw + K[0, 0] * e0 + K[0, 1] * e1 + K[0, 2] * e2 + K[0, 3] * e3
-            nx = px + K[1, 0] * e0 + K[1, 1] * e1 + K[1, 2] * e2 + K[1, 3] * e3
-            ny = py + K[2, 0] * e0 + K[2, 1] * e1 + K[2, 2] * e2 + K[2, 3] * e3
-            nz = pz + K[3, 0] * e0 + K[3, 1] * e1 + K[3, 2] * e2 + K[3, 3] * e3
-            # P = (I − K) P⁻, in place through M as a copy of P⁻
-            for i in range(4):
-                for j in range(4):
-                    M[i, j] = P[i, j]
-            for i in range(4):
-                for j in range(4):
-                    P[i, j] = M[i, j] - (K[i, 0] * M[0, j] + K[i, 1] * M[1, j] + K[i, 2] * M[2, j] + K[i, 3] * M[3, j])
-            r_off = 0.0
-            # D. eqs 40-42: bias by integral feedback (sign corrected), from the measured and
-            # predicted up directions a_cor and v̂ = Rᵀ ĝ (v̂ = f_g + a_cor)
-            rho = c[CO.rho]
-            vx, vy, vz = f0 + a0, f1 + a1, f2 + a2
-            x[IB] -= rho * (a1 * vz - a2 * vy) * dt
-            x[IB + 1] -= rho * (a2 * vx - a0 * vz) * dt
-            x[IB + 2] -= rho * (a0 * vy - a1 * vx) * dt
-    # symmetric P
+    if an <= 0.0:
+        return pw, px, py, pz, mu, 1.0
+    grav, om1, om2 = p[PR.gravity], p[PR.omega1], p[PR.omega2]
+    # A. eqs 13-15: centrifugal compensation about body z, normalised by g
+    wz2 = w2 * w2
+    a0 = (acc[0] - wz2 * om1) / grav
+    a1 = (acc[1] - wz2 * om2) / grav
+    a2 = acc[2] / grav
+    xi_a = np.sqrt(a0 * a0 + a1 * a1 + a2 * a2) - 1.0  # eq 36
+    # B. eqs 21-24: one gradient-descent step, from the gyro prediction q_ω,t (eq 23
+    # corrected, see the module doc); f_g of eq 21 and J_g of eq 22 at q_ω
+    f0, f1, f2, J0, J1, J2 = gravity_objective(pw, px, py, pz, a0, a1, a2)
+    g0 = J0[0] * f0 + J1[0] * f1 + J2[0] * f2
+    g1 = J0[1] * f0 + J1[1] * f1 + J2[1] * f2
+    g2 = J0[2] * f0 + J1[2] * f1 + J2[2] * f2
+    g3 = J0[3] * f0 + J1[3] * f1 + J2[3] * f2
+    gn = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2 + g3 * g3)
+    mu = p[PR.beta] * qdot_norm * dt  # eq 24
+    if not (abs(xi_a) <= c[CO.lam_a] and gn > 0.0 and mu > 0.0):  # eq 38, corrected
+        return pw, px, py, pz, mu, 1.0
+    # eq 33, corrected: R = μ²/‖∇f‖² J_gᵀ (Σ_acc/g)² J_g; the innovation −μ ∇f/‖∇f‖ (eq 23)
+    sa_g = c[CO.sa_g]
+    s_ = -mu / gn
+    nw, nx, ny, nz = kalman_update(
+        P, J0, J1, J2, mu * mu / (gn * gn) * sa_g * sa_g, (pw, px, py, pz), (s_ * g0, s_ * g1, s_ * g2, s_ * g3)
+    )
+    # D. eqs 40-42: bias by integral feedback (sign corrected), from the measured and
+    # predicted up directions a_cor and v̂ = Rᵀ ĝ (v̂ = f_g + a_cor)
+    rho = c[CO.rho]
+    vx, vy, vz = f0 + a0, f1 + a1, f2 + a2
+    x[IB] -= rho * (a1 * vz - a2 * vy) * dt
+    x[IB + 1] -= rho * (a2 * vx - a0 * vz) * dt
+    x[IB + 2] -= rho * (a0 * vy - a1 * vx) * dt
+    return nw, nx, ny, nz, mu, 0.0
+
+
+@njit(cache=True, inline="always")
+def symmetrize(P):
     for i in range(4):
         for j in range(i + 1, 4):
             v = 0.5 * (P[i, j] + P[j, i])
             P[i, j] = v
             P[j, i] = v
-    nq = np.sqrt(nw * nw + nx * nx + ny * ny + nz * nz)
-    nw, nx, ny, nz = nw / nq, nx / nq, ny / nq, nz / nq
-    x[IQ], x[IQ + 1], x[IQ + 2], x[IQ + 3] = nw, nx, ny, nz
-    # the Kalman channel's q_nb = q_F* ⊗ q' = [q'x, −q'w, q'z, −q'y]; its roll and pitch are
-    # the estimate's. E. eq 43: gyro yaw integration with the ZYX Euler rate
-    # ψ̇ = (ω_y sin φ + ω_z cos φ)/cos θ = (R21 ω_y + R22 ω_z)/(1 − R20²), from the matrix
-    # entries (R20 = −sin θ, R21 = sin φ cos θ, R22 = cos φ cos θ): no trigonometry per sample
-    bw, bx, by, bz = nx, -nw, nz, -ny
+
+
+@njit(cache=True, inline="always")
+def yaw_channel(x, p, c, gyr, mag, use_mag, b, w1, w2, dt):
+    """E. eq 43: gyro yaw integration with the ZYX Euler rate ``ψ̇ = (ω_y sin φ + ω_z cos φ)/cos θ
+    = (R21 ω_y + R22 ω_z)/(1 − R20²)`` from the Kalman channel's ``q_nb`` ``b`` (R20 = −sin θ,
+    R21 = sin φ cos θ, R22 = cos φ cos θ: no trigonometry per sample), blended with the
+    magnetometer's heading by the fuzzy gain (eqs 44-51). Returns ψ, ψ̇ and κ."""
+    bw, bx, by, bz = b
     r20 = 2.0 * (bx * bz - bw * by)
     r21 = 2.0 * (by * bz + bw * bx)
     r22 = 1.0 - 2.0 * (bx * bx + by * by)
@@ -384,9 +381,13 @@ def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
         pitch = np.arcsin(min(1.0, max(-1.0, -r20)))
         psi_m = mag_heading(mag, roll, pitch)  # eqs 44-45, corrected (ν: declination of the run)
         psi = psi + kappa * wrap_angle(psi_m - psi)  # eq 46 on the circle
-    psi = wrap_angle(psi)
-    x[IPSI] = psi
-    # eqs 52-53: adaptive-window moving average on the circle
+    return wrap_angle(psi), psi_dot, kappa
+
+
+@njit(cache=True, inline="always")
+def averaged_heading(x, p, psi, psi_dot):
+    """Eqs 52-53: ``psi`` into the buffer, the mean of the last ``ι e^{−|ψ̇|}`` headings on the
+    circle. Returns it and the window."""
     head = int(x[IHEAD])
     x[IBUF + head] = np.sin(psi)
     x[IBUF + WMAX + head] = np.cos(psi)
@@ -399,7 +400,45 @@ def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
         k = (head - j) % WMAX
         ss += x[IBUF + k]
         cs += x[IBUF + WMAX + k]
-    yaw = np.arctan2(ss, cs)
+    return np.arctan2(ss, cs), win
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
+    if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
+        return
+    for i in range(7):
+        diag[i] = 0.0
+    pending = x[YAW_PENDING] != 0.0
+    if not prepare(x, acc, mag, p[PR.use_mag] != 0.0):
+        return
+    if x[ISTART] == 0.0 or (pending and x[YAW_PENDING] == 0.0):
+        start_channels(x, p)
+    # the Kalman channel works in place on the state: P is a view of x
+    P = x[IP : IP + 16].reshape((4, 4))
+    qw, qx, qy, qz = x[IQ], x[IQ + 1], x[IQ + 2], x[IQ + 3]
+    # D. eq 39: ω_cor = ω − b
+    if finite3(gyr):
+        w0, w1, w2 = gyr[0] - x[IB], gyr[1] - x[IB + 1], gyr[2] - x[IB + 2]
+    else:
+        w0, w1, w2 = 0.0, 0.0, 0.0
+    # C. eqs 25-26: q̇_ω = ½ q ⊗ [0, ω], q_ω = q + q̇_ω Δt (normalised)
+    d0, d1, d2, d3 = qdot_s(qw, qx, qy, qz, w0, w1, w2)
+    qdot_norm = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2 + d3 * d3)
+    q_w = normalize_s(qw + d0 * dt, qx + d1 * dt, qy + d2 * dt, qz + d3 * dt)
+    # eq 31, corrected: P⁻ = P + Δt²/4 σ² Ξ(q) Ξ(q)ᵀ (Φ = Λ = I)
+    sg = p[PR.gyro_std]
+    add_process_noise(P, qw, qx, qy, qz, dt * dt / 4.0 * sg * sg)
+    nw, nx, ny, nz, mu, r_off = accelerometer_update(x, P, p, c, acc, q_w, w2, qdot_norm, dt)
+    symmetrize(P)
+    nq = np.sqrt(nw * nw + nx * nx + ny * ny + nz * nz)
+    nw, nx, ny, nz = nw / nq, nx / nq, ny / nq, nz / nq
+    x[IQ], x[IQ + 1], x[IQ + 2], x[IQ + 3] = nw, nx, ny, nz
+    # the Kalman channel's q_nb = q_F* ⊗ q' = [q'x, −q'w, q'z, −q'y]; its roll and pitch are the estimate's
+    bw, bx, by, bz = nx, -nw, nz, -ny
+    psi, psi_dot, kappa = yaw_channel(x, p, c, gyr, mag, p[PR.use_mag] != 0.0, (bw, bx, by, bz), w1, w2, dt)
+    x[IPSI] = psi
+    yaw, win = averaged_heading(x, p, psi, psi_dot)
     # output: roll and pitch of the Kalman channel, yaw of the yaw channel — the Kalman
     # channel's q_nb turned about the vertical by (yaw − its own yaw)
     yaw_kf = np.arctan2(2.0 * (bx * by + bw * bz), 1.0 - 2.0 * (by * by + bz * bz))

@@ -1,4 +1,4 @@
-"""Flights of the rotor-level vehicle with an estimator in the loop (issue #13; docs/vehicle.md):
+"""Flights of the rotor-level vehicle with an estimator in the loop (docs/vehicle.md):
 a controller flies the vehicle model on what the estimator makes of the sensors, and the flight
 becomes a recording that every command reads. Layer 2: it joins the controllers, the estimators
 and the simulator's sensors."""

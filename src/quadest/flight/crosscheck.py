@@ -1,4 +1,4 @@
-"""quadest's vehicle and SE(3) controller against RotorPy (issue #13, part 6): the same vehicle
+"""quadest's vehicle and SE(3) controller against RotorPy: the same vehicle
 (RotorPy's Hummingbird, quadest's ``hummingbird`` preset), the same controller and gains, the
 same circle, flown by both simulators. RotorPy is optional (``pip install rotorpy``; the peers
 and test extras install it).
@@ -17,7 +17,8 @@ import time
 
 import numpy as np
 
-from quadest.control import SE3Params, circle_reference, fly_se3, hover_reference
+from quadest.control import SE3Params, circle_reference, hover_reference
+from quadest.flight.truth import fly_se3
 from quadest.models.multirotor import vehicle_preset
 
 RADIUS_M = 1.0

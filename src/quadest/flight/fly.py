@@ -1,4 +1,4 @@
-"""Flights of the rotor-level vehicle with an estimator in the loop (issue #13; docs/vehicle.md).
+"""Flights of the rotor-level vehicle with an estimator in the loop (docs/vehicle.md).
 
 ``fly(scenario, estimator=..., controller=...)`` flies one run and returns a :class:`Flight`:
 the recording (what the sensors gave, as every command reads it), the true states, what the
@@ -10,16 +10,18 @@ from __future__ import annotations
 
 import math
 import time
+from collections import namedtuple
 from dataclasses import asdict
 
 import numpy as np
 
 from quadest.control import Failure, FtcParams, SE3Params, circle_reference, hover_reference
 from quadest.control.ftc import relaxed_hover
+from quadest.control.registry import CONTROLLERS as REGISTRY
 from quadest.errors import UsageError
 from quadest.filters import FILTERS, Estimator, make_filter
-from quadest.filters.base import declination_quat
 from quadest.filters.peers import STREAMING_PEERS, available_peers, run_peer, stream_peer
+from quadest.flight import build
 from quadest.flight.common import (
     SIM_RATE_HZ,
     Flight,
@@ -31,14 +33,22 @@ from quadest.flight.common import (
     rms,
     sensors_for,
 )
-from quadest.flight.loop import ESTIMATE_NAN, OK, STATUS, Loop, closed_loop, no_estimator, step_act, step_sense
+from quadest.flight.loop import (
+    ESTIMATE_NAN,
+    OK,
+    STATUS,
+    act_sample,
+    closed_loop,
+    flown_arrays,
+    no_estimator_args,
+    sense_sample,
+)
 from quadest.flight.throw import ThrowParams, fly_throw
-from quadest.models.multirotor import MultirotorParams, vehicle_preset, work
+from quadest.models.multirotor import MultirotorParams, vehicle_preset
 from quadest.rotation import euler_to_quat, quat_rotate
 from quadest.sim import build_config
 from quadest.sim.flown import flown_recording
 from quadest.sim.params import SimConfig
-from quadest.sim.sensors import vibration_state
 
 SCENARIOS = ("hover", "trajectory", "rotor-loss", "throw")
 
@@ -49,7 +59,7 @@ def in_loop_estimators() -> list[str]:
     return [*FILTERS, *[p for p in STREAMING_PEERS if p in available_peers()]]
 
 
-CONTROLLERS = ("se3", "ftc")
+CONTROLLERS = tuple(name for name, c in REGISTRY.items() if c.selectable)  # what a user may fly by name
 DEFAULT_DURATION = {"hover": 10.0, "trajectory": 20.0, "rotor-loss": 10.0, "throw": 14.0}  # a throw: from the release
 DEFAULT_PRESET = {"throw": "fma"}  # the recovery paper's sensors (IMU 1 kHz, no magnetometer); else bebop2
 
@@ -87,13 +97,13 @@ def fly(
 ) -> Flight:
     """Fly ``scenario`` with ``estimator`` in the loop: a quadest filter by name (with the
     preset's declination), an :class:`~quadest.filters.Estimator` (it continues from its state),
-    or ``truth`` (the controller reads the true state).
+    or ``truth`` (an oracle: the controller reads the true state).
 
     Scenarios: ``hover`` (hold the origin from a disturbed start), ``trajectory`` (a 1 m circle
     at 0.2 Hz), ``rotor-loss`` (hover; rotor 0 lost at 2 s unless ``failure`` says otherwise),
     ``throw`` (released tumbling; the recovery paper's bank of EKFs and logic in the loop, then
-    SE(3) hover hold: :mod:`quadest.flight.throw`; estimator ``recovery`` or ``truth``, sensors
-    ``fma`` by default).
+    the recovery controller: :mod:`quadest.flight.throw`; estimator ``recovery`` or ``truth``,
+    sensors ``fma`` by default).
     ``controller``: ``se3`` (nominal only) or ``ftc`` (SE(3), then the fault-tolerant controller
     once a complete rotor loss is known, holding the point the reference had reached then: a
     trajectory with a loss ends in a relaxed hover); default ``ftc`` for ``rotor-loss``, else ``se3``.
@@ -102,6 +112,78 @@ def fly(
     (:data:`~quadest.models.VEHICLE_PRESETS`, default ``recovery``); ``estimator_params`` the
     named estimator's parameters (``{"beta_marg": 0.05}``); ``throw`` a throw's parameters
     (:class:`~quadest.flight.throw.ThrowParams`; its duration counts from the release)."""
+    controller, duration = _check_request(scenario, estimator, controller, duration)
+    vehicle_name = vehicle if isinstance(vehicle, str) else ("recovery" if vehicle is None else "custom")
+    vehicle = vehicle_preset(vehicle) if isinstance(vehicle, str) else (vehicle or MultirotorParams())
+    params = params or FlightParams()
+    failure = _checked_failure(scenario, failure, controller, vehicle, duration)
+    preset = preset or DEFAULT_PRESET.get(scenario, "bebop2")
+    cfg = (config or build_config(preset)).validate()
+    rate, substeps, every = _rates(cfg, params, preset)
+    meta = {"scenario": f"flown {scenario}", "preset": preset, "vehicle": vehicle_name}
+    if scenario == "throw":
+        meta.update(controller="se3 after recovery", estimator=estimator)
+        return fly_throw(
+            estimator=estimator, duration=duration, seed=seed, cfg=cfg, vehicle=vehicle, params=params, se3=se3,
+            throw=throw, meta=meta,
+        )  # fmt: skip
+    n = int(round(duration * rate))
+    t = np.arange(n) / rate
+    rng_ref, rng_mocap = (np.random.default_rng(s) for s in np.random.SeedSequence([int(seed), 13]).spawn(2))
+    x0, ref = _reference(scenario, t, rng_ref, vehicle)
+    processes, sm = sensors_for(cfg, n, seed, vehicle)  # the generators and order of flown_recording's
+    nav, est = _in_loop(estimator, cfg, rate, estimator_params)
+    ftc = ftc or FtcParams()
+    ftc_k = _ftc_sample(controller, failure, params, rate, n)
+    L = build.loop(
+        plant=build.plant(
+            vehicle, h=1.0 / SIM_RATE_HZ, substeps=substeps, ground_z=float(params.height_m), failure=failure, rate=rate
+        ),
+        sensing=_position_sensing(sm, params, rate, every, n, x0, rng_mocap, vehicle.rotors),
+        nav=build.navigation(nav, x0, position_gain(params, rate)),
+        bank=build.bank(),
+        control=build.control(
+            dict(REGISTRY[controller].phases),
+            G=(se3 or SE3Params()).gains(vehicle),
+            F=ftc.gains(vehicle, failure.rotor if controller == "ftc" else 0),
+            reference=_held_after(ref, ftc_k),
+            ftc_k=ftc_k,
+            cmd0=np.zeros(vehicle.rotors),
+        ),
+        n=n,
+        rotors=vehicle.rotors,
+        phase="flying",
+    )
+    x = x0.copy()
+    t0 = time.perf_counter()
+    status, flown = _run(x, L, est)
+    loop_s = time.perf_counter() - t0
+    if flown == 0:
+        raise ValueError(f"the flight ended before its first sample ({STATUS[status]})")
+    out = flown_arrays(L.record, flown)
+    meta.update(controller=controller, estimator=est.name, position_sensor=params.position_sensor)
+    if failure is not None:
+        meta["failure"] = asdict(failure)  # imbalance in kg m
+    flight = _flight(out, t[:flown], vehicle, cfg, seed, failure, meta, processes, params, loop_s)
+    flight.summary = summarize(
+        flight,
+        scenario=scenario,
+        status=status,
+        duration=duration,
+        failure=failure,
+        controller=controller,
+        estimator=est.name,
+        seed=seed,
+        params=params,
+        ftc=ftc,
+        vehicle=vehicle,
+        ref=(L.control.p_d, L.control.yaw_d),
+    )
+    return flight
+
+
+def _check_request(scenario, estimator, controller, duration):
+    """The controller and duration of a flight, after refusing what cannot fly (one line each)."""
     if scenario not in SCENARIOS:
         raise UsageError(f"unknown scenario {scenario!r}; scenarios: {', '.join(SCENARIOS)}")
     if scenario == "throw":
@@ -112,12 +194,7 @@ def fly(
             )
         if controller not in (None, "se3"):
             raise UsageError("after a throw the SE(3) controller holds the vehicle: controller se3 (or none)")
-    elif (
-        not isinstance(estimator, Estimator)
-        and estimator != "truth"
-        and estimator not in FILTERS
-        and estimator not in STREAMING_PEERS
-    ):
+    elif not isinstance(estimator, Estimator) and estimator != "truth" and estimator not in in_loop_names():
         raise UsageError(
             f"unknown estimator {estimator!r}; estimators: truth, {', '.join(FILTERS)}, and the peers "
             f"{', '.join(STREAMING_PEERS)} (through their streaming API)"
@@ -128,9 +205,20 @@ def fly(
     duration = DEFAULT_DURATION[scenario] if duration is None else float(duration)
     if not (math.isfinite(duration) and 0 < duration <= 3600):
         raise UsageError(f"duration must be between 0 and 3600 s, got {duration}")
-    vehicle_name = vehicle if isinstance(vehicle, str) else ("recovery" if vehicle is None else "custom")
-    vehicle = vehicle_preset(vehicle) if isinstance(vehicle, str) else (vehicle or MultirotorParams())
-    params = params or FlightParams()
+    return controller, duration
+
+
+def in_loop_names() -> list[str]:
+    """The names an estimator in the loop may have (installed or not)."""
+    return [*FILTERS, *STREAMING_PEERS]
+
+
+def _checked_failure(scenario, failure, controller, vehicle, duration):
+    """The failure the flight has (rotor 0 at 2 s for ``rotor-loss`` unless given), checked."""
+    if scenario == "throw":
+        if failure is not None:
+            raise UsageError("a throw has no rotor failure")
+        return None
     if scenario == "rotor-loss" and failure is None:
         failure = Failure(rotor=0, time_s=min(2.0, duration / 2))
     if failure is not None:
@@ -140,185 +228,102 @@ def fly(
             "the fault-tolerant controller is for a complete rotor loss: give a failure with "
             "efficiency 0 (scenario rotor-loss)"
         )
-    preset = preset or DEFAULT_PRESET.get(scenario, "bebop2")
-    cfg = (config or build_config(preset)).validate()
+    return failure
+
+
+def _rates(cfg, params, preset):
+    """The IMU rate, the simulation substeps per IMU sample and the IMU samples per position
+    reading, which must divide each other."""
     rate = cfg.imu.rate_hz
     substeps = SIM_RATE_HZ / rate
     if abs(substeps - round(substeps)) > 1e-9 or substeps < 1:
         raise UsageError(
             f"preset {preset!r}: its IMU rate {rate:g} Hz must divide the simulation rate {SIM_RATE_HZ:g} Hz"
         )
-    pos_rate, pos_noise, pos_latency, _ = params.position()
-    mocap_every = rate / pos_rate
-    if abs(mocap_every - round(mocap_every)) > 1e-9 or mocap_every < 1:
+    pos_rate = params.position()[0]
+    every = rate / pos_rate
+    if abs(every - round(every)) > 1e-9 or every < 1:
         raise UsageError(f"the position sensor's rate {pos_rate:g} Hz must divide the IMU rate {rate:g} Hz")
-    substeps, mocap_every = int(round(substeps)), int(round(mocap_every))
-    if scenario == "throw":
-        if failure is not None:
-            raise UsageError("a throw has no rotor failure")
-        return fly_throw(
-            estimator=estimator,
-            duration=duration,
-            seed=seed,
-            cfg=cfg,
-            vehicle=vehicle,
-            params=params,
-            se3=se3,
-            throw=throw,
-            meta={
-                "scenario": "flown throw",
-                "preset": preset,
-                "vehicle": vehicle_name,
-                "controller": "se3 after recovery",
-                "estimator": estimator,
-            },
-        )
-    n = int(round(duration * rate))
-    t = np.arange(n) / rate
-    ss = np.random.SeedSequence([int(seed), 13])
-    rng_ref, rng_mocap = (np.random.default_rng(s) for s in ss.spawn(2))
-    x0, ref = _reference(scenario, t, rng_ref, vehicle)
-    p_d, v_d, a_d, yaw_d = (np.ascontiguousarray(a, dtype=float) for a in ref)
+    return rate, int(round(substeps)), int(round(every))
 
-    # sensor draws: the same generators and order as flown_recording's sample_sensors
-    processes, sm = sensors_for(cfg, n, seed, vehicle)
-    n_mocap = (n - 1) // mocap_every + 1
-    mocap_noise = rng_mocap.normal(0.0, 1.0, (n_mocap, 3)) * pos_noise
-    delay = int(round(pos_latency * rate))
 
-    declination = math.radians(cfg.environment.declination_deg)
-    use_truth = isinstance(estimator, str) and estimator == "truth"
-    peer = None
-    if use_truth:
-        step, ex, ep, ec, ediag = no_estimator(), np.zeros(4), 0.0, 0.0, np.zeros(1)
-        dq = declination_quat(declination)
-    elif isinstance(estimator, str) and estimator in STREAMING_PEERS:
-        peer = stream_peer(estimator, 1.0 / rate, declination, use_mag=cfg.mag.rate_hz > 0)
-        step, ex, ep, ec, ediag = None, None, None, None, None
-        dq = None
-    else:
-        est = (
-            estimator
-            if isinstance(estimator, Estimator)
-            else make_filter(estimator, declination=declination, **(estimator_params or {}))
-        )
-        step, ex, ep, ec, ediag, dq = est.compiled()
-        estimator = est.name
-
-    fail_rotor, fail_k, fail_eta, fail_imb, ftc_k = -1, -1, 1.0, 0.0, -1
-    G = (se3 or SE3Params()).gains(vehicle)
-    ftc = ftc or FtcParams()
-    if failure is not None:
-        fail_rotor, fail_k, fail_eta = failure.rotor, int(round(failure.time_s * rate)), float(failure.efficiency)
-        fail_imb = float(failure.imbalance)
-    F = ftc.gains(vehicle, failure.rotor if controller == "ftc" else 0)
-    if controller == "ftc":
-        ftc_k = min(n, fail_k + int(round(params.detect_delay_s * rate)))
-        if ftc_k < n:  # a spinning vehicle does not track a circle: it holds where the reference was
-            p_d[ftc_k:] = p_d[ftc_k]
-            v_d[ftc_k:] = 0.0
-            a_d[ftc_k:] = 0.0
-    tw = vehicle.rotors * vehicle.k_f * vehicle.omega_max**2 / (vehicle.mass_kg * vehicle.gravity)
-
-    N = vehicle.rotors
-    out = dict(
-        x=np.empty((n, 13 + N)),
-        dx=np.empty((n, 13 + N)),
-        thrust=np.empty((n, N)),
-        eta=np.empty((n, N)),
-        cmd=np.empty((n, N)),
-        gyr=np.empty((n, 3)),
-        acc=np.empty((n, 3)),
-        mag=np.empty((n, 3)),
-        q=np.empty((n, 4)),
-        pv=np.empty((n, 6)),
-    )
-    x = x0.copy()
-    eta = np.ones(N)
-    hist = np.empty((delay + 1, 3))
-    hist[:] = x0[0:3]
-    L = Loop(
-        vehicle.vehicle(),
-        G,
-        F,
+def _position_sensing(sm, params, rate, every, n, x0, rng, rotors):
+    """The loop's sensing with the position sensor ``params`` names (its noise from ``rng``)."""
+    _, noise, latency, _ = params.position()
+    n_read = (n - 1) // every + 1
+    return build.sensing(
         sm,
-        use_truth,
-        1.0 / SIM_RATE_HZ,
-        substeps,
-        1.0 / rate,
-        p_d,
-        v_d,
-        a_d,
-        yaw_d,
-        fail_rotor,
-        fail_k,
-        fail_eta,
-        fail_imb,
-        ftc_k,
-        tw,
-        mocap_every,
-        delay,
-        mocap_noise,
-        position_gain(params, rate),
-        float(params.height_m),
-        np.zeros(N),
-        np.empty(13 + N),
-        np.empty(3),
-        np.empty(3),
-        np.empty(N),
-        np.empty(3),
-        np.empty(3),
-        np.empty(3),
-        vibration_state(N),
-        np.zeros(N),
-        np.empty(13),
-        np.zeros(3),
-        x0[0:3].copy(),
-        x0[3:6].copy(),
-        hist,  # position and velocity estimates start at the truth (on the pad)
-        out["x"],
-        out["dx"],
-        out["thrust"],
-        out["eta"],
-        out["cmd"],
-        out["gyr"],
-        out["acc"],
-        out["mag"],
-        out["q"],
-        out["pv"],
-        work(vehicle.vehicle(), 13 + N),
+        dt=1.0 / rate,
+        rotors=rotors,
+        position0=x0[0:3],
+        every=every,
+        delay=int(round(latency * rate)),
+        noise=rng.normal(0.0, 1.0, (n_read, 3)) * noise,
+        n=n,
     )
-    t0 = time.perf_counter()
-    if peer is not None:
-        status, flown = OK, n
-        for k in range(n):
-            step_sense(k, x, eta, L)
-            status = step_act(k, x, eta, L, peer.update(L.gyr, L.acc, L.mag))
-            if status != OK:
-                flown = k if status == ESTIMATE_NAN else k + 1
-                break
-    else:
-        status, flown = closed_loop(x, eta, L, step, ex, ep, ec, ediag, dq)
-    loop_s = time.perf_counter() - t0
-    out = {k: v[:flown] for k, v in out.items()}
-    if flown == 0:
-        raise ValueError(f"the flight ended before its first sample ({STATUS[status]})")
 
-    meta = {
-        "scenario": f"flown {scenario}",
-        "preset": preset,
-        "vehicle": vehicle_name,
-        "controller": controller,
-        "estimator": estimator,
-        "position_sensor": params.position_sensor,
-    }
+
+InLoop = namedtuple("InLoop", ["name", "args", "peer"])
+"""An estimator in the loop: its name, the compiled loop's estimator arguments, or a peer."""
+
+
+def _in_loop(estimator, cfg, rate, estimator_params):
+    """What the controller reads (a :data:`~quadest.flight.phases.NAV` name) and the estimator."""
+    declination = math.radians(cfg.environment.declination_deg)
+    if isinstance(estimator, str) and estimator == "truth":
+        return "truth", InLoop("truth", no_estimator_args(), None)
+    if isinstance(estimator, str) and estimator in STREAMING_PEERS:
+        peer = stream_peer(estimator, 1.0 / rate, declination, use_mag=cfg.mag.rate_hz > 0)
+        return "filter", InLoop(estimator, None, peer)
+    est = (
+        estimator
+        if isinstance(estimator, Estimator)
+        else make_filter(estimator, declination=declination, **(estimator_params or {}))
+    )
+    return "filter", InLoop(est.name, tuple(est.compiled()), None)
+
+
+def _ftc_sample(controller, failure, params, rate, n):
+    """The sample from which the fault-tolerant controller flies: ``detect_delay_s`` after a
+    complete loss (the loss is known, not detected: an oracle), -1 for none."""
+    if controller != "ftc":
+        return -1
+    return min(n, int(round(failure.time_s * rate)) + int(round(params.detect_delay_s * rate)))
+
+
+def _held_after(ref, k):
+    """The reference, holding from sample ``k`` on the point it had reached (a spinning vehicle
+    does not track a circle)."""
+    p_d, v_d, a_d, yaw_d = (np.array(a, dtype=float) for a in ref)
+    if 0 <= k < len(yaw_d):
+        p_d[k:] = p_d[k]
+        v_d[k:] = 0.0
+        a_d[k:] = 0.0
+    return p_d, v_d, a_d, yaw_d
+
+
+def _run(x, L, est: InLoop):
+    """Fly the loop ``L`` from ``x``: compiled with a compiled estimator, or sample by sample
+    with a peer's streaming update. Returns ``(status, samples flown)``."""
+    if est.peer is None:
+        return closed_loop(x, L, *est.args)
+    S = L.sensing
+    for k in range(len(L.record.phase)):
+        sense_sample(k, x, L)
+        status = act_sample(k, x, L, est.peer.update(S.gyr, S.acc, S.mag))
+        if status != OK:
+            return status, (k if status == ESTIMATE_NAN else k + 1)
+    return OK, len(L.record.phase)
+
+
+def _flight(out, t, vehicle, cfg, seed, failure, meta, processes, params, loop_s) -> Flight:
+    """The :class:`Flight` of the loop's record ``out`` (its recording sampled as every
+    simulation samples, with the loop's readings)."""
+    imbalance = np.zeros((len(t), vehicle.rotors))
     if failure is not None:
-        meta["failure"] = asdict(failure)  # imbalance in kg m
-    imbalance = np.zeros((flown, N))
-    if failure is not None:
-        imbalance[fail_k:, failure.rotor] = failure.imbalance
+        imbalance[int(round(failure.time_s * cfg.imu.rate_hz)) :, failure.rotor] = failure.imbalance
     rec = flown_recording(
-        t[:flown],
+        t,
         out["x"],
         out["dx"],
         out["thrust"],
@@ -331,7 +336,7 @@ def fly(
         readings=(out["gyr"], out["acc"], out["mag"]),
         processes=processes,
     )
-    flight = Flight(
+    return Flight(
         rec,
         out["x"],
         out["cmd"],
@@ -345,21 +350,6 @@ def fly(
         imbalance=imbalance,
         vehicle=vehicle,
     )
-    flight.summary = summarize(
-        flight,
-        scenario=scenario,
-        status=status,
-        duration=duration,
-        failure=failure,
-        controller=controller,
-        estimator=estimator,
-        seed=seed,
-        params=params,
-        ftc=ftc,
-        vehicle=vehicle,
-        ref=(p_d, yaw_d),
-    )
-    return flight
 
 
 def resample(flight: Flight, config: SimConfig, *, imbalance=None, seed: int | None = None):

@@ -1,20 +1,18 @@
-"""The closed loop with the estimator in it (issue #13, part 5), every step in compiled code.
+"""The closed loop: the one compiled loop every flight flies (a hover, a trajectory, a rotor
+loss, a throw), configured by records checked field by field (:func:`quadest.records.compiled_record`).
 
 Per IMU sample ``k`` (time ``k / rate``; the controller runs at the IMU rate, the vehicle at the
 simulation rate, ``substeps`` RK4 steps per sample):
 
 1. a failure due at ``k`` strikes (the rotor's efficiency changes);
-2. the sensors are sampled from the true state (:mod:`quadest.sim.sensors`, the model every
-   simulation samples): IMU, magnetometer,
-   and every ``mocap_every`` samples the position sensor, motion capture or GNSS-like (its
-   reading ``delay`` samples old);
-3. the estimator takes one step (its compiled ``step``, the same function its batch run calls);
-   its attitude goes through the declination into the geographic frame;
-4. position and velocity: predicted with the accelerometer rotated by the estimated attitude,
-   corrected at each position reading with a constant (steady-state Kalman) gain;
-5. the controller (SE(3) before the failure is known, the fault-tolerant one after) commands
-   the rotors from the estimated state and the measured body rate;
-6. the vehicle flies to the next sample.
+2. the sensors are sampled (:mod:`quadest.sim.sensors`, the model every simulation samples)
+   from the true state, or in the hand from the hand's motion; every ``every`` samples the
+   position sensor reads (its reading ``delay`` samples old);
+3. the estimate: an estimator's compiled step (the function its batch run calls) and the
+   position fusion, the truth (an oracle, labelled), or a throw's recovery (:mod:`quadest.flight.phases`);
+4. the controller of the flight's phase (:data:`PHASES`, :mod:`quadest.control.registry`)
+   commands the rotors;
+5. the vehicle flies to the next sample (in the hand it is carried).
 
 The loop ends early with a status: ground contact, lost control (body rate or speed beyond
 what a flying vehicle has), a non-finite estimate, or a diverged simulation.
@@ -22,15 +20,14 @@ what a flying vehicle has), a non-finite estimate, or a diverged simulation.
 
 from __future__ import annotations
 
-from collections import namedtuple
-
 import numpy as np
 
-from quadest._jit import njit
-from quadest.control.ftc import ftc_command
-from quadest.control.se3 import se3_command
+from quadest._jit import NO_ALLOCATION, copy_into, njit
+from quadest.control.registry import command
+from quadest.flight.phases import FAULT, FLYING, NAV_FILTER, NAV_TRUE_STATE, PHASE, recovery_phase
 from quadest.models.multirotor import derivative_ws, rk4_ws
-from quadest.rotation.kernels import rotate_s
+from quadest.records import compiled_record
+from quadest.rotation.kernels import qmul_s, rotate_s
 from quadest.sim.sensors import motor_current, rotor_vibration_step, sample_imu, sample_mag
 
 OK, GROUND, LOST_CONTROL, ESTIMATE_NAN, DIVERGED = 0, 1, 2, 3, 4
@@ -44,6 +41,111 @@ STATUS = {
 MAX_RATE = 100.0  # rad/s: beyond this the vehicle is tumbling out of control (RotorPy stops at the same)
 MAX_SPEED = 20.0  # m/s: beyond this it is falling or flying away (RotorPy stops at the same)
 
+Plant = compiled_record(
+    "Plant",
+    "The vehicle and what happens to it: the integration step and substeps per sample, where "
+    "a flight ends, the rotor failure (rotor -1: none; its command zeroed from the failure on "
+    "with zero_failed, an oracle), the hand's states and derivatives until the release (none: "
+    "zero rows), and the work arrays of the dynamics.",
+    V="any",
+    h="f8",
+    substeps="i8",
+    ground_z="f8",
+    max_rate="f8",
+    max_speed="f8",
+    tw="f8",
+    eta="f8[:]",
+    imb="f8[:]",
+    fail_rotor="i8",
+    fail_k="i8",
+    fail_eta="f8",
+    fail_imb="f8",
+    zero_failed="b1",
+    hand_x="f8[:, :]",
+    hand_dx="f8[:, :]",
+    W="any",
+    dx="f8[:]",
+    Fb="f8[:]",
+    Mb="f8[:]",
+    T="f8[:]",
+)
+
+Sensing = compiled_record(
+    "Sensing",
+    "The sensor model and its readings; the position sensor (every, delay in samples, its "
+    "noise per reading, the true positions it has yet to report, its latest reading).",
+    sm="any",
+    on="b1",
+    dt="f8",
+    gyr="f8[:]",
+    acc="f8[:]",
+    mag="f8[:]",
+    vib="f8[:]",
+    every="i8",
+    delay="i8",
+    noise="f8[:, :]",
+    hist="f8[:, :]",
+    reading="f8[:]",
+)
+
+Navigation = compiled_record(
+    "Navigation",
+    "What the controller reads and how it is made: the source (flight.phases.NAV), the "
+    "estimated state xh (position, velocity, q_nb, body rate), the position fusion's position, "
+    "velocity and steady-state gain, and the estimator's latest attitude (geographic q_nb).",
+    kind="i8",
+    xh="f8[:]",
+    q_est="f8[:]",
+    ph="f8[:]",
+    vh="f8[:]",
+    gain="f8[:, :]",
+)
+
+Record = compiled_record(
+    "Record",
+    "What the loop records per sample: true state, its derivative, rotor thrusts, "
+    "efficiencies and commands, the readings, what the controller read, the phase, a "
+    "recovery's spherical variance and gravity direction, and its events (detection, handover).",
+    x="f8[:, :]",
+    dx="f8[:, :]",
+    thrust="f8[:, :]",
+    eta="f8[:, :]",
+    cmd="f8[:, :]",
+    gyr="f8[:, :]",
+    acc="f8[:, :]",
+    mag="f8[:, :]",
+    q="f8[:, :]",
+    pv="f8[:, :]",
+    phase="i8[:]",
+    sg="f8[:]",
+    gdir="f8[:, :]",
+    events="i8[:]",
+)
+
+Loop = compiled_record(
+    "Loop",
+    "One flight: its plant, sensing, navigation, recovery bank, control and record, and what "
+    "it carries from sample to sample (state: phase, samples below the throw threshold, the "
+    "accelerometer gate; held: the yaw and height a recovery holds).",
+    plant="any",
+    sensing="any",
+    nav="any",
+    bank="any",
+    control="any",
+    record="any",
+    state="i8[:]",
+    held="f8[:]",
+)
+
+
+def record_arrays(n: int, rotors: int) -> dict:
+    """Empty arrays for a :data:`Record` of ``n`` samples (the events not yet happened)."""
+    nx = 13 + rotors
+    shapes = dict(x=nx, dx=nx, thrust=rotors, eta=rotors, cmd=rotors, gyr=3, acc=3, mag=3, q=4, pv=6, gdir=3)
+    out = {k: np.full((n, m), np.nan) for k, m in shapes.items()}
+    out.update(phase=np.zeros(n, np.int64), sg=np.full(n, np.nan), events=np.full(2, -1, np.int64))
+    return out
+
 
 @njit(cache=True)
 def _true_estimate(x, p, c, gyr, acc, mag, dt, diag):
@@ -54,20 +156,21 @@ def no_estimator():
     return _true_estimate
 
 
-@njit(cache=True, inline="always")
-def sense(x, cmd, eta, imb, V, sm, k, dt, tw, dx, Fb, Mb, T, vib, gyr, acc, mag):
-    """IMU and magnetometer sample ``k`` (at ``k dt``) from the true state ``x``: the state's
-    derivative (into ``dx``) gives the acceleration and angular acceleration, the rotors'
-    thrusts (into ``T``) their load and the motor current, their speeds and imbalances ``imb``
-    (kg m) the vibration."""
-    derivative_ws(x, cmd, eta, V, dx, Fb, Mb, T)  # also the force, moment and rotor thrusts
-    sample(x, dx, eta, imb, V, sm, k, dt, tw, T, vib, gyr, acc, mag)
+def no_estimator_args():
+    """The estimator arguments of :func:`closed_loop` with no estimator in the loop."""
+    return _true_estimate, np.zeros(4), 0.0, 0.0, np.zeros(1), np.array([1.0, 0.0, 0.0, 0.0])
+
+
+def flown_arrays(record, flown: int) -> dict:
+    """The per-sample arrays of a :data:`Record` up to the samples ``flown``."""
+    return {k: v[:flown] for k, v in record._asdict().items() if k != "events"}
 
 
 @njit(cache=True, inline="always")
-def sample(x, dx, eta, imb, V, sm, k, dt, tw, T, vib, gyr, acc, mag):
+def sample(x, dx, P, S, k):
     """The sensors of sample ``k`` from the state ``x``, its derivative ``dx`` (the dynamics' or,
-    in a hand that carries the vehicle, the hand's) and the rotors' thrusts ``T``."""
+    in a hand that carries the vehicle, the hand's) and the rotors' thrusts ``P.T``."""
+    eta, T = P.eta, P.T
     n_rot = eta.shape[0]
     active = 0
     total = 0.0
@@ -76,228 +179,177 @@ def sample(x, dx, eta, imb, V, sm, k, dt, tw, T, vib, gyr, acc, mag):
         if eta[i] > 0.0:
             active += 1
     active = max(active, 1)
-    load = total / active / (V.mass * V.gravity / n_rot)
-    rotor_vibration_step(sm.rv, k * dt, x[13:], imb, vib, sm.vib_acc, sm.vib_gyr)
-    sample_imu(sm, k, x[6:10], dx[3:6], x[10:13], dx[10:13], sm.vib_acc, sm.vib_gyr, gyr, acc)
-    sample_mag(sm, k, x[6:10], x[0:3], motor_current(load, active, tw), mag)
+    load = total / active / (P.V.mass * P.V.gravity / n_rot)
+    sm = S.sm
+    rotor_vibration_step(sm.rv, k * S.dt, x[13:], P.imb, S.vib, sm.vib_acc, sm.vib_gyr)
+    sample_imu(sm, k, x[6:10], dx[3:6], x[10:13], dx[10:13], sm.vib_acc, sm.vib_gyr, S.gyr, S.acc)
+    sample_mag(sm, k, x[6:10], x[0:3], motor_current(load, active, P.tw), S.mag)
 
 
 @njit(cache=True, inline="always")
-def ended(x, ground_z):
+def sense(k, x, L):
+    """Sample ``k``, first half: a failure due now strikes; in the hand the vehicle is where the
+    hand has it; the sensors and the position sensor are read into ``L.sensing``."""
+    P, S = L.plant, L.sensing
+    if k == P.fail_k and P.fail_rotor >= 0:
+        P.eta[P.fail_rotor] = P.fail_eta
+        P.imb[P.fail_rotor] = P.fail_imb
+    in_hand = k < P.hand_dx.shape[0]
+    if in_hand:
+        copy_into(x, P.hand_x[k])
+    if S.on:
+        derivative_ws(x, L.control.cmd, P.eta, P.V, P.dx, P.Fb, P.Mb, P.T)  # also the rotor thrusts
+        if in_hand:
+            copy_into(P.dx, P.hand_dx[k])
+        sample(x, P.dx, P, S, k)
+    for j in range(S.delay, 0, -1):
+        copy_into(S.hist[j], S.hist[j - 1])
+    copy_into(S.hist[0], x[0:3])
+    if k % S.every == 0:
+        m = k // S.every
+        for j in range(3):
+            S.reading[j] = S.hist[S.delay, j] + S.noise[m, j]
+
+
+@njit(cache=True, inline="always")
+def navigate(k, x, L, q_est):
+    """Position, velocity, attitude and rate for the controller of a flight (not a throw's
+    recovery): the truth's (rate: the gyro's), or the estimator's attitude ``q_est`` with the
+    position fusion (the accelerometer rotated by it, corrected at each position reading with a
+    constant gain). Returns :data:`ESTIMATE_NAN` for a non-finite attitude, else :data:`OK`."""
+    N, S, dt = L.nav, L.sensing, L.sensing.dt
+    xh, ph, vh, acc = N.xh, N.ph, N.vh, S.acc
+    truth = N.kind != NAV_FILTER
+    for j in range(4):
+        xh[6 + j] = x[6 + j] if truth else q_est[j]
+    if not (np.isfinite(xh[6]) and np.isfinite(xh[7]) and np.isfinite(xh[8]) and np.isfinite(xh[9])):
+        return ESTIMATE_NAN
+    if truth:
+        for j in range(3):
+            ph[j], vh[j] = x[j], x[3 + j]
+    else:
+        a0, a1, a2 = rotate_s(xh[6], xh[7], xh[8], xh[9], acc[0], acc[1], acc[2])
+        an = (a0, a1, a2 + L.plant.V.gravity)
+        for j in range(3):
+            ph[j] += vh[j] * dt + 0.5 * an[j] * dt * dt
+            vh[j] += an[j] * dt
+        if k % S.every == 0:
+            for j in range(3):
+                e = S.reading[j] - ph[j]
+                ph[j] += N.gain[j, 0] * e
+                vh[j] += N.gain[j, 1] * e
+    for j in range(3):
+        xh[j], xh[3 + j] = ph[j], vh[j]
+        xh[10 + j] = x[10 + j] if N.kind == NAV_TRUE_STATE else S.gyr[j]
+    return OK
+
+
+@njit(cache=True, inline="always")
+def control_flight(k, L):
+    """The controller of a flight's phase: nominal, or fault-tolerant once the loss is known;
+    the lost rotor's command zeroed (its motor spins down) when the plant says so."""
+    P, C = L.plant, L.control
+    phase = FAULT if C.ftc_k >= 0 and k >= C.ftc_k else FLYING
+    L.state[PHASE] = phase
+    command(C.by_phase[phase], k, L.nav.xh, C, P.V, L.sensing.dt)
+    if P.zero_failed and P.fail_rotor >= 0 and k >= P.fail_k and P.fail_eta == 0.0:
+        C.cmd[P.fail_rotor] = 0.0
+
+
+@njit(cache=True, inline="always")
+def ended(x, P):
     """Whether a flight ends after this step, and why (module doc)."""
     for j in range(x.shape[0]):
         if not np.isfinite(x[j]):
             return DIVERGED
-    if x[2] > ground_z:
+    if x[2] > P.ground_z:
         return GROUND
     if (
-        x[10] * x[10] + x[11] * x[11] + x[12] * x[12] > MAX_RATE * MAX_RATE
-        or x[3] * x[3] + x[4] * x[4] + x[5] * x[5] > MAX_SPEED * MAX_SPEED
+        x[10] * x[10] + x[11] * x[11] + x[12] * x[12] > P.max_rate * P.max_rate
+        or x[3] * x[3] + x[4] * x[4] + x[5] * x[5] > P.max_speed * P.max_speed
     ):
         return LOST_CONTROL
     return OK
 
 
 @njit(cache=True, inline="always")
-def record_and_fly(
-    k,
-    x,
-    dx,
-    T,
-    cmd,
-    gyr,
-    acc,
-    mag,
-    eta,
-    V,
-    h,
-    substeps,
-    ground_z,
-    out_x,
-    out_dx,
-    out_thrust,
-    out_cmd,
-    out_gyr,
-    out_acc,
-    out_mag,
-    W,
-):
-    """Record sample ``k`` (state, derivative, thrusts, commands, readings), fly ``substeps``
-    RK4 steps to the next sample, and say whether the flight ends there (:func:`ended`)."""
-    out_x[k] = x
-    out_dx[k] = dx
-    out_thrust[k] = T
-    out_cmd[k] = cmd
-    out_gyr[k] = gyr
-    out_acc[k] = acc
-    out_mag[k] = mag
-    for _ in range(substeps):
-        rk4_ws(x, cmd, eta, V, h, W)
-    return ended(x, ground_z)
+def record_and_fly(k, x, L):
+    """Record sample ``k``, fly ``substeps`` RK4 steps to the next sample (in the hand: carried
+    to the hand's next state) and say whether the flight ends there (:func:`ended`)."""
+    P, S, R, C = L.plant, L.sensing, L.record, L.control
+    copy_into(R.x[k], x)
+    copy_into(R.dx[k], P.dx)
+    copy_into(R.thrust[k], P.T)
+    copy_into(R.eta[k], P.eta)
+    copy_into(R.cmd[k], C.cmd)
+    copy_into(R.gyr[k], S.gyr)
+    copy_into(R.acc[k], S.acc)
+    copy_into(R.mag[k], S.mag)
+    R.phase[k] = L.state[PHASE]
+    if k < P.hand_dx.shape[0]:
+        status = ended(x, P)
+        copy_into(x, P.hand_x[k + 1])
+        return status
+    for _ in range(P.substeps):
+        rk4_ws(x, C.cmd, P.eta, P.V, P.h, P.W)
+    return ended(x, P)
 
 
-Loop = namedtuple(
-    "Loop",
-    [
-        # the flight: vehicle, controllers, sensors, reference, failure, position sensor, ground
-        "V",
-        "G",
-        "F",
-        "sm",
-        "use_truth",
-        "h",
-        "substeps",
-        "dt",
-        "p_d",
-        "v_d",
-        "a_d",
-        "yaw_d",
-        "fail_rotor",
-        "fail_k",
-        "fail_eta",
-        "fail_imb",
-        "ftc_k",
-        "tw",
-        "mocap_every",
-        "mocap_delay",
-        "mocap_noise",
-        "pos_gain",
-        "ground_z",
-        # what the loop carries from sample to sample
-        "cmd",
-        "dx",
-        "Fb",
-        "Mb",
-        "T",
-        "gyr",
-        "acc",
-        "mag",
-        "vib",
-        "imb",
-        "xh",
-        "integral",
-        "ph",
-        "vh",
-        "hist",
-        # what it records per sample
-        "out_x",
-        "out_dx",
-        "out_thrust",
-        "out_eta",
-        "out_cmd",
-        "out_gyr",
-        "out_acc",
-        "out_mag",
-        "out_q",
-        "out_pv",
-        # the integrator's work arrays (multirotor.work)
-        "W",
-    ],
-)
-"""Everything a closed loop reads and writes (built by :func:`quadest.flight.fly`)."""
+@njit(cache=True, **NO_ALLOCATION)
+def fly_sample(k, x, L, q_est):
+    """Sample ``k``, second half, of a flight (not a throw's recovery) with an estimator's
+    attitude ``q_est`` (geographic ``q_nb``; read only with an estimator in the loop): the
+    estimate, control, record, fly to the next sample. Returns the status (:data:`OK` to go on)."""
+    status = navigate(k, x, L, q_est)
+    if status != OK:
+        return status
+    control_flight(k, L)
+    R, N = L.record, L.nav
+    copy_into(R.q[k], N.xh[6:10])
+    copy_into(R.pv[k, 0:3], N.ph)
+    copy_into(R.pv[k, 3:6], N.vh)
+    return record_and_fly(k, x, L)
 
 
-@njit(cache=True, inline="always")
-def step_sense(k, x, eta, L):
-    """Sample ``k``, first half: a failure due now strikes; the sensors are sampled into
-    ``L.gyr``, ``L.acc``, ``L.mag``."""
-    if k == L.fail_k and L.fail_rotor >= 0:
-        eta[L.fail_rotor] = L.fail_eta
-        L.imb[L.fail_rotor] = L.fail_imb
-    sense(x, L.cmd, eta, L.imb, L.V, L.sm, k, L.dt, L.tw, L.dx, L.Fb, L.Mb, L.T, L.vib, L.gyr, L.acc, L.mag)
+@njit(cache=True)
+def recover_sample(k, x, L):
+    """Sample ``k``, second half, of a throw before it flies (:func:`recovery_phase`)."""
+    recovery_phase(k, x, L)
+    return record_and_fly(k, x, L)
 
 
-@njit(cache=True, inline="always")
-def step_act(k, x, eta, L, q_est):
-    """Sample ``k``, second half, with the estimator's attitude ``q_est`` (geographic ``q_nb``;
-    ignored with truth in the loop): position and velocity, control, record, fly to the next
-    sample. Returns the status (:data:`OK` to go on)."""
-    V, xh, ph, vh, hist, acc, gyr = L.V, L.xh, L.ph, L.vh, L.hist, L.acc, L.gyr
-    dt = L.dt
-    if L.use_truth:
-        for j in range(4):
-            xh[6 + j] = x[6 + j]
-    else:
-        for j in range(4):
-            xh[6 + j] = q_est[j]
-    if not (np.isfinite(xh[6]) and np.isfinite(xh[7]) and np.isfinite(xh[8]) and np.isfinite(xh[9])):
-        return ESTIMATE_NAN
-    # position and velocity
-    if L.use_truth:
-        for j in range(3):
-            ph[j], vh[j] = x[j], x[3 + j]
-    else:
-        a0, a1, a2 = rotate_s(xh[6], xh[7], xh[8], xh[9], acc[0], acc[1], acc[2])
-        an = (a0, a1, a2 + V.gravity)
-        for j in range(3):
-            ph[j] += vh[j] * dt + 0.5 * an[j] * dt * dt
-            vh[j] += an[j] * dt
-        for j in range(L.mocap_delay, 0, -1):
-            hist[j] = hist[j - 1]
-        hist[0] = x[0:3]
-        if k % L.mocap_every == 0:
-            m = k // L.mocap_every
-            for j in range(3):
-                e = hist[L.mocap_delay, j] + L.mocap_noise[m, j] - ph[j]
-                ph[j] += L.pos_gain[j, 0] * e
-                vh[j] += L.pos_gain[j, 1] * e
-    for j in range(3):
-        xh[j], xh[3 + j], xh[10 + j] = ph[j], vh[j], gyr[j]
-    # control
-    if L.ftc_k >= 0 and k >= L.ftc_k:
-        ftc_command(xh, L.p_d[k], L.v_d[k], L.a_d[k], L.F, V, dt, L.integral, L.cmd)
-    else:
-        se3_command(xh, L.p_d[k], L.v_d[k], L.a_d[k], L.yaw_d[k], L.G, V, L.cmd)
-    if L.fail_rotor >= 0 and k >= L.fail_k and L.fail_eta == 0.0:
-        L.cmd[L.fail_rotor] = 0.0  # a lost rotor: its motor spins down
-    # record, then fly to the next sample
-    L.out_eta[k] = eta
-    L.out_q[k] = xh[6:10]
-    L.out_pv[k, 0:3] = ph
-    L.out_pv[k, 3:6] = vh
-    return record_and_fly(
-        k,
-        x,
-        L.dx,
-        L.T,
-        L.cmd,
-        gyr,
-        acc,
-        L.mag,
-        eta,
-        V,
-        L.h,
-        L.substeps,
-        L.ground_z,
-        L.out_x,
-        L.out_dx,
-        L.out_thrust,
-        L.out_cmd,
-        L.out_gyr,
-        L.out_acc,
-        L.out_mag,
-        L.W,
-    )
+@njit(cache=True, **NO_ALLOCATION)
+def sense_sample(k, x, L):
+    """:func:`sense`, compiled on its own (called by :func:`closed_loop` and from Python for an
+    estimator without a compiled step)."""
+    sense(k, x, L)
 
 
-@njit
-def closed_loop(x, eta, L, est_step, ex, ep, ec, ediag, dq):
-    """Fly ``len(L.yaw_d)`` IMU samples (module doc) with a quadest estimator in the loop:
-    ``est_step`` its compiled step, with its state ``ex``, records ``ep``, ``ec`` and
-    diagnostics ``ediag``; ``dq`` the declination quaternion. Returns ``(status, samples flown)``.
-    (Not cached: numba compiles it once per estimator and process, a few seconds.)"""
-    q = np.empty(4)
-    for k in range(L.yaw_d.shape[0]):
-        step_sense(k, x, eta, L)
-        est_step(ex, ep, ec, L.gyr, L.acc, L.mag, L.dt, ediag)
-        # q = dq ⊗ q_est (the declination turns the magnetic frame into the geographic one)
-        q[0] = dq[0] * ex[0] - dq[1] * ex[1] - dq[2] * ex[2] - dq[3] * ex[3]
-        q[1] = dq[0] * ex[1] + dq[1] * ex[0] + dq[2] * ex[3] - dq[3] * ex[2]
-        q[2] = dq[0] * ex[2] - dq[1] * ex[3] + dq[2] * ex[0] + dq[3] * ex[1]
-        q[3] = dq[0] * ex[3] + dq[1] * ex[2] - dq[2] * ex[1] + dq[3] * ex[0]
-        status = step_act(k, x, eta, L, q)
+@njit(cache=True, **NO_ALLOCATION)
+def act_sample(k, x, L, q_est):
+    """Sample ``k``, second half: :func:`fly_sample` or, before a throw flies, :func:`recover_sample`."""
+    if L.state[PHASE] >= FLYING:
+        return fly_sample(k, x, L, q_est)
+    return recover_sample(k, x, L)
+
+
+@njit(**NO_ALLOCATION)
+def closed_loop(x, L, est_step, ex, ep, ec, ediag, dq):
+    """Fly ``len(L.record.phase)`` IMU samples (module doc) with the compiled step ``est_step``
+    of an estimator in the loop (with its state ``ex``, records ``ep``, ``ec`` and diagnostics
+    ``ediag``; ``dq`` the declination quaternion), or :func:`no_estimator`. Returns
+    ``(status, samples flown)``. (Not cached: numba compiles it once per estimator and process.)"""
+    q, S = L.nav.q_est, L.sensing
+    n = L.record.phase.shape[0]
+    for k in range(n):
+        sense_sample(k, x, L)
+        if L.nav.kind == NAV_FILTER:
+            est_step(ex, ep, ec, S.gyr, S.acc, S.mag, S.dt, ediag)
+            # q = dq ⊗ q_est (the declination turns the magnetic frame into the geographic one)
+            q[0], q[1], q[2], q[3] = qmul_s(dq[0], dq[1], dq[2], dq[3], ex[0], ex[1], ex[2], ex[3])
+        status = act_sample(k, x, L, q)
         if status == ESTIMATE_NAN:
             return status, k
         if status != OK:
             return status, k + 1
-    return OK, L.yaw_d.shape[0]
+    return OK, n

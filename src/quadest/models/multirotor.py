@@ -1,5 +1,5 @@
 """A multirotor at rotor level: rigid body, N rotors with first-order motors, per-rotor
-aerodynamics (issue #13, part 1: the vehicle model; controllers and the closed loop follow).
+aerodynamics (the vehicle model that the controllers and the closed loop fly).
 
 Conventions (:mod:`quadest.conventions`): navigation frame NED, body frame FRD, ``q_nb``, SI.
 State ``x = [p_n (3), v_n (3), q_nb (4), ω_b (3), Ω (N)]`` with Ω the rotor speeds (rad/s, ≥ 0).

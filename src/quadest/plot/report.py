@@ -1,4 +1,4 @@
-"""A flight report a person opens in a browser (issue #16): one self-contained HTML file (bokeh,
+"""A flight report a person opens in a browser: one self-contained HTML file (bokeh,
 its scripts inlined: it opens offline), drawn from what :mod:`quadest.evaluation.inspect`
 computed over the whole recording. Long recordings are decimated for display only (each drawn
 point keeps its bucket's extremes); the tables' numbers come from all samples. Every time plot

@@ -1,5 +1,5 @@
-"""The public datasets quadest reads, where they come from, and how to get them (issue #17:
-``quadest data list | fetch | path``).
+"""The public datasets quadest reads, where they come from, and how to get them
+(``quadest data list | fetch | path``).
 
 Each dataset's files are downloaded from where their authors publish them, pinned to a commit,
 each checked against its SHA-256 (the hashes of the copies quadest's benchmarks were run on), into

@@ -79,6 +79,91 @@ def gravity_body(q, g, out):
     out[2] = g * (1.0 - 2.0 * (x * x + y * y))
 
 
+@njit(cache=True, inline="always")
+def transition_matrix(F, U, w, gb, dt):
+    """F = I + ΔT [[−[ω]× + Υ/m, Γ2], [0, Γ4]] (eqs 40-45), into ``F``."""
+    for r in range(5):
+        for c in range(5):
+            F[r, c] = 0.0
+    for r in range(3):
+        for c in range(3):
+            F[r, c] = dt * U[r, c]
+    F[0, 1] += dt * w[2]
+    F[0, 2] -= dt * w[1]
+    F[1, 0] -= dt * w[2]
+    F[1, 2] += dt * w[0]
+    F[2, 0] += dt * w[1]
+    F[2, 1] -= dt * w[0]
+    F[0, 4] = -dt * gb[2]  # Γ2: columns x, y of [g_b]×
+    F[1, 3] = dt * gb[2]
+    F[2, 3] = -dt * gb[1]
+    F[2, 4] = dt * gb[0]
+    F[3, 4] = dt * w[2]  # Γ4 (eq 44, corrected)
+    F[4, 3] = -dt * w[2]
+    for r in range(5):
+        F[r, r] += 1.0
+
+
+@njit(cache=True, inline="always")
+def predict_covariance(Pi, F, T, q_vel, q_att, dt):
+    """P̄ = F P Fᵀ + Q in place (``T`` scratch)."""
+    for r in range(5):
+        for c in range(5):
+            s = 0.0
+            for k in range(5):
+                s += F[r, k] * Pi[k, c]
+            T[r, c] = s
+    for r in range(5):
+        for c in range(r, 5):
+            s = 0.0
+            for k in range(5):
+                s += T[r, k] * F[c, k]
+            Pi[r, c] = s
+            Pi[c, r] = s
+    for r in range(3):
+        Pi[r, r] += q_vel * dt
+    Pi[3, 3] += q_att * dt
+    Pi[4, 4] += q_att * dt
+
+
+@njit(cache=True, inline="always")
+def inverse_3x3(Wm, Wi):
+    """``Wi = Wm⁻¹`` by cofactors; returns the determinant."""
+    c00 = Wm[1, 1] * Wm[2, 2] - Wm[1, 2] * Wm[2, 1]
+    c01 = Wm[1, 2] * Wm[2, 0] - Wm[1, 0] * Wm[2, 2]
+    c02 = Wm[1, 0] * Wm[2, 1] - Wm[1, 1] * Wm[2, 0]
+    det = Wm[0, 0] * c00 + Wm[0, 1] * c01 + Wm[0, 2] * c02
+    Wi[0, 0], Wi[1, 0], Wi[2, 0] = c00 / det, c01 / det, c02 / det
+    Wi[0, 1] = (Wm[0, 2] * Wm[2, 1] - Wm[0, 1] * Wm[2, 2]) / det
+    Wi[1, 1] = (Wm[0, 0] * Wm[2, 2] - Wm[0, 2] * Wm[2, 0]) / det
+    Wi[2, 1] = (Wm[0, 1] * Wm[2, 0] - Wm[0, 0] * Wm[2, 1]) / det
+    Wi[0, 2] = (Wm[0, 1] * Wm[1, 2] - Wm[0, 2] * Wm[1, 1]) / det
+    Wi[1, 2] = (Wm[0, 2] * Wm[1, 0] - Wm[0, 0] * Wm[1, 2]) / det
+    Wi[2, 2] = (Wm[0, 0] * Wm[1, 1] - Wm[0, 1] * Wm[1, 0]) / det
+    return det
+
+
+@njit(cache=True, inline="always")
+def update_covariance(Pi, T, K, PH):
+    """P = (I − K H) P̄ = P̄ − K (P Hᵀ)ᵀ, symmetrised, in place (``T`` scratch)."""
+    for r in range(5):
+        for c in range(5):
+            T[r, c] = Pi[r, c] - (K[r, 0] * PH[c, 0] + K[r, 1] * PH[c, 1] + K[r, 2] * PH[c, 2])
+    for r in range(5):
+        for c in range(5):
+            Pi[r, c] = 0.5 * (T[r, c] + T[c, r])
+
+
+@njit(cache=True, inline="always")
+def mahalanobis_3(r0, r1, r2, Wi):
+    """``rᵀ W⁻¹ r``."""
+    return (
+        r0 * (Wi[0, 0] * r0 + Wi[0, 1] * r1 + Wi[0, 2] * r2)
+        + r1 * (Wi[1, 0] * r0 + Wi[1, 1] * r1 + Wi[1, 2] * r2)
+        + r2 * (Wi[2, 0] * r0 + Wi[2, 1] * r1 + Wi[2, 2] * r2)
+    )
+
+
 @njit(cache=True, fastmath=FASTMATH)
 def bank_step(V, Qr, P, L, w_prev, gyr, acc, dt, prm, A, B, C, update=True):
     """Advance every hypothesis by one IMU sample (in place). ``prm``: a :data:`BankRecord`.
@@ -107,45 +192,8 @@ def bank_step(V, Qr, P, L, w_prev, gyr, acc, dt, prm, A, B, C, update=True):
         vbar[1] = v[1] + dt * (-(w[2] * v[0] - w[0] * v[2]) + f[1] + gb[1])
         vbar[2] = v[2] + dt * (-(w[0] * v[1] - w[1] * v[0]) + f[2] + gb[2])
         qexp_right(Qr[i], w[0] * dt, w[1] * dt, w[2] * dt)  # eq 23
-        # F = I + ΔT [[−[ω]× + Υ/m, Γ2], [0, Γ4]] (eqs 40-45)
-        for r in range(5):
-            for c in range(5):
-                F[r, c] = 0.0
-        for r in range(3):
-            for c in range(3):
-                F[r, c] = dt * U[r, c]
-        F[0, 1] += dt * w[2]
-        F[0, 2] -= dt * w[1]
-        F[1, 0] -= dt * w[2]
-        F[1, 2] += dt * w[0]
-        F[2, 0] += dt * w[1]
-        F[2, 1] -= dt * w[0]
-        F[0, 4] = -dt * gb[2]  # Γ2: columns x, y of [g_b]×
-        F[1, 3] = dt * gb[2]
-        F[2, 3] = -dt * gb[1]
-        F[2, 4] = dt * gb[0]
-        F[3, 4] = dt * w[2]  # Γ4 (eq 44, corrected)
-        F[4, 3] = -dt * w[2]
-        for r in range(5):
-            F[r, r] += 1.0
-        # P̄ = F P Fᵀ + Q
-        for r in range(5):
-            for c in range(5):
-                s = 0.0
-                for k in range(5):
-                    s += F[r, k] * Pi[k, c]
-                T[r, c] = s
-        for r in range(5):
-            for c in range(r, 5):
-                s = 0.0
-                for k in range(5):
-                    s += T[r, k] * F[c, k]
-                Pi[r, c] = s
-                Pi[c, r] = s
-        for r in range(3):
-            Pi[r, r] += prm.q_vel * dt
-        Pi[3, 3] += prm.q_att * dt
-        Pi[4, 4] += prm.q_att * dt
+        transition_matrix(F, U, w, gb, dt)
+        predict_covariance(Pi, F, T, prm.q_vel, prm.q_att, dt)
         if not update:  # the prior is the estimate
             v[0], v[1], v[2] = vbar[0], vbar[1], vbar[2]
             continue
@@ -160,18 +208,7 @@ def bank_step(V, Qr, P, L, w_prev, gyr, acc, dt, prm, A, B, C, update=True):
             for c in range(3):
                 Wm[r, c] = U[r, 0] * PH[0, c] + U[r, 1] * PH[1, c] + U[r, 2] * PH[2, c]
             Wm[r, r] += prm.acc_var
-        # 3x3 inverse and determinant by cofactors
-        c00 = Wm[1, 1] * Wm[2, 2] - Wm[1, 2] * Wm[2, 1]
-        c01 = Wm[1, 2] * Wm[2, 0] - Wm[1, 0] * Wm[2, 2]
-        c02 = Wm[1, 0] * Wm[2, 1] - Wm[1, 1] * Wm[2, 0]
-        det = Wm[0, 0] * c00 + Wm[0, 1] * c01 + Wm[0, 2] * c02
-        Wi[0, 0], Wi[1, 0], Wi[2, 0] = c00 / det, c01 / det, c02 / det
-        Wi[0, 1] = (Wm[0, 2] * Wm[2, 1] - Wm[0, 1] * Wm[2, 2]) / det
-        Wi[1, 1] = (Wm[0, 0] * Wm[2, 2] - Wm[0, 2] * Wm[2, 0]) / det
-        Wi[2, 1] = (Wm[0, 1] * Wm[2, 0] - Wm[0, 0] * Wm[2, 1]) / det
-        Wi[0, 2] = (Wm[0, 1] * Wm[1, 2] - Wm[0, 2] * Wm[1, 1]) / det
-        Wi[1, 2] = (Wm[0, 2] * Wm[1, 0] - Wm[0, 0] * Wm[1, 2]) / det
-        Wi[2, 2] = (Wm[0, 0] * Wm[1, 1] - Wm[0, 1] * Wm[1, 0]) / det
+        det = inverse_3x3(Wm, Wi)
         for r in range(5):
             for c in range(3):
                 K[r, c] = PH[r, 0] * Wi[0, c] + PH[r, 1] * Wi[1, c] + PH[r, 2] * Wi[2, c]
@@ -179,20 +216,10 @@ def bank_step(V, Qr, P, L, w_prev, gyr, acc, dt, prm, A, B, C, update=True):
         for r in range(5):
             dx[r] = K[r, 0] * r0 + K[r, 1] * r1 + K[r, 2] * r2
         v[0], v[1], v[2] = vbar[0] + dx[0], vbar[1] + dx[1], vbar[2] + dx[2]
-        # P = (I − K H) P̄ = P̄ − K (P H ᵀ)ᵀ, symmetrised
-        for r in range(5):
-            for c in range(5):
-                T[r, c] = Pi[r, c] - (K[r, 0] * PH[c, 0] + K[r, 1] * PH[c, 1] + K[r, 2] * PH[c, 2])
-        for r in range(5):
-            for c in range(5):
-                Pi[r, c] = 0.5 * (T[r, c] + T[c, r])
+        update_covariance(Pi, T, K, PH)
         qexp_right(Qr[i], dx[3], dx[4], 0.0)  # eq 30; δ back to zero
         # eq 33 in the log domain
-        maha = (
-            r0 * (Wi[0, 0] * r0 + Wi[0, 1] * r1 + Wi[0, 2] * r2)
-            + r1 * (Wi[1, 0] * r0 + Wi[1, 1] * r1 + Wi[1, 2] * r2)
-            + r2 * (Wi[2, 0] * r0 + Wi[2, 1] * r1 + Wi[2, 2] * r2)
-        )
+        maha = mahalanobis_3(r0, r1, r2, Wi)
         L[i] += -0.5 * maha - 0.5 * (3.0 * LOG_2PI + np.log(det))
     top = L[0]
     for i in range(1, n):

@@ -95,10 +95,15 @@ def initial_bank(p: RecoveryParams, dirs):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def _run_bank(
-    V, Qr, P, L, w_prev, t, gyr, acc, k0, prm, A, B, C, beta2, best_out, sg_out, prob_out, gd_out, v_out, record_all
-):
-    """The bank from sample k0 until S_g < β2 (returns that index) or the end (returns −1)."""
+def run_bank(bank, data, k0, prm, model, beta2, out, record_all):
+    """The bank ``(V, Qr, P, L, w_prev)`` over the recording ``(t, gyr, acc)`` from sample k0
+    until S_g < β2 (returns that index) or the end (returns −1), with the aerodynamic ``model``
+    ``(A, B, C)``; per sample into ``out`` ``(best, S_g, probabilities, gravity directions,
+    velocity)`` (every hypothesis's with ``record_all``, else the best one's)."""
+    V, Qr, P, L, w_prev = bank
+    t, gyr, acc = data
+    A, B, C = model
+    best_out, sg_out, prob_out, gd_out, v_out = out
     n = V.shape[0]
     prob = np.empty(n)
     gd = np.empty((n, 3))
@@ -210,26 +215,14 @@ def recover(
         events.append(("converging", float(t[k_det])))
         V, Qr, P, L = initial_bank(p, spread_points(H) if dirs is None else dirs)
         w_prev = gyr[k_det - 1].copy() if k_det > 0 else gyr[k_det].copy()
-        kc = _run_bank(
-            V,
-            Qr,
-            P,
-            L,
-            w_prev,
-            t,
-            gyr,
-            acc,
+        kc = run_bank(
+            (V, Qr, P, L, w_prev),
+            (t, gyr, acc),
             k_det,
             prm,
-            model.A,
-            model.B,
-            model.C,
+            (model.A, model.B, model.C),
             p.beta2,
-            best,
-            s_g,
-            prob,
-            gd_all,
-            vel,
+            (best, s_g, prob, gd_all, vel),
             record_all,
         )
         if record_all:

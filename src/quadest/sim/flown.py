@@ -1,4 +1,4 @@
-"""Sensors sampled from a flown vehicle (issue #13): the states of the rotor-level model
+"""Sensors sampled from a flown vehicle: the states of the rotor-level model
 (:mod:`quadest.models.multirotor`) become a :class:`~quadest.data.Recording` with the same
 sensor models as the prescribed scenarios (:func:`quadest.sim.simulator.sample_sensors`), so
 every command (estimate, compare, recover, calibrate) reads a flown flight."""

@@ -1,4 +1,4 @@
-"""A sweep's results for a person (``quadest report RESULTS.parquet``, issue #16): per filter,
+"""A sweep's results for a person (``quadest report RESULTS.parquet``): per filter,
 each parameter set's mean metrics over the sources it ran on, and the metric against each
 swept parameter."""
 

@@ -110,11 +110,15 @@ def disturbance_gain(x, p, mn, dip, mdt):
 
 
 @njit(cache=True, inline="always")
-def heading_from_field(x, p, ew, ex, ey, ez, m0, m1, m2, h20, h21, h22, tau, delta, ph, at_rest, nclip, clip_b):
-    """Eq R2 with the magnetometer sample ``m``: ``δ ← δ + k wrap(δ_m − δ)``, ``k = 1 −
-    exp(−Δt_m / τ)`` (at least ``1 / n`` during the initial averaging), scaled by the disturbance's
-    factor; in steady state the correction's rate measures the vertical bias (gain at most
-    ``bias_heading_gain · k``, eq R3b). Returns δ, its variance and whether it was updated."""
+def heading_from_field(x, p, q_e, m, h2, tau, delta, ph, at_rest, nclip, clip_b):
+    """Eq R2 with the magnetometer sample ``m`` and the inclination ``q_e`` (``h2``: the body's
+    down axis): ``δ ← δ + k wrap(δ_m − δ)``, ``k = 1 − exp(−Δt_m / τ)`` (at least ``1 / n``
+    during the initial averaging), scaled by the disturbance's factor; in steady state the
+    correction's rate measures the vertical bias (gain at most ``bias_heading_gain · k``,
+    eq R3b). Returns δ, its variance and whether it was updated."""
+    ew, ex, ey, ez = q_e
+    m0, m1, m2 = m
+    h20, h21, h22 = h2
     mdt = x[S.mag_dt]
     x[S.mag_dt] = 0.0
     me0, me1, me2 = rotate_s(ew, ex, ey, ez, m0, m1, m2)
@@ -168,7 +172,7 @@ def heading(x, p, c, m0, m1, m2, have_mag, u0, u1, u2, at_rest, nclip, clip_b, d
     mupd = 0.0
     if have_mag:
         delta, ph, mupd = heading_from_field(
-            x, p, ew, ex, ey, ez, m0, m1, m2, h20, h21, h22, tau, delta, ph, at_rest, nclip, clip_b
+            x, p, (ew, ex, ey, ez), (m0, m1, m2), (h20, h21, h22), tau, delta, ph, at_rest, nclip, clip_b
         )
     if x[S.ref] == 0.0:
         ph = UNKNOWN_HEADING_VAR

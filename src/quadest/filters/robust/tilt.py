@@ -167,11 +167,13 @@ def correct_inclination(x, p, y0, y1, y2, ew, ex, ey, ez, u0, u1, u2, motion_bia
 
 
 @njit(cache=True, inline="always")
-def tilt(x, p, c, gyr, f0, f1, f2, fn, u0, u1, u2, at_rest, nclip, rest_rate2, clip_b, dt):
-    """Items 2, 4 and 10: the inclination from the low-passed specific force, the bias in motion,
-    and the tilt's variance (eq R6: ``P_θ ← (1 − k)² (P_θ + (σ_g² + τ_acc tr(P_b)/3) Δt)
-    + k² R_a (1 + 2 τ_c / Δt)``, ``R_a`` the low-passed squared angle between the raw specific
-    force and the vertical)."""
+def tilt(x, p, c, gyr, f, fn, u, at_rest, nclip, rest_rate2, clip_b, dt):
+    """Items 2, 4 and 10: the inclination from the low-passed specific force ``f`` (its norm
+    ``fn``), the bias in motion, and the tilt's variance (eq R6: ``P_θ ← (1 − k)² (P_θ + (σ_g² +
+    τ_acc tr(P_b)/3) Δt) + k² R_a (1 + 2 τ_c / Δt)``, ``R_a`` the low-passed squared angle between
+    the raw specific force and the vertical); ``u`` the strapdown's rate."""
+    f0, f1, f2 = f
+    u0, u1, u2 = u
     gw, gx, gy, gz = x[S.qg], x[S.qg + 1], x[S.qg + 2], x[S.qg + 3]
     iw, ix, iy, iz = x[S.qi], x[S.qi + 1], x[S.qi + 2], x[S.qi + 3]
     ew, ex, ey, ez = qmul_s(iw, ix, iy, iz, gw, gx, gy, gz)  # q_Eb

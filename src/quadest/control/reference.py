@@ -1,6 +1,5 @@
-"""The closed loop: the controller reads the state (for now the true one; the estimators come
-into the loop next), commands the rotors, the vehicle model integrates (RK4), every step in
-compiled code."""
+"""What a controller is asked to fly: references (a fixed setpoint, a circle) and a rotor
+failure as an event."""
 
 from __future__ import annotations
 
@@ -9,29 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadest._jit import njit
-from quadest.control.se3 import SE3Params, se3_command
 from quadest.errors import UsageError
-from quadest.models.multirotor import MultirotorParams, rk4_ws, work
-
-
-@njit(cache=True)
-def _fly(x, eta, V, G, h, p_d, v_d, a_d, yaw_d, fail_rotor, fail_step, fail_eta, out_x, out_cmd, out_eta):
-    cmd = np.empty(V.rotor_pos.shape[0])
-    W = work(V, x.shape[0])
-    for k in range(yaw_d.shape[0]):
-        if k == fail_step and fail_rotor >= 0:
-            eta[fail_rotor] = fail_eta
-        se3_command(x, p_d[k], v_d[k], a_d[k], yaw_d[k], G, V, cmd)
-        if fail_rotor >= 0 and k >= fail_step and fail_eta == 0.0:
-            cmd[fail_rotor] = 0.0  # a lost rotor: no thrust or torque, and its motor spins down
-        rk4_ws(x, cmd, eta, V, h, W)
-        for j in range(eta.shape[0]):
-            out_eta[k, j] = eta[j]
-        for j in range(x.shape[0]):
-            out_x[k, j] = x[j]
-        for j in range(cmd.shape[0]):
-            out_cmd[k, j] = cmd[j]
+from quadest.models.multirotor import MultirotorParams
 
 
 def hover_reference(steps: int, position=(0.0, 0.0, 0.0), yaw: float = 0.0):
@@ -90,55 +68,3 @@ class Failure:
 MAX_IMBALANCE = 1e-3
 """The largest propeller imbalance a failure may have (kg m): 1 g at 1 m, far beyond any
 propeller's; what a user meaning grams by millimetres (5 rather than 5e-6) would give."""
-
-
-def fly_se3(
-    x0,
-    reference,
-    *,
-    vehicle: MultirotorParams | None = None,
-    gains: SE3Params | None = None,
-    rate_hz: float = 1000.0,
-    eta=None,
-    failure: Failure | None = None,
-    return_eta: bool = False,
-):
-    """Fly the vehicle from state ``x0`` along ``reference`` (``(p_d, v_d, a_d, yaw_d)``, one row
-    per step at ``rate_hz``) with the SE(3) controller on the true state, a ``failure`` striking
-    when it is due. Returns the states after each step (steps, 13 + N) and the rotor commands
-    (steps, N); with ``return_eta`` also the rotor efficiencies per step."""
-    vehicle = vehicle or MultirotorParams()
-    gains = gains or SE3Params()
-    p_d, v_d, a_d, yaw_d = (np.ascontiguousarray(a, dtype=float) for a in reference)
-    steps = len(yaw_d)
-    x = np.array(x0, dtype=float)
-    if x.shape != (13 + vehicle.rotors,):
-        raise ValueError(f"x0 must have {13 + vehicle.rotors} values, got {x.shape}")
-    eta = np.ones(vehicle.rotors) if eta is None else np.array(eta, float)
-    fail_rotor, fail_step, fail_eta = -1, -1, 1.0
-    if failure is not None:
-        failure.check(vehicle, steps / rate_hz)
-        fail_rotor, fail_step, fail_eta = failure.rotor, int(round(failure.time_s * rate_hz)), failure.efficiency
-    out_x, out_cmd, out_eta = (
-        np.empty((steps, len(x))),
-        np.empty((steps, vehicle.rotors)),
-        np.empty((steps, vehicle.rotors)),
-    )
-    _fly(
-        x,
-        eta,
-        vehicle.vehicle(),
-        gains.gains(vehicle),
-        1.0 / rate_hz,
-        p_d,
-        v_d,
-        a_d,
-        yaw_d,
-        fail_rotor,
-        fail_step,
-        float(fail_eta),
-        out_x,
-        out_cmd,
-        out_eta,
-    )
-    return (out_x, out_cmd, out_eta) if return_eta else (out_x, out_cmd)

@@ -1,0 +1,163 @@
+"""The closed loop's records (:mod:`quadest.flight.loop`) built by name from the flight's
+values: every flight (:func:`quadest.flight.fly`, a throw, the truth-only SE(3) flight) makes
+its loop here."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from quadest.control import FtcParams
+from quadest.control.registry import Control, controller_id
+from quadest.flight.loop import MAX_RATE, MAX_SPEED, Loop, Navigation, Plant, Record, Sensing, record_arrays
+from quadest.flight.phases import NAV, PHASES, Bank
+from quadest.models.multirotor import work
+from quadest.recovery import RecoveryParams
+from quadest.recovery.logic import initial_bank
+from quadest.recovery.sphere import spread_points
+
+
+def plant(vehicle, *, h, substeps, ground_z, failure=None, rate=1.0, hand=None, limits=True, zero_failed=True):
+    """The :data:`~quadest.flight.loop.Plant` of ``vehicle``: a ``failure`` striking at its
+    sample (``rate`` Hz), the ``hand``'s ``(states, derivatives)`` until the release, the
+    flight ended by the ground at ``ground_z`` and (``limits``) by lost control."""
+    N, nx = vehicle.rotors, 13 + vehicle.rotors
+    V = vehicle.vehicle()
+    hand_x, hand_dx = hand if hand is not None else (np.zeros((1, nx)), np.zeros((0, nx)))
+    return Plant.make(
+        V=V,
+        h=h,
+        substeps=substeps,
+        ground_z=ground_z,
+        max_rate=MAX_RATE if limits else np.inf,
+        max_speed=MAX_SPEED if limits else np.inf,
+        tw=vehicle.rotors * vehicle.k_f * vehicle.omega_max**2 / (vehicle.mass_kg * vehicle.gravity),
+        eta=np.ones(N),
+        imb=np.zeros(N),
+        fail_rotor=-1 if failure is None else failure.rotor,
+        fail_k=-1 if failure is None else int(round(failure.time_s * rate)),
+        fail_eta=1.0 if failure is None else float(failure.efficiency),
+        fail_imb=0.0 if failure is None else float(failure.imbalance),
+        zero_failed=zero_failed,
+        hand_x=np.ascontiguousarray(hand_x, dtype=float),
+        hand_dx=np.ascontiguousarray(hand_dx, dtype=float),
+        W=work(V, nx),
+        dx=np.zeros(nx),
+        Fb=np.empty(3),
+        Mb=np.empty(3),
+        T=np.zeros(N),
+    )
+
+
+def sensing(sm, *, dt, rotors, position0, every=1, delay=0, noise=None, n=1, on=True):
+    """The :data:`~quadest.flight.loop.Sensing` of the sensor model ``sm`` at ``dt``, and a
+    position sensor every ``every`` samples, ``delay`` samples late, with ``noise`` (one row per
+    reading; none: noise-free), its history starting at ``position0``."""
+    n_read = (n - 1) // every + 1
+    vib = np.zeros(2 * rotors + 1)  # quadest.sim.sensors.vibration_state
+    vib[rotors:] = np.nan
+    return Sensing.make(
+        sm=sm,
+        on=on,
+        dt=dt,
+        gyr=np.zeros(3),
+        acc=np.zeros(3),
+        mag=np.zeros(3),
+        vib=vib,
+        every=every,
+        delay=delay,
+        noise=np.zeros((n_read, 3)) if noise is None else np.ascontiguousarray(noise, dtype=float),
+        hist=np.tile(np.asarray(position0, float), (delay + 1, 1)),
+        reading=np.array(position0, float),
+    )
+
+
+def navigation(kind: str, x0, gain=None):
+    """The :data:`~quadest.flight.loop.Navigation` reading ``kind`` (:data:`~quadest.flight.phases.NAV`);
+    the position and velocity estimates start at the truth (on the pad)."""
+    return Navigation.make(
+        kind=NAV[kind],
+        xh=np.zeros(13),
+        q_est=np.array([1.0, 0.0, 0.0, 0.0]),
+        ph=np.array(x0[0:3], float),
+        vh=np.array(x0[3:6], float),
+        gain=np.zeros((3, 2)) if gain is None else np.ascontiguousarray(gain, dtype=float),
+    )
+
+
+def control(controllers: dict, *, G, F, reference, ftc_k=-1, cmd0, beta3=0.0, upright_rad=0.0):
+    """The :data:`~quadest.control.registry.Control` flying ``controllers`` (phase name →
+    controller name) along ``reference`` ``(p_d, v_d, a_d, yaw_d)``, the rotors first at ``cmd0``."""
+    by_phase = np.full(len(PHASES), controller_id("idle"), np.int64)
+    for phase, name in controllers.items():
+        by_phase[PHASES.index(phase)] = controller_id(name)
+    p_d, v_d, a_d, yaw_d = (np.array(a, dtype=float) for a in reference)
+    return Control.make(
+        by_phase=by_phase,
+        G=G,
+        F=F,
+        p_d=p_d,
+        v_d=v_d,
+        a_d=a_d,
+        yaw_d=yaw_d,
+        ftc_k=ftc_k,
+        integral=np.zeros(3),
+        cmd=np.array(cmd0, float),
+        beta3=beta3,
+        upright_rad=upright_rad,
+    )
+
+
+def unused_ftc_gains(vehicle):
+    """Fault-tolerant gains of the record's type for a loop that never flies that controller
+    (given a yaw damping, so nothing is fitted)."""
+    return FtcParams(yaw_damping=1e-3).gains(vehicle, 0)
+
+
+def bank(model=None, rp: RecoveryParams | None = None, *, mass=1.0, t_throw=0.0):
+    """The recovery's :data:`~quadest.flight.phases.Bank` with the aerodynamic ``model`` (none:
+    a bank of one hypothesis that never runs, for a flight without a throw)."""
+    rp = rp or RecoveryParams()
+    H = rp.n_hypotheses if model is not None else 1
+    Vb, Qr, Pb, Lb = initial_bank(rp, spread_points(H) if model is not None else np.array([[0.0, 0.0, 1.0]]))
+    A, B, C = (
+        (model.A, model.B, model.C) if model is not None else (np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 10)))
+    )
+    A, B, C = (np.ascontiguousarray(m, dtype=float) for m in (A, B, C))
+    return Bank.make(
+        prm=rp.bank_record(mass),
+        A=A,
+        B=B,
+        C=C,
+        Cn=C.copy(),
+        Vb=Vb,
+        Qr=Qr,
+        Pb=Pb,
+        Lb=Lb,
+        prob=np.empty(H),
+        gd=np.empty((H, 3)),
+        V1=np.zeros((1, 3)),
+        Q1=np.zeros((1, 4)),
+        P1=np.zeros((1, 5, 5)),
+        L1=np.zeros(1),
+        w_prev=np.zeros(3),  # the gyro before the first sample: at rest in the hand
+        beta1=rp.beta1,
+        detect_samples=rp.detect_samples,
+        beta2=rp.beta2,
+        t_throw=t_throw,
+    )
+
+
+def loop(*, plant, sensing, nav, bank, control, n, rotors, phase):
+    """The :data:`~quadest.flight.loop.Loop` of ``n`` samples starting in ``phase``, with its record."""
+    record = Record.make(**record_arrays(n, rotors))
+    state = np.array([PHASES.index(phase), 0, 0], np.int64)
+    return Loop.make(
+        plant=plant,
+        sensing=sensing,
+        nav=nav,
+        bank=bank,
+        control=control,
+        record=record,
+        state=state,
+        held=np.full(2, np.nan),
+    )

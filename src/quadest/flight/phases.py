@@ -1,0 +1,169 @@
+"""The phases of a flight and what the controller reads in each, by value for compiled code.
+
+A flight flies (``flying``) and, once a rotor loss is known, flies fault-tolerant (``fault``). A
+throw (Beffa, Ledergerber & D'Andrea, sections IV-V) starts in the hand and goes through the
+recovery's phases:
+
+1. ``waiting``: the throw is detected once ``‖z_acc‖ < β1`` has held for ``detect_samples``
+   samples (eq 37); the rotors keep their constant speed (section III);
+2. ``converging``: the bank of EKFs (:mod:`quadest.recovery.bank`) runs from the detection until
+   the spherical variance ``S_g < β2`` (eqs 38-39);
+3. ``nominal``: the most likely hypothesis's mean and covariance start one EKF of the bank's
+   kind (section V-B) and the recovery controller (:mod:`quadest.control.upright`) takes over,
+   reading that EKF's attitude and velocity and the position sensor's height; the EKF's
+   accelerometer update waits while the attitude control error exceeds ``β3``. The bank's
+   model was learnt at the throw's constant rotor speed, so its constant force (the last
+   column of ``C``, along z) holds that thrust; from the handover it holds the thrust the
+   measured rotor speeds give (``k_f Σ Ω²``). With the truth in the loop (an oracle) the
+   handover is at the detection and the controller reads the true state.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from quadest._jit import copy_into, njit
+from quadest.control.registry import command
+from quadest.records import compiled_record
+from quadest.recovery.bank import bank_step, summarize
+from quadest.rotation.kernels import rot_matrix
+
+WAITING, CONVERGING, NOMINAL, FLYING, FAULT = 0, 1, 2, 3, 4
+PHASES = ("waiting", "converging", "nominal", "flying", "fault")
+"""The phases by value (a flight's phase per sample is ``Flight.modes``)."""
+
+NAV_TRUTH, NAV_TRUE_STATE, NAV_FILTER, NAV_BANK = 0, 1, 2, 3
+NAV = {
+    "truth": NAV_TRUTH,  # oracle: true attitude, position and velocity; the gyro's rate
+    "true-state": NAV_TRUE_STATE,  # oracle: the whole true state, rate included
+    "filter": NAV_FILTER,  # an estimator's attitude and the position fusion
+    "bank": NAV_BANK,  # a throw's recovery: the bank of EKFs, then its nominal EKF
+}
+"""What the controller reads, by value."""
+
+PHASE, BELOW, GATE = 0, 1, 2  # the loop's carried state (Loop.state)
+YAW, HOLD_Z = 0, 1  # what a recovery holds (Loop.held)
+
+Bank = compiled_record(
+    "Bank",
+    "A throw's recovery: the bank's parameters, aerodynamic model (A, B, C; Cn its nominal "
+    "copy), hypotheses (velocity, attitude, covariance, log likelihood), their probabilities "
+    "and gravity directions, the nominal EKF (V1, Q1, P1, L1), the previous gyro reading, the "
+    "thresholds of eqs 37-39 and the thrust of the throw's constant rotor speed.",
+    prm="any",
+    A="f8[:, :]",
+    B="f8[:, :]",
+    C="f8[:, :]",
+    Cn="f8[:, :]",
+    Vb="f8[:, :]",
+    Qr="f8[:, :]",
+    Pb="f8[:, :, :]",
+    Lb="f8[:]",
+    prob="f8[:]",
+    gd="f8[:, :]",
+    V1="f8[:, :]",
+    Q1="f8[:, :]",
+    P1="f8[:, :, :]",
+    L1="f8[:]",
+    w_prev="f8[:]",
+    beta1="f8",
+    detect_samples="i8",
+    beta2="f8",
+    t_throw="f8",
+)
+
+
+@njit(cache=True)
+def quat_yaw(q):
+    """ZYX yaw of ``q_nb``."""
+    return np.arctan2(2.0 * (q[1] * q[2] + q[0] * q[3]), 1.0 - 2.0 * (q[2] * q[2] + q[3] * q[3]))
+
+
+@njit(cache=True)
+def hold(k, yaw, z, L):
+    """Hand over at sample ``k``: the controller holds ``yaw`` and the height ``z`` from now on."""
+    C = L.control
+    L.state[PHASE] = NOMINAL
+    L.record.events[1] = k
+    L.held[YAW], L.held[HOLD_Z] = yaw, z
+    for i in range(k, C.yaw_d.shape[0]):
+        C.p_d[i, 2] = z
+        C.yaw_d[i] = yaw
+
+
+@njit(cache=True)
+def wait_for_throw(k, x, L):
+    """``waiting``: count the samples below β1 (eq 37); at the detection start converging (with
+    the truth: hand over at once, holding the true yaw and height)."""
+    B, S = L.bank, L.sensing
+    acc, gyr = S.acc, S.gyr
+    below = np.sqrt(acc[0] ** 2 + acc[1] ** 2 + acc[2] ** 2) < B.beta1
+    L.state[BELOW] = L.state[BELOW] + 1 if below else 0
+    if L.state[BELOW] >= B.detect_samples:
+        L.state[PHASE] = CONVERGING
+        L.record.events[0] = k
+        if L.nav.kind != NAV_BANK:
+            hold(k, quat_yaw(x[6:10]), x[2], L)
+    else:
+        B.w_prev[0], B.w_prev[1], B.w_prev[2] = gyr[0], gyr[1], gyr[2]
+
+
+@njit(cache=True)
+def converge(k, L):
+    """``converging``: one step of the bank (eqs 38-39); below β2 its most likely hypothesis
+    starts the nominal EKF and the controller holds the measured height."""
+    B, S, R = L.bank, L.sensing, L.record
+    bank_step(B.Vb, B.Qr, B.Pb, B.Lb, B.w_prev, S.gyr, S.acc, S.dt, B.prm, B.A, B.B, B.C, True)
+    best, sg = summarize(B.Qr, B.Lb, B.prm.gravity, B.prob, B.gd)
+    R.sg[k] = sg
+    copy_into(R.gdir[k], B.gd[best])
+    copy_into(R.q[k], B.Qr[best])
+    if sg < B.beta2:
+        B.V1[0] = B.Vb[best]
+        B.Q1[0] = B.Qr[best]
+        B.P1[0] = B.Pb[best]
+        B.L1[0] = 0.0
+        hold(k, quat_yaw(B.Q1[0]), S.reading[2], L)
+        L.state[GATE] = 0
+
+
+@njit(cache=True)
+def nominal_estimate(x, L):
+    """``nominal``: the state the recovery controller reads: the truth, or the nominal EKF's
+    attitude and velocity with the thrust of the measured rotor speeds, the gyro's rate and the
+    position sensor's height (no horizontal position: velocity and height hold)."""
+    B, S, xh, V = L.bank, L.sensing, L.nav.xh, L.plant.V
+    if L.nav.kind != NAV_BANK:
+        for j in range(13):
+            xh[j] = x[j]
+        return
+    t_est = 0.0
+    for i in range(V.rotor_pos.shape[0]):
+        t_est += L.control.G.k_f * x[13 + i] * x[13 + i]
+    B.Cn[2, 9] = B.C[2, 9] - (t_est - B.t_throw)
+    bank_step(B.V1, B.Q1, B.P1, B.L1, B.w_prev, S.gyr, S.acc, S.dt, B.prm, B.A, B.B, B.Cn, L.state[GATE] != 0)
+    R = rot_matrix(B.Q1[0])
+    for j in range(3):
+        xh[3 + j] = R[j, 0] * B.V1[0, 0] + R[j, 1] * B.V1[0, 1] + R[j, 2] * B.V1[0, 2]
+        xh[10 + j] = S.gyr[j]
+    for j in range(4):
+        xh[6 + j] = B.Q1[0, j]
+    xh[0], xh[1], xh[2] = 0.0, 0.0, S.reading[2]
+
+
+@njit(cache=True)
+def recovery_phase(k, x, L):
+    """A throw's sample ``k`` (module doc): detection, convergence, or the nominal estimate and
+    the recovery controller; records what the controller read (nothing before the handover)."""
+    if L.state[PHASE] == WAITING:
+        wait_for_throw(k, x, L)
+    if L.state[PHASE] == CONVERGING:
+        converge(k, L)
+    elif L.state[PHASE] == NOMINAL:
+        nominal_estimate(x, L)
+        xh, C = L.nav.xh, L.control
+        copy_into(L.record.q[k], xh[6:10])
+        gate = command(C.by_phase[NOMINAL], k, xh, C, L.plant.V, L.sensing.dt)
+        L.state[GATE] = 1 if gate else 0
+    if L.state[PHASE] == NOMINAL:
+        copy_into(L.record.pv[k], L.nav.xh[0:6])
