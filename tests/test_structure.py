@@ -364,3 +364,14 @@ def test_one_closed_loop_and_one_sensor_model():
         "models/multirotor.py:fly_open_loop",
     }
     assert calls["ftc_command"] == {"control/registry.py:command"}
+
+
+def test_results_do_not_depend_on_what_compiled_first(tmp_path):
+    """numba compiles a kernel that states no ``fastmath`` with its first caller's: madgwick's
+    start (the shared ``prepare``, ``tilt_from_acc``, ``mag_heading``) first compiled from the
+    Kalman filter's ``fastmath`` step gave other bits than compiled from madgwick's. quadest's
+    ``njit`` states it, so each fresh cache gives the same madgwick whatever ran before."""
+    after_kalman = _start_copy(SRC, "kalman,madgwick", tmp_path / "a")
+    alone = _start_copy(SRC, "madgwick", tmp_path / "b")
+    qa, qb = _result(after_kalman, SRC)["q"]["madgwick"], _result(alone, SRC)["q"]["madgwick"]
+    assert qa == qb

@@ -112,11 +112,17 @@ from numba import njit as _numba_njit  # noqa: E402
 
 
 def njit(*args, **options):
-    """numba's ``njit`` with reference counting stated, never inherited: numba compiles a
-    function called from code without it (:data:`NO_ALLOCATION`) without it too, unless the
-    function says otherwise, so a step that allocates would fail to compile (or, compiled
-    first there, lose its counts) depending on who called it first."""
+    """numba's ``njit`` with reference counting and ``fastmath`` stated, never inherited.
+
+    numba compiles a function that does not state them with its first caller's: a kernel first
+    called from a ``fastmath`` step would be compiled with ``fastmath`` (and kept so in the disk
+    cache), first called from elsewhere without; a function first called from code without
+    reference counting (:data:`NO_ALLOCATION`) without it. Results then depended on what was
+    compiled first (madgwick's start moved by 1e-5 rad). Here a function has the options it
+    states, else ``fastmath=False`` and reference counting; a function inlined
+    (``inline="always"``) is part of its caller and compiled with the caller's options."""
     options.setdefault("_nrt", True)
+    options.setdefault("fastmath", False)
     if args and callable(args[0]):
         return _numba_njit(**options)(args[0])
     return _numba_njit(*args, **options)
