@@ -22,9 +22,7 @@ from quadest.cli.common import (
     write_json,
     write_report_for,
 )
-from quadest.evaluation import benchmark as B
-from quadest.evaluation import flown as FL
-from quadest.evaluation import reproduce as R
+from quadest.evaluation import benchmark, flown, reproduce
 from quadest.evaluation.compare import compare, format_tables, parse_params
 from quadest.evaluation.runner import estimator_names, filter_notes
 from quadest.evaluation.speed import benchmark_speed
@@ -35,7 +33,7 @@ from quadest.flight.crosscheck import rotorpy_available
 from quadest.flight.speed import benchmark_sim
 from quadest.flight.throw import ThrowParams
 from quadest.readers.catalog import resolve_data
-from quadest.sim import PRESETS, SCENARIOS, simulate
+from quadest.sim import PRESCRIBED_SCENARIOS, PRESETS, simulate
 
 
 def _recording_from_args(args):
@@ -134,7 +132,7 @@ def cmd_reproduce(args):
                 + (", then the ablations (each row one sensor change)." if args.ablations else ".")
             )
         say("(first use compiles the estimators and the closed loop: about a minute)")
-        result = R.reproduce_afckf(
+        result = reproduce.reproduce_afckf(
             seeds,
             progress=True,
             workers=args.workers,
@@ -147,17 +145,17 @@ def cmd_reproduce(args):
             "Reproducing Liang et al. 2023 (QUKF), Table 1, on the simulator: MPU6050 + HMC5883L at "
             f"20 Hz, 30 s of hover and of motion, seeds {args.seeds}."
         )
-        result = R.reproduce_qukf(seeds, progress=True, workers=args.workers, scheduler=args.scheduler)
-    say(R.format_reproduction(args.paper, result))
+        result = reproduce.reproduce_qukf(seeds, progress=True, workers=args.workers, scheduler=args.scheduler)
+    say(reproduce.format_reproduction(args.paper, result))
     if args.json:
         write_json(args.json, result)
     if args.report:
-        rec, names, params, _, title = R.first_seed_flight(args.paper, result)
+        rec, names, params, _, title = reproduce.first_seed_flight(args.paper, result)
         write_report_for(rec, names, params, args.report, f"quadest reproduce {args.paper}: {title}")
     if args.plot_dir:
         from quadest.plot import plot_errors, plot_recording
 
-        rec, results, t_from, title = R.first_seed_estimates(args.paper, result)
+        rec, results, t_from, title = reproduce.first_seed_estimates(args.paper, result)
         out = Path(args.plot_dir) / args.paper
         for p in plot_errors(rec.t, rec.true_q, results, out, title=f"({title})", t_from=t_from):
             say(f"wrote {p}")
@@ -173,8 +171,8 @@ def _reproduce_in_loop(args):
         "the gyroscope-range and magnetometer-latency ablations."
     )
     say("(each estimator's loop compiles on its first flight: some seconds each)")
-    result = R.afckf_in_loop(seeds, progress=True, workers=args.workers, scheduler=args.scheduler)
-    say(FL.format_in_loop(result["table"]))
+    result = reproduce.afckf_in_loop(seeds, progress=True, workers=args.workers, scheduler=args.scheduler)
+    say(flown.format_in_loop(result["table"]))
     if args.json:
         write_json(args.json, result)
     return 0
@@ -192,7 +190,7 @@ def _reproduce_recovery(args):
         f"throws (fma preset, seeds {args.seed}..{args.seed + args.throws - 1}), with the simulation's "
         "aerodynamic model, one fitted on 20 separate throws, and one perturbed by ±20 %."
     )
-    result = R.reproduce_recovery(
+    result = reproduce.reproduce_recovery(
         args.throws,
         args.seed,
         progress=True,
@@ -200,7 +198,7 @@ def _reproduce_recovery(args):
         workers=args.workers,
         scheduler=args.scheduler,
     )
-    say(R.format_recovery(result))
+    say(reproduce.format_recovery(result))
     if args.plot_dir:
         from quadest.plot import plot_recovery, plot_recovery_histograms
 
@@ -208,7 +206,7 @@ def _reproduce_recovery(args):
         out.mkdir(parents=True, exist_ok=True)
         runs = {n: c["runs"] for n, c in result["cases"].items()}
         say(f"wrote {plot_recovery_histograms(runs, out / 'errors_histogram.png')}")
-        res, rec = R.example_throw(args.seed)
+        res, rec = reproduce.example_throw(args.seed)
         say(f"wrote {plot_recovery(res, rec, out / 'throw.png', title=f'throw seed {args.seed}, true model')}")
     if args.json:
         write_json(args.json, result)
@@ -225,7 +223,7 @@ def _reproduce_recovery_flown(args):
         "the controller rights the vehicle and holds its height."
     )
     say("(the first throw fits the model and compiles the loop: about a minute)")
-    result = R.reproduce_recovery_flown(
+    result = reproduce.reproduce_recovery_flown(
         args.throws,
         args.seed,
         progress=True,
@@ -234,7 +232,7 @@ def _reproduce_recovery_flown(args):
         any_direction=args.any_direction,
         keep_runs=bool(args.json),
     )
-    say(FL.format_throws(result))
+    say(flown.format_throws(result))
     if args.plot_dir:
         from quadest.plot import plot_flight
 
@@ -313,19 +311,21 @@ def cmd_benchmark(args):
         args.data = resolve_data(args.data)
         if args.what == "broad":
             say(f"BROAD on {args.data}: {', '.join(names)}; BROAD's metric over the movement phases")
-            res = B.benchmark_broad(args.data, names, trials=args.trials, nav=args.align or "none", progress=True)
-            say(B.format_broad(res))
+            res = benchmark.benchmark_broad(
+                args.data, names, trials=args.trials, nav=args.align or "none", progress=True
+            )
+            say(benchmark.format_broad(res))
         elif args.what == "repoimu":
             say(
                 f"RepoIMU trials under {args.data}: {', '.join(names)}; 9-axis, roll/pitch/yaw and total RMS after "
                 "the reader's alignment"
             )
-            res = B.benchmark_repoimu(args.data, names, progress=True)
-            say(B.format_repoimu(res))
+            res = benchmark.benchmark_repoimu(args.data, names, progress=True)
+            say(benchmark.format_repoimu(res))
         else:
             say(f"quadrotor flights under {args.data}: {', '.join(names)}; 6-axis, roll/pitch/yaw RMS")
-            res = B.benchmark_flights(args.data, names, nav=args.align or "heading", progress=True)
-            say(B.format_flights(res))
+            res = benchmark.benchmark_flights(args.data, names, nav=args.align or "heading", progress=True)
+            say(benchmark.format_flights(res))
     if args.json:
         write_json(args.json, res)
     return 0
@@ -351,7 +351,10 @@ def _add_compare(sub):
     src = c.add_mutually_exclusive_group()
     src.add_argument("--recording", type=Path, metavar="FILE", help="recording with true_q, any supported format")
     src.add_argument(
-        "--scenario", choices=SCENARIOS, default="damaged-rotor", help="simulate this scenario (default: damaged-rotor)"
+        "--scenario",
+        choices=PRESCRIBED_SCENARIOS,
+        default="damaged-rotor",
+        help="simulate this scenario (default: damaged-rotor)",
     )
     c.add_argument("--preset", choices=list(PRESETS), default="bebop2", help="with --scenario (default: bebop2)")
     c.add_argument("--seed", type=int, default=1, help="with --scenario (default: 1)")

@@ -8,7 +8,15 @@ from quadest.cli.common import CliError, parse_seeds, say, write_json
 from quadest.control import Failure
 from quadest.data import save_recording, write_table
 from quadest.filters import FILTERS
-from quadest.flight import CONTROLLERS, SCENARIOS, FlightParams, campaign_table, fly, fly_many, in_loop_estimators
+from quadest.flight import (
+    CONTROLLERS,
+    FLIGHT_SCENARIOS,
+    FlightParams,
+    campaign_table,
+    fly,
+    fly_many,
+    in_loop_estimators,
+)
 from quadest.models import VEHICLE_PRESETS
 from quadest.sim import PRESETS
 
@@ -189,7 +197,7 @@ def add_parsers(sub):
     )
     s.add_argument(
         "--scenario",
-        choices=SCENARIOS,
+        choices=FLIGHT_SCENARIOS,
         default="rotor-loss",
         help="hover: hold the origin from a disturbed start; trajectory: a 1 m circle at 0.2 Hz; "
         "rotor-loss: hover, rotor 0 lost at 2 s (default); throw: released tumbling, recovered by the "

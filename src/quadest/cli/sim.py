@@ -7,7 +7,7 @@ from pathlib import Path
 
 from quadest.cli.common import CliError, say, sim_config
 from quadest.data import format_summary, save_recording, summarize
-from quadest.sim import PRESETS, SCENARIOS, param_table, simulate
+from quadest.sim import PRESCRIBED_SCENARIOS, PRESETS, param_table, simulate
 
 
 def cmd_simulate(args):
@@ -78,7 +78,7 @@ def add_parsers(sub):
         "for a given seed. Every parameter can be overridden; "
         "--list-params shows them with unit and source.",
     )
-    s.add_argument("--scenario", choices=SCENARIOS, default="hover", help="motion (default: hover)")
+    s.add_argument("--scenario", choices=PRESCRIBED_SCENARIOS, default="hover", help="motion (default: hover)")
     s.add_argument("--preset", choices=list(PRESETS), default="bebop2", help="vehicle and sensors (default: bebop2)")
     s.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     s.add_argument("--duration", type=float, default=None, help="seconds (default: per scenario)")

@@ -7,11 +7,10 @@ from pathlib import Path
 
 from quadest.cli.common import CliError, add_engine_args, parse_seeds, parse_sets, say, sim_config, write_json
 from quadest.cli.fly import failure_record, parse_failure
-from quadest.flight import CONTROLLERS, DEFAULT_DURATION
-from quadest.flight import SCENARIOS as FLY_SCENARIOS
+from quadest.flight import CONTROLLERS, DEFAULT_DURATION, FLIGHT_SCENARIOS
 from quadest.models import VEHICLE_PRESETS, vehicle_preset
 from quadest.readers.catalog import resolve_data
-from quadest.sim import PRESETS, SCENARIOS
+from quadest.sim import PRESCRIBED_SCENARIOS, PRESETS
 from quadest.sweep import (
     build_runs,
     file_sources,
@@ -136,7 +135,9 @@ def _add_sweep_args(p):
         "dataset fetched with quadest data fetch (broad)",
     )
     src.add_argument("--format", default=None, help="with --data: reader (default: chosen from each file)")
-    src.add_argument("--scenario", choices=SCENARIOS, default="nominal", help="simulated scenario (default: nominal)")
+    src.add_argument(
+        "--scenario", choices=PRESCRIBED_SCENARIOS, default="nominal", help="simulated scenario (default: nominal)"
+    )
     src.add_argument(
         "--preset",
         choices=list(PRESETS),
@@ -152,10 +153,10 @@ def _add_sweep_args(p):
     fl = p.add_argument_group("flown flights: the vehicle flies with each estimator in the loop (docs/vehicle.md)")
     fl.add_argument(
         "--fly",
-        choices=FLY_SCENARIOS,
+        choices=FLIGHT_SCENARIOS,
         default=None,
         metavar="SCENARIO",
-        help=f"fly this scenario ({', '.join(FLY_SCENARIOS)}) instead of simulating a prescribed one; "
+        help=f"fly this scenario ({', '.join(FLIGHT_SCENARIOS)}) instead of simulating a prescribed one; "
         "--filters then names the estimators in the loop (truth too; recovery for a throw)",
     )
     fl.add_argument("--controller", choices=CONTROLLERS, default=None, help="with --fly (default: per scenario)")

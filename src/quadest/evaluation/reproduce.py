@@ -20,7 +20,7 @@ from dataclasses import asdict
 import numpy as np
 
 from quadest.calibration import calibrate_centrifugal
-from quadest.evaluation import flown as FL
+from quadest.evaluation import flown
 from quadest.evaluation.metrics import AXES
 from quadest.evaluation.parallel import execute
 from quadest.evaluation.runner import estimate, estimate_all, score_result
@@ -124,7 +124,7 @@ def reproduce_afckf(
     *,
     prescribed: bool = False,
     ablations: bool = False,
-    params: FL.FlownAfckfParams | None = None,
+    params: flown.FlownAfckfParams | None = None,
 ) -> dict:
     """AFCKF Tables I-V on the simulator: flown (default) or on the prescribed scenarios; with
     ``ablations`` (flown only) the ablation table too. Seeds run through
@@ -134,8 +134,8 @@ def reproduce_afckf(
         if ablations:
             raise ValueError("the ablations run on the flown rotor loss, not on the prescribed scenario")
         return _reproduce_afckf_prescribed(seeds, progress, workers, scheduler)
-    p = params or FL.FlownAfckfParams()
-    cal = FL.afckf_calibration_flown(p)
+    p = params or flown.FlownAfckfParams()
+    cal = flown.afckf_calibration_flown(p)
     fparams = {"afckf": {"omega1": cal["omega1"], "omega2": cal["omega2"]}, "afckf-nocal": {}}
     seeds = list(seeds)
     out = {
@@ -147,23 +147,28 @@ def reproduce_afckf(
         "cases": {},
         "flights": {},
     }
-    for case in FL.CASES:
+    for case in flown.CASES:
         res = _map(
-            FL.flown_seed, [(case, s, p, fparams) for s in seeds], progress, f"AFCKF flown {case}", workers, scheduler
+            flown.flown_seed,
+            [(case, s, p, fparams) for s in seeds],
+            progress,
+            f"AFCKF flown {case}",
+            workers,
+            scheduler,
         )
-        out["cases"][case] = _aggregate([r["scores"] for r in res], FL.LABELS)
+        out["cases"][case] = _aggregate([r["scores"] for r in res], flown.LABELS)
         out["flights"][case] = _flight_means([r["flight"] for r in res])
     if ablations:
         per_seed = _map(
-            FL.ablation_seed,
-            [(s, p, fparams, FL.ABLATIONS) for s in seeds],
+            flown.ablation_seed,
+            [(s, p, fparams, flown.ABLATIONS) for s in seeds],
             progress,
             "AFCKF ablations",
             workers,
             scheduler,
         )
-        out["ablations"] = FL.ablation_rows(per_seed)
-    rec = FL.flown_flight("damaged-rotor", seeds[0], p).recording
+        out["ablations"] = flown.ablation_rows(per_seed)
+    rec = flown.flown_flight("damaged-rotor", seeds[0], p).recording
     out["time_us"] = _times(rec, fparams)
     return out
 
@@ -174,24 +179,26 @@ def afckf_in_loop(
     workers: int = 0,
     scheduler=None,
     *,
-    params: FL.FlownAfckfParams | None = None,
+    params: flown.FlownAfckfParams | None = None,
     estimators=None,
     variants=None,
 ) -> dict:
     """The flown loss with each estimator in the fault-tolerant controller's loop
     (:func:`quadest.evaluation.flown.in_loop_seed`), per sensor variant and seed."""
-    p = params or FL.FlownAfckfParams()
-    estimators = list(estimators or FL.IN_LOOP_ESTIMATORS)
-    variants = list(variants or FL.IN_LOOP_VARIANTS)
+    p = params or flown.FlownAfckfParams()
+    estimators = list(estimators or flown.IN_LOOP_ESTIMATORS)
+    variants = list(variants or flown.IN_LOOP_VARIANTS)
     seeds = list(seeds)
     tasks = [(label, overrides, s, p, estimators) for label, overrides in variants for s in seeds]
-    runs = [r for part in _map(FL.in_loop_seed, tasks, progress, "AFCKF in the loop", workers, scheduler) for r in part]
+    runs = [
+        r for part in _map(flown.in_loop_seed, tasks, progress, "AFCKF in the loop", workers, scheduler) for r in part
+    ]
     return {
         "seeds": seeds,
         "mode": "in-loop",
         "params": {r["name"]: getattr(p, r["name"]) for r in p.describe()},
-        "after_loss_s": FL.IN_LOOP_AFTER_S,
-        "table": FL.in_loop_table(runs),
+        "after_loss_s": flown.IN_LOOP_AFTER_S,
+        "table": flown.in_loop_table(runs),
         "runs": runs,
     }
 
@@ -207,7 +214,7 @@ def _flight_means(outputs: list[dict]) -> dict:
 
 def _times(rec, params) -> dict:
     out = {}
-    for name, label in zip(FL.FILTERS, FL.LABELS):
+    for name, label in zip(flown.FILTERS, flown.LABELS):
         out[label] = time_estimator(
             lambda n=name, lb=label: make_filter(n, declination=rec.declination, **params.get(lb, {})), rec
         )
@@ -225,8 +232,8 @@ def _reproduce_afckf_prescribed(seeds, progress, workers, scheduler) -> dict:
             scenario,
             "bebop2",
             seeds,
-            FL.FILTERS,
-            FL.LABELS,
+            flown.FILTERS,
+            flown.LABELS,
             params,
             cfg.damaged.failure_s if scenario == "damaged-rotor" else 0.0,
             progress,
@@ -307,9 +314,9 @@ def first_seed_flight(paper: str, result: dict):
         names = ["madgwick", "complementary", "kalman", "afckf"]
         params = {"afckf": {k: result["calibration"][k] for k in ("omega1", "omega2")}}
         if result.get("mode") == "flown":
-            p = FL.FlownAfckfParams(**result["params"])
+            p = flown.FlownAfckfParams(**result["params"])
             return (
-                FL.flown_flight("damaged-rotor", seed, p).recording,
+                flown.flown_flight("damaged-rotor", seed, p).recording,
                 names,
                 params,
                 p.failure_s,
@@ -376,7 +383,7 @@ def format_reproduction(paper: str, result: dict) -> str:
             p = pub.get("time_us", {}).get(n)
             lines.append(f"{n:<15}{tm['batch_us']:>10.3f}{tm['stream_us']:>10.2f}" + (f"{p:>12.1f}" if p else ""))
     if result.get("ablations"):
-        lines += ["", FL.format_ablations(result["ablations"])]
+        lines += ["", flown.format_ablations(result["ablations"])]
     return "\n".join(lines)
 
 
@@ -513,15 +520,15 @@ def reproduce_recovery_flown(
     hover (:mod:`quadest.flight.throw`)."""
     throw = ThrowParams(any_direction=any_direction)
     seeds = list(range(seed, seed + throws))
-    runs = _map(FL.flown_throw, [(s, throw, duration) for s in seeds], progress, "flown throws", workers, scheduler)
+    runs = _map(flown.flown_throw, [(s, throw, duration) for s in seeds], progress, "flown throws", workers, scheduler)
     case = "any direction" if any_direction else "upward"
     out = {
         "mode": "flown",
         "seeds": [seeds[0], seeds[-1]],
         "throw": asdict(throw),
         "duration_s": duration,
-        "published": FL.RECOVERY_PAPER,
-        "cases": {case: FL.throw_stats(runs)},
+        "published": flown.RECOVERY_PAPER,
+        "cases": {case: flown.throw_stats(runs)},
     }
     if keep_runs:
         out["cases"][case]["runs"] = runs

@@ -7,7 +7,7 @@ from quadest.flight.common import SIM_RATE_HZ, Flight, FlightParams, position_ga
 from quadest.flight.fly import (
     CONTROLLERS,
     DEFAULT_DURATION,
-    SCENARIOS,
+    FLIGHT_SCENARIOS,
     campaign_table,
     fly,
     fly_many,
@@ -21,7 +21,7 @@ __all__ = [
     "DEFAULT_DURATION",
     "Flight",
     "FlightParams",
-    "SCENARIOS",
+    "FLIGHT_SCENARIOS",
     "SIM_RATE_HZ",
     "campaign_table",
     "fly",

@@ -11,7 +11,7 @@ from scipy.linalg import solve_discrete_are
 from quadest.data.recording import Recording
 from quadest.records import check, check_triples, describe, param
 from quadest.rotation import quat_conj, quat_mul, quat_rotate
-from quadest.sim import sensors as S
+from quadest.sim import sensors
 from quadest.sim.sensors import sensor_model
 from quadest.sim.simulator import draw_processes
 
@@ -188,7 +188,7 @@ def sensors_for(cfg, n: int, seed: int, vehicle):
     rate = cfg.imu.rate_hz
     t = np.arange(n) / rate
     rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(int(seed)).spawn(4)]
-    has_mag = S.mag_rows(np.arange(n), rate, cfg.mag.rate_hz)
+    has_mag = sensors.mag_rows(np.arange(n), rate, cfg.mag.rate_hz)
     processes = draw_processes(cfg, t, has_mag, rngs, rotors=vehicle.rotors)
     return processes, sensor_model(cfg, processes, has_mag, vehicle)
 

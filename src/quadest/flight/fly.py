@@ -50,7 +50,7 @@ from quadest.sim import build_config
 from quadest.sim.flown import flown_recording
 from quadest.sim.params import SimConfig
 
-SCENARIOS = ("hover", "trajectory", "rotor-loss", "throw")
+FLIGHT_SCENARIOS = ("hover", "trajectory", "rotor-loss", "throw")
 
 
 def in_loop_estimators() -> list[str]:
@@ -184,8 +184,8 @@ def fly(
 
 def _check_request(scenario, estimator, controller, duration):
     """The controller and duration of a flight, after refusing what cannot fly (one line each)."""
-    if scenario not in SCENARIOS:
-        raise UsageError(f"unknown scenario {scenario!r}; scenarios: {', '.join(SCENARIOS)}")
+    if scenario not in FLIGHT_SCENARIOS:
+        raise UsageError(f"unknown scenario {scenario!r}; scenarios: {', '.join(FLIGHT_SCENARIOS)}")
     if scenario == "throw":
         if estimator not in ("recovery", "truth"):
             raise UsageError(

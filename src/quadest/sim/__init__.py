@@ -2,11 +2,11 @@
 
 from quadest.sim.params import PRESETS, SimConfig, param_table, preset_config
 from quadest.sim.simulator import aero_model, aero_model_of, build_config, simulate
-from quadest.sim.truth import SCENARIOS
+from quadest.sim.truth import PRESCRIBED_SCENARIOS
 
 __all__ = [
     "PRESETS",
-    "SCENARIOS",
+    "PRESCRIBED_SCENARIOS",
     "SimConfig",
     "aero_model",
     "aero_model_of",

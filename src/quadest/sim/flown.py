@@ -11,7 +11,7 @@ import numpy as np
 
 from quadest.data.recording import Recording
 from quadest.models.multirotor import MultirotorParams
-from quadest.sim import sensors as S
+from quadest.sim import sensors
 from quadest.sim.params import SimConfig
 from quadest.sim.sensors import motor_current
 from quadest.sim.simulator import build_config, sample_sensors
@@ -81,7 +81,7 @@ def flown_recording(
     )
     rng = [np.random.default_rng(s) for s in np.random.SeedSequence(int(seed)).spawn(4)]
     k = np.round((t - t[0]) * cfg.imu.rate_hz).astype(np.int64)
-    has_mag = S.mag_rows(k, cfg.imu.rate_hz, cfg.mag.rate_hz)
+    has_mag = sensors.mag_rows(k, cfg.imu.rate_hz, cfg.mag.rate_hz)
     info = {"source": "quadest fly", "seed": int(seed), **(meta or {})}
     rec, _, _ = sample_sensors(truth, cfg, np.ones(n, bool), has_mag, rng, info, processes=processes, vehicle=vehicle)
     if readings is not None:

@@ -17,16 +17,16 @@ from pathlib import Path
 import numpy as np
 
 from quadest.conventions import GRAVITY
-from quadest.records import param as P
+from quadest.records import param
 
 
 @dataclass(frozen=True)
 class Environment:
-    gravity: float = P(GRAVITY, "m/s²", "gravitational acceleration along +z (down)", "standard gravity")
-    field_ut: float = P(49.0, "µT", "earth magnetic field intensity", "WMM, Delft (52.0°N 4.4°E), 2022")
-    inclination_deg: float = P(67.0, "deg", "field inclination, positive down", "WMM, Delft, 2022")
-    declination_deg: float = P(2.0, "deg", "field declination, positive east", "WMM, Delft, 2022")
-    distortion_ut: float = P(
+    gravity: float = param(GRAVITY, "m/s²", "gravitational acceleration along +z (down)", "standard gravity")
+    field_ut: float = param(49.0, "µT", "earth magnetic field intensity", "WMM, Delft (52.0°N 4.4°E), 2022")
+    inclination_deg: float = param(67.0, "deg", "field inclination, positive down", "WMM, Delft, 2022")
+    declination_deg: float = param(2.0, "deg", "field declination, positive east", "WMM, Delft, 2022")
+    distortion_ut: float = param(
         0.0,
         "µT",
         "indoor field distortion: the field of magnetised steel below the "
@@ -34,209 +34,211 @@ class Environment:
         "chosen per case: near steel structures indoor fields deviate by several µT to tens of µT",
         bounds="[0, 1000]",
     )
-    distortion_depth_m: float = P(
+    distortion_depth_m: float = param(
         3.0,
         "m",
         "depth of the distortion's sources below the origin",
         "chosen: steel in the floor under a vehicle hovering at 3 m",
         bounds="(0, 100]",
     )
-    distortion_spacing_m: float = P(
+    distortion_spacing_m: float = param(
         1.5,
         "m",
         "spacing of the distortion's sources (3 x 3 dipoles in a horizontal plane)",
         "chosen: the spacing of beams or rebar mats",
         bounds="(0, 100]",
     )
-    distortion_seed: int = P(
+    distortion_seed: int = param(
         0, "-", "which room: the dipoles' directions are drawn from this seed", "chosen", bounds="[0, 1e9]"
     )
 
 
 @dataclass(frozen=True)
 class Vehicle:
-    mass_kg: float = P(0.5, "kg", "vehicle mass")
-    inertia: tuple = P((0.0023, 0.0023, 0.0046), "kg m²", "principal moments of inertia (x, y, z)")
-    arm_m: float = P(0.17, "m", "distance from centre to rotor axis")
-    thrust_to_weight: float = P(2.0, "-", "maximum collective thrust over weight (motor-current scale)")
-    rotor_drag: float = P(0.3, "1/s", "linear rotor drag: body x/y specific force -d·v (Faessler 2018)")
-    rotor_hz_hover: float = P(110.0, "Hz", "rotor rotation frequency at hover (vibration tone)")
+    mass_kg: float = param(0.5, "kg", "vehicle mass")
+    inertia: tuple = param((0.0023, 0.0023, 0.0046), "kg m²", "principal moments of inertia (x, y, z)")
+    arm_m: float = param(0.17, "m", "distance from centre to rotor axis")
+    thrust_to_weight: float = param(2.0, "-", "maximum collective thrust over weight (motor-current scale)")
+    rotor_drag: float = param(0.3, "1/s", "linear rotor drag: body x/y specific force -d·v (Faessler 2018)")
+    rotor_hz_hover: float = param(110.0, "Hz", "rotor rotation frequency at hover (vibration tone)")
 
 
 @dataclass(frozen=True)
 class ImuTiming:
-    rate_hz: float = P(500.0, "Hz", "gyroscope and accelerometer sample rate")
-    jitter_std_s: float = P(0.0, "s", "std of the sampling-instant error (clipped to ±0.3 period)")
-    drop_prob: float = P(0.0, "-", "probability that an IMU sample (row) is lost")
+    rate_hz: float = param(500.0, "Hz", "gyroscope and accelerometer sample rate")
+    jitter_std_s: float = param(0.0, "s", "std of the sampling-instant error (clipped to ±0.3 period)")
+    drop_prob: float = param(0.0, "-", "probability that an IMU sample (row) is lost")
 
 
 @dataclass(frozen=True)
 class Gyroscope:
-    noise_std: float = P(0.01, "rad/s", "white noise std per sample")
-    bias_std: float = P(0.005, "rad/s", "std of the constant (turn-on) bias drawn per run, per axis")
-    bias: tuple | None = P(None, "rad/s", "fixed constant bias (overrides the draw)")
-    bias_rw_std: float = P(2e-4, "rad/s/√s", "bias random walk intensity")
-    scale_std: float = P(0.003, "-", "std of the scale-factor error drawn per run, per axis")
-    scale: tuple | None = P(None, "-", "fixed scale-factor errors (overrides the draw)")
-    misalignment_std: float = P(0.002, "rad", "std of each off-diagonal misalignment term")
-    misalignment: tuple | None = P(None, "-", "fixed 3x3 misalignment matrix, zero diagonal")
-    range: float = P(math.radians(1000.0), "rad/s", "saturation limit per axis")
-    dlpf_hz: float = P(0.0, "Hz", "anti-alias low-pass (first order) cut-off before saturation (0: none)")
+    noise_std: float = param(0.01, "rad/s", "white noise std per sample")
+    bias_std: float = param(0.005, "rad/s", "std of the constant (turn-on) bias drawn per run, per axis")
+    bias: tuple | None = param(None, "rad/s", "fixed constant bias (overrides the draw)")
+    bias_rw_std: float = param(2e-4, "rad/s/√s", "bias random walk intensity")
+    scale_std: float = param(0.003, "-", "std of the scale-factor error drawn per run, per axis")
+    scale: tuple | None = param(None, "-", "fixed scale-factor errors (overrides the draw)")
+    misalignment_std: float = param(0.002, "rad", "std of each off-diagonal misalignment term")
+    misalignment: tuple | None = param(None, "-", "fixed 3x3 misalignment matrix, zero diagonal")
+    range: float = param(math.radians(1000.0), "rad/s", "saturation limit per axis")
+    dlpf_hz: float = param(0.0, "Hz", "anti-alias low-pass (first order) cut-off before saturation (0: none)")
 
 
 @dataclass(frozen=True)
 class Accelerometer:
-    noise_std: float = P(0.25, "m/s²", "white noise std per sample")
-    bias_std: float = P(0.05, "m/s²", "std of the constant bias drawn per run, per axis")
-    bias: tuple | None = P(None, "m/s²", "fixed constant bias (overrides the draw)")
-    bias_rw_std: float = P(1e-3, "m/s²/√s", "bias random walk intensity")
-    scale_std: float = P(0.005, "-", "std of the scale-factor error drawn per run, per axis")
-    scale: tuple | None = P(None, "-", "fixed scale-factor errors (overrides the draw)")
-    misalignment_std: float = P(0.002, "rad", "std of each off-diagonal misalignment term")
-    misalignment: tuple | None = P(None, "-", "fixed 3x3 misalignment matrix, zero diagonal")
-    range: float = P(8 * GRAVITY, "m/s²", "saturation limit per axis")
-    lever_arm: tuple = P((0.0, 0.0, 0.0), "m", "IMU position from the centre of mass, body frame")
-    dlpf_hz: float = P(0.0, "Hz", "anti-alias low-pass (first order) cut-off before saturation (0: none)")
-    vibration_amp: tuple = P(
+    noise_std: float = param(0.25, "m/s²", "white noise std per sample")
+    bias_std: float = param(0.05, "m/s²", "std of the constant bias drawn per run, per axis")
+    bias: tuple | None = param(None, "m/s²", "fixed constant bias (overrides the draw)")
+    bias_rw_std: float = param(1e-3, "m/s²/√s", "bias random walk intensity")
+    scale_std: float = param(0.005, "-", "std of the scale-factor error drawn per run, per axis")
+    scale: tuple | None = param(None, "-", "fixed scale-factor errors (overrides the draw)")
+    misalignment_std: float = param(0.002, "rad", "std of each off-diagonal misalignment term")
+    misalignment: tuple | None = param(None, "-", "fixed 3x3 misalignment matrix, zero diagonal")
+    range: float = param(8 * GRAVITY, "m/s²", "saturation limit per axis")
+    lever_arm: tuple = param((0.0, 0.0, 0.0), "m", "IMU position from the centre of mass, body frame")
+    dlpf_hz: float = param(0.0, "Hz", "anti-alias low-pass (first order) cut-off before saturation (0: none)")
+    vibration_amp: tuple = param(
         (0.0, 0.0, 0.0), "m/s²", "rotor vibration tone amplitude per axis at hover (grows with rotor load)"
     )
 
 
 @dataclass(frozen=True)
 class Magnetometer:
-    rate_hz: float = P(100.0, "Hz", "sample rate (0: no magnetometer)")
-    noise_std: float = P(0.5, "µT", "white noise std per sample")
-    hard_iron: tuple = P((0.0, 0.0, 0.0), "µT", "hard-iron offset, body frame")
-    soft_iron: tuple = P(
+    rate_hz: float = param(100.0, "Hz", "sample rate (0: no magnetometer)")
+    noise_std: float = param(0.5, "µT", "white noise std per sample")
+    hard_iron: tuple = param((0.0, 0.0, 0.0), "µT", "hard-iron offset, body frame")
+    soft_iron: tuple = param(
         ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
         "-",
         "soft-iron matrix applied to the earth field in the body frame",
     )
-    motor_coef: tuple = P(
+    motor_coef: tuple = param(
         (0.0, 0.0, 0.0), "µT", "disturbance at maximum motor current (all rotors at full thrust), body frame"
     )
-    range: float = P(4900.0, "µT", "saturation limit per axis")
-    latency_s: float = P(0.0, "s", "age of the field a sample reads (rounded to IMU samples; 0: none)")
+    range: float = param(4900.0, "µT", "saturation limit per axis")
+    latency_s: float = param(0.0, "s", "age of the field a sample reads (rounded to IMU samples; 0: none)")
 
 
 @dataclass(frozen=True)
 class Hover:
-    duration_s: float = P(30.0, "s", "default duration of the hover scenario")
-    gust_acc_rms: float = P(
+    duration_s: float = param(30.0, "s", "default duration of the hover scenario")
+    gust_acc_rms: float = param(
         0.3,
         "m/s²",
         "RMS horizontal acceleration from gusts",
         "chosen: light air; a few tenths of m/s² of position-hold residual",
     )
-    gust_band_hz: tuple = P((0.1, 1.5), "Hz", "frequency band of the gust motion")
-    vertical_ratio: float = P(0.5, "-", "vertical over horizontal gust amplitude")
-    yaw_amp_deg: float = P(5.0, "deg", "peak slow yaw change")
-    yaw_band_hz: tuple = P((0.02, 0.1), "Hz", "frequency band of the yaw changes")
-    components: int = P(6, "-", "sinusoids per axis")
+    gust_band_hz: tuple = param((0.1, 1.5), "Hz", "frequency band of the gust motion")
+    vertical_ratio: float = param(0.5, "-", "vertical over horizontal gust amplitude")
+    yaw_amp_deg: float = param(5.0, "deg", "peak slow yaw change")
+    yaw_band_hz: tuple = param((0.02, 0.1), "Hz", "frequency band of the yaw changes")
+    components: int = param(6, "-", "sinusoids per axis")
 
 
 @dataclass(frozen=True)
 class Nominal:
-    duration_s: float = P(60.0, "s", "default duration of the nominal scenario")
-    acc_max: float = P(
+    duration_s: float = param(60.0, "s", "default duration of the nominal scenario")
+    acc_max: float = param(
         3.0,
         "m/s²",
         "peak acceleration of the path",
         "chosen: brisk manual flight (the AFCKF paper's normal flight is not published)",
     )
-    band_hz: tuple = P((0.1, 0.5), "Hz", "frequency band of the path's accelerations (periods 2-10 s)")
-    ramp_s: float = P(1.0, "s", "time constant with which the manoeuvres start from hover")
-    vertical_ratio: float = P(0.3, "-", "vertical over horizontal path amplitude")
-    yaw_rate_max: float = P(1.0, "rad/s", "peak yaw rate", "chosen: moderate manual yaw")
-    yaw_band_hz: tuple = P((0.02, 0.15), "Hz", "frequency band of the yaw motion")
-    components: int = P(5, "-", "sinusoids per axis")
+    band_hz: tuple = param((0.1, 0.5), "Hz", "frequency band of the path's accelerations (periods 2-10 s)")
+    ramp_s: float = param(1.0, "s", "time constant with which the manoeuvres start from hover")
+    vertical_ratio: float = param(0.3, "-", "vertical over horizontal path amplitude")
+    yaw_rate_max: float = param(1.0, "rad/s", "peak yaw rate", "chosen: moderate manual yaw")
+    yaw_band_hz: tuple = param((0.02, 0.15), "Hz", "frequency band of the yaw motion")
+    components: int = param(5, "-", "sinusoids per axis")
 
 
 @dataclass(frozen=True)
 class DamagedRotor:
-    duration_s: float = P(30.0, "s", "default duration of the damaged-rotor scenario")
-    failure_s: float = P(
+    duration_s: float = param(30.0, "s", "default duration of the damaged-rotor scenario")
+    failure_s: float = param(
         5.0, "s", "time of the rotor loss (hover before it)", "chosen: the filters have converged in hover by then"
     )
-    spin_rate_mean: float = P(15.5, "rad/s", "mean spin rate after the failure", "AFCKF paper, section IV.B.1")
-    spin_rate_var: float = P(
+    spin_rate_mean: float = param(15.5, "rad/s", "mean spin rate after the failure", "AFCKF paper, section IV.B.1")
+    spin_rate_var: float = param(
         3.0,
         "rad/s",
         "peak slow deviation of the spin rate",
         "chosen, not from the paper: a wandering spin; with the ±1000 °/s gyro it makes the gyro clip",
     )
-    spin_band_hz: tuple = P((0.03, 0.15), "Hz", "frequency band of the spin-rate variation")
-    spin_up_tau_s: float = P(
+    spin_band_hz: tuple = param((0.03, 0.15), "Hz", "frequency band of the spin-rate variation")
+    spin_up_tau_s: float = param(
         0.5, "s", "time constant of the spin-up", "chosen: the spin settles within about 2 s of the loss"
     )
-    spin_sign: float = P(1.0, "-", "+1: positive yaw rate (clockwise seen from above), -1: negative")
-    tilt_deg: float = P(
+    spin_sign: float = param(1.0, "-", "+1: positive yaw rate (clockwise seen from above), -1: negative")
+    tilt_deg: float = param(
         4.0,
         "deg",
         "angle between body z and the spin axis at the mean spin rate (grows with rate²)",
         "relaxed hover, Mueller & D'Andrea 2014; value assumed",
     )
-    tilt_azimuth_deg: float = P(45.0, "deg", "direction in the body x-y plane the spin axis leans to")
-    manoeuvre_acc_max: float = P(
+    tilt_azimuth_deg: float = param(45.0, "deg", "direction in the body x-y plane the spin axis leans to")
+    manoeuvre_acc_max: float = param(
         1.0,
         "m/s²",
         "peak acceleration of the spin centre after the failure",
         "chosen: a damaged vehicle drifting slowly around its position",
     )
-    manoeuvre_band_hz: tuple = P((0.02, 0.2), "Hz", "frequency band of the spin-centre manoeuvres")
-    active_rotors: int = P(3, "-", "rotors producing thrust after the failure (vibration, motor current)")
+    manoeuvre_band_hz: tuple = param((0.02, 0.2), "Hz", "frequency band of the spin-centre manoeuvres")
+    active_rotors: int = param(3, "-", "rotors producing thrust after the failure (vibration, motor current)")
 
 
 @dataclass(frozen=True)
 class Throw:
-    duration_s: float = P(3.0, "s", "default duration of the throw scenario")
-    hold_s: float = P(0.75, "s", "time held still in the hand before the throwing motion")
-    throw_s: float = P(0.25, "s", "duration of the throwing motion before release")
-    speed_max: float = P(5.0, "m/s", "release speed drawn uniformly in [0, speed_max]", "chosen: a gentle hand throw")
-    any_direction: bool = P(
+    duration_s: float = param(3.0, "s", "default duration of the throw scenario")
+    hold_s: float = param(0.75, "s", "time held still in the hand before the throwing motion")
+    throw_s: float = param(0.25, "s", "duration of the throwing motion before release")
+    speed_max: float = param(
+        5.0, "m/s", "release speed drawn uniformly in [0, speed_max]", "chosen: a gentle hand throw"
+    )
+    any_direction: bool = param(
         False,
         "-",
         "release velocity of any direction (default: upward or horizontal only; a "
         "downward throw makes the hand's own acceleration trigger eq 37 before release)",
     )
-    rate_max: float = P(
+    rate_max: float = param(
         10.0, "rad/s", "release body-rate magnitude drawn in [0, rate_max]", "chosen: a throw with some tumble"
     )
-    tremor_acc: float = P(0.2, "m/s²", "hand tremor acceleration amplitude while held")
-    release_height_m: float = P(1.5, "m", "height of the release point above the origin")
-    max_step_s: float = P(2.5e-4, "s", "largest RK4 step of the free flight (>= 4 kHz)")
+    tremor_acc: float = param(0.2, "m/s²", "hand tremor acceleration amplitude while held")
+    release_height_m: float = param(1.5, "m", "height of the release point above the origin")
+    max_step_s: float = param(2.5e-4, "s", "largest RK4 step of the free flight (>= 4 kHz)")
 
 
 @dataclass(frozen=True)
 class Calibration:
     """Motions a user performs to calibrate, hand-held with the motors off."""
 
-    rest_s: float = P(30.0, "s", "default duration of the rest scenario")
-    hold_s: float = P(6.0, "s", "six-position: time held in each orientation")
-    turn_s: float = P(2.0, "s", "six-position: time of each turn between orientations")
-    figure8_s: float = P(60.0, "s", "default duration of the figure-eight rotation")
-    figure8_period_s: float = P(12.0, "s", "figure-eight: period of the heading sweep")
-    tilt_amp_deg: float = P(75.0, "deg", "figure-eight: roll and pitch amplitude")
-    six_tilt_deg: float = P(0.0, "deg", "six-position: error of each placement (random axis)")
+    rest_s: float = param(30.0, "s", "default duration of the rest scenario")
+    hold_s: float = param(6.0, "s", "six-position: time held in each orientation")
+    turn_s: float = param(2.0, "s", "six-position: time of each turn between orientations")
+    figure8_s: float = param(60.0, "s", "default duration of the figure-eight rotation")
+    figure8_period_s: float = param(12.0, "s", "figure-eight: period of the heading sweep")
+    tilt_amp_deg: float = param(75.0, "deg", "figure-eight: roll and pitch amplitude")
+    six_tilt_deg: float = param(0.0, "deg", "six-position: error of each placement (random axis)")
 
 
 @dataclass(frozen=True)
 class Aero:
     """Recovery paper eq 9, in quadest's body frame (FRD): f_c = A v + B|v|v + C ψ(ω), N."""
 
-    A: tuple = P(
+    A: tuple = param(
         ((-0.20, 0.0, 0.0), (0.0, -0.20, 0.0), (0.0, 0.0, -0.30)),
         "N s/m",
         "linear drag matrix (rotor drag and inflow), body frame",
         "assumption, form from Beffa eq 9",
     )
-    B: tuple = P(
+    B: tuple = param(
         ((-0.012, 0.0, 0.0), (0.0, -0.012, 0.0), (0.0, 0.0, -0.030)),
         "N s²/m²",
         "quadratic drag matrix (frame drag)",
         "assumption, form from Beffa eq 9",
     )
-    C: tuple = P(
+    C: tuple = param(
         (
             (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
             (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
@@ -247,7 +249,7 @@ class Aero:
         "column is the idle thrust (-1.5 N: 3 m/s² up the body)",
         "assumption, form from Beffa eq 10",
     )
-    rate_damping: tuple = P((0.002, 0.002, 0.001), "N m s/rad", "body-rate damping torque -D ω")
+    rate_damping: tuple = param((0.002, 0.002, 0.001), "N m s/rad", "body-rate damping torque -D ω")
 
 
 @dataclass(frozen=True)

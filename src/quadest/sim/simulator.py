@@ -11,9 +11,9 @@ from quadest.data.recording import Recording
 from quadest.models.aero import AeroModel
 from quadest.models.multirotor import MultirotorParams
 from quadest.rotation import quat_continuous
-from quadest.sim import sensors as S
+from quadest.sim import sensors
 from quadest.sim.params import SimConfig, load_toml_overrides, preset_config
-from quadest.sim.truth import SCENARIOS, Truth, default_duration, make_motion
+from quadest.sim.truth import PRESCRIBED_SCENARIOS, Truth, default_duration, make_motion
 
 MAX_SAMPLES = 2e7
 """The most IMU samples one simulation makes (about 11 h at 500 Hz; several GB in memory)."""
@@ -79,8 +79,8 @@ def simulate(
     return_truth : also return the :class:`~quadest.sim.truth.Truth` (with angular acceleration and
         the sensors' true biases over time, random walk included).
     """
-    if scenario not in SCENARIOS:
-        raise ValueError(f"unknown scenario {scenario!r}; scenarios: {', '.join(SCENARIOS)}")
+    if scenario not in PRESCRIBED_SCENARIOS:
+        raise ValueError(f"unknown scenario {scenario!r}; scenarios: {', '.join(PRESCRIBED_SCENARIOS)}")
     cfg = config if config is not None else build_config(preset, overrides, toml, ideal)
     if config is not None and ideal:
         cfg = cfg.idealized()
@@ -104,7 +104,7 @@ def simulate(
     if cfg.imu.jitter_std_s > 0:
         t = t + np.clip(rng_time.normal(0, cfg.imu.jitter_std_s, len(t)), -0.3 / rate, 0.3 / rate)
     keep = rng_time.random(len(t)) >= cfg.imu.drop_prob if cfg.imu.drop_prob > 0 else np.ones(len(t), bool)
-    has_mag = S.mag_rows(k, rate, cfg.mag.rate_hz)
+    has_mag = sensors.mag_rows(k, rate, cfg.mag.rate_hz)
 
     motion = make_motion(scenario, cfg, rng_motion, duration)
     chunk = max(1, int(CHUNK_S * rate))
@@ -153,14 +153,16 @@ def draw_processes(cfg: SimConfig, t, has_mag, rngs, rotors: int = 0) -> Process
     ``rotors``: a flown vehicle's rotor count (its vibration's phases per rotor,
     :func:`quadest.sim.sensors.rotor_vibration_offsets`); 0 for a prescribed motion (one tone)."""
     rng_gyro, rng_acc, rng_mag, rng_vib = rngs
-    g_err = S.draw_errors(cfg.gyro, rng_gyro)
-    a_err = S.draw_errors(cfg.acc, rng_acc)
-    gyr_bias, gyr_noise = S.inertial_processes(t, cfg.gyro, g_err, rng_gyro)
+    g_err = sensors.draw_errors(cfg.gyro, rng_gyro)
+    a_err = sensors.draw_errors(cfg.acc, rng_acc)
+    gyr_bias, gyr_noise = sensors.inertial_processes(t, cfg.gyro, g_err, rng_gyro)
     vib_offsets = (
-        S.rotor_vibration_offsets(rotors, rng_vib) if rotors else S.vibration_offsets(cfg.acc.vibration_amp, rng_vib)
+        sensors.rotor_vibration_offsets(rotors, rng_vib)
+        if rotors
+        else sensors.vibration_offsets(cfg.acc.vibration_amp, rng_vib)
     )
-    acc_bias, acc_noise = S.inertial_processes(t, cfg.acc, a_err, rng_acc)
-    mag_noise = S.mag_noise(int(np.count_nonzero(has_mag)), cfg.mag, rng_mag)
+    acc_bias, acc_noise = sensors.inertial_processes(t, cfg.acc, a_err, rng_acc)
+    mag_noise = sensors.mag_noise(int(np.count_nonzero(has_mag)), cfg.mag, rng_mag)
     return Processes(g_err, a_err, gyr_bias, gyr_noise, acc_bias, acc_noise, vib_offsets, mag_noise)
 
 
@@ -199,16 +201,16 @@ def sample_sensors(
             mag_noise=processes.mag_noise[:m],
         )
     g_err, a_err = pr.gyro_errors, pr.acc_errors
-    sm = S.sensor_model(cfg, pr, has_mag, vehicle)
+    sm = sensors.sensor_model(cfg, pr, has_mag, vehicle)
     if flown:
         imbalance = np.zeros_like(truth.rotor_speeds) if truth.rotor_imbalance is None else truth.rotor_imbalance
-        vib, gyr_vib = S.rotor_vibration(sm.rv, t, truth.rotor_speeds, imbalance)
+        vib, gyr_vib = sensors.rotor_vibration(sm.rv, t, truth.rotor_speeds, imbalance)
     else:
-        vib = S.vibration(
+        vib = sensors.vibration(
             t, truth.rotor_load, cfg.vehicle.rotor_hz_hover, cfg.acc.vibration_amp, offsets=pr.vib_offsets
         )
         gyr_vib = np.zeros_like(vib)
-    gyr, acc, mag, f_imu = S.sample_all(
+    gyr, acc, mag, f_imu = sensors.sample_all(
         sm, truth.q, truth.acc_n, truth.gyr, truth.gyr_dot, vib, gyr_vib, truth.pos, truth.current
     )
     gyr_bias, acc_bias = pr.gyr_bias, pr.acc_bias
@@ -219,7 +221,7 @@ def sample_sensors(
         "mag_rate_hz": cfg.mag.rate_hz,
         "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT"},
         **({"ideal_sensors": meta["ideal_sensors"]} if "ideal_sensors" in meta else {}),
-        "earth_field_ned_ut": S.earth_field(cfg.environment).tolist(),
+        "earth_field_ned_ut": sensors.earth_field(cfg.environment).tolist(),
         "gyro_saturated_share": float(sat.any(axis=1)[keep].mean()),
         "sensor_errors": {
             "gyr": {k_: v.tolist() for k_, v in g_err.items()},

@@ -23,14 +23,14 @@ from quadest.rotation import (
     quat_to_matrix,
     quat_to_rotvec,
 )
-from quadest.sim import jets as J
+from quadest.sim import jets
 from quadest.sim.jets import Jet
 from quadest.sim.params import SimConfig
 from quadest.sim.rigid_body import integrate
 from quadest.sim.sensors import motor_current
 from quadest.sim.signals import RampedSinusoids, Sinusoids
 
-SCENARIOS = ("hover", "nominal", "damaged-rotor", "throw", "rest", "six-position", "figure-eight")
+PRESCRIBED_SCENARIOS = ("hover", "nominal", "damaged-rotor", "throw", "rest", "six-position", "figure-eight")
 CALIBRATION_SCENARIOS = ("rest", "six-position", "figure-eight")
 
 
@@ -69,10 +69,10 @@ def _frame_from_z(zb: Jet, yaw: Jet) -> Jet:
     """``R_nb`` whose third column is ``zb`` and whose ZYX yaw is ``yaw`` (Mellinger & Kumar):
     ``x_b = normalize(y_c × z_b)`` with ``y_c = (-sin ψ, cos ψ, 0)``, ``y_b = z_b × x_b``."""
     zero = Jet.const(np.zeros_like(yaw.v))
-    yc = J._stack3(-J.sin(yaw), J.cos(yaw), zero)
-    xb = J.normalize(J.cross(yc, zb))
-    yb = J.cross(zb, xb)
-    return J.columns(xb, yb, zb)
+    yc = jets._stack3(-jets.sin(yaw), jets.cos(yaw), zero)
+    xb = jets.normalize(jets.cross(yc, zb))
+    yb = jets.cross(zb, xb)
+    return jets.columns(xb, yb, zb)
 
 
 class FlightMotion:
@@ -96,7 +96,7 @@ class FlightMotion:
         raise NotImplementedError
 
     def _truth(self, t, R: Jet, pos: Jet, thrust_spec, n_active):
-        w, wdot = J.body_rates(R)
+        w, wdot = jets.body_rates(R)
         g = self.cfg.environment.gravity
         v = self.cfg.vehicle
         load = (thrust_spec / n_active) / (g / 4.0)
@@ -137,10 +137,10 @@ class HoverMotion(FlightMotion):
 
     def evaluate(self, t):
         u, v = self.thrust_dir(t)
-        zb = J.normalize(u)
+        zb = jets.normalize(u)
         R = _frame_from_z(zb, self.yaw_jet(t))
         pos = self.path.jet(t) + self.start
-        thrust = J.norm(u).v + self.d * np.sum(zb.v * v.v, axis=1)
+        thrust = jets.norm(u).v + self.d * np.sum(zb.v * v.v, axis=1)
         return self._truth(t, R, pos, thrust, 4)
 
 
@@ -242,21 +242,21 @@ class DamagedRotorMotion(HoverMotion):
 
         pc, vc, ac = centre(0), centre(1), centre(2)
         u = Jet.const(np.broadcast_to(self.g, ac.v.shape)) - ac - vc * self.d
-        n_axis = J.normalize(u)
+        n_axis = jets.normalize(u)
         R_axis = _frame_from_z(n_axis, Jet.const(np.full(len(t), self.yaw0)))
         ph, ph1, ph2, ph3 = self.spin(t)
         yaw_h = self.yaw.jet(t)
         phi = Jet(ph + yaw_h.v[:, 0], ph1 + yaw_h.d1[:, 0], ph2 + yaw_h.d2[:, 0])
         k = self.alpha_f / self.Om**2
         alpha = Jet(k * ph1**2, 2 * k * ph1 * ph2, 2 * k * (ph2**2 + ph1 * ph3))
-        R_tilt = J.rot_axis(self.e_tilt, alpha)
-        Rspin = J.matmul(R_axis, J.rot_z(phi))
-        R = J.matmul(Rspin, J.transpose(R_tilt))
+        R_tilt = jets.rot_axis(self.e_tilt, alpha)
+        Rspin = jets.matmul(R_axis, jets.rot_z(phi))
+        R = jets.matmul(Rspin, jets.transpose(R_tilt))
         # centre of mass on its small circle about the spin centre: δ = (|u| α_f/Ω̄²) s h
-        h = J.matvec(Rspin, Jet.const(np.broadcast_to(self.w_perp, (len(t), 3))))
-        c = J.scale(J.norm(u), ramp) * k
-        pos = pc + J.scale(c, h) + self.start
-        thrust = J.norm(u).v / np.cos(alpha.v)
+        h = jets.matvec(Rspin, Jet.const(np.broadcast_to(self.w_perp, (len(t), 3))))
+        c = jets.scale(jets.norm(u), ramp) * k
+        pos = pc + jets.scale(c, h) + self.start
+        thrust = jets.norm(u).v / np.cos(alpha.v)
         return self._truth(t, R, pos, thrust, np.where(t >= self.tf, self.n_active, 4))
 
 
@@ -333,12 +333,12 @@ class ThrowMotion:
         integral, S, S1, S2 = _smoothstep(x)
         sigma = Jet(T * (integral - 0.5), S, S1 / T)  # ∫ S: zero at release
         hold = Jet(1 - S, -S1 / T, -S2 / T**2)  # tremor fades out during the throw
-        pos = J.scale(sigma, Jet.const(np.broadcast_to(self.v0, (len(t), 3)))) + self.p_r
-        pos = pos + J.scale(hold, self.tremor.jet(t))
+        pos = jets.scale(sigma, Jet.const(np.broadcast_to(self.v0, (len(t), 3)))) + self.p_r
+        pos = pos + jets.scale(hold, self.tremor.jet(t))
         wn = np.linalg.norm(self.w0)
         axis = self.w0 / wn if wn > 0 else np.array([0.0, 0.0, 1.0])
         Rr = Jet.const(np.broadcast_to(quat_to_matrix(self.q_r), (len(t), 3, 3)))
-        R = J.matmul(Rr, J.rot_axis(axis, sigma * wn))
+        R = jets.matmul(Rr, jets.rot_axis(axis, sigma * wn))
         n = len(t)
         return Truth(
             t=t,
@@ -440,7 +440,9 @@ class CalibrationMotion:
             wp, wr = wy * 1.618, wy * 2.414
             pitch = Jet(A * np.sin(wp * t), A * wp * np.cos(wp * t), -A * wp * wp * np.sin(wp * t))
             roll = Jet(A * np.sin(wr * t + 0.7), A * wr * np.cos(wr * t + 0.7), -A * wr * wr * np.sin(wr * t + 0.7))
-            R = J.matmul(J.matmul(J.rot_z(yaw), J.rot_axis([0, 1, 0], pitch)), J.rot_axis([1, 0, 0], roll))
+            R = jets.matmul(
+                jets.matmul(jets.rot_z(yaw), jets.rot_axis([0, 1, 0], pitch)), jets.rot_axis([1, 0, 0], roll)
+            )
         else:  # six-position
             period = self.hold + self.turn
             k = np.clip((t // period).astype(int), 0, 5)
@@ -463,18 +465,18 @@ class CalibrationMotion:
                 ang[sel] = a
             th = Jet(ang * S, ang * S1 / self.turn, ang * S2 / self.turn**2)
             # per-sample axis: Rodrigues with the jet of the angle (axis constant within a turn)
-            c_, s_ = J.cos(th), J.sin(th)
+            c_, s_ = jets.cos(th), jets.sin(th)
             K = np.zeros((n, 3, 3))
             K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
             K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = axis[:, 2], -axis[:, 1], axis[:, 0]
             KK = K @ K
             rot = (
                 Jet.const(np.broadcast_to(np.eye(3), (n, 3, 3)))
-                + J.scale(s_, Jet.const(K))
-                + J.scale(1.0 - c_, Jet.const(KK))
+                + jets.scale(s_, Jet.const(K))
+                + jets.scale(1.0 - c_, Jet.const(KK))
             )
-            R = J.matmul(Jet.const(Rs), rot)
-        w, wdot = J.body_rates(R)
+            R = jets.matmul(Jet.const(Rs), rot)
+        w, wdot = jets.body_rates(R)
         zeros = np.zeros((n, 3))
         return Truth(
             t=t,
@@ -505,7 +507,7 @@ def make_motion(scenario: str, cfg: SimConfig, rng, duration: float):
         "throw": ThrowMotion,
     }.get(scenario)
     if cls is None:
-        raise ValueError(f"unknown scenario {scenario!r}; scenarios: {', '.join(SCENARIOS)}")
+        raise ValueError(f"unknown scenario {scenario!r}; scenarios: {', '.join(PRESCRIBED_SCENARIOS)}")
     return cls(cfg, rng, duration)
 
 
