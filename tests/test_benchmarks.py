@@ -129,7 +129,8 @@ def broad_dir(tmp_path_factory):
 def test_benchmark_broad_json_layout(broad_dir, tmp_path, capsys):
     out = tmp_path / "b.json"
     assert (
-        main(["benchmark", "broad", "--data", str(broad_dir), "--filters", "madgwick,kalman", "--json", str(out)]) == 0
+        main(["benchmark", "broad", "--data", str(broad_dir), "--filters", "madgwick,roetenberg", "--json", str(out)])
+        == 0
     )
     text = capsys.readouterr().out
     assert "group means" in text and "01_undisturbed_test_A" in text
@@ -137,7 +138,7 @@ def test_benchmark_broad_json_layout(broad_dir, tmp_path, capsys):
     assert set(res["trials"]) == {"01_undisturbed_test_A", "02_undisturbed_test_B"}
     keys = {"total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg"}
     for trial in res["trials"].values():
-        for f in ("madgwick", "kalman"):
+        for f in ("madgwick", "roetenberg"):
             # a frame mistake in the BROAD path gives about 180°; the filters' start-up within the
             # first seconds and the simulation's 2° declination (BROAD files carry none) give < 30°
             assert set(trial[f]) == keys and trial[f]["total_rmse_deg"] < 30
@@ -145,7 +146,7 @@ def test_benchmark_broad_json_layout(broad_dir, tmp_path, capsys):
     assert set(g) == {"all_trials", "undisturbed", "slow", "fast"}
     mean = np.mean([res["trials"][t]["madgwick"]["total_rmse_deg"] for t in res["trials"]])
     assert g["all_trials"]["madgwick"]["total_rmse_deg"] == pytest.approx(mean)
-    assert g["slow"]["kalman"] == res["trials"]["01_undisturbed_test_A"]["kalman"]
+    assert g["slow"]["roetenberg"] == res["trials"]["01_undisturbed_test_A"]["roetenberg"]
 
 
 def test_benchmark_errors(tmp_path, capsys):
@@ -206,7 +207,7 @@ def test_real_repoimu_benchmark(tmp_path):
                 "--data",
                 str(DATA / "repoimu"),
                 "--filters",
-                "madgwick,kalman",
+                "madgwick,roetenberg",
                 "--json",
                 str(out),
             ]
@@ -216,7 +217,7 @@ def test_real_repoimu_benchmark(tmp_path):
     res = json.loads(out.read_text())
     # four T-stick and two pendulum trials (both of RepoIMU's header variants); the static one has no truth
     assert len(res["trials"]) == 5 and res["without_truth"] == ["TStick/TStick_Test01_Static"]
-    for n in ("madgwick", "kalman"):
+    for n in ("madgwick", "roetenberg"):
         # the slow T-stick trials are within a few degrees (measured 0.96-1.34°; T-stick 05 and the pendulum
         # trials are 9-84° for every filter, VQF included: docs/readers.md)
         for trial in ("TStick/TStick_Test02_Trial1", "TStick/TStick_Test08_Trial1"):

@@ -166,7 +166,7 @@ def test_reproduce_qukf_and_benchmark(tmp_path, capsys):
     code, text, _ = run(capsys, "reproduce", "qukf", "--seeds", "1-2", "--json", str(tmp_path / "q.json"))
     assert code == 0 and "paper" in text and "0.529" in text  # the published QUKF roll RMSE
     code, text, _ = run(capsys, "benchmark", "speed", "--duration", "2")
-    assert code == 0 and "afckf" in text and "kalman" in text
+    assert code == 0 and "afckf" in text and "roetenberg" in text
 
 
 def test_recovery_commands(tmp_path, capsys):

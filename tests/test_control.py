@@ -85,7 +85,7 @@ def test_a_flown_recording_is_read_by_every_estimator(tmp_path):
     np.testing.assert_allclose(rec.true_q, states[:, 6:10])
     back = load_recording(save_recording(rec, tmp_path / "flown.csv"))  # with the unit checks
     assert len(back) == len(rec)
-    for name in ("madgwick", "kalman", "afckf"):
+    for name in ("madgwick", "roetenberg", "afckf"):
         r = summarize_errors(make_filter(name, declination=rec.declination).run(rec).q, rec.true_q, rec.t > 5.0)[
             "rms_deg"
         ]

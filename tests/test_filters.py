@@ -79,7 +79,7 @@ def test_complementary_equals_aqua(marg, with_mag, adaptive):
 
     q0 = marg.true_q[0]
     ours = make_filter(
-        "complementary",
+        "valenti",
         q0=q0,
         use_mag=with_mag,
         adaptive=adaptive,
@@ -108,7 +108,7 @@ def test_complementary_equals_aqua(marg, with_mag, adaptive):
 # unwinds it through the weak horizontal field: 39 % of the field at 67° inclination), 1.5°.
 # The AFCKF's accelerometer step is proportional to the rotation rate (eq 24), so at perfect rest
 # it makes no correction; its convergence is tested while spinning (next test).
-BOUND_DEG = {"qukf": 0.5, "ekf": 0.5, "madgwick": 0.5, "mahony": 1.5, "complementary": 0.5, "kalman": 0.5}
+BOUND_DEG = {"qukf": 0.5, "ekf": 0.5, "madgwick": 0.5, "mahony": 1.5, "valenti": 0.5, "roetenberg": 0.5}
 
 
 @pytest.fixture(scope="module")
@@ -179,7 +179,7 @@ def test_kalman_six_axis_heading_does_not_run_away_in_manoeuvres(seed):
     from quadest.evaluation.runner import score as evaluate
 
     rec = simulate("nominal", "bebop2", seed=seed, duration=40, overrides={"mag.rate_hz": 0.0})
-    s = evaluate(rec, make_filter("kalman").run(rec).q, nav="heading")
+    s = evaluate(rec, make_filter("roetenberg").run(rec).q, nav="heading")
     assert s["rms_deg"]["yaw"] < 11.0
     assert s["rms_deg"]["roll"] < 3.0 and s["rms_deg"]["pitch"] < 3.0
 
@@ -469,3 +469,19 @@ def test_streaming_takes_any_vector_and_refuses_wrong_shapes():
         np.testing.assert_array_equal(got, want[k])
     with pytest.raises(ValueError, match="vector of 3"):
         other.update(gyr[0][:2], acc[0], dt=0.01)
+
+
+def test_former_filter_names_still_work_with_a_note(capsys):
+    """``kalman`` and ``complementary`` are Roetenberg's and Valenti's filters: the names of
+    their algorithms now, the old ones accepted with a FutureWarning (one line on the command line)."""
+    from quadest.cli.main import main
+    from quadest.filters import FILTERS, RENAMED
+
+    assert set(RENAMED.values()) <= set(FILTERS) and not set(RENAMED) & set(FILTERS)
+    for old, new in RENAMED.items():
+        with pytest.warns(FutureWarning, match=f"'{old}' is now called '{new}'"):
+            assert type(make_filter(old)) is FILTERS[new]
+    with pytest.warns(FutureWarning):
+        assert main(["compare", "--scenario", "nominal", "--duration", "2", "--filters", "kalman", "--no-timing"]) == 0
+    out = capsys.readouterr().out
+    assert "roetenberg" in out and "kalman" not in out

@@ -107,7 +107,7 @@ def test_estimators_in_the_loop_hold_a_hover():
     (settled within 0.3 m and near the setpoint after; the tilt error the controller flew with
     below 5° RMS: the estimators start from an accelerometer sample taken while the vehicle is
     thrown off, so the first instants carry more)."""
-    for name in ("madgwick", "kalman"):
+    for name in ("madgwick", "roetenberg"):
         s = fly("hover", estimator=name, seed=4).summary
         assert s["status"] == "survived" and s["time_to_settle_s"] is not None, s
         assert s["tilt_error_rms_deg"] < 5.0, s

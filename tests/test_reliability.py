@@ -50,7 +50,7 @@ def test_a_bad_stretch_never_poisons_a_filter(name, kinds, start, spread):
     after the bad stretch the attitude is back within 1° of the truth (noise-free rest, so the
     filters hold the truth before it; a huge interval restarts them from the sensors)."""
     q_true = euler_to_quat([0.2, -0.1, 0.7])
-    n = 400 + 200 * (name in ("qukf", "ekf", "mahony", "complementary"))  # slow filters settle longer
+    n = 400 + 200 * (name in ("qukf", "ekf", "mahony", "valenti"))  # slow filters settle longer
     gyr, acc, mag = _static(q_true, n)
     dt = np.full(n, 0.002)
     for i, kind in enumerate(kinds):
@@ -93,12 +93,12 @@ def test_batch_skips_bad_times_and_restarts_after_a_gap(name):
 @pytest.mark.parametrize(
     "name, params, match",
     [
-        ("kalman", {"gyro_noise": -0.01}, r"gyro_noise must be in \(0, 10\]"),
+        ("roetenberg", {"gyro_noise": -0.01}, r"gyro_noise must be in \(0, 10\]"),
         ("mahony", {"k_p": 1e300}, r"k_p must be in \[0, 1e3\]"),
         ("madgwick", {"beta_marg": float("nan")}, "beta_marg must be a finite number"),
         ("afckf", {"theta_m": 1.0}, r"theta_m must be in \(1, 1e6\]"),
         ("qukf", {"lam": -4.0}, r"lam must be in \(-4, 1e3\]"),
-        ("complementary", {"gain_acc": 2.0}, r"gain_acc must be in \[0, 1\]"),
+        ("valenti", {"gain_acc": 2.0}, r"gain_acc must be in \[0, 1\]"),
     ],
 )
 def test_parameters_are_checked_when_a_filter_is_built(name, params, match):

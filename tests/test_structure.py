@@ -62,14 +62,14 @@ def _edit(path: Path, old: str, new: str):
     path.write_text(text.replace(old, new, 1))
 
 
-NAMED = "madgwick,afckf,complementary,kalman,qukf"
+NAMED = "madgwick,afckf,valenti,roetenberg,qukf"
 
 
 PARAMS_CLASSES = (
     ("madgwick", "MadgwickParams"),
     ("afckf", "AfckfParams"),
-    ("complementary", "ComplementaryParams"),
-    ("kalman", "KalmanParams"),
+    ("valenti", "ValentiParams"),
+    ("roetenberg", "RoetenbergParams"),
     ("qukf", "QukfParams"),
 )
 
@@ -371,7 +371,7 @@ def test_results_do_not_depend_on_what_compiled_first(tmp_path):
     start (the shared ``prepare``, ``tilt_from_acc``, ``mag_heading``) first compiled from the
     Kalman filter's ``fastmath`` step gave other bits than compiled from madgwick's. quadest's
     ``njit`` states it, so each fresh cache gives the same madgwick whatever ran before."""
-    after_kalman = _start_copy(SRC, "kalman,madgwick", tmp_path / "a")
+    after_kalman = _start_copy(SRC, "roetenberg,madgwick", tmp_path / "a")
     alone = _start_copy(SRC, "madgwick", tmp_path / "b")
     qa, qb = _result(after_kalman, SRC)["q"]["madgwick"], _result(alone, SRC)["q"]["madgwick"]
     assert qa == qb

@@ -150,7 +150,7 @@ def cases(d: Path):
     )
     yield (
         "--param with a negative noise",
-        ["estimate", h, "--filter", "kalman", "--param", "kalman.gyro_noise=-1", "-o", d / "e.csv"],
+        ["estimate", h, "--filter", "roetenberg", "--param", "roetenberg.gyro_noise=-1", "-o", d / "e.csv"],
         one_line(2),
     )
     yield (
@@ -195,7 +195,7 @@ def cases(d: Path):
     )
     yield (
         "--param for a filter that is not run",
-        ["compare", "--recording", h, "--filters", "madgwick", "--param", "kalman.lin_acc=1", "--no-timing"],
+        ["compare", "--recording", h, "--filters", "madgwick", "--param", "roetenberg.lin_acc=1", "--no-timing"],
         one_line(2),
     )
     yield (

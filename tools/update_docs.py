@@ -321,8 +321,8 @@ SPEED_TARGET_US = {
     "ekf": 2.0,
     "madgwick": 0.2,
     "mahony": 0.2,
-    "complementary": 0.2,
-    "kalman": 5.0,
+    "valenti": 0.2,
+    "roetenberg": 5.0,
 }  # the batch speed targets (targets, not measurements)
 BROAD_GROUPS = (("all_trials", "all"), ("undisturbed", "undisturbed"), ("disturbed", "disturbed"))
 
@@ -421,7 +421,7 @@ def results_speed() -> str:
     )
 
 
-AFCKF_NAMES = ["madgwick", "complementary", "kalman", "afckf"]
+AFCKF_NAMES = ["madgwick", "valenti", "roetenberg", "afckf"]
 
 
 def _afckf_table(r, cases) -> str:
@@ -560,7 +560,7 @@ def results_afckf_prescribed() -> str:
 def results_split() -> str:
     """docs/estimators.md: BROAD split in halves, tuned on one and reported on the other."""
     rows = []
-    for name in ("robust", "kalman", "vqf"):
+    for name in ("robust", "roetenberg", "vqf"):
         sp = _load(f"split-{name}")
         by = {f["held_out"]: f for f in sp["folds"]}
         grid = "its defaults (not tuned)" if sp["parameter_sets"] == 1 else f"{sp['parameter_sets']} sets"
@@ -650,8 +650,8 @@ def results_robust_targets() -> str:
         f"afckf {_rpy(clip['afckf'])}",
         all(clip["robust"][a] <= clip["afckf"][a] for a in ("roll", "pitch", "yaw")),
     )
-    sim_row("nominal flight, prescribed", pres, "nominal", "kalman")
-    sim_row("nominal flight (the circle), flown", flown, "nominal", "kalman")
+    sim_row("nominal flight, prescribed", pres, "nominal", "roetenberg")
+    sim_row("nominal flight (the circle), flown", flown, "nominal", "roetenberg")
     for variant in dict.fromkeys(r["variant"] for r in loop["table"]):
         up = {r["estimator"]: r for r in loop["table"] if r["variant"] == variant}
         if "robust" in up:

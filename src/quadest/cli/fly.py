@@ -7,7 +7,7 @@ from pathlib import Path
 from quadest.cli.common import CliError, parse_seeds, say, write_json
 from quadest.control import Failure
 from quadest.data import save_recording, write_table
-from quadest.filters import FILTERS
+from quadest.filters import FILTERS, filter_name
 from quadest.flight import (
     CONTROLLERS,
     FLIGHT_SCENARIOS,
@@ -84,7 +84,7 @@ def parse_estimators(text, scenario: str) -> list[str]:
     known = ["truth", "recovery"] if scenario == "throw" else ["truth", *in_loop_estimators()]
     if text is None:
         return ["recovery" if scenario == "throw" else "madgwick"]
-    names = known if text.strip() == "all" else [n.strip() for n in text.split(",") if n.strip()]
+    names = known if text.strip() == "all" else [filter_name(n.strip()) for n in text.split(",") if n.strip()]
     bad = [n for n in names if n not in known]
     if bad or not names:
         raise CliError(

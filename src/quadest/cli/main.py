@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 import traceback
+import warnings
 from pathlib import Path
 
 from quadest import __version__
@@ -80,7 +81,13 @@ def check_outputs(args) -> None:
         raise UsageError(str(exc)) from None
 
 
+def _one_line_note(message, category, filename, lineno, line=None):
+    """A library warning as the command line says it: one line, no source location."""
+    return f"quadest: note: {message}\n"
+
+
 def main(argv=None):
+    warnings.formatwarning = _one_line_note
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
     argv = [a for a in argv if a != "--debug"]

@@ -23,7 +23,7 @@ from quadest.data import format_summary, summarize, write_table
 from quadest.evaluation.compare import parse_params
 from quadest.evaluation.inspect import events
 from quadest.evaluation.runner import estimate, estimator_names, filter_notes
-from quadest.filters import FILTERS
+from quadest.filters import FILTERS, filter_name
 from quadest.filters.peers import PEERS
 from quadest.models.aero import AeroModel
 from quadest.recovery import recover
@@ -211,9 +211,9 @@ def add_parsers(sub):
     )
     r.add_argument(
         "--filters",
-        default="madgwick,afckf,kalman",
+        default="madgwick,afckf,roetenberg",
         help="estimators to run: comma-separated, quadest (all of quadest's), or peers (default: "
-        "madgwick,afckf,kalman)",
+        "madgwick,afckf,roetenberg)",
     )
     r.add_argument("--param", action="append", metavar="FILTER.NAME=VALUE", help="a filter parameter (repeatable)")
     r.add_argument("--title", default=None, help="the page's title (default: from the file name)")
@@ -265,6 +265,7 @@ def add_parsers(sub):
     es.add_argument(
         "--filter",
         default="robust",
+        type=filter_name,
         choices=list(FILTERS) + list(PEERS),
         help="estimator: quadest's, or a peer with quadest[peers] installed (default: robust, "
         "quadest's own; docs/estimators.md)",

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from quadest.cli.common import CliError, add_engine_args, parse_seeds, parse_sets, say, sim_config, write_json
 from quadest.cli.fly import failure_record, parse_failure
+from quadest.filters import filter_name
 from quadest.flight import CONTROLLERS, DEFAULT_DURATION, FLIGHT_SCENARIOS
 from quadest.models import VEHICLE_PRESETS, vehicle_preset
 from quadest.readers.catalog import resolve_data
@@ -212,7 +213,7 @@ def add_parsers(sub):
         "the best set for all trials together (the lowest mean: BROAD's "
         "trial-agnostic choice) and per trial. docs/sweeps.md",
     )
-    tu.add_argument("filter", help="the filter to tune (quadest's or a peer's name)")
+    tu.add_argument("filter", type=filter_name, help="the filter to tune (quadest's or a peer's name)")
     tu.add_argument(
         "--metric",
         default="total_rmse_deg",

@@ -10,7 +10,7 @@ from quadest.errors import UsageError
 from quadest.evaluation.metrics import AXES
 from quadest.evaluation.runner import alignment_of, estimate_all, evaluation_mask, score, truth_of
 from quadest.evaluation.speed import time_estimator
-from quadest.filters import FILTERS, make_filter
+from quadest.filters import FILTERS, filter_name, make_filter
 
 
 def parse_params(items) -> dict:
@@ -19,6 +19,7 @@ def parse_params(items) -> dict:
     for item in items or []:
         key, eq, value = item.partition("=")
         name, dot, field = key.strip().partition(".")
+        name = filter_name(name)
         if not eq or not dot or name not in FILTERS:
             raise UsageError(f"--param expects FILTER.NAME=VALUE with a known filter, got {item!r}")
         v = value.strip()

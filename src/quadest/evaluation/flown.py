@@ -94,9 +94,17 @@ CASES = {
 }
 """The flown cases: the flight (``quadest fly`` scenario) and whether rotor ``rotor`` is lost."""
 
-FILTERS = ["madgwick", "complementary", "kalman", "afckf", "afckf", "robust"]
-LABELS = ["madgwick", "complementary", "kalman", "afckf", "afckf-nocal", "robust"]
-"""The paper's four filters, the AFCKF without its calibration, and quadest's own (``robust``)."""
+RUNS = {
+    "madgwick": "madgwick",
+    "valenti": "valenti",
+    "roetenberg": "roetenberg",
+    "afckf": "afckf",
+    "afckf-nocal": "afckf",  # without its calibration
+    "robust": "robust",
+}
+"""Label → filter of each run: the paper's four filters, the AFCKF without its calibration, and
+quadest's own (``robust``)."""
+LABELS = list(RUNS)
 
 
 def flown_flight(case: str, seed: int, p: FlownAfckfParams | None = None, config=None):
@@ -153,8 +161,7 @@ def afckf_calibration_flown(p: FlownAfckfParams | None = None) -> dict:
 def score_filters(rec, params: dict, t_from: float) -> dict:
     """Every filter of the reproduction (:data:`LABELS`) over ``rec``, scored from ``t_from``."""
     return {
-        label: score_result(rec, estimate(rec, name, params.get(label)), t_from=t_from)
-        for name, label in zip(FILTERS, LABELS)
+        label: score_result(rec, estimate(rec, name, params.get(label)), t_from=t_from) for label, name in RUNS.items()
     }
 
 
@@ -236,7 +243,7 @@ def format_ablations(rows: list[dict]) -> str:
 
 
 # -- in the loop -----------------------------------------------------------------------------------------
-IN_LOOP_ESTIMATORS = ["truth", "robust", "afckf", "kalman", "madgwick", "complementary", "qukf", "ekf", "mahony"]
+IN_LOOP_ESTIMATORS = ["truth", "robust", "afckf", "roetenberg", "madgwick", "valenti", "qukf", "ekf", "mahony"]
 """truth first (the reference flight each estimator is also run over offline), then quadest's filters."""
 
 IN_LOOP_VARIANTS = [

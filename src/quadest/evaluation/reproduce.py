@@ -37,44 +37,44 @@ PUBLISHED = {
         "damaged-rotor": {
             "rms_deg": {
                 "madgwick": {"yaw": 143.5094, "pitch": 2.7121, "roll": 3.2761},
-                "complementary": {"yaw": 164.8690, "pitch": 2.0417, "roll": 2.7165},
-                "kalman": {"yaw": 150.4092, "pitch": 2.4125, "roll": 3.0184},
+                "valenti": {"yaw": 164.8690, "pitch": 2.0417, "roll": 2.7165},
+                "roetenberg": {"yaw": 150.4092, "pitch": 2.4125, "roll": 3.0184},
                 "afckf": {"yaw": 9.8865, "pitch": 1.5717, "roll": 1.4599},
             },
             "var_deg2": {
                 "madgwick": {"yaw": 20591.4895, "pitch": 6.9058, "roll": 6.9263},
-                "complementary": {"yaw": 27182.5512, "pitch": 4.0811, "roll": 3.4681},
-                "kalman": {"yaw": 22415.3247, "pitch": 5.5746, "roll": 5.5789},
+                "valenti": {"yaw": 27182.5512, "pitch": 4.0811, "roll": 3.4681},
+                "roetenberg": {"yaw": 22415.3247, "pitch": 5.5746, "roll": 5.5789},
                 "afckf": {"yaw": 97.7493, "pitch": 1.8775, "roll": 1.7705},
             },
         },
         "nominal": {
             "rms_deg": {
                 "madgwick": {"yaw": 1.8073, "pitch": 1.6893, "roll": 1.3670},
-                "complementary": {"yaw": 2.6526, "pitch": 8.2690, "roll": 3.0333},
-                "kalman": {"yaw": 2.6571, "pitch": 1.8590, "roll": 2.9042},
+                "valenti": {"yaw": 2.6526, "pitch": 8.2690, "roll": 3.0333},
+                "roetenberg": {"yaw": 2.6571, "pitch": 1.8590, "roll": 2.9042},
                 "afckf": {"yaw": 2.4921, "pitch": 2.0445, "roll": 2.0558},
             },
             "var_deg2": {
                 "madgwick": {"yaw": 3.1942, "pitch": 1.4312, "roll": 0.5101},
-                "complementary": {"yaw": 3.0433, "pitch": 7.8106, "roll": 0.8680},
-                "kalman": {"yaw": 3.3033, "pitch": 0.5657, "roll": 0.1548},
+                "valenti": {"yaw": 3.0433, "pitch": 7.8106, "roll": 0.8680},
+                "roetenberg": {"yaw": 3.3033, "pitch": 0.5657, "roll": 0.1548},
                 "afckf": {"yaw": 2.2183, "pitch": 1.3689, "roll": 1.1665},
             },
         },
-        "time_us": {"madgwick": 70.80, "complementary": 597.3, "kalman": 486.2, "afckf": 111.0},
+        "time_us": {"madgwick": 70.80, "valenti": 597.3, "roetenberg": 486.2, "afckf": 111.0},
     },
     "qukf": {
         "nominal": {
             "rms_deg": {
                 "qukf": {"roll": 0.5288, "pitch": 0.6891, "yaw": 0.5821},
                 "ekf": {"roll": 0.8122, "pitch": 0.8934, "yaw": 0.7526},
-                "complementary": {"roll": 1.1548, "pitch": 1.0438, "yaw": 1.0745},
+                "valenti": {"roll": 1.1548, "pitch": 1.0438, "yaw": 1.0745},
             },
             "mae_deg": {
                 "qukf": {"roll": 0.3582, "pitch": 0.4224, "yaw": 0.4163},
                 "ekf": {"roll": 0.7564, "pitch": 0.6827, "yaw": 0.6135},
-                "complementary": {"roll": 1.0652, "pitch": 0.8307, "yaw": 0.8677},
+                "valenti": {"roll": 1.0652, "pitch": 0.8307, "yaw": 0.8677},
             },
         },
     },
@@ -214,7 +214,7 @@ def _flight_means(outputs: list[dict]) -> dict:
 
 def _times(rec, params) -> dict:
     out = {}
-    for name, label in zip(flown.FILTERS, flown.LABELS):
+    for label, name in flown.RUNS.items():
         out[label] = time_estimator(
             lambda n=name, lb=label: make_filter(n, declination=rec.declination, **params.get(lb, {})), rec
         )
@@ -232,7 +232,7 @@ def _reproduce_afckf_prescribed(seeds, progress, workers, scheduler) -> dict:
             scenario,
             "bebop2",
             seeds,
-            flown.FILTERS,
+            list(flown.RUNS.values()),
             flown.LABELS,
             params,
             cfg.damaged.failure_s if scenario == "damaged-rotor" else 0.0,
@@ -285,7 +285,7 @@ def reproduce_qukf(
     seeds=range(1, 6), progress: bool = False, duration: float = 30.0, workers: int = 0, scheduler=None
 ) -> dict:
     """QUKF Table 1 on the simulator: 30 s of hover and of motion at 20 Hz."""
-    names = ["qukf", "ekf", "complementary"]
+    names = ["qukf", "ekf", "valenti"]
     seeds = list(seeds)
     out = {"seeds": seeds, "published": PUBLISHED["qukf"], "cases": {}}
     for scenario in ("hover", "nominal"):
@@ -311,7 +311,7 @@ def first_seed_flight(paper: str, result: dict):
     ``(rec, names, params, t_from, title)``."""
     seed = result["seeds"][0]
     if paper == "afckf":
-        names = ["madgwick", "complementary", "kalman", "afckf"]
+        names = ["madgwick", "valenti", "roetenberg", "afckf"]
         params = {"afckf": {k: result["calibration"][k] for k in ("omega1", "omega2")}}
         if result.get("mode") == "flown":
             p = flown.FlownAfckfParams(**result["params"])
@@ -325,7 +325,7 @@ def first_seed_flight(paper: str, result: dict):
         scen, preset, t_from, duration = "damaged-rotor", "bebop2", build_config("bebop2").damaged.failure_s, None
     elif paper == "qukf":
         scen, preset, t_from, duration = "nominal", "lowcost-20hz", None, 30.0
-        names, params = ["qukf", "ekf", "complementary"], {}
+        names, params = ["qukf", "ekf", "valenti"], {}
     else:
         raise ValueError(f"no error plots for {paper!r}")
     return (

@@ -17,7 +17,7 @@ from quadest.data.recording import Recording
 from quadest.errors import UsageError
 from quadest.evaluation.align import Alignment, fit_alignment
 from quadest.evaluation.metrics import nees, summarize_errors
-from quadest.filters import FILTERS, FilterResult, make_filter
+from quadest.filters import FILTERS, FilterResult, filter_name, make_filter
 from quadest.filters.peers import PEERS, available_peers, run_peer
 
 
@@ -29,7 +29,7 @@ def estimator_names(spec: str, all_includes_peers: bool = False) -> list[str]:
         return list(FILTERS) + (available_peers() if spec == "all" and all_includes_peers else [])
     if spec == "peers":
         return available_peers()
-    names = [s.strip() for s in spec.split(",") if s.strip()]
+    names = [filter_name(s.strip()) for s in spec.split(",") if s.strip()]
     bad = [n for n in names if n not in FILTERS and n not in PEERS]
     if bad or not names:
         raise UsageError(
@@ -57,7 +57,7 @@ def estimate(
 ) -> FilterResult:
     """Run one estimator over ``rec``: a quadest filter with ``params``, or a peer at its own
     defaults. ``declination`` (rad) defaults to the recording's."""
-    params = params or {}
+    name, params = filter_name(name), params or {}
     decl = rec.declination if declination is None else declination
     if name in FILTERS:
         check_params(name, params)

@@ -19,7 +19,7 @@ from quadest.control import Failure, FtcParams, SE3Params, circle_reference, hov
 from quadest.control.ftc import relaxed_hover
 from quadest.control.registry import CONTROLLERS as REGISTRY
 from quadest.errors import UsageError
-from quadest.filters import FILTERS, Estimator, make_filter
+from quadest.filters import FILTERS, Estimator, filter_name, make_filter
 from quadest.filters.peers import STREAMING_PEERS, available_peers, run_peer, stream_peer
 from quadest.flight import build
 from quadest.flight.common import (
@@ -112,6 +112,7 @@ def fly(
     (:data:`~quadest.models.VEHICLE_PRESETS`, default ``recovery``); ``estimator_params`` the
     named estimator's parameters (``{"beta_marg": 0.05}``); ``throw`` a throw's parameters
     (:class:`~quadest.flight.throw.ThrowParams`; its duration counts from the release)."""
+    estimator = filter_name(estimator) if isinstance(estimator, str) else estimator
     controller, duration = _check_request(scenario, estimator, controller, duration)
     vehicle_name = vehicle if isinstance(vehicle, str) else ("recovery" if vehicle is None else "custom")
     vehicle = vehicle_preset(vehicle) if isinstance(vehicle, str) else (vehicle or MultirotorParams())

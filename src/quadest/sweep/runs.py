@@ -22,6 +22,7 @@ import numpy as np
 from quadest.control import Failure
 from quadest.errors import UsageError
 from quadest.evaluation.runner import check_params, estimate, estimator_names, score
+from quadest.filters import filter_name
 from quadest.flight import fly, in_loop_estimators
 from quadest.readers import read_recording
 from quadest.sim import simulate
@@ -128,6 +129,7 @@ def parse_grid(items) -> dict:
     for item in items or []:
         key, eq, vals = item.partition("=")
         name, dot, field = key.strip().partition(".")
+        name = filter_name(name)
         if not eq or not dot:
             raise UsageError(f"--grid expects FILTER.PARAM=VALUES, got {item!r}")
         out.setdefault(name, {})[field] = parse_values(vals)

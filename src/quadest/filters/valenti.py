@@ -35,7 +35,7 @@ B, GP, HP = S.bias, S.gyr_prev, S.have_prev
 
 
 @dataclass(frozen=True)
-class ComplementaryParams(Params):
+class ValentiParams(Params):
     use_mag: bool = P(
         True, "-", "use the magnetometer when samples are present", "quadest: 9-axis when samples are present"
     )
@@ -69,7 +69,7 @@ class ComplementaryParams(Params):
     gravity: float = P(GRAVITY, "m/s²", "gravity used for the magnitude error", "standard gravity", bounds="(0, 100]")
 
 
-PR = Record = params_record(ComplementaryParams)
+PR = Record = params_record(ValentiParams)
 
 
 @njit(cache=True)
@@ -99,7 +99,7 @@ def _conj_mul(d0, d1, d2, d3, q0, q1, q2, q3):
 
 
 @njit(cache=True)
-def complementary_step(x, p, c, gyr, acc, mag, dt, diag):
+def valenti_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
     use_mag = p[PR.use_mag] != 0.0
@@ -164,17 +164,17 @@ def complementary_step(x, p, c, gyr, acc, mag, dt, diag):
 
 
 @njit(cache=True)
-def complementary_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
+def valenti_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
-        complementary_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
+        valenti_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
         q_out[k] = x[Q_OUT : Q_OUT + 4]  # published: in the geographic frame
 
 
-def complementary_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
+def valenti_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
     """Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address)."""
     try:
-        complementary_step(
+        valenti_step(
             carray(x, nx),
             carray(p, n_p),
             carray(c, nc),
@@ -189,15 +189,15 @@ def complementary_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
     return 0
 
 
-class Complementary(Estimator):
+class Valenti(Estimator):
     """Valenti's complementary filter. Diagnostics: the accelerometer gain used (``alpha``, 0
     when no correction) and the bias estimate ``bias_x/y/z`` (rad/s)."""
 
-    name = "complementary"
-    Params = ComplementaryParams
+    name = "valenti"
+    Params = ValentiParams
     Record = Record
     state_size = S.end
     diag_names = ("alpha", "bias_x", "bias_y", "bias_z")
-    step = staticmethod(complementary_step)
-    batch = staticmethod(complementary_run)
-    stream = staticmethod(complementary_stream)
+    step = staticmethod(valenti_step)
+    batch = staticmethod(valenti_run)
+    stream = staticmethod(valenti_stream)

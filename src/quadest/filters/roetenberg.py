@@ -48,7 +48,7 @@ IB, ID, IREF, INORM, IP = S.bias, S.dist, S.ref, S.norm, S.P
 
 
 @dataclass(frozen=True)
-class KalmanParams(Params):
+class RoetenbergParams(Params):
     use_mag: bool = P(
         True, "-", "use the magnetometer when samples are present", "quadest: 9-axis when samples are present"
     )
@@ -104,12 +104,12 @@ class KalmanParams(Params):
     )
 
 
-PR = Record = params_record(KalmanParams)
+PR = Record = params_record(RoetenbergParams)
 Coefficients = namedtuple("Coefficients", ["r_acc", "r_mag"])
 CO = coefficient_offsets(Coefficients)
 
 
-def coefficients(p: KalmanParams) -> Coefficients:
+def coefficients(p: RoetenbergParams) -> Coefficients:
     """Measurement noise variances: accelerometer (white noise plus unmodelled acceleration)
     and magnetometer."""
     return Coefficients(r_acc=p.acc_noise * p.acc_noise + p.lin_acc * p.lin_acc, r_mag=p.mag_noise * p.mag_noise)
@@ -138,7 +138,7 @@ def _update(x, P, r, H, Rm, v_free, constrain):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def kalman_step(x, p, c, gyr, acc, mag, dt, diag):
+def roetenberg_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
     use_mag = p[PR.use_mag] != 0.0
@@ -211,17 +211,17 @@ def kalman_step(x, p, c, gyr, acc, mag, dt, diag):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def kalman_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
+def roetenberg_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
     """Batch: the same step over every sample, in compiled code."""
     for k in range(len(dt)):
-        kalman_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
+        roetenberg_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
         q_out[k] = x[Q_OUT : Q_OUT + 4]  # published: in the geographic frame
 
 
-def kalman_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
+def roetenberg_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
     """Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address)."""
     try:
-        kalman_step(
+        roetenberg_step(
             carray(x, nx),
             carray(p, n_p),
             carray(c, nc),
@@ -236,19 +236,19 @@ def kalman_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
     return 0
 
 
-class Kalman(Estimator):
+class Roetenberg(Estimator):
     """Roetenberg's filter. Diagnostics: ``acc_update``, the bias ``bias_x/y/z`` (rad/s),
     ``mag_update`` and the disturbance magnitude ``disturbance`` (reference-field units)."""
 
-    name = "kalman"
-    Params = KalmanParams
+    name = "roetenberg"
+    Params = RoetenbergParams
     Record = Record
     coefficients = staticmethod(coefficients)
     state_size = S.end
     diag_names = ("acc_update", "bias_x", "bias_y", "bias_z", "mag_update", "disturbance")
-    step = staticmethod(kalman_step)
-    batch = staticmethod(kalman_run)
-    stream = staticmethod(kalman_stream)
+    step = staticmethod(roetenberg_step)
+    batch = staticmethod(roetenberg_run)
+    stream = staticmethod(roetenberg_stream)
 
     def _init_state(self, x):
         p = self.params
