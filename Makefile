@@ -6,7 +6,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 OUT    ?= demo-output
 
-.PHONY: demo test lint install clean clean-cache
+.PHONY: demo test test-unit test-integration test-examples lint install clean clean-cache
 
 $(BIN)/python:
 	@echo "==> creating virtual environment $(VENV)"
@@ -30,6 +30,11 @@ demo: $(VENV)/.installed
 
 test: $(VENV)/.installed-test
 	$(BIN)/python -m pytest
+
+# one tier of the tests: unit (a module's behaviour), integration (commands, flights, data,
+# docs), examples (every script in examples/ run as a user runs it)
+test-unit test-integration test-examples: test-%: $(VENV)/.installed-test
+	$(BIN)/python -m pytest tests/$*
 
 # ruff's lint and format check over the whole tree (the configuration is in pyproject.toml)
 lint: $(VENV)/.installed-test

@@ -4,7 +4,7 @@ results in docs/results/*.json (run after changing parameters or re-running a be
 Sections between ``<!-- generated:NAME -->`` and ``<!-- /generated -->`` are replaced:
 parameter tables (``simulator-params``, ``estimator-params``, ``recovery-params``) from the
 parameter records, and result tables (``results-*``) from the JSON the benchmark commands write
-(docs/developing.md says which command writes which file). tests/test_docs.py fails when a table
+(docs/developing.md says which command writes which file). tests/integration/test_docs.py fails when a table
 is out of date.
 """
 

@@ -129,7 +129,7 @@ np.savez(sys.argv[2], **{k: np.asarray(v) for k, v in d.items() if not k.startsw
 
 def _loadmat_isolated(path):
     """scipy's ``loadmat`` in a child process: on some damaged MAT files it crashes the whole
-    process (a segmentation fault, found by tests/test_fuzz_files.py), which no exception
+    process (a segmentation fault, found by tests/unit/test_fuzz_files.py), which no exception
     handler can catch. Returns the variables, or None for a MATLAB v7.3 (HDF5) file."""
     import subprocess
     import sys

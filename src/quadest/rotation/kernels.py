@@ -2,7 +2,7 @@
 compiled code (filters, recovery bank, simulator).
 
 Same convention as :mod:`quadest.conventions`; each kernel mirrors a vectorised function of
-:mod:`quadest.rotation.quaternion` and is tested against it (tests/test_rotation.py). The
+:mod:`quadest.rotation.quaternion` and is tested against it (tests/unit/test_rotation.py). The
 ``*_s`` kernels take and return scalars: they allocate nothing, which matters in steps that
 run millions of times.
 """

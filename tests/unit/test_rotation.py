@@ -129,7 +129,7 @@ def test_compiled_kernels_match(quats, rng):
 
 def test_shared_step_kernels_match(quats, rng):
     """The scalar kernels every compiled step uses, each against quadest.rotation (which
-    tests/test_rotation.py holds against scipy)."""
+    tests/unit/test_rotation.py holds against scipy)."""
     v, w = rng.normal(size=(N, 3)), rng.normal(size=(N, 3))
     for i in range(50):
         q = quats[i]

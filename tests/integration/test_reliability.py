@@ -124,7 +124,7 @@ def test_the_hostile_cases_behave_as_promised(capsys):
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).resolve().parents[1] / "tools" / "hostile_cases.py"
+    path = Path(__file__).resolve().parents[2] / "tools" / "hostile_cases.py"
     spec = importlib.util.spec_from_file_location("hostile_cases", path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)

@@ -16,7 +16,7 @@ from quadest.cli.main import main
 from quadest.errors import UsageError
 from quadest.readers import catalog as C
 
-SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+SHARED = Path(__file__).resolve().parents[2].parent / "shared" / "data"
 
 
 class Server:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-SRC = Path(__file__).resolve().parents[1] / "src" / "quadest"
+SRC = Path(__file__).resolve().parents[2] / "src" / "quadest"
 
 # -- numba's cache ---------------------------------------------------------------------------------
 SCRIPT = """

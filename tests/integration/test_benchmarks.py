@@ -14,7 +14,7 @@ from quadest.evaluation.runner import score as evaluate
 from quadest.rotation import angle_between, quat_conj, quat_mul
 from quadest.sim import simulate
 
-DATA = Path(os.environ.get("QUADEST_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
+DATA = Path(os.environ.get("QUADEST_DATA", Path(__file__).resolve().parents[3] / "shared" / "data"))
 needs_data = pytest.mark.skipif(not DATA.is_dir(), reason=f"real recordings not found at {DATA}")
 
 
@@ -110,7 +110,7 @@ def test_imufusion_convention_trap():
 def broad_dir(tmp_path_factory):
     import sys
 
-    sys.path.insert(0, str(Path(__file__).parent))
+    sys.path.insert(0, str(Path(__file__).parents[1] / "unit"))
     from test_readers import write_broad
 
     d = tmp_path_factory.mktemp("broad")

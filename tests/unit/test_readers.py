@@ -15,7 +15,7 @@ from quadest.rotation import angle_between, quat_rotate
 from quadest.rotation.frames import quat_ned_frd_to_enu_flu, vec_frd_to_flu, vec_ned_to_enu
 from quadest.sim import simulate
 
-DATA = Path(os.environ.get("QUADEST_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
+DATA = Path(os.environ.get("QUADEST_DATA", Path(__file__).resolve().parents[3] / "shared" / "data"))
 needs_data = pytest.mark.skipif(
     not DATA.is_dir(), reason=f"real recordings not found at {DATA} (set QUADEST_DATA to their folder)"
 )

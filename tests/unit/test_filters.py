@@ -276,7 +276,7 @@ def test_madgwick_and_afckf_gravity_jacobian_is_exact():
 
 def test_kalman_jacobians_against_finite_differences():
     """The Jacobians the Kalman step builds from the shared kernels (rot_matrix, skew,
-    qexp_right: tests/test_rotation.py checks them against scipy) against finite differences."""
+    qexp_right: tests/unit/test_rotation.py checks them against scipy) against finite differences."""
     from quadest.rotation.kernels import qexp_right
     from quadest.rotation.kernels import rot_matrix as _rot
     from quadest.rotation.kernels import skew as _skew
