@@ -6,7 +6,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 OUT    ?= demo-output
 
-.PHONY: demo test test-unit test-integration test-examples lint install clean clean-cache
+.PHONY: demo api test test-unit test-integration test-examples lint install clean clean-cache
 
 $(BIN)/python:
 	@echo "==> creating virtual environment $(VENV)"
@@ -36,13 +36,23 @@ test: $(VENV)/.installed-test
 test-unit test-integration test-examples: test-%: $(VENV)/.installed-test
 	$(BIN)/python -m pytest tests/$*
 
+$(VENV)/.installed-docs: $(VENV)/.installed
+	@echo "==> installing the docs extra (Sphinx)"
+	$(BIN)/python -m pip install --quiet -e '.[docs]'
+	@touch $@
+
+# the API reference from the docstrings (docs/api), warnings as errors; opens at build/api/index.html
+api: $(VENV)/.installed-docs
+	$(BIN)/sphinx-build -W --keep-going -q -b html docs/api build/api
+	@echo "==> API reference: build/api/index.html"
+
 # ruff's lint and format check over the whole tree (the configuration is in pyproject.toml)
 lint: $(VENV)/.installed-test
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 
 clean:
-	rm -rf $(VENV) $(OUT) .pytest_cache
+	rm -rf $(VENV) $(OUT) .pytest_cache build
 	find src -name '*.so' -delete  # the streaming extension, built in place by the editable install
 
 # compiled code is cached per hash of the source (src/quadest/_jit.py), so an edit never

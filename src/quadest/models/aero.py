@@ -33,7 +33,7 @@ def psi(w):
 
 
 def features(v, w):
-    """Feature vector φ(v, ω) = [v, |v| v, ψ(ω)] of eq 12, ``(..., 16)``."""
+    """Feature vector φ(v, ω) = ``[v, ‖v‖ v, ψ(ω)]`` of eq 12, ``(..., 16)``."""
     v = np.asarray(v, float)
     return np.concatenate([v, np.linalg.norm(v, axis=-1, keepdims=True) * v, psi(w)], axis=-1)
 
