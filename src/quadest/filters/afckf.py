@@ -224,7 +224,7 @@ def add_process_noise(P, qw, qx, qy, qz, c):
             P[i, j] += c * (X[i][0] * X[j][0] + X[i][1] * X[j][1] + X[i][2] * X[j][2])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def membership(v, vmax, theta):
     """Eqs 47-48: ``y = (e^{ln(ϑ) v/v_max} − 1)/(ϑ − 1)`` for v in [0, v_max]."""
     v = min(max(v, 0.0), vmax)
@@ -233,7 +233,7 @@ def membership(v, vmax, theta):
     return (np.exp(np.log(theta) * v / vmax) - 1.0) / (theta - 1.0)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def fuzzy_gain(rho, lam_m, w_abs, w_sat, th_m, th_w, k1, k2, k3, k4):
     """Eqs 47-51: minimum inference over the four extreme cases, centre-of-gravity output."""
     ym = membership(rho, lam_m, th_m)  # "field disturbed"

@@ -71,7 +71,7 @@ def within3(v, limit):
     return abs(v[0]) <= limit and abs(v[1]) <= limit and abs(v[2]) <= limit
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def admit(x, gyr, acc, mag, dt):
     """Whether a sample can be used; a sample that cannot is skipped and counted in
     ``x[SKIPPED]`` (the state is left as it was, so it never becomes NaN). Refused: an interval
@@ -86,12 +86,12 @@ def admit(x, gyr, acc, mag, dt):
     return ok
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def finite3(v):
     return np.isfinite(v[0]) and np.isfinite(v[1]) and np.isfinite(v[2])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def norm3(v):
     return np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 

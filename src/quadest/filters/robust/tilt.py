@@ -13,7 +13,7 @@ from quadest.filters.robust.params import CO, PR, S
 from quadest.rotation.kernels import normalize_s, qmul_s, rotate_s
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def step_coefficients(x, p, dt):
     """Cache the Δt-dependent coefficients (recomputed only when Δt changes by over 0.1 %)."""
     if abs(dt - x[S.coef_dt]) <= 1e-3 * dt:
