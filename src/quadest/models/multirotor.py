@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadest._jit import njit
+from quadest._jit import NO_ALLOCATION, njit
 from quadest.conventions import GRAVITY
 from quadest.errors import UsageError
 from quadest.records import check, describe, param
@@ -324,7 +324,7 @@ def preset_rows(name: str) -> list[dict]:
     return rows
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_ALLOCATION)
 def rotor_forces(x, eta, V, F, M, T):
     """Total rotor and body force ``F`` and moment ``M`` (body frame) at state ``x``, and each
     rotor's thrust ``T`` (N), in place."""
@@ -360,7 +360,7 @@ def derivative(x, cmd, eta, V, dx):
     derivative_ws(x, cmd, eta, V, dx, np.empty(3), np.empty(3), np.empty(V.rotor_pos.shape[0]))
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_ALLOCATION)
 def derivative_ws(x, cmd, eta, V, dx, F, M, T):
     """:func:`derivative` with its work arrays given (no allocation in a hot loop); on return
     ``F``, ``M`` and ``T`` hold the body force, moment and rotor thrusts at ``x``."""
@@ -395,7 +395,7 @@ def work(V, n):
     return np.empty((5, n)), np.empty(3), np.empty(3), np.empty(V.rotor_pos.shape[0])
 
 
-@njit(cache=True)
+@njit(cache=True, **NO_ALLOCATION)
 def rk4_ws(x, cmd, eta, V, h, W):
     """:func:`rk4` with its work arrays ``W`` (from :func:`work`): no allocation per step."""
     n = x.shape[0]
