@@ -29,10 +29,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadest._jit import njit
+from quadest._jit import NO_ALLOCATION, njit
 from quadest.models.multirotor import MultirotorParams
 from quadest.records import check, check_triples, describe, param
-from quadest.rotation.kernels import rot_matrix
 
 Gains = namedtuple("Gains", ["k_p", "k_v", "k_R", "k_w", "alloc_inv", "k_f", "t_max"])
 """What the compiled controller reads (built by :meth:`SE3Params.gains`)."""
@@ -98,43 +97,51 @@ def allocation(vehicle: MultirotorParams) -> np.ndarray:
     return np.linalg.inv(A)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
+def rot_entries(w, x, y, z):
+    """The nine entries of ``R(q)`` row by row, as :func:`quadest.rotation.kernels.rot_matrix`
+    computes them, without an array."""
+    return (
+        (1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)),
+        (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)),
+        (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)),
+    )
+
+
+@njit(cache=True, inline="always")
+def attitude_error(R, xd, yd, zd):
+    """``e_R = ½ (R_dᵀ R − Rᵀ R_d)^∨`` with ``R_d`` of columns ``xd, yd, zd``."""
+    e0 = e1 = e2 = 0.0
+    for k in range(3):
+        e0 += zd[k] * R[k][1] - R[k][2] * yd[k]
+        e1 += xd[k] * R[k][2] - R[k][0] * zd[k]
+        e2 += yd[k] * R[k][0] - R[k][1] * xd[k]
+    return 0.5 * e0, 0.5 * e1, 0.5 * e2
+
+
+@njit(cache=True, **NO_ALLOCATION)
 def se3_command(x, p_d, v_d, a_d, yaw_d, G, V, cmd):
     """Rotor speed commands (rad/s) into ``cmd`` for state ``x`` (true or estimated) and the
-    reference position, velocity, acceleration (NED) and heading."""
-    R = rot_matrix(x[6:10])
-    Fd = np.empty(3)
-    for i in range(3):
-        Fd[i] = V.mass * (-G.k_p[i] * (x[i] - p_d[i]) - G.k_v[i] * (x[3 + i] - v_d[i]) + a_d[i])
-    Fd[2] -= V.mass * V.gravity
-    thrust = -(Fd[0] * R[0, 2] + Fd[1] * R[1, 2] + Fd[2] * R[2, 2])
+    reference position, velocity, acceleration (NED) and heading (no allocation: it runs every
+    sample of every flight)."""
+    R = rot_entries(x[6], x[7], x[8], x[9])
+    f = (
+        V.mass * (-G.k_p[0] * (x[0] - p_d[0]) - G.k_v[0] * (x[3] - v_d[0]) + a_d[0]),
+        V.mass * (-G.k_p[1] * (x[1] - p_d[1]) - G.k_v[1] * (x[4] - v_d[1]) + a_d[1]),
+        V.mass * (-G.k_p[2] * (x[2] - p_d[2]) - G.k_v[2] * (x[5] - v_d[2]) + a_d[2]) - V.mass * V.gravity,
+    )
+    thrust = -(f[0] * R[0][2] + f[1] * R[1][2] + f[2] * R[2][2])
     # desired attitude: body z down along −F_d
-    nF = np.sqrt(Fd[0] * Fd[0] + Fd[1] * Fd[1] + Fd[2] * Fd[2])
-    zd = np.empty(3)
-    if nF > 1e-9:
-        for i in range(3):
-            zd[i] = -Fd[i] / nF
-    else:
-        zd[0], zd[1], zd[2] = 0.0, 0.0, 1.0
+    nF = np.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
+    zd = (-f[0] / nF, -f[1] / nF, -f[2] / nF) if nF > 1e-9 else (0.0, 0.0, 1.0)
     xc0, xc1 = np.cos(yaw_d), np.sin(yaw_d)
     y0, y1, y2 = zd[1] * 0.0 - zd[2] * xc1, zd[2] * xc0 - zd[0] * 0.0, zd[0] * xc1 - zd[1] * xc0
     ny = np.sqrt(y0 * y0 + y1 * y1 + y2 * y2)
     if ny < 1e-9:  # thrust axis horizontal along the heading: keep the current body y
-        y0, y1, y2, ny = R[0, 1], R[1, 1], R[2, 1], 1.0
-    y0, y1, y2 = y0 / ny, y1 / ny, y2 / ny
-    Rd = np.empty((3, 3))
-    Rd[0, 0], Rd[1, 0], Rd[2, 0] = y1 * zd[2] - y2 * zd[1], y2 * zd[0] - y0 * zd[2], y0 * zd[1] - y1 * zd[0]
-    Rd[0, 1], Rd[1, 1], Rd[2, 1] = y0, y1, y2
-    Rd[0, 2], Rd[1, 2], Rd[2, 2] = zd[0], zd[1], zd[2]
-    # e_R = ½ (R_dᵀ R − Rᵀ R_d)^∨
-    E = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            s = 0.0
-            for k in range(3):
-                s += Rd[k, i] * R[k, j] - R[k, i] * Rd[k, j]
-            E[i, j] = 0.5 * s
-    eR0, eR1, eR2 = E[2, 1], E[0, 2], E[1, 0]
+        y0, y1, y2, ny = R[0][1], R[1][1], R[2][1], 1.0
+    yd = (y0 / ny, y1 / ny, y2 / ny)
+    xd = (yd[1] * zd[2] - yd[2] * zd[1], yd[2] * zd[0] - yd[0] * zd[2], yd[0] * zd[1] - yd[1] * zd[0])
+    eR0, eR1, eR2 = attitude_error(R, xd, yd, zd)
     w0, w1, w2 = x[10], x[11], x[12]
     J0, J1, J2 = V.inertia[0], V.inertia[1], V.inertia[2]
     M0 = J0 * (-G.k_R * eR0 - G.k_w * w0) + (w1 * J2 * w2 - w2 * J1 * w1)
