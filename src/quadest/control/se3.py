@@ -32,6 +32,7 @@ import numpy as np
 from quadest._jit import NO_ALLOCATION, njit
 from quadest.models.multirotor import MultirotorParams
 from quadest.records import check, check_triples, describe, param
+from quadest.rotation.kernels import rot_entries
 
 Gains = namedtuple("Gains", ["k_p", "k_v", "k_R", "k_w", "alloc_inv", "k_f", "t_max"])
 """What the compiled controller reads (built by :meth:`SE3Params.gains`)."""
@@ -95,17 +96,6 @@ def allocation(vehicle: MultirotorParams) -> np.ndarray:
     if abs(np.linalg.det(A)) < 1e-12:
         raise ValueError("the rotor layout cannot produce independent roll, pitch and yaw moments")
     return np.linalg.inv(A)
-
-
-@njit(cache=True, inline="always")
-def rot_entries(w, x, y, z):
-    """The nine entries of ``R(q)`` row by row, as :func:`quadest.rotation.kernels.rot_matrix`
-    computes them, without an array."""
-    return (
-        (1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)),
-        (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)),
-        (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)),
-    )
 
 
 @njit(cache=True, inline="always")

@@ -152,10 +152,6 @@ def _true_estimate(x, p, c, gyr, acc, mag, dt, diag):
     """The 'truth' estimator: nothing to do (the loop reads the true state)."""
 
 
-def no_estimator():
-    return _true_estimate
-
-
 def no_estimator_args():
     """The estimator arguments of :func:`closed_loop` with no estimator in the loop."""
     return _true_estimate, np.zeros(4), 0.0, 0.0, np.zeros(1), np.array([1.0, 0.0, 0.0, 0.0])
@@ -337,7 +333,7 @@ def act_sample(k, x, L, q_est):
 def closed_loop(x, L, est_step, ex, ep, ec, ediag, dq):
     """Fly ``len(L.record.phase)`` IMU samples (module doc) with the compiled step ``est_step``
     of an estimator in the loop (with its state ``ex``, records ``ep``, ``ec`` and diagnostics
-    ``ediag``; ``dq`` the declination quaternion), or :func:`no_estimator`. Returns
+    ``ediag``; ``dq`` the declination quaternion), or :func:`no_estimator_args`' step. Returns
     ``(status, samples flown)``. (Not cached: numba compiles it once per estimator and process.)"""
     q, S = L.nav.q_est, L.sensing
     n = L.record.phase.shape[0]

@@ -130,12 +130,21 @@ def qexp_right(q, a, b, c):
 @njit(cache=True, inline="always")
 def rot_matrix(q):
     """``R(q)`` (3x3) of a unit quaternion."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
+    rows = rot_entries(q[0], q[1], q[2], q[3])
     R = np.empty((3, 3))
-    R[0, 0], R[0, 1], R[0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)
-    R[1, 0], R[1, 1], R[1, 2] = 2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)
-    R[2, 0], R[2, 1], R[2, 2] = 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)
+    for i in range(3):
+        R[i, 0], R[i, 1], R[i, 2] = rows[i]
     return R
+
+
+@njit(cache=True, inline="always")
+def rot_entries(w, x, y, z):
+    """The entries of ``R(q)`` row by row, as tuples (for code that allocates nothing)."""
+    return (
+        (1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)),
+        (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)),
+        (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)),
+    )
 
 
 @njit(cache=True, inline="always")
