@@ -11,6 +11,7 @@ from scipy.spatial.transform import Rotation
 from quadest.cli.main import main
 from quadest.evaluation.align import fit_alignment, mean_quat
 from quadest.evaluation.runner import score as evaluate
+from quadest.filters import ESTIMATORS
 from quadest.rotation import angle_between, quat_conj, quat_mul
 from quadest.sim import simulate
 
@@ -85,13 +86,13 @@ def test_peer_frame_conversions(name, marg):
     9-axis (AQUA's default gains make its heading slow: 13° measured), and inclination 6-axis
     below 12°: the 3 m/s² manoeuvres tilt the apparent gravity by up to atan(3/9.81) = 17°, and a
     filter that follows the accelerometer within 0.2 s (AQUA's default) shows about half of it."""
-    from quadest.filters.peers import run_peer
-
-    pytest.importorskip({"vqf-offline": "vqf", "imufusion": "imufusion"}.get(name, name.split("-")[0]))
+    cls = ESTIMATORS[name]
+    if not cls.available():
+        pytest.skip(f"{name} needs the package {cls.package} (quadest[peers])")
     mask = marg.t > 10
-    s9 = evaluate(marg, run_peer(name, marg), mask=mask)
+    s9 = evaluate(marg, cls(declination=marg.declination).run(marg).q, mask=mask)
     assert s9["total_rmse_deg"] < PEERS_9[name], s9
-    s6 = evaluate(marg, run_peer(name, marg, use_mag=False), mask=mask, nav="heading")
+    s6 = evaluate(marg, cls(use_mag=False).run(marg).q, mask=mask, nav="heading")
     assert s6["inclination_rmse_deg"] < 12.0, s6
 
 

@@ -9,7 +9,7 @@ from scipy.optimize import least_squares
 
 from quadest.control import Failure, FtcParams, relaxed_hover
 from quadest.errors import UsageError
-from quadest.filters import Madgwick
+from quadest.filters import Madgwick, make_filter
 from quadest.flight import fly
 from quadest.models import MultirotorParams
 from quadest.sim.flown import flown_recording
@@ -254,10 +254,8 @@ def test_peers_fly_in_the_loop_through_their_streaming_api(peer):
     batch adapter gives over the flown recording afterwards (the same frames and declination),
     and holds a hover."""
     pytest.importorskip(peer)
-    from quadest.filters.peers import run_peer
-
     f = fly("trajectory", estimator=peer, seed=1, duration=4.0)
-    q = run_peer(peer, f.recording)
+    q = make_filter(peer, declination=f.recording.declination).run(f.recording).q
     assert np.abs(np.abs((q * f.q_est).sum(axis=1)) - 1.0).max() < 1e-6
     s = fly("hover", estimator=peer, seed=4).summary
     assert s["status"] == "survived" and s["time_to_settle_s"] is not None, s

@@ -485,3 +485,40 @@ def test_former_filter_names_still_work_with_a_note(capsys):
         assert main(["compare", "--scenario", "nominal", "--duration", "2", "--filters", "kalman", "--no-timing"]) == 0
     out = capsys.readouterr().out
     assert "roetenberg" in out and "kalman" not in out
+
+
+def test_one_registry_of_estimators_with_the_peers_in_it():
+    """quadest's filters and the peers are :class:`Estimator` subclasses in one registry; a peer
+    takes only ``use_mag``, refuses a q0 or a per-sample call it does not have, and a missing
+    package is one line naming it."""
+    from quadest.errors import UsageError
+    from quadest.filters import ESTIMATORS, PEERS, Estimator, Peer
+
+    assert all(issubclass(cls, Estimator) and cls.name == name for name, cls in ESTIMATORS.items())
+    assert set(FILTERS) | set(PEERS) == set(ESTIMATORS) and not set(FILTERS) & set(PEERS)
+    assert all(c.peer for c in PEERS.values()) and not any(c.peer for c in FILTERS.values())
+    with pytest.raises(TypeError, match="unknown parameter"):
+        make_filter("ahrs-madgwick", beta=0.1)
+    with pytest.raises(UsageError, match="no q0"):
+        make_filter("ahrs-aqua", q0=[1.0, 0, 0, 0])
+    with pytest.raises(UsageError, match="no per-sample API"):
+        make_filter("ahrs-ekf").update(np.zeros(3), np.array([0, 0, -9.81]), dt=0.01)
+    with pytest.raises(UsageError, match="no compiled step"):
+        make_filter("ahrs-ekf").compiled()
+
+    class Missing(Peer):
+        name, package = "missing", "no_such_package_here"
+
+    assert not Missing.available()
+    with pytest.raises(UsageError, match="needs the package 'no_such_package_here'"):
+        Missing().run(t=np.arange(3.0), gyr=np.zeros((3, 3)), acc=np.zeros((3, 3)))
+
+
+def test_a_peer_equals_its_package_called_directly(marg):
+    """The ahrs Madgwick peer is ahrs's Madgwick in NWU turned into NED (the frame change of
+    filters.peers), with the declination applied: the same numbers within rounding."""
+    res = make_filter("ahrs-madgwick", declination=DECL).run(marg)
+    ref = AhrsMadgwick(gyr=marg.gyr, acc=marg.acc, mag=marg.mag, frequency=1 / np.median(np.diff(marg.t))).Q
+    dq = np.array([np.cos(DECL / 2), 0, 0, np.sin(DECL / 2)])
+    err = angle_between(res.q, quat_mul(dq, quat_mul(Q_F, ref)))
+    assert err.max() < 1e-9

@@ -12,7 +12,7 @@ import pytest
 
 from quadest.conventions import GRAVITY
 from quadest.filters import make_filter
-from quadest.filters.robust import UNKNOWN_HEADING_VAR, S, mag_rate_terms
+from quadest.filters.robust import STATE, UNKNOWN_HEADING_VAR, mag_rate_terms
 from quadest.rotation import quat_conj, quat_from_rotvec, quat_mul, quat_rotate
 from quadest.sim import simulate
 
@@ -154,7 +154,7 @@ def _clip_flags(true_rate, readings, dt=0.01, **kw):
         c, s = math.cos(psi), math.sin(psi)
         m_b = np.array([c * m_n[0] + s * m_n[1], -s * m_n[0] + c * m_n[1], m_n[2]])
         f.update(np.array([0.0, 0.0, z]), np.array([0.0, 0.0, -GRAVITY]), m_b, dt=dt)
-        out.append(f.get_state()[S.clipped + 2])
+        out.append(f.get_state()[STATE.clipped + 2])
     return np.array(out)
 
 
@@ -234,7 +234,7 @@ def test_initial_averaging_ends_at_a_sustained_acceleration():
         res = est.run(t=t, gyr=gyr, acc=acc)
         e = _rotvec_error(q, res.q)
         tilt[name] = np.degrees(np.hypot(e[:, 0], e[:, 1]))
-        assert est.get_state()[S.moved] == (1.0 if name == "on" else 0.0)
+        assert est.get_state()[STATE.moved] == (1.0 if name == "on" else 0.0)
     late = t >= 0.5
     assert tilt["on"][late].max() < 4.5, tilt["on"][late].max()
     assert tilt["off"][-1] > 7.0, tilt["off"][-1]
@@ -251,12 +251,12 @@ def test_initial_averaging_kept_in_hover_noise_and_for_a_start_in_motion():
     est = make_filter("robust")
     est.run(t=t, gyr=gyr, acc=acc)
     x = est.get_state()
-    assert x[S.moved] == 0.0 and x[S.mean_n] == -1.0  # ended by time, not by an acceleration
+    assert x[STATE.moved] == 0.0 and x[STATE.mean_n] == -1.0  # ended by time, not by an acceleration
     t, gyr, acc, _ = _onset(turning=0.3)
     est = make_filter("robust")
     est.run(t=t, gyr=gyr, acc=acc)
     x = est.get_state()
-    assert x[S.moved] == -1.0 and x[S.mean_n] == len(t)  # still averaging after 2 s
+    assert x[STATE.moved] == -1.0 and x[STATE.mean_n] == len(t)  # still averaging after 2 s
 
 
 def test_lever_arm_removes_the_centripetal_acceleration():
@@ -309,10 +309,10 @@ def test_million_steps_keep_norms_and_covariance():
     est = make_filter("robust")
     res = est.run(t=t, gyr=w + rng.normal(0, 0.01, (n, 3)), acc=f, mag=m)
     x = est.get_state()
-    for sl in (S.qg, S.qi):
+    for sl in (STATE.qg, STATE.qi):
         assert abs(np.linalg.norm(x[sl : sl + 4]) - 1.0) < 1e-12
     assert abs(np.linalg.norm(res.q[-1]) - 1.0) < 1e-12
-    Pb = x[S.Pb : S.Pb + 9].reshape(3, 3)
+    Pb = x[STATE.Pb : STATE.Pb + 9].reshape(3, 3)
     assert np.allclose(Pb, Pb.T, atol=1e-18) and np.linalg.eigvalsh(Pb).min() > 0.0
     assert np.isfinite(res.diag["var_tilt"]).all() and res.diag["var_tilt"].max() < 1.0
     assert res.diag["var_heading"].max() <= UNKNOWN_HEADING_VAR

@@ -375,3 +375,42 @@ def test_results_do_not_depend_on_what_compiled_first(tmp_path):
     alone = _start_copy(SRC, "madgwick", tmp_path / "b")
     qa, qb = _result(after_kalman, SRC)["q"]["madgwick"], _result(alone, SRC)["q"]["madgwick"]
     assert qa == qb
+
+
+def _unannotated(obj) -> list[str]:
+    """The parameters (and ``return``) of a Python function that carry no annotation."""
+    import inspect
+
+    sig = inspect.signature(obj)
+    skip = (inspect.Parameter.VAR_POSITIONAL, inspect.Parameter.VAR_KEYWORD)
+    out = [n for n, p in sig.parameters.items() if n not in ("self", "cls") and p.kind not in skip]
+    out = [n for n in out if sig.parameters[n].annotation is inspect.Parameter.empty]
+    if sig.return_annotation is inspect.Signature.empty and obj.__name__ != "__init__":
+        out.append("return")
+    return out
+
+
+def test_the_public_api_has_type_hints():
+    """Every function a package exports (``__all__``), and every public method of an exported
+    class, is annotated; compiled steps (numba) are not Python functions a user calls."""
+    import importlib
+    import inspect
+    import pkgutil
+
+    import quadest
+
+    names = ["quadest"] + [f"quadest.{m.name}" for m in pkgutil.iter_modules(quadest.__path__) if m.ispkg]
+    missing = []
+    for modname in names:
+        mod = importlib.import_module(modname)
+        for name in getattr(mod, "__all__", []):
+            obj = getattr(mod, name)
+            members = [(name, obj)] if inspect.isfunction(obj) else []
+            if inspect.isclass(obj):
+                for attr, value in vars(obj).items():
+                    value = getattr(value, "__func__", value)
+                    if inspect.isfunction(value) and (attr == "__init__" or not attr.startswith("_")):
+                        if attr not in ("step", "batch", "stream"):
+                            members.append((f"{name}.{attr}", value))
+            missing += [f"{modname}.{n}: {_unannotated(f)}" for n, f in members if _unannotated(f)]
+    assert not missing, "\n".join(missing)

@@ -6,11 +6,17 @@ uncertainties and quality figures, or raises ValueError saying what the data lac
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from quadest.calibration.model import Calibration
 from quadest.conventions import GRAVITY
 from quadest.models.aero import fit_aero
+
+if TYPE_CHECKING:
+    from quadest.data.recording import Recording
 
 
 # -- static segments ------------------------------------------------------------------------------
@@ -28,7 +34,7 @@ def _moving_std(x, w):
 
 
 def static_segments(
-    rec,
+    rec: Recording,
     *,
     window_s: float = 0.5,
     min_s: float = 2.0,
@@ -36,7 +42,7 @@ def static_segments(
     acc_std: float = 0.5,
     gyr_mean: float = 0.2,
     trim_s: float = 0.25,
-):
+) -> list[tuple[int, int]]:
     """Segments ``(i0, i1)`` (row indices, end exclusive) where the sensor is still: over a
     moving window the gyroscope and accelerometer spread stay below ``gyr_std`` (rad/s) and
     ``acc_std`` (m/s²) per axis and the mean rate below ``gyr_mean``; runs shorter than
@@ -73,7 +79,7 @@ def _source(recs):
 
 
 # -- gyroscope ------------------------------------------------------------------------------------
-def calibrate_gyro(recs, **kw) -> Calibration:
+def calibrate_gyro(recs: Sequence[Recording], **kw) -> Calibration:
     """Bias = mean gyroscope reading over the rest segments found automatically."""
     segs = _segments_of(recs, **kw)
     if not segs:
@@ -102,7 +108,7 @@ def calibrate_gyro(recs, **kw) -> Calibration:
 
 
 # -- accelerometer --------------------------------------------------------------------------------
-def calibrate_accel(recs, *, gravity: float = GRAVITY, **kw) -> Calibration:
+def calibrate_accel(recs: Sequence[Recording], *, gravity: float = GRAVITY, **kw) -> Calibration:
     """Bias, scale and misalignment (the QUKF paper's eq 4) from static positions.
 
     Six-position set (each body axis down and up once): the reference of each position is ±g
@@ -215,7 +221,7 @@ def _ellipsoid(m):
     return h, L.T @ L
 
 
-def calibrate_mag(recs, *, min_samples: int = 100) -> Calibration:
+def calibrate_mag(recs: Sequence[Recording], *, min_samples: int = 100) -> Calibration:
     """Hard iron h and soft iron by ellipsoid fit: ``m = W (m' − h)`` maps the measured
     ellipsoid onto a sphere whose radius is the ellipsoid's mean radius (the field strength,
     in the magnetometer's unit). Refuses data that do not determine the ellipsoid."""
@@ -288,7 +294,7 @@ def fit_centrifugal(gyr, acc, *, min_rate: float = 5.0, gyro_range: float = np.i
     return out[0], out[1], float(np.sqrt(np.mean(np.square(res))))
 
 
-def calibrate_centrifugal(recs, *, min_rate: float = 5.0) -> Calibration:
+def calibrate_centrifugal(recs: Sequence[Recording], *, min_rate: float = 5.0) -> Calibration:
     """The AFCKF's ω1, ω2 (eq 13) from spinning segments, gyroscope below its range."""
     gyr = np.vstack([r.gyr for r in recs])
     acc = np.vstack([r.acc for r in recs])
@@ -332,7 +338,7 @@ def calibrate_aero(recs, mass_kg: float | None = None) -> Calibration:
     )
 
 
-def calibrate(kind: str, recs, **kw) -> Calibration:
+def calibrate(kind: str, recs: Sequence[Recording], **kw) -> Calibration:
     fn = {
         "gyro": calibrate_gyro,
         "accel": calibrate_accel,

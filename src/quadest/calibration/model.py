@@ -16,6 +16,7 @@ A, B, C in N s/m, N s²/m², N.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -90,11 +91,11 @@ class Calibration:
             "source": self.source,
         }
 
-    def save(self, path) -> Path:
+    def save(self, path: str | Path) -> Path:
         """Write the JSON file, atomically (nothing half-written is left on a failure)."""
         return write_json(path, self.to_dict())
 
-    def check(self, rec) -> None:
+    def check(self, rec: Recording) -> None:
         """Refuse a recording whose sensor unit differs from the calibration's."""
         units = rec.meta.get("units", {})
         have = units.get(self.sensor)
@@ -106,7 +107,7 @@ class Calibration:
         if self.kind == "mag" and not rec.has_mag:
             raise ValueError("a magnetometer calibration needs a recording with magnetometer samples")
 
-    def apply(self, rec):
+    def apply(self, rec: Recording) -> Recording:
         """A new recording with this calibration applied (gyro, accel, mag kinds)."""
         self.check(rec)
         kw = {k: getattr(rec, k) for k in ("t", "gyr", "acc", "mag", *rec.truth)}
@@ -137,7 +138,7 @@ class Calibration:
         return {}
 
 
-def load_calibration(path) -> Calibration:
+def load_calibration(path: str | Path) -> Calibration:
     d = read_tagged_json(path, FORMAT_TAG, "calibration")
     try:
         return Calibration(
@@ -147,7 +148,9 @@ def load_calibration(path) -> Calibration:
         raise ValueError(f"{path}: calibration lacks {exc}") from None
 
 
-def apply_calibrations(rec, calibrations):
+def apply_calibrations(
+    rec: Recording, calibrations: Iterable[Calibration | str | Path] | None
+) -> tuple[Recording, dict]:
     """Apply calibrations (files or :class:`Calibration` records) in order; returns the
     recording and the estimator parameters they set."""
     params: dict = {}

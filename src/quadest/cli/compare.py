@@ -26,7 +26,7 @@ from quadest.evaluation import benchmark, flown, reproduce
 from quadest.evaluation.compare import compare, format_tables, parse_params
 from quadest.evaluation.runner import estimator_names, filter_notes
 from quadest.evaluation.speed import benchmark_speed
-from quadest.filters import FILTERS
+from quadest.filters import FILTERS, PEERS
 from quadest.filters.base import STREAM_C
 from quadest.flight import fly
 from quadest.flight.crosscheck import rotorpy_available
@@ -345,8 +345,7 @@ def _add_compare(sub):
         "truth; print RMS error, variance and mean absolute error per axis "
         "(filters as columns) and the execution time, like the papers' "
         "tables. Filters: " + ", ".join(FILTERS) + "; with quadest[peers] "
-        "also vqf, vqf-offline, imufusion, ahrs-madgwick, ahrs-mahony, ahrs-ekf, "
-        "ahrs-aqua (--filters peers).",
+        "also " + ", ".join(PEERS) + " (--filters peers).",
     )
     src = c.add_mutually_exclusive_group()
     src.add_argument("--recording", type=Path, metavar="FILE", help="recording with true_q, any supported format")

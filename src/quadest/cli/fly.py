@@ -7,7 +7,7 @@ from pathlib import Path
 from quadest.cli.common import CliError, parse_seeds, say, write_json
 from quadest.control import Failure
 from quadest.data import save_recording, write_table
-from quadest.filters import FILTERS, filter_name
+from quadest.filters import ESTIMATORS, FILTERS, filter_name
 from quadest.flight import (
     CONTROLLERS,
     FLIGHT_SCENARIOS,
@@ -213,7 +213,8 @@ def add_parsers(sub):
     s.add_argument(
         "--estimator",
         default=None,
-        help=f"the attitude estimator in the loop: truth, {', '.join(FILTERS)}, the peers vqf and imufusion "
+        help=f"the attitude estimator in the loop: truth, {', '.join(FILTERS)}, the peers "
+        f"{' and '.join(n for n, c in ESTIMATORS.items() if c.peer and c.streaming)} "
         "(their streaming API, when installed); for a throw recovery (the "
         "bank of EKFs, then its nominal EKF) or truth. Several (comma-separated) or all fly each, with "
         "the flight with truth in the loop first and each estimator also run over that flight "

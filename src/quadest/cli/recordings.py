@@ -23,8 +23,7 @@ from quadest.data import format_summary, summarize, write_table
 from quadest.evaluation.compare import parse_params
 from quadest.evaluation.inspect import events
 from quadest.evaluation.runner import estimate, estimator_names, filter_notes
-from quadest.filters import FILTERS, filter_name
-from quadest.filters.peers import PEERS
+from quadest.filters import ESTIMATORS, filter_name
 from quadest.models.aero import AeroModel
 from quadest.recovery import recover
 from quadest.rotation import quat_to_euler
@@ -266,7 +265,7 @@ def add_parsers(sub):
         "--filter",
         default="robust",
         type=filter_name,
-        choices=list(FILTERS) + list(PEERS),
+        choices=list(ESTIMATORS),
         help="estimator: quadest's, or a peer with quadest[peers] installed (default: robust, "
         "quadest's own; docs/estimators.md)",
     )

@@ -277,20 +277,20 @@ def fit_yaw_damping(vehicle: MultirotorParams, rho: float = 0.25, seconds: float
 
 
 @njit(cache=True)
-def ftc_command(xh, p_d, v_d, a_d, F, V, dt, integral, cmd):
+def ftc_command(xh, p_d, v_d, a_d, ftc, vehicle, dt, integral, cmd):
     """Rotor speed commands (rad/s) into ``cmd`` for the estimated state ``xh`` (position,
-    velocity, ``q_nb``, measured body rate) after the loss of a rotor (``F.active``: the three left; module doc);
+    velocity, ``q_nb``, measured body rate) after the loss of a rotor (``ftc.active``: the three left; module doc);
     ``integral`` (3, start at zero) carries the integral of the axis error over calls ``dt`` apart."""
     R = rot_matrix(xh[6:10])
     fd = np.empty(3)
     for i in range(3):
-        fd[i] = -F.k_p[i] * (xh[i] - p_d[i]) - F.k_v[i] * (xh[3 + i] - v_d[i]) + a_d[i]
-    fd[2] -= F.gravity
+        fd[i] = -ftc.k_p[i] * (xh[i] - p_d[i]) - ftc.k_v[i] * (xh[3 + i] - v_d[i]) + a_d[i]
+    fd[2] -= ftc.gravity
     # tilt limit: the horizontal part at most tan(max_tilt) of the vertical one
-    up = max(-fd[2], 0.2 * F.gravity)
+    up = max(-fd[2], 0.2 * ftc.gravity)
     fd[2] = -up
     h = np.sqrt(fd[0] * fd[0] + fd[1] * fd[1])
-    hmax = up * np.tan(F.max_tilt)
+    hmax = up * np.tan(ftc.max_tilt)
     if h > hmax:
         fd[0] *= hmax / h
         fd[1] *= hmax / h
@@ -298,8 +298,8 @@ def ftc_command(xh, p_d, v_d, a_d, F, V, dt, integral, cmd):
     db = np.empty(3)  # d_b = R̂ᵀ d
     for i in range(3):
         db[i] = (R[0, i] * fd[0] + R[1, i] * fd[1] + R[2, i] * fd[2]) / nf
-    thrust = F.mass * nf / max(-db[2], 0.3)
-    n = F.n_b
+    thrust = ftc.mass * nf / max(-db[2], 0.3)
+    n = ftc.n_b
     w0, w1, w2 = xh[10], xh[11], xh[12]
     wd = w0 * db[0] + w1 * db[1] + w2 * db[2]
     e0, e1, e2 = n[1] * db[2] - n[2] * db[1], n[2] * db[0] - n[0] * db[2], n[0] * db[1] - n[1] * db[0]
@@ -307,13 +307,13 @@ def ftc_command(xh, p_d, v_d, a_d, F, V, dt, integral, cmd):
     integral[0] = min(max(integral[0] + e0 * dt, -lim), lim)
     integral[1] = min(max(integral[1] + e1 * dt, -lim), lim)
     integral[2] = min(max(integral[2] + e2 * dt, -lim), lim)
-    od0 = F.k_n * e0 + F.k_i * integral[0] + wd * db[0]
-    od1 = F.k_n * e1 + F.k_i * integral[1] + wd * db[1]
-    J0, J1, J2 = F.inertia[0], F.inertia[1], F.inertia[2]
-    M0 = J0 * F.k_w * (od0 - w0) + (w1 * J2 * w2 - w2 * J1 * w1) + F.damping[0] * w0
-    M1 = J1 * F.k_w * (od1 - w1) + (w2 * J0 * w0 - w0 * J2 * w2) + F.damping[1] * w1
+    od0 = ftc.k_n * e0 + ftc.k_i * integral[0] + wd * db[0]
+    od1 = ftc.k_n * e1 + ftc.k_i * integral[1] + wd * db[1]
+    J0, J1, J2 = ftc.inertia[0], ftc.inertia[1], ftc.inertia[2]
+    M0 = J0 * ftc.k_w * (od0 - w0) + (w1 * J2 * w2 - w2 * J1 * w1) + ftc.damping[0] * w0
+    M1 = J1 * ftc.k_w * (od1 - w1) + (w2 * J0 * w0 - w0 * J2 * w2) + ftc.damping[1] * w1
     for i in range(cmd.shape[0]):
         cmd[i] = 0.0
     for a in range(3):
-        t = F.alloc_inv[a, 0] * thrust + F.alloc_inv[a, 1] * M0 + F.alloc_inv[a, 2] * M1
-        cmd[F.active[a]] = np.sqrt(min(max(t, 0.0), F.t_max) / F.k_f)
+        t = ftc.alloc_inv[a, 0] * thrust + ftc.alloc_inv[a, 1] * M0 + ftc.alloc_inv[a, 2] * M1
+        cmd[ftc.active[a]] = np.sqrt(min(max(t, 0.0), ftc.t_max) / ftc.k_f)

@@ -7,18 +7,23 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from quadest.errors import UsageError
 from quadest.models.multirotor import MultirotorParams
 
 
-def hover_reference(steps: int, position=(0.0, 0.0, 0.0), yaw: float = 0.0):
+def hover_reference(
+    steps: int, position: ArrayLike = (0.0, 0.0, 0.0), yaw: float = 0.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """A fixed setpoint: ``(p_d, v_d, a_d, yaw_d)`` arrays of ``steps`` rows."""
     p = np.tile(np.asarray(position, float), (steps, 1))
     return p, np.zeros((steps, 3)), np.zeros((steps, 3)), np.full(steps, float(yaw))
 
 
-def circle_reference(t, radius: float = 1.0, freq_hz: float = 0.2, height: float = 0.0):
+def circle_reference(
+    t: ArrayLike, radius: float = 1.0, freq_hz: float = 0.2, height: float = 0.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """A horizontal circle about the origin (north-east plane, at ``-height`` down), with its
     exact velocity and acceleration; heading held at 0."""
     t = np.asarray(t, float)

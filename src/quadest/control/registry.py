@@ -59,8 +59,8 @@ Control = compiled_record(
     "fault-tolerant gains, the reference per sample, the sample from which a rotor loss is "
     "known (-1: never), and the recovery's thresholds.",
     by_phase="i8[:]",
-    G="any",
-    F="any",
+    gains="any",
+    ftc="any",
     p_d="f8[:, :]",
     v_d="f8[:, :]",
     a_d="f8[:, :]",
@@ -74,14 +74,29 @@ Control = compiled_record(
 
 
 @njit(cache=True, inline="always")
-def command(kind, k, xh, C, V, dt):
+def command(kind, k, xh, control, vehicle, dt):
     """Run controller ``kind`` (a value of :data:`CONTROLLERS`) at sample ``k`` on the estimated
-    state ``xh`` into ``C.cmd``; returns whether the attitude control error allows the
+    state ``xh`` into ``control.cmd``; returns whether the attitude control error allows the
     accelerometer update (always, but for the recovery: :func:`recovery_command`)."""
     if kind == SE3:
-        se3_command(xh, C.p_d[k], C.v_d[k], C.a_d[k], C.yaw_d[k], C.G, V, C.cmd)
+        se3_command(
+            xh, control.p_d[k], control.v_d[k], control.a_d[k], control.yaw_d[k], control.gains, vehicle, control.cmd
+        )
     elif kind == FTC:
-        ftc_command(xh, C.p_d[k], C.v_d[k], C.a_d[k], C.F, V, dt, C.integral, C.cmd)
+        ftc_command(
+            xh, control.p_d[k], control.v_d[k], control.a_d[k], control.ftc, vehicle, dt, control.integral, control.cmd
+        )
     elif kind == RECOVERY:
-        return recovery_command(xh, C.p_d[k], C.v_d[k], C.a_d[k], C.yaw_d[k], C.G, V, C.beta3, C.upright_rad, C.cmd)
+        return recovery_command(
+            xh,
+            control.p_d[k],
+            control.v_d[k],
+            control.a_d[k],
+            control.yaw_d[k],
+            control.gains,
+            vehicle,
+            control.beta3,
+            control.upright_rad,
+            control.cmd,
+        )
     return True

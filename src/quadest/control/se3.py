@@ -110,15 +110,16 @@ def attitude_error(R, xd, yd, zd):
 
 
 @njit(cache=True, **NO_ALLOCATION)
-def se3_command(x, p_d, v_d, a_d, yaw_d, G, V, cmd):
+def se3_command(x, p_d, v_d, a_d, yaw_d, gains, vehicle, cmd):
     """Rotor speed commands (rad/s) into ``cmd`` for state ``x`` (true or estimated) and the
     reference position, velocity, acceleration (NED) and heading (no allocation: it runs every
     sample of every flight)."""
     R = rot_entries(x[6], x[7], x[8], x[9])
     f = (
-        V.mass * (-G.k_p[0] * (x[0] - p_d[0]) - G.k_v[0] * (x[3] - v_d[0]) + a_d[0]),
-        V.mass * (-G.k_p[1] * (x[1] - p_d[1]) - G.k_v[1] * (x[4] - v_d[1]) + a_d[1]),
-        V.mass * (-G.k_p[2] * (x[2] - p_d[2]) - G.k_v[2] * (x[5] - v_d[2]) + a_d[2]) - V.mass * V.gravity,
+        vehicle.mass * (-gains.k_p[0] * (x[0] - p_d[0]) - gains.k_v[0] * (x[3] - v_d[0]) + a_d[0]),
+        vehicle.mass * (-gains.k_p[1] * (x[1] - p_d[1]) - gains.k_v[1] * (x[4] - v_d[1]) + a_d[1]),
+        vehicle.mass * (-gains.k_p[2] * (x[2] - p_d[2]) - gains.k_v[2] * (x[5] - v_d[2]) + a_d[2])
+        - vehicle.mass * vehicle.gravity,
     )
     thrust = -(f[0] * R[0][2] + f[1] * R[1][2] + f[2] * R[2][2])
     # desired attitude: body z down along −F_d
@@ -133,15 +134,15 @@ def se3_command(x, p_d, v_d, a_d, yaw_d, G, V, cmd):
     xd = (yd[1] * zd[2] - yd[2] * zd[1], yd[2] * zd[0] - yd[0] * zd[2], yd[0] * zd[1] - yd[1] * zd[0])
     eR0, eR1, eR2 = attitude_error(R, xd, yd, zd)
     w0, w1, w2 = x[10], x[11], x[12]
-    J0, J1, J2 = V.inertia[0], V.inertia[1], V.inertia[2]
-    M0 = J0 * (-G.k_R * eR0 - G.k_w * w0) + (w1 * J2 * w2 - w2 * J1 * w1)
-    M1 = J1 * (-G.k_R * eR1 - G.k_w * w1) + (w2 * J0 * w0 - w0 * J2 * w2)
-    M2 = J2 * (-G.k_R * eR2 - G.k_w * w2) + (w0 * J1 * w1 - w1 * J0 * w0)
-    mix(thrust, M0, M1, M2, G, cmd)
+    J0, J1, J2 = vehicle.inertia[0], vehicle.inertia[1], vehicle.inertia[2]
+    M0 = J0 * (-gains.k_R * eR0 - gains.k_w * w0) + (w1 * J2 * w2 - w2 * J1 * w1)
+    M1 = J1 * (-gains.k_R * eR1 - gains.k_w * w1) + (w2 * J0 * w0 - w0 * J2 * w2)
+    M2 = J2 * (-gains.k_R * eR2 - gains.k_w * w2) + (w0 * J1 * w1 - w1 * J0 * w0)
+    mix(thrust, M0, M1, M2, gains, cmd)
 
 
 @njit(cache=True)
-def mix(thrust, M0, M1, M2, G, cmd):
+def mix(thrust, M0, M1, M2, gains, cmd):
     """Rotor speed commands for a collective thrust and body moments (module doc): the exact
     inverse of the quadrotor's map, the yaw moment yielding first when the rotors cannot give
     everything."""
@@ -149,12 +150,17 @@ def mix(thrust, M0, M1, M2, G, cmd):
     # [0, t_max] given thrust, roll and pitch (as autopilots' mixers do)
     lam = 1.0
     for i in range(4):
-        base = G.alloc_inv[i, 0] * thrust + G.alloc_inv[i, 1] * M0 + G.alloc_inv[i, 2] * M1
-        yaw = G.alloc_inv[i, 3] * M2
+        base = gains.alloc_inv[i, 0] * thrust + gains.alloc_inv[i, 1] * M0 + gains.alloc_inv[i, 2] * M1
+        yaw = gains.alloc_inv[i, 3] * M2
         if base + lam * yaw < 0.0 and yaw < 0.0:
             lam = max(0.0, min(lam, -base / yaw))
-        elif base + lam * yaw > G.t_max and yaw > 0.0:
-            lam = max(0.0, min(lam, (G.t_max - base) / yaw))
+        elif base + lam * yaw > gains.t_max and yaw > 0.0:
+            lam = max(0.0, min(lam, (gains.t_max - base) / yaw))
     for i in range(4):
-        t = G.alloc_inv[i, 0] * thrust + G.alloc_inv[i, 1] * M0 + G.alloc_inv[i, 2] * M1 + G.alloc_inv[i, 3] * M2 * lam
-        cmd[i] = np.sqrt(max(t, 0.0) / G.k_f)
+        t = (
+            gains.alloc_inv[i, 0] * thrust
+            + gains.alloc_inv[i, 1] * M0
+            + gains.alloc_inv[i, 2] * M1
+            + gains.alloc_inv[i, 3] * M2 * lam
+        )
+        cmd[i] = np.sqrt(max(t, 0.0) / gains.k_f)

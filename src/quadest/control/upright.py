@@ -20,25 +20,25 @@ UPRIGHT_THRUST_MIN = 0.2  # of the weight: kept for the moments while the thrust
 
 
 @njit(cache=True)
-def recovery_command(xh, p_d, v_d, a_d, yaw_d, G, V, beta3, upright_rad, cmd):
+def recovery_command(xh, p_d, v_d, a_d, yaw_d, gains, vehicle, beta3, upright_rad, cmd):
     """Rotor speed commands into ``cmd`` for the estimated state ``xh`` holding the height
     ``p_d[2]`` and zero velocity (no horizontal position: the velocity loop); returns whether
     the attitude control error (desired against estimated thrust axis) is below ``beta3``."""
     R = rot_matrix(xh[6:10])
-    f0 = -G.k_v[0] * xh[3]
-    f1 = -G.k_v[1] * xh[4]
-    f2 = -G.k_p[2] * (xh[2] - p_d[2]) - G.k_v[2] * xh[5] - V.gravity
+    f0 = -gains.k_v[0] * xh[3]
+    f1 = -gains.k_v[1] * xh[4]
+    f2 = -gains.k_p[2] * (xh[2] - p_d[2]) - gains.k_v[2] * xh[5] - vehicle.gravity
     nf = np.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
     cosang = -(f0 * R[0, 2] + f1 * R[1, 2] + f2 * R[2, 2]) / max(nf, 1e-9)
     if cosang > np.cos(upright_rad):
-        se3_command(xh, p_d, v_d, a_d, yaw_d, G, V, cmd)
+        se3_command(xh, p_d, v_d, a_d, yaw_d, gains, vehicle, cmd)
     else:
-        upright(xh, R, -f0 / nf, -f1 / nf, -f2 / nf, nf, cosang, G, V, cmd)
+        upright(xh, R, -f0 / nf, -f1 / nf, -f2 / nf, nf, cosang, gains, vehicle, cmd)
     return cosang > np.cos(beta3)
 
 
 @njit(cache=True)
-def upright(xh, R, zd0, zd1, zd2, f_norm, cosang, G, V, cmd):
+def upright(xh, R, zd0, zd1, zd2, f_norm, cosang, gains, vehicle, cmd):
     """Bring the thrust axis up from any attitude: reduced-attitude control by angle and axis.
     The desired body z (down) axis ``z_d`` (navigation frame, opposite the desired thrust), in
     the body ``z_b = Rᵀ z_d``; the rate ``ω_d = min(k α, ω_max) (e_z × z_b)/‖e_z × z_b‖``
@@ -55,9 +55,9 @@ def upright(xh, R, zd0, zd1, zd2, f_norm, cosang, G, V, cmd):
     rate = min(UPRIGHT_RATE_GAIN * alpha, UPRIGHT_RATE_MAX)
     wd0, wd1 = rate * a0 / na, rate * a1 / na
     w0, w1, w2 = xh[10], xh[11], xh[12]
-    J0, J1, J2 = V.inertia[0], V.inertia[1], V.inertia[2]
-    M0 = J0 * G.k_w * (wd0 - w0) + (w1 * J2 * w2 - w2 * J1 * w1)
-    M1 = J1 * G.k_w * (wd1 - w1) + (w2 * J0 * w0 - w0 * J2 * w2)
-    M2 = J2 * G.k_w * (0.0 - w2) + (w0 * J1 * w1 - w1 * J0 * w0)
-    thrust = max(V.mass * f_norm * cosang, UPRIGHT_THRUST_MIN * V.mass * V.gravity)
-    mix(thrust, M0, M1, M2, G, cmd)
+    J0, J1, J2 = vehicle.inertia[0], vehicle.inertia[1], vehicle.inertia[2]
+    M0 = J0 * gains.k_w * (wd0 - w0) + (w1 * J2 * w2 - w2 * J1 * w1)
+    M1 = J1 * gains.k_w * (wd1 - w1) + (w2 * J0 * w0 - w0 * J2 * w2)
+    M2 = J2 * gains.k_w * (0.0 - w2) + (w0 * J1 * w1 - w1 * J0 * w0)
+    thrust = max(vehicle.mass * f_norm * cosang, UPRIGHT_THRUST_MIN * vehicle.mass * vehicle.gravity)
+    mix(thrust, M0, M1, M2, gains, cmd)

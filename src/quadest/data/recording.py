@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from quadest.conventions import GRAVITY
 from quadest.data.files import atomic_output
@@ -270,7 +271,7 @@ class Recording:
             return 0.0
         return float((len(tm) - 1) / (tm[-1] - tm[0]))
 
-    def select(self, index) -> Recording:
+    def select(self, index: slice | ArrayLike) -> Recording:
         """A new recording with the rows ``index`` (slice, boolean mask or integer array)."""
         kw = {k: getattr(self, k)[index] for k in ("t", "gyr", "acc", "mag", *self.truth)}
         return Recording(**kw, meta=self.meta, check_units=False)
@@ -299,7 +300,7 @@ def _kind(path: Path) -> str:
     raise ValueError(f"{path}: unknown recording extension {ext!r}; use .csv or .parquet")
 
 
-def save_recording(rec: Recording, path) -> Path:
+def save_recording(rec: Recording, path: str | Path) -> Path:
     """Write a recording as CSV or Parquet (by extension); the round trip is lossless."""
     import pyarrow as pa
 
@@ -360,7 +361,7 @@ def _from_columns(names, get, meta, source, check_units=True) -> Recording:
         raise ValueError(f"{source}: {exc}") from None
 
 
-def load_recording(path, *, check_units: bool = True) -> Recording:
+def load_recording(path: str | Path, *, check_units: bool = True) -> Recording:
     """Read a recording written by :func:`save_recording` (CSV or Parquet, by extension). Its
     values are checked for unit mistakes like any other file's (``check_units=False`` reads
     what was written, whatever it holds)."""

@@ -11,7 +11,7 @@ import pyarrow.parquet as pq
 from quadest.data.files import atomic_output
 
 
-def write_table(cols: dict, path) -> Path:
+def write_table(cols: dict, path: str | Path) -> Path:
     """``{name: 1-D array}`` to ``.csv`` (a plain header line, then the values) or ``.parquet``,
     atomically (:func:`quadest.data.files.atomic_output`)."""
     path = Path(path)

@@ -11,8 +11,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from quadest.evaluation.runner import estimate, score
-from quadest.filters import FILTERS
-from quadest.filters.peers import available_peers
+from quadest.filters import FILTERS, available_peers
 from quadest.readers import detect_format, read_recording
 
 

@@ -10,7 +10,7 @@ from quadest.errors import UsageError
 from quadest.evaluation.metrics import AXES
 from quadest.evaluation.runner import alignment_of, estimate_all, evaluation_mask, score, truth_of
 from quadest.evaluation.speed import time_estimator
-from quadest.filters import FILTERS, filter_name, make_filter
+from quadest.filters import ESTIMATORS, filter_name, make_filter
 
 
 def parse_params(items) -> dict:
@@ -20,7 +20,7 @@ def parse_params(items) -> dict:
         key, eq, value = item.partition("=")
         name, dot, field = key.strip().partition(".")
         name = filter_name(name)
-        if not eq or not dot or name not in FILTERS:
+        if not eq or not dot or name not in ESTIMATORS:
             raise UsageError(f"--param expects FILTER.NAME=VALUE with a known filter, got {item!r}")
         v = value.strip()
         parsed = {"true": True, "false": False}.get(v.lower())
@@ -67,7 +67,7 @@ def compare(
         results[name] = replace(res, q=aligned[0])
         entry["skipped_samples"] = res.skipped
         entry["restarts_s"] = list(res.restarts)
-        if timing and name in FILTERS:
+        if timing and name in ESTIMATORS and not ESTIMATORS[name].peer:
             tm = time_estimator(lambda n=name: make_filter(n, declination=rec.declination, **params.get(n, {})), rec)
             entry["us_per_sample"] = tm["batch_us"]
             entry["us_per_sample_streaming"] = tm["stream_us"]

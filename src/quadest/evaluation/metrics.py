@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from quadest.rotation import quat_conj, quat_mul, quat_to_euler
 
@@ -21,12 +22,12 @@ def _wrap(a):
     return (a + np.pi) % (2 * np.pi) - np.pi
 
 
-def euler_errors(q_est, q_true) -> np.ndarray:
+def euler_errors(q_est: ArrayLike, q_true: ArrayLike) -> np.ndarray:
     """Per-axis ZYX Euler error (rad) wrapped to ±π, shape (N, 3): roll, pitch, yaw."""
     return _wrap(quat_to_euler(q_est) - quat_to_euler(q_true))
 
 
-def error_angles(q_est, q_true) -> dict:
+def error_angles(q_est: ArrayLike, q_true: ArrayLike) -> dict:
     """Total, heading and inclination error angles (rad) per sample (BROAD's definitions)."""
     e = quat_mul(q_est, quat_conj(q_true))
     w, z = np.abs(e[:, 0]), np.abs(e[:, 3])
@@ -40,7 +41,7 @@ def _rms(x):
     return float(np.sqrt(np.mean(np.square(x)))) if len(x) else float("nan")
 
 
-def summarize_errors(q_est, q_true, mask=None) -> dict:
+def summarize_errors(q_est: ArrayLike, q_true: ArrayLike, mask: ArrayLike | None = None) -> dict:
     """RMS, variance and mean absolute value of the per-axis errors (degrees, degrees²) and the
     RMS of total, heading and inclination errors, over the rows in ``mask`` with truth."""
     q_est, q_true = np.asarray(q_est, float), np.asarray(q_true, float)

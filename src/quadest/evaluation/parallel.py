@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Callable, Iterable, Sequence
 from contextlib import contextmanager
+from typing import Any
 
 
 def _connect(scheduler: str, timeout_s: float):
@@ -77,19 +79,19 @@ def dask_client(workers: int | None = None, scheduler: str | None = None, timeou
 
 
 def execute(
-    fn,
-    items,
+    fn: Callable[[Any], Any],
+    items: Iterable[Any],
     *,
-    keys=None,
+    keys: Sequence[str] | None = None,
     workers: int | None = 0,
     scheduler: str | None = None,
-    on_result=None,
+    on_result: Callable[[int, Any], object] | None = None,
     progress: bool = False,
     desc: str = "runs",
     max_inflight: int | None = None,
     stats: dict | None = None,
-    weights=None,
-):
+    weights: Sequence[int] | None = None,
+) -> list:
     """Apply ``fn`` to every item; ``workers=0`` (and no scheduler) runs in this process,
     otherwise on Dask (``workers=None``: a local cluster with one worker per core).
     ``on_result(item_index, result_or_exception)`` is called as results arrive

@@ -11,14 +11,15 @@ compares estimators (compare, benchmark, sweep, reproduce) goes through :func:`e
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import numpy as np
 
 from quadest.data.recording import Recording
 from quadest.errors import UsageError
 from quadest.evaluation.align import Alignment, fit_alignment
 from quadest.evaluation.metrics import nees, summarize_errors
-from quadest.filters import FILTERS, FilterResult, filter_name, make_filter
-from quadest.filters.peers import PEERS, available_peers, run_peer
+from quadest.filters import ESTIMATORS, FILTERS, FilterResult, available_peers, estimator_class, filter_name
 
 
 def estimator_names(spec: str, all_includes_peers: bool = False) -> list[str]:
@@ -30,26 +31,23 @@ def estimator_names(spec: str, all_includes_peers: bool = False) -> list[str]:
     if spec == "peers":
         return available_peers()
     names = [filter_name(s.strip()) for s in spec.split(",") if s.strip()]
-    bad = [n for n in names if n not in FILTERS and n not in PEERS]
+    bad = [n for n in names if n not in ESTIMATORS]
     if bad or not names:
-        raise UsageError(
-            f"unknown filter(s) {', '.join(bad) or spec!r}; filters: {', '.join(FILTERS)}; peers: {', '.join(PEERS)}"
-        )
-    missing = [n for n in names if n in PEERS and n not in available_peers()]
+        estimator_class(bad[0] if bad else spec)  # raises, naming the filters and peers
+    missing = [n for n in names if not ESTIMATORS[n].available()]
     if missing:
         raise UsageError(f"peer(s) {', '.join(missing)} not installed: pip install 'quadest[peers]'")
     return names
 
 
 def check_params(name: str, params: dict) -> None:
-    """Refuse parameters a filter does not have, and any parameter for a peer."""
-    if name in FILTERS:
-        known = {d["name"] for d in FILTERS[name].Params.describe()}
-        bad = [k for k in params if k not in known]
-        if bad:
-            raise UsageError(f"{name} has no parameter {', '.join(bad)}; parameters: {', '.join(sorted(known))}")
-    elif params:
-        raise UsageError(f"peer {name} runs with its own defaults; it takes no parameters")
+    """Refuse parameters a filter does not have (a peer has only ``use_mag``)."""
+    cls = estimator_class(name)
+    known = {d["name"] for d in cls.Params.describe()}
+    bad = [k for k in params if k not in known]
+    if bad:
+        own = " (a peer runs at its own defaults)" if cls.peer else ""
+        raise UsageError(f"{name} has no parameter {', '.join(bad)}{own}; parameters: {', '.join(sorted(known))}")
 
 
 def estimate(
@@ -57,15 +55,10 @@ def estimate(
 ) -> FilterResult:
     """Run one estimator over ``rec``: a quadest filter with ``params``, or a peer at its own
     defaults. ``declination`` (rad) defaults to the recording's."""
-    name, params = filter_name(name), params or {}
+    cls, params = estimator_class(name), params or {}
+    check_params(cls.name, params)
     decl = rec.declination if declination is None else declination
-    if name in FILTERS:
-        check_params(name, params)
-        return make_filter(name, declination=decl, **params).run(rec)
-    if name in PEERS:
-        check_params(name, params)
-        return FilterResult(name, rec.t, run_peer(name, rec, use_mag=rec.has_mag, declination=decl), {}, None)
-    raise UsageError(f"unknown filter {name!r}; filters: {', '.join(FILTERS)}; peers: {', '.join(PEERS)}")
+    return cls(declination=decl, **params).run(rec)
 
 
 def filter_notes(res: FilterResult) -> list[str]:
@@ -82,7 +75,7 @@ def filter_notes(res: FilterResult) -> list[str]:
     return out
 
 
-def estimate_all(rec: Recording, names, params: dict | None = None, labels: dict | None = None) -> dict:
+def estimate_all(rec: Recording, names: Iterable[str], params: dict | None = None, labels: dict | None = None) -> dict:
     """``{label: FilterResult}`` of several estimators; ``params`` and ``labels`` by name."""
     params = params or {}
     return {(labels or {}).get(n, n): estimate(rec, n, params.get(n)) for n in names}
@@ -148,12 +141,12 @@ def score_result(rec: Recording, res: FilterResult, *, t_from: float | None = No
 
 def score(
     rec: Recording,
-    q,
+    q: np.ndarray,
     *,
     truth: str | None = None,
     nav: str | None = None,
     body: bool | None = None,
-    mask=None,
+    mask: np.ndarray | None = None,
     t_from: float | None = None,
     aligned: list | None = None,
 ) -> dict:

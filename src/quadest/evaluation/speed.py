@@ -8,9 +8,8 @@ import time
 
 import numpy as np
 
-from quadest.filters import FILTERS, make_filter
+from quadest.filters import estimator_class, make_filter
 from quadest.filters.base import STREAM_C
-from quadest.filters.peers import run_peer
 from quadest.recovery.logic import RecoveryParams, run_bank, shortest_arc
 from quadest.recovery.sphere import spread_points
 from quadest.rotation.frames import vec_frd_to_flu
@@ -49,11 +48,11 @@ def _peer_speed(name, rec) -> dict:
     """A peer's whole-recording call (best of two on up to 10 000 samples), and VQF's
     per-sample ``update`` from Python (the other peers' batch is that loop already)."""
     part = rec.select(slice(0, min(len(rec), 10000)))
-    run_peer(name, part.select(slice(0, 200)))  # warm-up
+    make_filter(name).run(part.select(slice(0, 200)))  # warm-up
     best = np.inf
     for _ in range(2):
         t0 = time.perf_counter()
-        run_peer(name, part)
+        make_filter(name).run(part)
         best = min(best, time.perf_counter() - t0)
     us = best / len(part) * 1e6
     stream = us
@@ -117,7 +116,7 @@ def benchmark_speed(names, duration: float = 60.0, on_result=None) -> dict:
     rec = simulate("damaged-rotor", "bebop2", seed=1, duration=duration)
     out = {}
     for name in names:
-        if name in FILTERS:
+        if not estimator_class(name).peer:
             tm = time_estimator(lambda n=name: make_filter(n, declination=0.035), rec)
             out[name] = {"batch_us": tm["batch_us"], "stream_us": tm["stream_us"]}
         else:

@@ -59,7 +59,7 @@ import numpy as np
 
 from quadest._jit import carray, njit
 from quadest.conventions import GRAVITY
-from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
+from quadest.filters.base import Estimator, Params, coefficient_offsets, params_record
 from quadest.filters.common import (
     BASE,
     Q_OUT,
@@ -76,10 +76,11 @@ from quadest.filters.common import (
     wrap_angle,
 )
 from quadest.filters.linalg import inv_spd_into
+from quadest.records import param
 from quadest.rotation.kernels import FASTMATH, normalize_s, qdot_s
 
 WMAX = 256  # longest averaging window of eq 53, samples
-S = layout(
+STATE = layout(
     ("q_up", 4),  # Kalman-channel quaternion q' (paper's z-up frame)
     ("P", 16),  # its covariance, row-major
     ("bias", 3),  # gyro bias, rad/s
@@ -90,104 +91,113 @@ S = layout(
     ("buf", 2 * WMAX),  # ring buffers of sin and cos of the fused yaw, WMAX values each
     start=BASE,
 )
-IQ, IP, IB, IPSI, IMREF, ISTART, IHEAD, IBUF = S.q_up, S.P, S.bias, S.psi, S.mag_ref, S.started, S.head, S.buf
+IQ, IP, IB, IPSI, IMREF, ISTART, IHEAD, IBUF = (
+    STATE.q_up,
+    STATE.P,
+    STATE.bias,
+    STATE.psi,
+    STATE.mag_ref,
+    STATE.started,
+    STATE.head,
+    STATE.buf,
+)
 
 
 @dataclass(frozen=True)
 class AfckfParams(Params):
-    use_mag: bool = P(True, "-", "use the magnetometer yaw channel", "quadest: 9-axis when samples are present")
-    omega1: float = P(
+    use_mag: bool = param(True, "-", "use the magnetometer yaw channel", "quadest: 9-axis when samples are present")
+    omega1: float = param(
         0.0,
         "m",
         "centrifugal constant ω1 of eq 13 (m/s² per (rad/s)²)",
         "calibration (eq 13): quadest calibrate centrifugal on a spinning segment",
     )
-    omega2: float = P(0.0, "m", "centrifugal constant ω2 of eq 13", "calibration (eq 13)")
-    beta: float = P(
+    omega2: float = param(0.0, "m", "centrifugal constant ω2 of eq 13", "calibration (eq 13)")
+    beta: float = param(
         1.5,
         "-",
         "step scale β > 1 of eq 24",
         "chosen: eq 24 requires β > 1; the paper gives no value",
         bounds="(0, 100]",
     )
-    gyro_std: float = P(0.01, "rad/s", "gyro noise σ_ω per sample (eq 27)", "bebop2 gyro noise", bounds="(0, 10]")
-    acc_std: float = P(
+    gyro_std: float = param(0.01, "rad/s", "gyro noise σ_ω per sample (eq 27)", "bebop2 gyro noise", bounds="(0, 10]")
+    acc_std: float = param(
         0.3, "m/s²", "accelerometer noise σ_acc per sample (eq 34)", "bebop2 accelerometer", bounds="(0, 100]"
     )
-    alpha_a: float = P(3.0, "-", "spread multiple α of eqs 37-38", "chosen: 3σ", bounds="(0, 100]")
-    omega_d: float = P(
+    alpha_a: float = param(3.0, "-", "spread multiple α of eqs 37-38", "chosen: 3σ", bounds="(0, 100]")
+    omega_d: float = param(
         0.005,
         "rad/s²",
         "bias drift rate ω_d; ρ = √(3/4) ω_d (eq 42)",
         "chosen: slow MEMS bias drift; the paper gives no value",
         bounds="[0, 10]",
     )
-    mag_std: float = P(
+    mag_std: float = param(
         0.5, "mag unit", "magnetometer noise σ_m per sample (eq 49)", "bebop2 magnetometer", bounds="(0, 1e9]"
     )
-    alpha_m: float = P(3.0, "-", "spread multiple α of eq 49", "chosen: 3σ", bounds="(0, 100]")
-    mag_norm: float = P(
+    alpha_m: float = param(3.0, "-", "spread multiple α of eq 49", "chosen: 3σ", bounds="(0, 100]")
+    mag_norm: float = param(
         0.0,
         "mag unit",
         "local field norm ‖b_e‖ (0: the first sample's norm)",
         "quadest: measured on the first sample unless given",
         bounds="[0, 1e9]",
     )
-    omega_sat: float = P(
+    omega_sat: float = param(
         np.radians(1000.0), "rad/s", "gyro yaw-rate saturation ω_ψ,sat (eq 48)", "bebop2 gyro range", bounds="(0, 1e3]"
     )
-    theta_m: float = P(
+    theta_m: float = param(
         10.0,
         "-",
         "membership curvature ϑ_m of eq 47",
         "chosen: a convex membership; the paper gives no value",
         bounds="(1, 1e6]",
     )
-    theta_w: float = P(10.0, "-", "membership curvature ϑ_ω of eq 48", "chosen: as ϑ_m", bounds="(1, 1e6]")
-    kappa_1: float = P(
+    theta_w: float = param(10.0, "-", "membership curvature ϑ_ω of eq 48", "chosen: as ϑ_m", bounds="(1, 1e6]")
+    kappa_1: float = param(
         0.01,
         "-",
         "κ when the field is clean and the rate low (per magnetometer sample)",
         "chosen: trust the gyro's yaw, a slow magnetometer pull",
         bounds="[0, 1]",
     )
-    kappa_2: float = P(
+    kappa_2: float = param(
         0.2,
         "-",
         "κ when the field is clean and the gyro near saturation",
         "chosen: lean on the magnetometer when the gyro clips",
         bounds="[0, 1]",
     )
-    kappa_3: float = P(
+    kappa_3: float = param(
         0.001, "-", "κ when the field is disturbed and the rate low", "chosen: ten times less than κ₁", bounds="[0, 1]"
     )
-    kappa_4: float = P(
+    kappa_4: float = param(
         0.02,
         "-",
         "κ when the field is disturbed and the gyro near saturation",
         "chosen: ten times less than κ₂",
         bounds="[0, 1]",
     )
-    iota: float = P(
+    iota: float = param(
         20.0,
         "samples",
         "window scale ι of eq 53 (at most 256)",
         "chosen: 40 ms of averaging at 500 Hz when not rotating",
         bounds="[1, 256]",
     )
-    p0: float = P(
+    p0: float = param(
         1.0,
         "-",
         "initial covariance P0 = p0·I ('large', §III AEKF)",
         "chosen: large against a unit quaternion's components",
         bounds="(0, 1e6]",
     )
-    gravity: float = P(GRAVITY, "m/s²", "|g| of eq 15", "standard gravity", bounds="(0, 100]")
+    gravity: float = param(GRAVITY, "m/s²", "|g| of eq 15", "standard gravity", bounds="(0, 100]")
 
 
-PR = Record = params_record(AfckfParams)
+PARAM = Record = params_record(AfckfParams)
 Coefficients = namedtuple("Coefficients", ["lam_a", "sa_g", "rho", "lam_m"])
-CO = coefficient_offsets(Coefficients)
+COEF = coefficient_offsets(Coefficients)
 
 
 def coefficients(p: AfckfParams) -> Coefficients:
@@ -251,7 +261,7 @@ def start_channels(x, p):
     """The channels start from the initial attitude (or the heading just set by the
     magnetometer): the Kalman channel's q' and P, the yaw and its averaging buffer."""
     x[IQ : IQ + 4] = _to_up(x[0:4])
-    P0 = np.eye(4) * p[PR.p0]
+    P0 = np.eye(4) * p[PARAM.p0]
     x[IP : IP + 16] = P0.ravel()
     x[IPSI] = q_to_euler(x[0:4])[2]
     s0, c0 = np.sin(x[IPSI]), np.cos(x[IPSI])
@@ -301,7 +311,7 @@ def accelerometer_update(x, P, p, c, acc, q, w2, qdot_norm, dt):
     an = norm3(acc) if finite3(acc) else 0.0
     if an <= 0.0:
         return pw, px, py, pz, mu, 1.0
-    grav, om1, om2 = p[PR.gravity], p[PR.omega1], p[PR.omega2]
+    grav, om1, om2 = p[PARAM.gravity], p[PARAM.omega1], p[PARAM.omega2]
     # A. eqs 13-15: centrifugal compensation about body z, normalised by g
     wz2 = w2 * w2
     a0 = (acc[0] - wz2 * om1) / grav
@@ -316,18 +326,18 @@ def accelerometer_update(x, P, p, c, acc, q, w2, qdot_norm, dt):
     g2 = J0[2] * f0 + J1[2] * f1 + J2[2] * f2
     g3 = J0[3] * f0 + J1[3] * f1 + J2[3] * f2
     gn = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2 + g3 * g3)
-    mu = p[PR.beta] * qdot_norm * dt  # eq 24
-    if not (abs(xi_a) <= c[CO.lam_a] and gn > 0.0 and mu > 0.0):  # eq 38, corrected
+    mu = p[PARAM.beta] * qdot_norm * dt  # eq 24
+    if not (abs(xi_a) <= c[COEF.lam_a] and gn > 0.0 and mu > 0.0):  # eq 38, corrected
         return pw, px, py, pz, mu, 1.0
     # eq 33, corrected: R = μ²/‖∇f‖² J_gᵀ (Σ_acc/g)² J_g; the innovation −μ ∇f/‖∇f‖ (eq 23)
-    sa_g = c[CO.sa_g]
+    sa_g = c[COEF.sa_g]
     s_ = -mu / gn
     nw, nx, ny, nz = kalman_update(
         P, J0, J1, J2, mu * mu / (gn * gn) * sa_g * sa_g, (pw, px, py, pz), (s_ * g0, s_ * g1, s_ * g2, s_ * g3)
     )
     # D. eqs 40-42: bias by integral feedback (sign corrected), from the measured and
     # predicted up directions a_cor and v̂ = Rᵀ ĝ (v̂ = f_g + a_cor)
-    rho = c[CO.rho]
+    rho = c[COEF.rho]
     vx, vy, vz = f0 + a0, f1 + a1, f2 + a2
     x[IB] -= rho * (a1 * vz - a2 * vy) * dt
     x[IB + 1] -= rho * (a2 * vx - a0 * vz) * dt
@@ -361,21 +371,21 @@ def yaw_channel(x, p, c, gyr, mag, use_mag, b, w1, w2, dt):
     if use_mag and finite3(mag) and norm3(mag) > 0.0:
         mn = norm3(mag)
         if x[IMREF] == 0.0:
-            x[IMREF] = p[PR.mag_norm] if p[PR.mag_norm] > 0.0 else mn
-        lam_m = c[CO.lam_m]  # eq 49
+            x[IMREF] = p[PARAM.mag_norm] if p[PARAM.mag_norm] > 0.0 else mn
+        lam_m = c[COEF.lam_m]  # eq 49
         rho_m = min(abs(mn - x[IMREF]), lam_m)  # eq 50 (text's definition)
-        w_abs = min(abs(gyr[2]) if finite3(gyr) else 0.0, p[PR.omega_sat])
+        w_abs = min(abs(gyr[2]) if finite3(gyr) else 0.0, p[PARAM.omega_sat])
         kappa = fuzzy_gain(
             rho_m,
             lam_m,
             w_abs,
-            p[PR.omega_sat],
-            p[PR.theta_m],
-            p[PR.theta_w],
-            p[PR.kappa_1],
-            p[PR.kappa_2],
-            p[PR.kappa_3],
-            p[PR.kappa_4],
+            p[PARAM.omega_sat],
+            p[PARAM.theta_m],
+            p[PARAM.theta_w],
+            p[PARAM.kappa_1],
+            p[PARAM.kappa_2],
+            p[PARAM.kappa_3],
+            p[PARAM.kappa_4],
         )
         roll = np.arctan2(r21, r22)
         pitch = np.arcsin(min(1.0, max(-1.0, -r20)))
@@ -392,7 +402,7 @@ def averaged_heading(x, p, psi, psi_dot):
     x[IBUF + head] = np.sin(psi)
     x[IBUF + WMAX + head] = np.cos(psi)
     x[IHEAD] = (head + 1) % WMAX
-    win = int(round(min(p[PR.iota], WMAX) * np.exp(-abs(psi_dot))))
+    win = int(round(min(p[PARAM.iota], WMAX) * np.exp(-abs(psi_dot))))
     win = max(1, min(win, WMAX))
     ss = 0.0
     cs = 0.0
@@ -410,7 +420,7 @@ def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
     for i in range(7):
         diag[i] = 0.0
     pending = x[YAW_PENDING] != 0.0
-    if not prepare(x, acc, mag, p[PR.use_mag] != 0.0):
+    if not prepare(x, acc, mag, p[PARAM.use_mag] != 0.0):
         return
     if x[ISTART] == 0.0 or (pending and x[YAW_PENDING] == 0.0):
         start_channels(x, p)
@@ -427,7 +437,7 @@ def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
     qdot_norm = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2 + d3 * d3)
     q_w = normalize_s(qw + d0 * dt, qx + d1 * dt, qy + d2 * dt, qz + d3 * dt)
     # eq 31, corrected: P⁻ = P + Δt²/4 σ² Ξ(q) Ξ(q)ᵀ (Φ = Λ = I)
-    sg = p[PR.gyro_std]
+    sg = p[PARAM.gyro_std]
     add_process_noise(P, qw, qx, qy, qz, dt * dt / 4.0 * sg * sg)
     nw, nx, ny, nz, mu, r_off = accelerometer_update(x, P, p, c, acc, q_w, w2, qdot_norm, dt)
     symmetrize(P)
@@ -436,7 +446,7 @@ def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
     x[IQ], x[IQ + 1], x[IQ + 2], x[IQ + 3] = nw, nx, ny, nz
     # the Kalman channel's q_nb = q_F* ⊗ q' = [q'x, −q'w, q'z, −q'y]; its roll and pitch are the estimate's
     bw, bx, by, bz = nx, -nw, nz, -ny
-    psi, psi_dot, kappa = yaw_channel(x, p, c, gyr, mag, p[PR.use_mag] != 0.0, (bw, bx, by, bz), w1, w2, dt)
+    psi, psi_dot, kappa = yaw_channel(x, p, c, gyr, mag, p[PARAM.use_mag] != 0.0, (bw, bx, by, bz), w1, w2, dt)
     x[IPSI] = psi
     yaw, win = averaged_heading(x, p, psi, psi_dot)
     # output: roll and pitch of the Kalman channel, yaw of the yaw channel — the Kalman
@@ -485,7 +495,7 @@ class Afckf(Estimator):
     Params = AfckfParams
     Record = Record
     coefficients = staticmethod(coefficients)
-    state_size = S.end
+    state_size = STATE.end
     diag_names = ("kappa", "mu", "r_off", "window", "bias_x", "bias_y", "bias_z")
     step = staticmethod(afckf_step)
     batch = staticmethod(afckf_run)

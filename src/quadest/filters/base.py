@@ -3,12 +3,12 @@
 An estimator module defines (docs/developing.md, adding an estimator):
 
 - a frozen ``Params`` dataclass (unit, default and source in each field's metadata);
-- ``PR = Record = params_record(Params)``: the offsets by which the compiled step reads its
-  parameters by name from a float64 array (``p[PR.beta]``; flags are 0 / 1), so the order of
+- ``PARAM = Record = params_record(Params)``: the offsets by which the compiled step reads its
+  parameters by name from a float64 array (``p[PARAM.beta]``; flags are 0 / 1), so the order of
   the fields never matters;
-- optionally a ``Coefficients`` namedtuple, ``CO = coefficient_offsets(Coefficients)`` and
+- optionally a ``Coefficients`` namedtuple, ``COEF = coefficient_offsets(Coefficients)`` and
   ``coefficients(params)``: constants derived from the parameters, computed once when the
-  estimator is built, not at every step, read as ``c[CO.r_acc]``;
+  estimator is built, not at every step, read as ``c[COEF.r_acc]``;
 - its state layout (:func:`quadest.filters.common.layout`), the names of its per-sample
   diagnostics;
 - a compiled ``step(x, p, c, gyr, acc, mag, dt, diag)`` that is its single implementation, a
@@ -31,18 +31,20 @@ from __future__ import annotations
 import math
 from collections import namedtuple
 from dataclasses import dataclass, fields, replace
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from quadest._jit import cfunc, types
 from quadest.errors import UsageError
 from quadest.filters.common import BASE, DECL, INIT, Q_OUT, RESTARTS, SKIPPED, T_LAST
-from quadest.records import check, describe, param
+from quadest.records import check, describe
 from quadest.rotation import quat_mul, quat_to_euler
 from quadest.rotation.kernels import qmul
 
-P = param  # a parameter: default, unit, meaning and source (quadest.records)
+if TYPE_CHECKING:
+    from quadest.data.recording import Recording
 
 
 @dataclass(frozen=True)
@@ -64,14 +66,14 @@ class Params:
 
 def field_offsets(names, typename: str = "Offsets"):
     """``{name: index}`` as a namedtuple instance: the offsets of named values in a float64
-    array, read as constants by compiled code (``p[PR.beta]``), like a state layout."""
+    array, read as constants by compiled code (``p[PARAM.beta]``), like a state layout."""
     return namedtuple(typename, list(names))(*range(len(names)))
 
 
 def params_record(params_cls):
     """The offsets of a parameter record's fields in the float64 array the compiled step reads
-    them from by name (``p[PR.beta]``, so the order of the fields never matters). Assign it at
-    module level (``PR = Record = params_record(MyParams)``).
+    them from by name (``p[PARAM.beta]``, so the order of the fields never matters). Assign it at
+    module level (``PARAM = Record = params_record(MyParams)``).
 
     An array, not a namedtuple, because a streaming call unboxes every argument: a namedtuple
     of 35 floats costs about 0.3 µs a call, an array about 0.04 µs."""
@@ -80,7 +82,7 @@ def params_record(params_cls):
 
 def coefficient_offsets(coefficients_cls):
     """The offsets of a ``Coefficients`` namedtuple's fields in the float64 array the compiled
-    step reads them from (``c[CO.r_acc]``)."""
+    step reads them from (``c[COEF.r_acc]``)."""
     return field_offsets(coefficients_cls._fields, "CoefficientOffsets")
 
 
@@ -96,7 +98,7 @@ NoCoefficients = namedtuple("NoCoefficients", [])
 NO_COEFFICIENTS = NoCoefficients()
 
 
-def no_coefficients(params) -> NoCoefficients:
+def no_coefficients(params: Params) -> NoCoefficients:
     return NO_COEFFICIENTS
 
 
@@ -147,9 +149,14 @@ class Estimator:
     """Base class: subclasses set ``name``, ``Params``, ``Record``, ``state_size``,
     ``diag_names``, ``step`` and ``batch`` (compiled functions), ``stream`` (the step on raw
     buffers, for the C call; without it streaming runs through Python), optionally
-    ``coefficients``, and may override :meth:`_init_state`."""
+    ``coefficients``, and may override :meth:`_init_state`. The peers
+    (:class:`quadest.filters.peers.Peer`) are subclasses too, without a compiled step."""
 
     name = "estimator"
+    peer = False
+    """True for another package's estimator run through quadest (:mod:`quadest.filters.peers`)."""
+    streaming = True
+    """Whether it has a per-sample :meth:`update` (so it can fly in the closed loop)."""
     Params = Params
     Record = None
     coefficients = staticmethod(no_coefficients)
@@ -163,11 +170,26 @@ class Estimator:
         self,
         params: Params | None = None,
         *,
-        q0=None,
+        q0: ArrayLike | None = None,
         declination: float = 0.0,
         max_gap_s: float | None = None,
         **overrides,
     ):
+        params = self._checked(params, declination, overrides)
+        self._s = np.array([0.01, STREAM_GAP_S])  # streaming: the last interval, the longest (C reads both)
+        self.max_gap_s = max_gap_s
+        self.params = params
+        values = params.values()
+        self._p = pack(values[f] for f in self.Record._fields)  # read by name in compiled code
+        self._c = pack(type(self).coefficients(replace(params, **values)))  # derived once, not every step
+        self.declination = float(declination)
+        self._call_step = self._first_step
+        self._q0 = None if q0 is None else np.asarray(q0, float) / np.linalg.norm(q0)
+        self._diag = np.zeros(max(1, len(self.diag_names)))
+        self.reset()
+
+    def _checked(self, params, declination, overrides) -> Params:
+        """The parameter record with ``overrides`` applied, checked, and the declination checked."""
         params = params if params is not None else self.Params()
         if overrides:
             names = {f.name for f in fields(params)}
@@ -180,17 +202,12 @@ class Estimator:
         check(params, self.name)
         if not math.isfinite(declination):
             raise UsageError(f"{self.name}: declination must be a finite angle in rad, got {float(declination)!r}")
-        self._s = np.array([0.01, STREAM_GAP_S])  # streaming: the last interval, the longest (C reads both)
-        self.max_gap_s = max_gap_s
-        self.params = params
-        values = params.values()
-        self._p = pack(values[f] for f in self.Record._fields)  # read by name in compiled code
-        self._c = pack(type(self).coefficients(replace(params, **values)))  # derived once, not every step
-        self.declination = float(declination)
-        self._call_step = self._first_step
-        self._q0 = None if q0 is None else np.asarray(q0, float) / np.linalg.norm(q0)
-        self._diag = np.zeros(max(1, len(self.diag_names)))
-        self.reset()
+        return params
+
+    @classmethod
+    def available(cls) -> bool:
+        """Whether it can run here (a peer needs its package)."""
+        return True
 
     # -- state ----------------------------------------------------------------------------
     def compiled(self) -> CompiledEstimator:
@@ -204,7 +221,7 @@ class Estimator:
     def _init_state(self, x: np.ndarray) -> None:
         """Estimator-specific initial values of ``x[BASE:]`` (zeros by default)."""
 
-    def reset(self, q0=None):
+    def reset(self, q0: ArrayLike | None = None) -> None:
         """Back to the initial state (attitude from ``q0`` or from the first samples)."""
         if q0 is not None:
             self._q0 = np.asarray(q0, float) / np.linalg.norm(q0)
@@ -250,7 +267,7 @@ class Estimator:
         """A copy of the whole state (attitude, flags and estimator-specific parts)."""
         return self._x.copy()
 
-    def set_state(self, x) -> None:
+    def set_state(self, x: ArrayLike) -> None:
         x = np.asarray(x, dtype=np.float64)
         if x.shape != (self.state_size,):
             raise ValueError(f"{self.name}: state must have shape ({self.state_size},), got {x.shape}")
@@ -278,7 +295,7 @@ class Estimator:
         return self._qv.copy()
 
     # -- use ------------------------------------------------------------------------------
-    def update(self, gyr, acc, mag=None, *, dt: float) -> np.ndarray:
+    def update(self, gyr: ArrayLike, acc: ArrayLike, mag: ArrayLike | None = None, *, dt: float) -> np.ndarray:
         """One sample: gyroscope (rad/s), accelerometer (m/s²), magnetometer (any unit or None),
         time since the previous sample (s). Returns the attitude ``q_nb``. An unusable sample
         (non-finite or absurd value, ``dt`` not positive) is skipped and counted
@@ -349,7 +366,15 @@ class Estimator:
         """Diagnostics of the last streaming step, by name."""
         return {n: float(self._diag[i]) for i, n in enumerate(self.diag_names)}
 
-    def run(self, rec=None, *, t=None, gyr=None, acc=None, mag=None) -> FilterResult:
+    def run(
+        self,
+        rec: Recording | None = None,
+        *,
+        t: ArrayLike | None = None,
+        gyr: ArrayLike | None = None,
+        acc: ArrayLike | None = None,
+        mag: ArrayLike | None = None,
+    ) -> FilterResult:
         """Run over a whole recording (or arrays) in compiled code, continuing from the current
         state. Returns the attitude per sample and the diagnostics."""
         if rec is not None:

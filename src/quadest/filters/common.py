@@ -21,7 +21,7 @@ def layout(*slots, start: int = 0):
     """Offsets of the named slots of a state vector, declared once:
     ``layout(("P", 16), ("bias", 3), start=BASE)`` gives ``.P == BASE``, ``.bias == BASE + 16``
     and ``.end`` (one past the last slot: the state size). Compiled code reads the offsets as
-    constants (``x[S.bias]``)."""
+    constants (``x[STATE.bias]``)."""
     names, offsets = [], []
     at = start
     for name, size in slots:

@@ -21,7 +21,7 @@ from quadest.filters.base import Estimator, params_record
 from quadest.filters.common import Q_OUT, admit, finite3, omega_matrix, prepare, publish
 from quadest.filters.linalg import inv_spd, mm, mm_t, mv
 from quadest.filters.quatmeas import measurement_quaternion
-from quadest.filters.qukf import PB, QukfParams, S, coefficients, noise
+from quadest.filters.qukf import PB, STATE, QukfParams, coefficients, noise
 from quadest.rotation.kernels import FASTMATH
 
 
@@ -30,14 +30,14 @@ class EkfParams(QukfParams):
     """The QUKF's parameters; λ, α and β are unused."""
 
 
-PR = Record = params_record(EkfParams)
+PARAM = Record = params_record(EkfParams)
 
 
 @njit(cache=True, fastmath=FASTMATH)
 def ekf_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
-    use_mag = p[PR.use_mag] != 0.0
+    use_mag = p[PARAM.use_mag] != 0.0
     diag[0] = 0.0
     if not prepare(x, acc, mag, use_mag):
         return
@@ -93,7 +93,7 @@ class Ekf(Estimator):
     Params = EkfParams
     Record = Record
     coefficients = staticmethod(coefficients)
-    state_size = S.end
+    state_size = STATE.end
     diag_names = ("updated", "trace_p")
     step = staticmethod(ekf_step)
     batch = staticmethod(ekf_run)

@@ -18,27 +18,28 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadest._jit import carray, njit
-from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
+from quadest.filters.base import Estimator, Params, coefficient_offsets, params_record
 from quadest.filters.common import BASE, Q_OUT, admit, finite3, gravity_objective, norm3, prepare, publish
+from quadest.records import param
 from quadest.rotation.kernels import normalize_s, qdot_s, rotate_s
 
 
 @dataclass(frozen=True)
 class MadgwickParams(Params):
-    use_mag: bool = P(
+    use_mag: bool = param(
         True,
         "-",
         "use the magnetometer (MARG form) when samples are present",
         "quadest: 9-axis when samples are present",
     )
-    beta_marg: float = P(
+    beta_marg: float = param(
         0.041,
         "-",
         "gradient-descent gain β in the MARG form",
         "Madgwick 2010 report / reference implementation",
         bounds="[0, 10]",
     )
-    beta_imu: float = P(
+    beta_imu: float = param(
         0.033,
         "-",
         "gradient-descent gain β in the IMU (6-axis) form",
@@ -47,9 +48,9 @@ class MadgwickParams(Params):
     )
 
 
-PR = Record = params_record(MadgwickParams)
+PARAM = Record = params_record(MadgwickParams)
 Coefficients = namedtuple("Coefficients", ["beta"])
-CO = coefficient_offsets(Coefficients)
+COEF = coefficient_offsets(Coefficients)
 
 
 def coefficients(params: MadgwickParams) -> Coefficients:
@@ -61,11 +62,11 @@ def coefficients(params: MadgwickParams) -> Coefficients:
 def madgwick_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
-    use_mag = p[PR.use_mag] != 0.0
+    use_mag = p[PARAM.use_mag] != 0.0
     diag[0] = 0.0
     if not prepare(x, acc, mag, use_mag):
         return
-    beta = c[CO.beta]
+    beta = c[COEF.beta]
     # the paper's z-up frame: q' = q_F ⊗ q_nb = [−x, w, −z, y]
     qw, qx, qy, qz = -x[1], x[0], -x[3], x[2]
     # eq 12: q̇_ω = ½ q ⊗ [0, ω]

@@ -17,23 +17,24 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadest._jit import carray, njit
-from quadest.filters.base import Estimator, P, Params, params_record
+from quadest.filters.base import Estimator, Params, params_record
 from quadest.filters.common import BASE, Q_OUT, admit, finite3, layout, norm3, prepare, publish
+from quadest.records import param
 from quadest.rotation.kernels import normalize_s, qdot_s, rotate_inv_s, rotate_s
 
-S = layout(("bias", 3), start=BASE)  # gyro bias estimate
-B = S.bias
+STATE = layout(("bias", 3), start=BASE)  # gyro bias estimate
+BIAS = STATE.bias
 
 
 @dataclass(frozen=True)
 class MahonyParams(Params):
-    use_mag: bool = P(
+    use_mag: bool = param(
         True, "-", "use the magnetometer when samples are present", "quadest: 9-axis when samples are present"
     )
-    k_p: float = P(
+    k_p: float = param(
         1.0, "rad/s", "proportional gain k_P", "Mahony et al. 2008, experiments (k_P = 1)", bounds="[0, 1e3]"
     )
-    k_i: float = P(
+    k_i: float = param(
         0.3,
         "rad/s²",
         "integral gain k_I of the bias feedback",
@@ -42,16 +43,16 @@ class MahonyParams(Params):
     )
 
 
-PR = Record = params_record(MahonyParams)
+PARAM = Record = params_record(MahonyParams)
 
 
 @njit(cache=True)
 def mahony_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
-    use_mag = p[PR.use_mag] != 0.0
-    kp, ki = p[PR.k_p], p[PR.k_i]
-    diag[0], diag[1], diag[2], diag[3] = x[B], x[B + 1], x[B + 2], 0.0
+    use_mag = p[PARAM.use_mag] != 0.0
+    kp, ki = p[PARAM.k_p], p[PARAM.k_i]
+    diag[0], diag[1], diag[2], diag[3] = x[BIAS], x[BIAS + 1], x[BIAS + 2], 0.0
     if not prepare(x, acc, mag, use_mag):
         return
     qw, qx, qy, qz = x[0], x[1], x[2], x[3]
@@ -80,17 +81,17 @@ def mahony_step(x, p, c, gyr, acc, mag, dt, diag):
                 e2 += mx * wy - my * wx
                 diag[3] = 2.0
         # eq 48c: ḃ = −k_I ω_mes
-        x[B] -= ki * e0 * dt
-        x[B + 1] -= ki * e1 * dt
-        x[B + 2] -= ki * e2 * dt
+        x[BIAS] -= ki * e0 * dt
+        x[BIAS + 1] -= ki * e1 * dt
+        x[BIAS + 2] -= ki * e2 * dt
     g0, g1, g2 = (gyr[0], gyr[1], gyr[2]) if finite3(gyr) else (0.0, 0.0, 0.0)
     # eq 48b: ω − b + k_P ω_mes
-    w0 = g0 - x[B] + kp * e0
-    w1 = g1 - x[B + 1] + kp * e1
-    w2 = g2 - x[B + 2] + kp * e2
+    w0 = g0 - x[BIAS] + kp * e0
+    w1 = g1 - x[BIAS + 1] + kp * e1
+    w2 = g2 - x[BIAS + 2] + kp * e2
     d0, d1, d2, d3 = qdot_s(qw, qx, qy, qz, w0, w1, w2)
     x[0], x[1], x[2], x[3] = normalize_s(qw + dt * d0, qx + dt * d1, qy + dt * d2, qz + dt * d3)
-    diag[0], diag[1], diag[2] = x[B], x[B + 1], x[B + 2]
+    diag[0], diag[1], diag[2] = x[BIAS], x[BIAS + 1], x[BIAS + 2]
     publish(x)
 
 
@@ -127,7 +128,7 @@ class Mahony(Estimator):
     name = "mahony"
     Params = MahonyParams
     Record = Record
-    state_size = S.end
+    state_size = STATE.end
     diag_names = ("bias_x", "bias_y", "bias_z", "correction")
     step = staticmethod(mahony_step)
     batch = staticmethod(mahony_run)

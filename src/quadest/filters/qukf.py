@@ -23,48 +23,49 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadest._jit import carray, njit
-from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
+from quadest.filters.base import Estimator, Params, coefficient_offsets, params_record
 from quadest.filters.common import BASE, Q_OUT, admit, finite3, layout, omega_matrix, prepare, publish
 from quadest.filters.linalg import inv_spd_into
 from quadest.filters.quatmeas import measurement_quaternion
+from quadest.records import param
 from quadest.rotation.kernels import FASTMATH
 
-S = layout(("P", 16), start=BASE)  # covariance P, row-major
-PB = S.P
+STATE = layout(("P", 16), start=BASE)  # covariance P, row-major
+PB = STATE.P
 
 
 @dataclass(frozen=True)
 class QukfParams(Params):
-    use_mag: bool = P(
+    use_mag: bool = param(
         True, "-", "use the magnetometer heading in the measurement", "quadest: 9-axis when samples are present"
     )
-    lam: float = P(-1.0, "-", "sigma-point scaling λ", "Liang et al. 2023, section IV", bounds="(-4, 1e3]")
-    alpha: float = P(1.0, "-", "spread α", "Liang et al. 2023, section IV", bounds="(0, 10]")
-    beta: float = P(2.0, "-", "prior-distribution parameter β", "Liang et al. 2023, section IV", bounds="[0, 100]")
-    s: float = P(
+    lam: float = param(-1.0, "-", "sigma-point scaling λ", "Liang et al. 2023, section IV", bounds="(-4, 1e3]")
+    alpha: float = param(1.0, "-", "spread α", "Liang et al. 2023, section IV", bounds="(0, 10]")
+    beta: float = param(2.0, "-", "prior-distribution parameter β", "Liang et al. 2023, section IV", bounds="[0, 100]")
+    s: float = param(
         0.001, "-", "process noise S = s·I per reference step", "Liang et al. 2023, section IV", bounds="(0, 1e6]"
     )
-    r: float = P(
+    r: float = param(
         0.05, "-", "measurement noise R = r·I per reference step", "Liang et al. 2023, section IV", bounds="(0, 1e6]"
     )
-    p0: float = P(
+    p0: float = param(
         1.0,
         "-",
         "initial covariance P0 = p0·I",
         "chosen: large against a unit quaternion's components (the paper gives none)",
         bounds="(0, 1e6]",
     )
-    rate_ref_hz: float = P(
+    rate_ref_hz: float = param(
         20.0, "Hz", "rate at which s and r are given", "Liang et al. 2023 (20 Hz)", bounds="(0, 1e6]"
     )
-    scale_with_rate: bool = P(
+    scale_with_rate: bool = param(
         True, "-", "scale s by dt/T and r by T/dt", "quadest: keeps the paper's time constants at any rate (module doc)"
     )
 
 
-PR = Record = params_record(QukfParams)
+PARAM = Record = params_record(QukfParams)
 Coefficients = namedtuple("Coefficients", ["wm0", "wc0", "wi", "T"])
-CO = coefficient_offsets(Coefficients)
+COEF = coefficient_offsets(Coefficients)
 
 
 def coefficients(p: QukfParams) -> Coefficients:
@@ -81,9 +82,9 @@ def coefficients(p: QukfParams) -> Coefficients:
 def noise(p, c, dt):
     """Per-step process and measurement noise (the paper's S and R; Q and R here) at interval
     dt (module doc)."""
-    if p[PR.scale_with_rate] != 0.0 and dt > 0.0:
-        return p[PR.s] * dt / c[CO.T], p[PR.r] * c[CO.T] / dt
-    return p[PR.s], p[PR.r]
+    if p[PARAM.scale_with_rate] != 0.0 and dt > 0.0:
+        return p[PARAM.s] * dt / c[COEF.T], p[PARAM.r] * c[COEF.T] / dt
+    return p[PARAM.s], p[PARAM.r]
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -148,7 +149,7 @@ def _ut_cov(A, ma, B, mb, w0, wi, C):
 def qukf_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
-    use_mag = p[PR.use_mag] != 0.0
+    use_mag = p[PARAM.use_mag] != 0.0
     diag[0] = 0.0
     if not prepare(x, acc, mag, use_mag):
         return
@@ -167,9 +168,9 @@ def qukf_step(x, p, c, gyr, acc, mag, dt, diag):
     Minv = W[168:184].reshape((4, 4))
     Xp = W[184:188]
     Zh = W[188:192]
-    wm0, wc0, wi = c[CO.wm0], c[CO.wc0], c[CO.wi]  # eq 21, corrected (coefficients)
+    wm0, wc0, wi = c[COEF.wm0], c[COEF.wc0], c[COEF.wi]  # eq 21, corrected (coefficients)
     # eq 20: 2n + 1 sigma points; eq 22: through the process model F = I + T/2 Ω(ω)
-    _chol_scaled(P, n + p[PR.lam], L)
+    _chol_scaled(P, n + p[PARAM.lam], L)
     _sigma(x[0:4], L, sig)
     if finite3(gyr):
         F = omega_matrix(gyr, dt)
@@ -185,7 +186,7 @@ def qukf_step(x, p, c, gyr, acc, mag, dt, diag):
         Pp[i, i] += Q
     z, ok = measurement_quaternion(acc, mag, Xp, use_mag)
     if ok:
-        _chol_scaled(Pp, n + p[PR.lam], L)
+        _chol_scaled(Pp, n + p[PARAM.lam], L)
         _sigma(Xp, L, sig)  # eq 25; eq 26: Z_i = H X̃_i = X̃_i
         _ut_mean(sig, wm0, wi, Zh)  # eq 27
         _ut_cov(sig, Zh, sig, Zh, wc0, wi, Pzz)  # eq 28
@@ -257,7 +258,7 @@ class Qukf(Estimator):
     Params = QukfParams
     Record = Record
     coefficients = staticmethod(coefficients)
-    state_size = S.end
+    state_size = STATE.end
     diag_names = ("updated", "trace_p")
     step = staticmethod(qukf_step)
     batch = staticmethod(qukf_run)

@@ -31,12 +31,13 @@ import numpy as np
 
 from quadest._jit import carray, njit
 from quadest.conventions import GRAVITY
-from quadest.filters.base import Estimator, P, Params, coefficient_offsets, params_record
+from quadest.filters.base import Estimator, Params, coefficient_offsets, params_record
 from quadest.filters.common import BASE, Q_OUT, admit, finite3, layout, norm3, prepare, publish
 from quadest.filters.linalg import inv_spd, mm, mm_t, mv
+from quadest.records import param
 from quadest.rotation.kernels import FASTMATH, qexp, qexp_right, rot_matrix, skew
 
-S = layout(
+STATE = layout(
     ("bias", 3),  # gyro bias, rad/s
     ("dist", 3),  # magnetic disturbance, navigation frame, in reference-field units
     ("ref", 3),  # unit reference field, navigation frame
@@ -44,58 +45,60 @@ S = layout(
     ("P", 81),  # error covariance (orientation, bias, disturbance), row-major
     start=BASE,
 )
-IB, ID, IREF, INORM, IP = S.bias, S.dist, S.ref, S.norm, S.P
+IB, ID, IREF, INORM, IP = STATE.bias, STATE.dist, STATE.ref, STATE.norm, STATE.P
 
 
 @dataclass(frozen=True)
 class RoetenbergParams(Params):
-    use_mag: bool = P(
+    use_mag: bool = param(
         True, "-", "use the magnetometer when samples are present", "quadest: 9-axis when samples are present"
     )
-    gyro_noise: float = P(
+    gyro_noise: float = param(
         0.01, "rad/s", "gyroscope white noise std per sample", "chosen: the bebop2 preset's gyro", bounds="(0, 10]"
     )
-    bias_rw: float = P(2e-4, "rad/s/√s", "gyro bias random walk", "chosen: the bebop2 preset's gyro", bounds="[0, 1]")
-    acc_noise: float = P(
+    bias_rw: float = param(
+        2e-4, "rad/s/√s", "gyro bias random walk", "chosen: the bebop2 preset's gyro", bounds="[0, 1]"
+    )
+    acc_noise: float = param(
         0.3,
         "m/s²",
         "accelerometer white noise std per sample",
         "chosen: the bebop2 preset's accelerometer",
         bounds="(0, 100]",
     )
-    lin_acc: float = P(
+    lin_acc: float = param(
         3.0,
         "m/s²",
         "std of the unmodelled acceleration, added to the accelerometer noise",
         "chosen on simulator seed 11 (not a checked seed); Roetenberg's values are not among quadest's sources",
         bounds="[0, 100]",
     )
-    mag_noise: float = P(
+    mag_noise: float = param(
         0.02,
         "-",
         "magnetometer noise std, in units of the reference field",
         "chosen: about 1 µT of a 49 µT field",
         bounds="(0, 10]",
     )
-    dist_std: float = P(
+    dist_std: float = param(
         0.02,
         "-",
         "steady-state std of the magnetic disturbance (reference-field units)",
         "chosen on simulator seed 11",
         bounds="[0, 10]",
     )
-    dist_tau_s: float = P(
+    dist_tau_s: float = param(
         0.2, "s", "correlation time τ_d of the magnetic disturbance", "chosen on simulator seed 11", bounds="[0, 1e6]"
     )
-    gravity: float = P(GRAVITY, "m/s²", "gravity", "standard gravity", bounds="(0, 100]")
-    p0_att: float = P(
+    gravity: float = param(GRAVITY, "m/s²", "gravity", "standard gravity", bounds="(0, 100]")
+    p0_att: float = param(
         0.01,
         "rad²",
         "initial orientation error variance",
         "chosen: about 6° (the first sample's attitude is close)",
         bounds="(0, 10]",
     )
-    p0_bias: float = P(
+    p0_bias: float = param(
         1e-4,
         "(rad/s)²",
         "initial gyro bias variance",
@@ -104,9 +107,9 @@ class RoetenbergParams(Params):
     )
 
 
-PR = Record = params_record(RoetenbergParams)
+PARAM = Record = params_record(RoetenbergParams)
 Coefficients = namedtuple("Coefficients", ["r_acc", "r_mag"])
-CO = coefficient_offsets(Coefficients)
+COEF = coefficient_offsets(Coefficients)
 
 
 def coefficients(p: RoetenbergParams) -> Coefficients:
@@ -141,8 +144,14 @@ def _update(x, P, r, H, Rm, v_free, constrain):
 def roetenberg_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
-    use_mag = p[PR.use_mag] != 0.0
-    sg, sb, sd, tau, grav = p[PR.gyro_noise], p[PR.bias_rw], p[PR.dist_std], p[PR.dist_tau_s], p[PR.gravity]
+    use_mag = p[PARAM.use_mag] != 0.0
+    sg, sb, sd, tau, grav = (
+        p[PARAM.gyro_noise],
+        p[PARAM.bias_rw],
+        p[PARAM.dist_std],
+        p[PARAM.dist_tau_s],
+        p[PARAM.gravity],
+    )
     diag[0] = diag[4] = 0.0
     if not prepare(x, acc, mag, use_mag):
         return
@@ -176,7 +185,7 @@ def roetenberg_step(x, p, c, gyr, acc, mag, dt, diag):
         # quadest's extension for 6-axis use (docs/estimators.md): without a magnetometer the
         # heading and the bias about the vertical are unobservable, and the accelerometer must
         # not correct them through their correlation with tilt (it drove the heading away)
-        _update(x, P, r, H, np.eye(3) * c[CO.r_acc], v, not use_mag or x[INORM] == 0.0)
+        _update(x, P, r, H, np.eye(3) * c[COEF.r_acc], v, not use_mag or x[INORM] == 0.0)
         diag[0] = 1.0
     # -- magnetometer: m/|m_ref| = Rᵀ (m_ref + d) ----------------------------------------------
     if use_mag and finite3(mag) and norm3(mag) > 0.0:
@@ -202,7 +211,7 @@ def roetenberg_step(x, p, c, gyr, acc, mag, dt, diag):
             H = np.zeros((3, 9))
             H[:, 0:3] = skew(h)
             H[:, 6:9] = R.T
-            _update(x, P, r, H, np.eye(3) * c[CO.r_mag], h, False)
+            _update(x, P, r, H, np.eye(3) * c[COEF.r_mag], h, False)
             diag[4] = 1.0
     x[IP : IP + 81] = (0.5 * (P + P.T)).ravel()
     diag[1], diag[2], diag[3] = x[IB], x[IB + 1], x[IB + 2]
@@ -244,7 +253,7 @@ class Roetenberg(Estimator):
     Params = RoetenbergParams
     Record = Record
     coefficients = staticmethod(coefficients)
-    state_size = S.end
+    state_size = STATE.end
     diag_names = ("acc_update", "bias_x", "bias_y", "bias_z", "mag_update", "disturbance")
     step = staticmethod(roetenberg_step)
     batch = staticmethod(roetenberg_run)

@@ -26,50 +26,55 @@ import numpy as np
 
 from quadest._jit import carray, njit
 from quadest.conventions import GRAVITY
-from quadest.filters.base import Estimator, P, Params, params_record
+from quadest.filters.base import Estimator, Params, params_record
 from quadest.filters.common import BASE, Q_OUT, admit, finite3, layout, norm3, prepare, publish
+from quadest.records import param
 from quadest.rotation.kernels import normalize_s, qdot_s, rotate_s
 
-S = layout(("bias", 3), ("gyr_prev", 3), ("have_prev", 1), start=BASE)
-B, GP, HP = S.bias, S.gyr_prev, S.have_prev
+STATE = layout(("bias", 3), ("gyr_prev", 3), ("have_prev", 1), start=BASE)
+BIAS, GP, HP = STATE.bias, STATE.gyr_prev, STATE.have_prev
 
 
 @dataclass(frozen=True)
 class ValentiParams(Params):
-    use_mag: bool = P(
+    use_mag: bool = param(
         True, "-", "use the magnetometer when samples are present", "quadest: 9-axis when samples are present"
     )
-    gain_acc: float = P(
+    gain_acc: float = param(
         0.01,
         "-",
         "accelerometer gain α (static)",
         "Valenti et al. 2015; authors' ROS implementation default",
         bounds="[0, 1]",
     )
-    gain_mag: float = P(0.01, "-", "magnetometer gain β", "Valenti et al. 2015; ROS default", bounds="[0, 1]")
-    adaptive: bool = P(True, "-", "adapt α to the acceleration magnitude error (eq 60)", "ROS default")
-    t1: float = P(
+    gain_mag: float = param(0.01, "-", "magnetometer gain β", "Valenti et al. 2015; ROS default", bounds="[0, 1]")
+    adaptive: bool = param(True, "-", "adapt α to the acceleration magnitude error (eq 60)", "ROS default")
+    t1: float = param(
         0.1, "-", "magnitude error below which α is unchanged", "Valenti et al. 2015, section 5.2", bounds="[0, 10]"
     )
-    t2: float = P(
+    t2: float = param(
         0.2, "-", "magnitude error at which α reaches zero", "Valenti et al. 2015, section 5.2", bounds="(0, 10]"
     )
-    threshold: float = P(
+    threshold: float = param(
         0.9, "-", "LERP above this scalar part, SLERP below (eq 50-52)", "Valenti et al. 2015", bounds="[0, 1]"
     )
-    bias_estimation: bool = P(True, "-", "estimate the gyro bias in steady state", "ROS default")
-    bias_alpha: float = P(0.01, "-", "low-pass gain of the bias estimate", "ROS default", bounds="[0, 1]")
-    steady_acc: float = P(0.1, "m/s²", "steady state: |‖a‖ − g| below this", "ROS implementation", bounds="[0, 100]")
-    steady_rate: float = P(
+    bias_estimation: bool = param(True, "-", "estimate the gyro bias in steady state", "ROS default")
+    bias_alpha: float = param(0.01, "-", "low-pass gain of the bias estimate", "ROS default", bounds="[0, 1]")
+    steady_acc: float = param(
+        0.1, "m/s²", "steady state: |‖a‖ − g| below this", "ROS implementation", bounds="[0, 100]"
+    )
+    steady_rate: float = param(
         0.2, "rad/s", "steady state: |ω − b| below this per axis", "ROS implementation", bounds="[0, 100]"
     )
-    steady_delta: float = P(
+    steady_delta: float = param(
         0.01, "rad/s", "steady state: change of ω below this per axis", "ROS implementation", bounds="[0, 100]"
     )
-    gravity: float = P(GRAVITY, "m/s²", "gravity used for the magnitude error", "standard gravity", bounds="(0, 100]")
+    gravity: float = param(
+        GRAVITY, "m/s²", "gravity used for the magnitude error", "standard gravity", bounds="(0, 100]"
+    )
 
 
-PR = Record = params_record(ValentiParams)
+PARAM = Record = params_record(ValentiParams)
 
 
 @njit(cache=True)
@@ -102,12 +107,12 @@ def _conj_mul(d0, d1, d2, d3, q0, q1, q2, q3):
 def valenti_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
-    use_mag = p[PR.use_mag] != 0.0
-    g_acc, g_mag, adaptive = p[PR.gain_acc], p[PR.gain_mag], p[PR.adaptive] != 0.0
-    t1, t2, thr = p[PR.t1], p[PR.t2], p[PR.threshold]
-    bias_on, b_alpha, s_acc = p[PR.bias_estimation] != 0.0, p[PR.bias_alpha], p[PR.steady_acc]
-    s_rate, s_delta, grav = p[PR.steady_rate], p[PR.steady_delta], p[PR.gravity]
-    diag[0], diag[1], diag[2], diag[3] = 0.0, x[B], x[B + 1], x[B + 2]
+    use_mag = p[PARAM.use_mag] != 0.0
+    g_acc, g_mag, adaptive = p[PARAM.gain_acc], p[PARAM.gain_mag], p[PARAM.adaptive] != 0.0
+    t1, t2, thr = p[PARAM.t1], p[PARAM.t2], p[PARAM.threshold]
+    bias_on, b_alpha, s_acc = p[PARAM.bias_estimation] != 0.0, p[PARAM.bias_alpha], p[PARAM.steady_acc]
+    s_rate, s_delta, grav = p[PARAM.steady_rate], p[PARAM.steady_delta], p[PARAM.gravity]
+    diag[0], diag[1], diag[2], diag[3] = 0.0, x[BIAS], x[BIAS + 1], x[BIAS + 2]
     if not prepare(x, acc, mag, use_mag):
         return
     gyr_ok = finite3(gyr)
@@ -117,11 +122,11 @@ def valenti_step(x, p, c, gyr, acc, mag, dt, diag):
         steady = abs(an - grav) < s_acc and x[HP] > 0.0
         if steady:
             for i in range(3):
-                if abs(gyr[i] - x[GP + i]) > s_delta or abs(gyr[i] - x[B + i]) > s_rate:
+                if abs(gyr[i] - x[GP + i]) > s_delta or abs(gyr[i] - x[BIAS + i]) > s_rate:
                     steady = False
         if steady:
             for i in range(3):
-                x[B + i] += b_alpha * (gyr[i] - x[B + i])
+                x[BIAS + i] += b_alpha * (gyr[i] - x[BIAS + i])
     if gyr_ok:
         for i in range(3):
             x[GP + i] = gyr[i]
@@ -129,7 +134,7 @@ def valenti_step(x, p, c, gyr, acc, mag, dt, diag):
     qw, qx, qy, qz = x[0], x[1], x[2], x[3]
     # eq 42: prediction, q_nb + ½ q_nb ⊗ [0, ω − b] Δt
     if gyr_ok:
-        w0, w1, w2 = gyr[0] - x[B], gyr[1] - x[B + 1], gyr[2] - x[B + 2]
+        w0, w1, w2 = gyr[0] - x[BIAS], gyr[1] - x[BIAS + 1], gyr[2] - x[BIAS + 2]
         d0, d1, d2, d3 = qdot_s(qw, qx, qy, qz, w0, w1, w2)
         qw, qx, qy, qz = normalize_s(qw + dt * d0, qx + dt * d1, qy + dt * d2, qz + dt * d3)
     if an > 0.0:
@@ -159,7 +164,7 @@ def valenti_step(x, p, c, gyr, acc, mag, dt, diag):
                 d0, d1, d2, d3 = _scaled_delta(m0, 0.0, 0.0, m3, g_mag, thr)
                 qw, qx, qy, qz = _conj_mul(d0, d1, d2, d3, qw, qx, qy, qz)
     x[0], x[1], x[2], x[3] = normalize_s(qw, qx, qy, qz)
-    diag[1], diag[2], diag[3] = x[B], x[B + 1], x[B + 2]
+    diag[1], diag[2], diag[3] = x[BIAS], x[BIAS + 1], x[BIAS + 2]
     publish(x)
 
 
@@ -196,7 +201,7 @@ class Valenti(Estimator):
     name = "valenti"
     Params = ValentiParams
     Record = Record
-    state_size = S.end
+    state_size = STATE.end
     diag_names = ("alpha", "bias_x", "bias_y", "bias_z")
     step = staticmethod(valenti_step)
     batch = staticmethod(valenti_run)

@@ -20,19 +20,19 @@ def plant(vehicle, *, h, substeps, ground_z, failure=None, rate=1.0, hand=None, 
     """The :data:`~quadest.flight.loop.Plant` of ``vehicle``: a ``failure`` striking at its
     sample (``rate`` Hz), the ``hand``'s ``(states, derivatives)`` until the release, the
     flight ended by the ground at ``ground_z`` and (``limits``) by lost control."""
-    N, nx = vehicle.rotors, 13 + vehicle.rotors
-    V = vehicle.vehicle()
+    n_rot, nx = vehicle.rotors, 13 + vehicle.rotors
+    dynamics = vehicle.vehicle()
     hand_x, hand_dx = hand if hand is not None else (np.zeros((1, nx)), np.zeros((0, nx)))
     return Plant.make(
-        V=V,
+        vehicle=dynamics,
         h=h,
         substeps=substeps,
         ground_z=ground_z,
         max_rate=MAX_RATE if limits else np.inf,
         max_speed=MAX_SPEED if limits else np.inf,
         tw=vehicle.rotors * vehicle.k_f * vehicle.omega_max**2 / (vehicle.mass_kg * vehicle.gravity),
-        eta=np.ones(N),
-        imb=np.zeros(N),
+        eta=np.ones(n_rot),
+        imb=np.zeros(n_rot),
         fail_rotor=-1 if failure is None else failure.rotor,
         fail_k=-1 if failure is None else int(round(failure.time_s * rate)),
         fail_eta=1.0 if failure is None else float(failure.efficiency),
@@ -40,11 +40,11 @@ def plant(vehicle, *, h, substeps, ground_z, failure=None, rate=1.0, hand=None, 
         zero_failed=zero_failed,
         hand_x=np.ascontiguousarray(hand_x, dtype=float),
         hand_dx=np.ascontiguousarray(hand_dx, dtype=float),
-        W=work(V, nx),
+        work=work(dynamics, nx),
         dx=np.zeros(nx),
         Fb=np.empty(3),
         Mb=np.empty(3),
-        T=np.zeros(N),
+        thrusts=np.zeros(n_rot),
     )
 
 
@@ -84,7 +84,7 @@ def navigation(kind: str, x0, gain=None):
     )
 
 
-def control(controllers: dict, *, G, F, reference, ftc_k=-1, cmd0, beta3=0.0, upright_rad=0.0):
+def control(controllers: dict, *, gains, ftc, reference, ftc_k=-1, cmd0, beta3=0.0, upright_rad=0.0):
     """The :data:`~quadest.control.registry.Control` flying ``controllers`` (phase name →
     controller name) along ``reference`` ``(p_d, v_d, a_d, yaw_d)``, the rotors first at ``cmd0``."""
     by_phase = np.full(len(PHASES), controller_id("idle"), np.int64)
@@ -93,8 +93,8 @@ def control(controllers: dict, *, G, F, reference, ftc_k=-1, cmd0, beta3=0.0, up
     p_d, v_d, a_d, yaw_d = (np.array(a, dtype=float) for a in reference)
     return Control.make(
         by_phase=by_phase,
-        G=G,
-        F=F,
+        gains=gains,
+        ftc=ftc,
         p_d=p_d,
         v_d=v_d,
         a_d=a_d,

@@ -11,16 +11,18 @@ from __future__ import annotations
 import math
 import time
 from collections import namedtuple
+from collections.abc import Callable, Iterable
 from dataclasses import asdict
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from quadest.control import Failure, FtcParams, SE3Params, circle_reference, hover_reference
 from quadest.control.ftc import relaxed_hover
 from quadest.control.registry import CONTROLLERS as REGISTRY
+from quadest.data.recording import Recording
 from quadest.errors import UsageError
-from quadest.filters import FILTERS, Estimator, filter_name, make_filter
-from quadest.filters.peers import STREAMING_PEERS, available_peers, run_peer, stream_peer
+from quadest.filters import ESTIMATORS, Estimator, filter_name, make_filter
 from quadest.flight import build
 from quadest.flight.common import (
     SIM_RATE_HZ,
@@ -56,7 +58,7 @@ FLIGHT_SCENARIOS = ("hover", "trajectory", "rotor-loss", "throw")
 def in_loop_estimators() -> list[str]:
     """What can fly in the loop (besides truth): quadest's filters and the installed peers with
     a per-sample API."""
-    return [*FILTERS, *[p for p in STREAMING_PEERS if p in available_peers()]]
+    return [name for name in in_loop_names() if ESTIMATORS[name].available()]
 
 
 CONTROLLERS = tuple(name for name, c in REGISTRY.items() if c.selectable)  # what a user may fly by name
@@ -136,7 +138,7 @@ def fly(
     nav, est = _in_loop(estimator, cfg, rate, estimator_params)
     ftc = ftc or FtcParams()
     ftc_k = _ftc_sample(controller, failure, params, rate, n)
-    L = build.loop(
+    loop = build.loop(
         plant=build.plant(
             vehicle, h=1.0 / SIM_RATE_HZ, substeps=substeps, ground_z=float(params.height_m), failure=failure, rate=rate
         ),
@@ -145,8 +147,8 @@ def fly(
         bank=build.bank(),
         control=build.control(
             dict(REGISTRY[controller].phases),
-            G=(se3 or SE3Params()).gains(vehicle),
-            F=ftc.gains(vehicle, failure.rotor if controller == "ftc" else 0),
+            gains=(se3 or SE3Params()).gains(vehicle),
+            ftc=ftc.gains(vehicle, failure.rotor if controller == "ftc" else 0),
             reference=_held_after(ref, ftc_k),
             ftc_k=ftc_k,
             cmd0=np.zeros(vehicle.rotors),
@@ -157,11 +159,11 @@ def fly(
     )
     x = x0.copy()
     t0 = time.perf_counter()
-    status, flown = _run(x, L, est)
+    status, flown = _run(x, loop, est)
     loop_s = time.perf_counter() - t0
     if flown == 0:
         raise ValueError(f"the flight ended before its first sample ({STATUS[status]})")
-    out = flown_arrays(L.record, flown)
+    out = flown_arrays(loop.record, flown)
     meta.update(controller=controller, estimator=est.name, position_sensor=params.position_sensor)
     if failure is not None:
         meta["failure"] = asdict(failure)  # imbalance in kg m
@@ -178,7 +180,7 @@ def fly(
         params=params,
         ftc=ftc,
         vehicle=vehicle,
-        ref=(L.control.p_d, L.control.yaw_d),
+        ref=(loop.control.p_d, loop.control.yaw_d),
     )
     return flight
 
@@ -197,8 +199,8 @@ def _check_request(scenario, estimator, controller, duration):
             raise UsageError("after a throw the SE(3) controller holds the vehicle: controller se3 (or none)")
     elif not isinstance(estimator, Estimator) and estimator != "truth" and estimator not in in_loop_names():
         raise UsageError(
-            f"unknown estimator {estimator!r}; estimators: truth, {', '.join(FILTERS)}, and the peers "
-            f"{', '.join(STREAMING_PEERS)} (through their streaming API)"
+            f"unknown estimator {estimator!r}; estimators in the loop: truth, {', '.join(in_loop_names())} "
+            "(a peer through its streaming API)"
         )
     controller = controller or ("ftc" if scenario == "rotor-loss" else "se3")
     if controller not in CONTROLLERS:
@@ -210,8 +212,9 @@ def _check_request(scenario, estimator, controller, duration):
 
 
 def in_loop_names() -> list[str]:
-    """The names an estimator in the loop may have (installed or not)."""
-    return [*FILTERS, *STREAMING_PEERS]
+    """The names an estimator in the loop may have (installed or not): those with a per-sample
+    ``update``."""
+    return [name for name, cls in ESTIMATORS.items() if cls.streaming]
 
 
 def _checked_failure(scenario, failure, controller, vehicle, duration):
@@ -273,15 +276,13 @@ def _in_loop(estimator, cfg, rate, estimator_params):
     declination = math.radians(cfg.environment.declination_deg)
     if isinstance(estimator, str) and estimator == "truth":
         return "truth", InLoop("truth", no_estimator_args(), None)
-    if isinstance(estimator, str) and estimator in STREAMING_PEERS:
-        peer = stream_peer(estimator, 1.0 / rate, declination, use_mag=cfg.mag.rate_hz > 0)
-        return "filter", InLoop(estimator, None, peer)
-    est = (
-        estimator
-        if isinstance(estimator, Estimator)
-        else make_filter(estimator, declination=declination, **(estimator_params or {}))
-    )
-    return "filter", InLoop(est.name, tuple(est.compiled()), None)
+    if isinstance(estimator, Estimator):
+        est = estimator
+    elif ESTIMATORS[estimator].peer:
+        est = make_filter(estimator, declination=declination, use_mag=cfg.mag.rate_hz > 0)
+    else:
+        est = make_filter(estimator, declination=declination, **(estimator_params or {}))
+    return "filter", InLoop(est.name, None if est.peer else tuple(est.compiled()), est if est.peer else None)
 
 
 def _ftc_sample(controller, failure, params, rate, n):
@@ -303,18 +304,18 @@ def _held_after(ref, k):
     return p_d, v_d, a_d, yaw_d
 
 
-def _run(x, L, est: InLoop):
-    """Fly the loop ``L`` from ``x``: compiled with a compiled estimator, or sample by sample
+def _run(x, loop, est: InLoop):
+    """Fly ``loop`` from ``x``: compiled with a compiled estimator, or sample by sample
     with a peer's streaming update. Returns ``(status, samples flown)``."""
     if est.peer is None:
-        return closed_loop(x, L, *est.args)
-    S = L.sensing
-    for k in range(len(L.record.phase)):
-        sense_sample(k, x, L)
-        status = act_sample(k, x, L, est.peer.update(S.gyr, S.acc, S.mag))
+        return closed_loop(x, loop, *est.args)
+    sensing = loop.sensing
+    for k in range(len(loop.record.phase)):
+        sense_sample(k, x, loop)
+        status = act_sample(k, x, loop, est.peer.update(sensing.gyr, sensing.acc, sensing.mag, dt=sensing.dt))
         if status != OK:
             return status, (k if status == ESTIMATE_NAN else k + 1)
-    return OK, len(L.record.phase)
+    return OK, len(loop.record.phase)
 
 
 def _flight(out, t, vehicle, cfg, seed, failure, meta, processes, params, loop_s) -> Flight:
@@ -353,7 +354,9 @@ def _flight(out, t, vehicle, cfg, seed, failure, meta, processes, params, loop_s
     )
 
 
-def resample(flight: Flight, config: SimConfig, *, imbalance=None, seed: int | None = None):
+def resample(
+    flight: Flight, config: SimConfig, *, imbalance: ArrayLike | None = None, seed: int | None = None
+) -> Recording:
     """The recording a flight would have given with other sensors (``config``) or another
     propeller ``imbalance`` (kg m, one per rotor from the failure on, or one row per sample):
     the same motion sampled again (:func:`quadest.sim.flown.flown_recording`). The motion does
@@ -451,10 +454,7 @@ def offline_errors(flight: Flight, estimator: str) -> dict:
     """``estimator`` run afterwards over a flight's recording (not in its loop): its tilt and
     attitude error, as the controller's estimator's are summarised."""
     rec = flight.recording
-    if estimator in STREAMING_PEERS:
-        q = run_peer(estimator, rec)
-    else:
-        q = make_filter(estimator, declination=rec.declination).run(rec).q
+    q = make_filter(estimator, declination=rec.declination).run(rec).q
     total, tilt = angle_errors(rec.true_q, q)
     out = {"attitude_error_rms_deg": rms(total), "tilt_error_rms_deg": rms(tilt)}
     if rec.meta.get("failure"):
@@ -465,7 +465,14 @@ def offline_errors(flight: Flight, estimator: str) -> dict:
     return out
 
 
-def fly_many(scenario: str, estimators, seeds, *, on_flight=None, **kwargs) -> list[dict]:
+def fly_many(
+    scenario: str,
+    estimators: Iterable[str],
+    seeds: Iterable[int],
+    *,
+    on_flight: Callable[[Flight], None] | None = None,
+    **kwargs,
+) -> list[dict]:
     """Fly ``scenario`` with each of ``estimators`` in the loop for each seed. For every seed the
     flight with ``truth`` in the loop comes first, and each estimator is also run over that
     flight's recording afterwards (``offline``: the same estimator, the motion not its own), so
@@ -480,7 +487,7 @@ def fly_many(scenario: str, estimators, seeds, *, on_flight=None, **kwargs) -> l
             on_flight(base)
         for name in estimators:
             f = fly(scenario, estimator=name, seed=seed, **kwargs)
-            if name in FILTERS or name in STREAMING_PEERS:
+            if name in ESTIMATORS:
                 f.summary["offline_on_truth_flight"] = offline_errors(base, name)
             out.append(f.summary)
             if on_flight:

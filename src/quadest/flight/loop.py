@@ -47,7 +47,7 @@ Plant = compiled_record(
     "a flight ends, the rotor failure (rotor -1: none; its command zeroed from the failure on "
     "with zero_failed, an oracle), the hand's states and derivatives until the release (none: "
     "zero rows), and the work arrays of the dynamics.",
-    V="any",
+    vehicle="any",
     h="f8",
     substeps="i8",
     ground_z="f8",
@@ -63,11 +63,11 @@ Plant = compiled_record(
     zero_failed="b1",
     hand_x="f8[:, :]",
     hand_dx="f8[:, :]",
-    W="any",
+    work="any",
     dx="f8[:]",
     Fb="f8[:]",
     Mb="f8[:]",
-    T="f8[:]",
+    thrusts="f8[:]",
 )
 
 Sensing = compiled_record(
@@ -163,59 +163,61 @@ def flown_arrays(record, flown: int) -> dict:
 
 
 @njit(cache=True, inline="always")
-def sample(x, dx, P, S, k):
+def sample(x, dx, plant, sensing, k):
     """The sensors of sample ``k`` from the state ``x``, its derivative ``dx`` (the dynamics' or,
-    in a hand that carries the vehicle, the hand's) and the rotors' thrusts ``P.T``."""
-    eta, T = P.eta, P.T
+    in a hand that carries the vehicle, the hand's) and the rotors' thrusts ``plant.thrusts``."""
+    eta, thrusts = plant.eta, plant.thrusts
     n_rot = eta.shape[0]
     active = 0
     total = 0.0
     for i in range(n_rot):
-        total += T[i]
+        total += thrusts[i]
         if eta[i] > 0.0:
             active += 1
     active = max(active, 1)
-    load = total / active / (P.V.mass * P.V.gravity / n_rot)
-    sm = S.sm
-    rotor_vibration_step(sm.rv, k * S.dt, x[13:], P.imb, S.vib, sm.vib_acc, sm.vib_gyr)
-    sample_imu(sm, k, x[6:10], dx[3:6], x[10:13], dx[10:13], sm.vib_acc, sm.vib_gyr, S.gyr, S.acc)
-    sample_mag(sm, k, x[6:10], x[0:3], motor_current(load, active, P.tw), S.mag)
+    load = total / active / (plant.vehicle.mass * plant.vehicle.gravity / n_rot)
+    sm = sensing.sm
+    rotor_vibration_step(sm.rv, k * sensing.dt, x[13:], plant.imb, sensing.vib, sm.vib_acc, sm.vib_gyr)
+    sample_imu(sm, k, x[6:10], dx[3:6], x[10:13], dx[10:13], sm.vib_acc, sm.vib_gyr, sensing.gyr, sensing.acc)
+    sample_mag(sm, k, x[6:10], x[0:3], motor_current(load, active, plant.tw), sensing.mag)
 
 
 @njit(cache=True, inline="always")
-def sense(k, x, L):
+def sense(k, x, loop):
     """Sample ``k``, first half: a failure due now strikes; in the hand the vehicle is where the
-    hand has it; the sensors and the position sensor are read into ``L.sensing``."""
-    P, S = L.plant, L.sensing
-    if k == P.fail_k and P.fail_rotor >= 0:
-        P.eta[P.fail_rotor] = P.fail_eta
-        P.imb[P.fail_rotor] = P.fail_imb
-    in_hand = k < P.hand_dx.shape[0]
+    hand has it; the sensors and the position sensor are read into ``loop.sensing``."""
+    plant, sensing = loop.plant, loop.sensing
+    if k == plant.fail_k and plant.fail_rotor >= 0:
+        plant.eta[plant.fail_rotor] = plant.fail_eta
+        plant.imb[plant.fail_rotor] = plant.fail_imb
+    in_hand = k < plant.hand_dx.shape[0]
     if in_hand:
-        copy_into(x, P.hand_x[k])
-    if S.on:
-        derivative_ws(x, L.control.cmd, P.eta, P.V, P.dx, P.Fb, P.Mb, P.T)  # also the rotor thrusts
+        copy_into(x, plant.hand_x[k])
+    if sensing.on:
+        derivative_ws(
+            x, loop.control.cmd, plant.eta, plant.vehicle, plant.dx, plant.Fb, plant.Mb, plant.thrusts
+        )  # also the rotor thrusts
         if in_hand:
-            copy_into(P.dx, P.hand_dx[k])
-        sample(x, P.dx, P, S, k)
-    for j in range(S.delay, 0, -1):
-        copy_into(S.hist[j], S.hist[j - 1])
-    copy_into(S.hist[0], x[0:3])
-    if k % S.every == 0:
-        m = k // S.every
+            copy_into(plant.dx, plant.hand_dx[k])
+        sample(x, plant.dx, plant, sensing, k)
+    for j in range(sensing.delay, 0, -1):
+        copy_into(sensing.hist[j], sensing.hist[j - 1])
+    copy_into(sensing.hist[0], x[0:3])
+    if k % sensing.every == 0:
+        m = k // sensing.every
         for j in range(3):
-            S.reading[j] = S.hist[S.delay, j] + S.noise[m, j]
+            sensing.reading[j] = sensing.hist[sensing.delay, j] + sensing.noise[m, j]
 
 
 @njit(cache=True, inline="always")
-def navigate(k, x, L, q_est):
+def navigate(k, x, loop, q_est):
     """Position, velocity, attitude and rate for the controller of a flight (not a throw's
     recovery): the truth's (rate: the gyro's), or the estimator's attitude ``q_est`` with the
     position fusion (the accelerometer rotated by it, corrected at each position reading with a
     constant gain). Returns :data:`ESTIMATE_NAN` for a non-finite attitude, else :data:`OK`."""
-    N, S, dt = L.nav, L.sensing, L.sensing.dt
-    xh, ph, vh, acc = N.xh, N.ph, N.vh, S.acc
-    truth = N.kind != NAV_FILTER
+    nav, sensing, dt = loop.nav, loop.sensing, loop.sensing.dt
+    xh, ph, vh, acc = nav.xh, nav.ph, nav.vh, sensing.acc
+    truth = nav.kind != NAV_FILTER
     for j in range(4):
         xh[6 + j] = x[6 + j] if truth else q_est[j]
     if not (np.isfinite(xh[6]) and np.isfinite(xh[7]) and np.isfinite(xh[8]) and np.isfinite(xh[9])):
@@ -225,125 +227,125 @@ def navigate(k, x, L, q_est):
             ph[j], vh[j] = x[j], x[3 + j]
     else:
         a0, a1, a2 = rotate_s(xh[6], xh[7], xh[8], xh[9], acc[0], acc[1], acc[2])
-        an = (a0, a1, a2 + L.plant.V.gravity)
+        an = (a0, a1, a2 + loop.plant.vehicle.gravity)
         for j in range(3):
             ph[j] += vh[j] * dt + 0.5 * an[j] * dt * dt
             vh[j] += an[j] * dt
-        if k % S.every == 0:
+        if k % sensing.every == 0:
             for j in range(3):
-                e = S.reading[j] - ph[j]
-                ph[j] += N.gain[j, 0] * e
-                vh[j] += N.gain[j, 1] * e
+                e = sensing.reading[j] - ph[j]
+                ph[j] += nav.gain[j, 0] * e
+                vh[j] += nav.gain[j, 1] * e
     for j in range(3):
         xh[j], xh[3 + j] = ph[j], vh[j]
-        xh[10 + j] = x[10 + j] if N.kind == NAV_TRUE_STATE else S.gyr[j]
+        xh[10 + j] = x[10 + j] if nav.kind == NAV_TRUE_STATE else sensing.gyr[j]
     return OK
 
 
 @njit(cache=True, inline="always")
-def control_flight(k, L):
+def control_flight(k, loop):
     """The controller of a flight's phase: nominal, or fault-tolerant once the loss is known;
     the lost rotor's command zeroed (its motor spins down) when the plant says so."""
-    P, C = L.plant, L.control
-    phase = FAULT if C.ftc_k >= 0 and k >= C.ftc_k else FLYING
-    L.state[PHASE] = phase
-    command(C.by_phase[phase], k, L.nav.xh, C, P.V, L.sensing.dt)
-    if P.zero_failed and P.fail_rotor >= 0 and k >= P.fail_k and P.fail_eta == 0.0:
-        C.cmd[P.fail_rotor] = 0.0
+    plant, control = loop.plant, loop.control
+    phase = FAULT if control.ftc_k >= 0 and k >= control.ftc_k else FLYING
+    loop.state[PHASE] = phase
+    command(control.by_phase[phase], k, loop.nav.xh, control, plant.vehicle, loop.sensing.dt)
+    if plant.zero_failed and plant.fail_rotor >= 0 and k >= plant.fail_k and plant.fail_eta == 0.0:
+        control.cmd[plant.fail_rotor] = 0.0
 
 
 @njit(cache=True, inline="always")
-def ended(x, P):
+def ended(x, plant):
     """Whether a flight ends after this step, and why (module doc)."""
     for j in range(x.shape[0]):
         if not np.isfinite(x[j]):
             return DIVERGED
-    if x[2] > P.ground_z:
+    if x[2] > plant.ground_z:
         return GROUND
     if (
-        x[10] * x[10] + x[11] * x[11] + x[12] * x[12] > P.max_rate * P.max_rate
-        or x[3] * x[3] + x[4] * x[4] + x[5] * x[5] > P.max_speed * P.max_speed
+        x[10] * x[10] + x[11] * x[11] + x[12] * x[12] > plant.max_rate * plant.max_rate
+        or x[3] * x[3] + x[4] * x[4] + x[5] * x[5] > plant.max_speed * plant.max_speed
     ):
         return LOST_CONTROL
     return OK
 
 
 @njit(cache=True, inline="always")
-def record_and_fly(k, x, L):
+def record_and_fly(k, x, loop):
     """Record sample ``k``, fly ``substeps`` RK4 steps to the next sample (in the hand: carried
     to the hand's next state) and say whether the flight ends there (:func:`ended`)."""
-    P, S, R, C = L.plant, L.sensing, L.record, L.control
-    copy_into(R.x[k], x)
-    copy_into(R.dx[k], P.dx)
-    copy_into(R.thrust[k], P.T)
-    copy_into(R.eta[k], P.eta)
-    copy_into(R.cmd[k], C.cmd)
-    copy_into(R.gyr[k], S.gyr)
-    copy_into(R.acc[k], S.acc)
-    copy_into(R.mag[k], S.mag)
-    R.phase[k] = L.state[PHASE]
-    if k < P.hand_dx.shape[0]:
-        status = ended(x, P)
-        copy_into(x, P.hand_x[k + 1])
+    plant, sensing, record, control = loop.plant, loop.sensing, loop.record, loop.control
+    copy_into(record.x[k], x)
+    copy_into(record.dx[k], plant.dx)
+    copy_into(record.thrust[k], plant.thrusts)
+    copy_into(record.eta[k], plant.eta)
+    copy_into(record.cmd[k], control.cmd)
+    copy_into(record.gyr[k], sensing.gyr)
+    copy_into(record.acc[k], sensing.acc)
+    copy_into(record.mag[k], sensing.mag)
+    record.phase[k] = loop.state[PHASE]
+    if k < plant.hand_dx.shape[0]:
+        status = ended(x, plant)
+        copy_into(x, plant.hand_x[k + 1])
         return status
-    for _ in range(P.substeps):
-        rk4_ws(x, C.cmd, P.eta, P.V, P.h, P.W)
-    return ended(x, P)
+    for _ in range(plant.substeps):
+        rk4_ws(x, control.cmd, plant.eta, plant.vehicle, plant.h, plant.work)
+    return ended(x, plant)
 
 
 @njit(cache=True, **NO_ALLOCATION)
-def fly_sample(k, x, L, q_est):
+def fly_sample(k, x, loop, q_est):
     """Sample ``k``, second half, of a flight (not a throw's recovery) with an estimator's
     attitude ``q_est`` (geographic ``q_nb``; read only with an estimator in the loop): the
     estimate, control, record, fly to the next sample. Returns the status (:data:`OK` to go on)."""
-    status = navigate(k, x, L, q_est)
+    status = navigate(k, x, loop, q_est)
     if status != OK:
         return status
-    control_flight(k, L)
-    R, N = L.record, L.nav
-    copy_into(R.q[k], N.xh[6:10])
-    copy_into(R.pv[k, 0:3], N.ph)
-    copy_into(R.pv[k, 3:6], N.vh)
-    return record_and_fly(k, x, L)
+    control_flight(k, loop)
+    record, nav = loop.record, loop.nav
+    copy_into(record.q[k], nav.xh[6:10])
+    copy_into(record.pv[k, 0:3], nav.ph)
+    copy_into(record.pv[k, 3:6], nav.vh)
+    return record_and_fly(k, x, loop)
 
 
 @njit(cache=True)
-def recover_sample(k, x, L):
+def recover_sample(k, x, loop):
     """Sample ``k``, second half, of a throw before it flies (:func:`recovery_phase`)."""
-    recovery_phase(k, x, L)
-    return record_and_fly(k, x, L)
+    recovery_phase(k, x, loop)
+    return record_and_fly(k, x, loop)
 
 
 @njit(cache=True, **NO_ALLOCATION)
-def sense_sample(k, x, L):
+def sense_sample(k, x, loop):
     """:func:`sense`, compiled on its own (called by :func:`closed_loop` and from Python for an
     estimator without a compiled step)."""
-    sense(k, x, L)
+    sense(k, x, loop)
 
 
 @njit(cache=True, **NO_ALLOCATION)
-def act_sample(k, x, L, q_est):
+def act_sample(k, x, loop, q_est):
     """Sample ``k``, second half: :func:`fly_sample` or, before a throw flies, :func:`recover_sample`."""
-    if L.state[PHASE] >= FLYING:
-        return fly_sample(k, x, L, q_est)
-    return recover_sample(k, x, L)
+    if loop.state[PHASE] >= FLYING:
+        return fly_sample(k, x, loop, q_est)
+    return recover_sample(k, x, loop)
 
 
 @njit(**NO_ALLOCATION)
-def closed_loop(x, L, est_step, ex, ep, ec, ediag, dq):
-    """Fly ``len(L.record.phase)`` IMU samples (module doc) with the compiled step ``est_step``
+def closed_loop(x, loop, est_step, ex, ep, ec, ediag, dq):
+    """Fly ``len(loop.record.phase)`` IMU samples (module doc) with the compiled step ``est_step``
     of an estimator in the loop (with its state ``ex``, records ``ep``, ``ec`` and diagnostics
     ``ediag``; ``dq`` the declination quaternion), or :func:`no_estimator_args`' step. Returns
     ``(status, samples flown)``. (Not cached: numba compiles it once per estimator and process.)"""
-    q, S = L.nav.q_est, L.sensing
-    n = L.record.phase.shape[0]
+    q, sensing = loop.nav.q_est, loop.sensing
+    n = loop.record.phase.shape[0]
     for k in range(n):
-        sense_sample(k, x, L)
-        if L.nav.kind == NAV_FILTER:
-            est_step(ex, ep, ec, S.gyr, S.acc, S.mag, S.dt, ediag)
+        sense_sample(k, x, loop)
+        if loop.nav.kind == NAV_FILTER:
+            est_step(ex, ep, ec, sensing.gyr, sensing.acc, sensing.mag, sensing.dt, ediag)
             # q = dq ⊗ q_est (the declination turns the magnetic frame into the geographic one)
             q[0], q[1], q[2], q[3] = qmul_s(dq[0], dq[1], dq[2], dq[3], ex[0], ex[1], ex[2], ex[3])
-        status = act_sample(k, x, L, q)
+        status = act_sample(k, x, loop, q)
         if status == ESTIMATE_NAN:
             return status, k
         if status != OK:

@@ -80,90 +80,118 @@ def quat_yaw(q):
 
 
 @njit(cache=True)
-def hold(k, yaw, z, L):
+def hold(k, yaw, z, loop):
     """Hand over at sample ``k``: the controller holds ``yaw`` and the height ``z`` from now on."""
-    C = L.control
-    L.state[PHASE] = NOMINAL
-    L.record.events[1] = k
-    L.held[YAW], L.held[HOLD_Z] = yaw, z
-    for i in range(k, C.yaw_d.shape[0]):
-        C.p_d[i, 2] = z
-        C.yaw_d[i] = yaw
+    control = loop.control
+    loop.state[PHASE] = NOMINAL
+    loop.record.events[1] = k
+    loop.held[YAW], loop.held[HOLD_Z] = yaw, z
+    for i in range(k, control.yaw_d.shape[0]):
+        control.p_d[i, 2] = z
+        control.yaw_d[i] = yaw
 
 
 @njit(cache=True)
-def wait_for_throw(k, x, L):
+def wait_for_throw(k, x, loop):
     """``waiting``: count the samples below β1 (eq 37); at the detection start converging (with
     the truth: hand over at once, holding the true yaw and height)."""
-    B, S = L.bank, L.sensing
-    acc, gyr = S.acc, S.gyr
-    below = np.sqrt(acc[0] ** 2 + acc[1] ** 2 + acc[2] ** 2) < B.beta1
-    L.state[BELOW] = L.state[BELOW] + 1 if below else 0
-    if L.state[BELOW] >= B.detect_samples:
-        L.state[PHASE] = CONVERGING
-        L.record.events[0] = k
-        if L.nav.kind != NAV_BANK:
-            hold(k, quat_yaw(x[6:10]), x[2], L)
+    bank, sensing = loop.bank, loop.sensing
+    acc, gyr = sensing.acc, sensing.gyr
+    below = np.sqrt(acc[0] ** 2 + acc[1] ** 2 + acc[2] ** 2) < bank.beta1
+    loop.state[BELOW] = loop.state[BELOW] + 1 if below else 0
+    if loop.state[BELOW] >= bank.detect_samples:
+        loop.state[PHASE] = CONVERGING
+        loop.record.events[0] = k
+        if loop.nav.kind != NAV_BANK:
+            hold(k, quat_yaw(x[6:10]), x[2], loop)
     else:
-        B.w_prev[0], B.w_prev[1], B.w_prev[2] = gyr[0], gyr[1], gyr[2]
+        bank.w_prev[0], bank.w_prev[1], bank.w_prev[2] = gyr[0], gyr[1], gyr[2]
 
 
 @njit(cache=True)
-def converge(k, L):
+def converge(k, loop):
     """``converging``: one step of the bank (eqs 38-39); below β2 its most likely hypothesis
     starts the nominal EKF and the controller holds the measured height."""
-    B, S, R = L.bank, L.sensing, L.record
-    bank_step(B.Vb, B.Qr, B.Pb, B.Lb, B.w_prev, S.gyr, S.acc, S.dt, B.prm, B.A, B.B, B.C, True)
-    best, sg = summarize(B.Qr, B.Lb, B.prm.gravity, B.prob, B.gd)
-    R.sg[k] = sg
-    copy_into(R.gdir[k], B.gd[best])
-    copy_into(R.q[k], B.Qr[best])
-    if sg < B.beta2:
-        B.V1[0] = B.Vb[best]
-        B.Q1[0] = B.Qr[best]
-        B.P1[0] = B.Pb[best]
-        B.L1[0] = 0.0
-        hold(k, quat_yaw(B.Q1[0]), S.reading[2], L)
-        L.state[GATE] = 0
+    bank, sensing, record = loop.bank, loop.sensing, loop.record
+    bank_step(
+        bank.Vb,
+        bank.Qr,
+        bank.Pb,
+        bank.Lb,
+        bank.w_prev,
+        sensing.gyr,
+        sensing.acc,
+        sensing.dt,
+        bank.prm,
+        bank.A,
+        bank.B,
+        bank.C,
+        True,
+    )
+    best, sg = summarize(bank.Qr, bank.Lb, bank.prm.gravity, bank.prob, bank.gd)
+    record.sg[k] = sg
+    copy_into(record.gdir[k], bank.gd[best])
+    copy_into(record.q[k], bank.Qr[best])
+    if sg < bank.beta2:
+        bank.V1[0] = bank.Vb[best]
+        bank.Q1[0] = bank.Qr[best]
+        bank.P1[0] = bank.Pb[best]
+        bank.L1[0] = 0.0
+        hold(k, quat_yaw(bank.Q1[0]), sensing.reading[2], loop)
+        loop.state[GATE] = 0
 
 
 @njit(cache=True)
-def nominal_estimate(x, L):
+def nominal_estimate(x, loop):
     """``nominal``: the state the recovery controller reads: the truth, or the nominal EKF's
     attitude and velocity with the thrust of the measured rotor speeds, the gyro's rate and the
     position sensor's height (no horizontal position: velocity and height hold)."""
-    B, S, xh, V = L.bank, L.sensing, L.nav.xh, L.plant.V
-    if L.nav.kind != NAV_BANK:
+    bank, sensing, xh = loop.bank, loop.sensing, loop.nav.xh
+    if loop.nav.kind != NAV_BANK:
         for j in range(13):
             xh[j] = x[j]
         return
     t_est = 0.0
-    for i in range(V.rotor_pos.shape[0]):
-        t_est += L.control.G.k_f * x[13 + i] * x[13 + i]
-    B.Cn[2, 9] = B.C[2, 9] - (t_est - B.t_throw)
-    bank_step(B.V1, B.Q1, B.P1, B.L1, B.w_prev, S.gyr, S.acc, S.dt, B.prm, B.A, B.B, B.Cn, L.state[GATE] != 0)
-    R = rot_matrix(B.Q1[0])
+    for i in range(loop.plant.vehicle.rotor_pos.shape[0]):
+        t_est += loop.control.gains.k_f * x[13 + i] * x[13 + i]
+    bank.Cn[2, 9] = bank.C[2, 9] - (t_est - bank.t_throw)
+    bank_step(
+        bank.V1,
+        bank.Q1,
+        bank.P1,
+        bank.L1,
+        bank.w_prev,
+        sensing.gyr,
+        sensing.acc,
+        sensing.dt,
+        bank.prm,
+        bank.A,
+        bank.B,
+        bank.Cn,
+        loop.state[GATE] != 0,
+    )
+    rot = rot_matrix(bank.Q1[0])
     for j in range(3):
-        xh[3 + j] = R[j, 0] * B.V1[0, 0] + R[j, 1] * B.V1[0, 1] + R[j, 2] * B.V1[0, 2]
-        xh[10 + j] = S.gyr[j]
+        xh[3 + j] = rot[j, 0] * bank.V1[0, 0] + rot[j, 1] * bank.V1[0, 1] + rot[j, 2] * bank.V1[0, 2]
+        xh[10 + j] = sensing.gyr[j]
     for j in range(4):
-        xh[6 + j] = B.Q1[0, j]
-    xh[0], xh[1], xh[2] = 0.0, 0.0, S.reading[2]
+        xh[6 + j] = bank.Q1[0, j]
+    xh[0], xh[1], xh[2] = 0.0, 0.0, sensing.reading[2]
 
 
 @njit(cache=True)
-def recovery_phase(k, x, L):
+def recovery_phase(k, x, loop):
     """A throw's sample ``k`` (module doc): detection, convergence, or the nominal estimate and
     the recovery controller; records what the controller read (nothing before the handover)."""
-    if L.state[PHASE] == WAITING:
-        wait_for_throw(k, x, L)
-    if L.state[PHASE] == CONVERGING:
-        converge(k, L)
-    elif L.state[PHASE] == NOMINAL:
-        nominal_estimate(x, L)
-        xh, C = L.nav.xh, L.control
-        copy_into(L.record.q[k], xh[6:10])
-        gate = command(C.by_phase[NOMINAL], k, xh, C, L.plant.V, L.sensing.dt)
-        L.state[GATE] = 1 if gate else 0
-    if L.state[PHASE] == NOMINAL:
-        copy_into(L.record.pv[k], L.nav.xh[0:6])
+    if loop.state[PHASE] == WAITING:
+        wait_for_throw(k, x, loop)
+    if loop.state[PHASE] == CONVERGING:
+        converge(k, loop)
+    elif loop.state[PHASE] == NOMINAL:
+        nominal_estimate(x, loop)
+        xh, control = loop.nav.xh, loop.control
+        copy_into(loop.record.q[k], xh[6:10])
+        gate = command(control.by_phase[NOMINAL], k, xh, control, loop.plant.vehicle, loop.sensing.dt)
+        loop.state[GATE] = 1 if gate else 0
+    if loop.state[PHASE] == NOMINAL:
+        copy_into(loop.record.pv[k], loop.nav.xh[0:6])

@@ -281,8 +281,8 @@ def fly_throw(
     t = np.arange(n) / rate
     model = fit_throw_model(vehicle, cfg, throw)
     processes, sm = sensors_for(cfg, n, seed, vehicle)
-    G = (se3 or SE3Params()).gains(vehicle)
-    L = build.loop(
+    gains = (se3 or SE3Params()).gains(vehicle)
+    loop = build.loop(
         plant=build.plant(
             vehicle,
             h=1.0 / SIM_RATE_HZ,
@@ -302,12 +302,12 @@ def fly_throw(
         ),
         nav=build.navigation("true-state" if estimator == "truth" else "bank", hand_x[0]),
         bank=build.bank(
-            model, rp, mass=vehicle.mass_kg, t_throw=vehicle.rotors * G.k_f * throw.rotor_speed * throw.rotor_speed
+            model, rp, mass=vehicle.mass_kg, t_throw=vehicle.rotors * gains.k_f * throw.rotor_speed * throw.rotor_speed
         ),
         control=build.control(
             {"nominal": "recovery"},
-            G=G,
-            F=build.unused_ftc_gains(vehicle),
+            gains=gains,
+            ftc=build.unused_ftc_gains(vehicle),
             reference=hover_reference(n),
             cmd0=np.full(vehicle.rotors, throw.rotor_speed),
             beta3=np.radians(throw.beta3_deg),
@@ -319,10 +319,10 @@ def fly_throw(
     )
     x = hand_x[0].copy()
     t0 = time.perf_counter()
-    status, flown = closed_loop(x, L, *no_estimator_args())
+    status, flown = closed_loop(x, loop, *no_estimator_args())
     loop_s = time.perf_counter() - t0
-    out = flown_arrays(L.record, flown)
-    events = L.record.events
+    out = flown_arrays(loop.record, flown)
+    events = loop.record.events
     rec = flown_recording(
         t[:flown],
         out["x"],
@@ -356,7 +356,7 @@ def fly_throw(
         vehicle=vehicle,
     )
     flight.summary = summarize_throw(
-        flight, out, events, status, duration, throw, estimator, seed, n_hand, float(L.held[HOLD_Z])
+        flight, out, events, status, duration, throw, estimator, seed, n_hand, float(loop.held[HOLD_Z])
     )
     return flight
 

@@ -38,7 +38,7 @@ def fly_se3(
     if failure is not None:
         failure.check(vehicle, steps / rate_hz)
     _, sm = sensors_for(build_config("bebop2"), 1, 0, vehicle)  # of the record's type; not sampled
-    L = build.loop(
+    loop = build.loop(
         plant=build.plant(
             vehicle, h=1.0 / rate_hz, substeps=1, ground_z=np.inf, failure=failure, rate=rate_hz, limits=False
         ),
@@ -47,8 +47,8 @@ def fly_se3(
         bank=build.bank(),
         control=build.control(
             {"flying": "se3"},
-            G=(gains or SE3Params()).gains(vehicle),
-            F=build.unused_ftc_gains(vehicle),
+            gains=(gains or SE3Params()).gains(vehicle),
+            ftc=build.unused_ftc_gains(vehicle),
             reference=reference,
             cmd0=np.zeros(vehicle.rotors),
         ),
@@ -56,7 +56,7 @@ def fly_se3(
         rotors=vehicle.rotors,
         phase="flying",
     )
-    closed_loop(x, L, *no_estimator_args())
-    R = L.record
-    states = np.vstack([R.x[1:], x[None]])  # after each step
-    return (states, R.cmd, R.eta) if return_eta else (states, R.cmd)
+    closed_loop(x, loop, *no_estimator_args())
+    record = loop.record
+    states = np.vstack([record.x[1:], x[None]])  # after each step
+    return (states, record.cmd, record.eta) if return_eta else (states, record.cmd)

@@ -12,27 +12,33 @@ Q(P)`` where ``Q`` maps ``ψ`` of the FRD rate to ``ψ`` of the paper's rate (se
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from quadest._jit import njit
 from quadest.data.files import write_json
 from quadest.data.tagged import read_tagged_json
 from quadest.rotation import quat_conj, quat_rotate
 
+if TYPE_CHECKING:
+    from quadest.data.recording import Recording
+
 FORMAT_TAG = "quadest aero model v1"
 
 
-def psi(w):
+def psi(w: ArrayLike) -> np.ndarray:
     """Rate features ψ(ω) of eq 10, ``(..., 3) -> (..., 10)``."""
     w = np.asarray(w, float)
     x, y, z = w[..., 0], w[..., 1], w[..., 2]
     return np.stack([x, y, z, x * x, y * y, z * z, x * y, y * z, z * x, np.ones_like(x)], axis=-1)
 
 
-def features(v, w):
+def features(v: ArrayLike, w: ArrayLike) -> np.ndarray:
     """Feature vector φ(v, ω) = ``[v, ‖v‖ v, ψ(ω)]`` of eq 12, ``(..., 16)``."""
     v = np.asarray(v, float)
     return np.concatenate([v, np.linalg.norm(v, axis=-1, keepdims=True) * v, psi(w)], axis=-1)
@@ -88,11 +94,11 @@ class AeroModel:
         if not isinstance(self.info, dict):
             raise ValueError("aero model: info must be a mapping")
 
-    def specific_force(self, v, w):
+    def specific_force(self, v: ArrayLike, w: ArrayLike) -> np.ndarray:
         """Eq 7 without noise: ``f_c / m`` (m/s², body frame)."""
         return self.force(v, w) / self.mass_kg
 
-    def scaled(self, factors) -> AeroModel:
+    def scaled(self, factors: ArrayLike) -> AeroModel:
         """A copy with every entry of Λ = [A B C] multiplied by ``factors`` (3, 16)."""
         L = self.Lambda * np.asarray(factors, float)
         return AeroModel(L[:, :3], L[:, 3:6], L[:, 6:], self.mass_kg, dict(self.info))
@@ -108,12 +114,12 @@ class AeroModel:
             "info": self.info,
         }
 
-    def save(self, path) -> Path:
+    def save(self, path: str | Path) -> Path:
         """Write the JSON file, atomically (nothing half-written is left on a failure)."""
         return write_json(path, self.to_dict())
 
     @classmethod
-    def load(cls, path) -> AeroModel:
+    def load(cls, path: str | Path) -> AeroModel:
         d = read_tagged_json(path, FORMAT_TAG, "aero model")
         try:
             return cls(d["A"], d["B"], d["C"], d["mass_kg"], d.get("info", {}))
@@ -127,12 +133,12 @@ class AeroModel:
         """Combined parameter matrix Λ = [A B C] of eq 13, (3, 16)."""
         return np.hstack([self.A, self.B, self.C])
 
-    def force(self, v, w):
+    def force(self, v: ArrayLike, w: ArrayLike) -> np.ndarray:
         """Eq 13: ``f_c = Λ φ(v, ω)`` (N, body frame), vectorised."""
         return features(v, w) @ self.Lambda.T
 
     @classmethod
-    def from_z_up(cls, A, B, C):
+    def from_z_up(cls, A: ArrayLike, B: ArrayLike, C: ArrayLike) -> AeroModel:
         """Convert matrices given in a body frame with z along the thrust axis (the paper's)."""
         P = np.diag([1.0, -1.0, -1.0])
         # ψ of the paper's rate (P ω) in terms of ψ of ours: odd terms in y or z flip sign
@@ -140,7 +146,7 @@ class AeroModel:
         return cls(P @ np.asarray(A) @ P, P @ np.asarray(B) @ P, P @ np.asarray(C) @ Q)
 
 
-def free_flight_mask(rec) -> np.ndarray:
+def free_flight_mask(rec: Recording) -> np.ndarray:
     """Samples where the model applies: after the release of a simulated throw (its metadata),
     otherwise every sample."""
     info = rec.meta.get("scenario_info", {}) if isinstance(rec.meta, dict) else {}
@@ -149,7 +155,7 @@ def free_flight_mask(rec) -> np.ndarray:
     return np.ones(len(rec), bool)
 
 
-def fit_aero(recordings, mass_kg: float, masks=None) -> AeroModel:
+def fit_aero(recordings: Iterable[Recording], mass_kg: float, masks: Sequence[ArrayLike] | None = None) -> AeroModel:
     """Eq 14: the least-squares Λ* of ``m z_acc ≈ Λ φ(v, ω)`` over the samples of recordings that
     carry true velocity and attitude (``true_vel``, ``true_q``). The body velocity is the true
     navigation-frame velocity rotated into the body; ω is the gyroscope sample (as in the paper).

@@ -325,92 +325,92 @@ def preset_rows(name: str) -> list[dict]:
 
 
 @njit(cache=True, **NO_ALLOCATION)
-def rotor_forces(x, eta, V, F, M, T):
+def rotor_forces(x, eta, vehicle, F, M, T):
     """Total rotor and body force ``F`` and moment ``M`` (body frame) at state ``x``, and each
     rotor's thrust ``T`` (N), in place."""
     qw, qx, qy, qz = x[6], x[7], x[8], x[9]
     w0, w1, w2 = x[10], x[11], x[12]
     ub0, ub1, ub2 = rotate_inv_s(qw, qx, qy, qz, x[3], x[4], x[5])
     sp = np.sqrt(ub0 * ub0 + ub1 * ub1 + ub2 * ub2)
-    F[0], F[1], F[2] = -V.c_d[0] * sp * ub0, -V.c_d[1] * sp * ub1, -V.c_d[2] * sp * ub2
-    M[0] = -V.damping[0] * w0 - V.rot_drag[0] * abs(w0) * w0
-    M[1] = -V.damping[1] * w1 - V.rot_drag[1] * abs(w1) * w1
-    M[2] = -V.damping[2] * w2 - V.rot_drag[2] * abs(w2) * w2
-    for i in range(V.rotor_pos.shape[0]):
-        r0, r1, r2 = V.rotor_pos[i, 0], V.rotor_pos[i, 1], V.rotor_pos[i, 2]
+    F[0], F[1], F[2] = -vehicle.c_d[0] * sp * ub0, -vehicle.c_d[1] * sp * ub1, -vehicle.c_d[2] * sp * ub2
+    M[0] = -vehicle.damping[0] * w0 - vehicle.rot_drag[0] * abs(w0) * w0
+    M[1] = -vehicle.damping[1] * w1 - vehicle.rot_drag[1] * abs(w1) * w1
+    M[2] = -vehicle.damping[2] * w2 - vehicle.rot_drag[2] * abs(w2) * w2
+    for i in range(vehicle.rotor_pos.shape[0]):
+        r0, r1, r2 = vehicle.rotor_pos[i, 0], vehicle.rotor_pos[i, 1], vehicle.rotor_pos[i, 2]
         om = x[13 + i]
         # hub velocity: u = Rᵀ v + ω × r
         u0 = ub0 + (w1 * r2 - w2 * r1)
         u1 = ub1 + (w2 * r0 - w0 * r2)
         u2 = ub2 + (w0 * r1 - w1 * r0)
-        thrust = eta[i] * max(0.0, V.k_f * om * om + V.k_z * om * u2)
+        thrust = eta[i] * max(0.0, vehicle.k_f * om * om + vehicle.k_z * om * u2)
         T[i] = thrust
-        f0, f1, f2 = -eta[i] * V.k_h * om * u0, -eta[i] * V.k_h * om * u1, -thrust
+        f0, f1, f2 = -eta[i] * vehicle.k_h * om * u0, -eta[i] * vehicle.k_h * om * u1, -thrust
         F[0] += f0
         F[1] += f1
         F[2] += f2
         M[0] += r1 * f2 - r2 * f1
         M[1] += r2 * f0 - r0 * f2
-        M[2] += r0 * f1 - r1 * f0 - V.spin[i] * eta[i] * V.k_m * om * om
+        M[2] += r0 * f1 - r1 * f0 - vehicle.spin[i] * eta[i] * vehicle.k_m * om * om
 
 
 @njit(cache=True)
-def derivative(x, cmd, eta, V, dx):
+def derivative(x, cmd, eta, vehicle, dx):
     """``ẋ`` at ``x`` with rotor speed commands ``cmd`` (rad/s) and efficiencies ``eta``."""
-    derivative_ws(x, cmd, eta, V, dx, np.empty(3), np.empty(3), np.empty(V.rotor_pos.shape[0]))
+    derivative_ws(x, cmd, eta, vehicle, dx, np.empty(3), np.empty(3), np.empty(vehicle.rotor_pos.shape[0]))
 
 
 @njit(cache=True, **NO_ALLOCATION)
-def derivative_ws(x, cmd, eta, V, dx, F, M, T):
+def derivative_ws(x, cmd, eta, vehicle, dx, F, M, T):
     """:func:`derivative` with its work arrays given (no allocation in a hot loop); on return
     ``F``, ``M`` and ``T`` hold the body force, moment and rotor thrusts at ``x``."""
-    rotor_forces(x, eta, V, F, M, T)
+    rotor_forces(x, eta, vehicle, F, M, T)
     qw, qx, qy, qz = x[6], x[7], x[8], x[9]
     w0, w1, w2 = x[10], x[11], x[12]
-    a0, a1, a2 = rotate_s(qw, qx, qy, qz, F[0] / V.mass, F[1] / V.mass, F[2] / V.mass)
+    a0, a1, a2 = rotate_s(qw, qx, qy, qz, F[0] / vehicle.mass, F[1] / vehicle.mass, F[2] / vehicle.mass)
     dx[0], dx[1], dx[2] = x[3], x[4], x[5]
-    dx[3], dx[4], dx[5] = a0, a1, a2 + V.gravity
+    dx[3], dx[4], dx[5] = a0, a1, a2 + vehicle.gravity
     dx[6], dx[7], dx[8], dx[9] = qdot_s(qw, qx, qy, qz, w0, w1, w2)
-    J0, J1, J2 = V.inertia[0], V.inertia[1], V.inertia[2]
+    J0, J1, J2 = vehicle.inertia[0], vehicle.inertia[1], vehicle.inertia[2]
     # Euler: J ω̇ = M − ω × (J ω)
     dx[10] = (M[0] - (w1 * J2 * w2 - w2 * J1 * w1)) / J0
     dx[11] = (M[1] - (w2 * J0 * w0 - w0 * J2 * w2)) / J1
     dx[12] = (M[2] - (w0 * J1 * w1 - w1 * J0 * w0)) / J2
-    for i in range(V.rotor_pos.shape[0]):
-        target = min(max(cmd[i], V.omega_min), V.omega_max)
-        rate = (target - x[13 + i]) / V.tau
-        dx[13 + i] = min(max(rate, -V.omega_dot_max), V.omega_dot_max)
+    for i in range(vehicle.rotor_pos.shape[0]):
+        target = min(max(cmd[i], vehicle.omega_min), vehicle.omega_max)
+        rate = (target - x[13 + i]) / vehicle.tau
+        dx[13 + i] = min(max(rate, -vehicle.omega_dot_max), vehicle.omega_dot_max)
 
 
 @njit(cache=True)
-def rk4(x, cmd, eta, V, h):
+def rk4(x, cmd, eta, vehicle, h):
     """One classical Runge-Kutta step of ``h`` seconds, in place; the quaternion is renormalised
     and rotor speeds kept non-negative."""
-    rk4_ws(x, cmd, eta, V, h, work(V, x.shape[0]))
+    rk4_ws(x, cmd, eta, vehicle, h, work(vehicle, x.shape[0]))
 
 
 @njit(cache=True)
-def work(V, n):
+def work(vehicle, n):
     """Work arrays of :func:`rk4_ws`: the stages and the force, moment and thrusts."""
-    return np.empty((5, n)), np.empty(3), np.empty(3), np.empty(V.rotor_pos.shape[0])
+    return np.empty((5, n)), np.empty(3), np.empty(3), np.empty(vehicle.rotor_pos.shape[0])
 
 
 @njit(cache=True, **NO_ALLOCATION)
-def rk4_ws(x, cmd, eta, V, h, W):
-    """:func:`rk4` with its work arrays ``W`` (from :func:`work`): no allocation per step."""
+def rk4_ws(x, cmd, eta, vehicle, h, work_arrays):
+    """:func:`rk4` with its work arrays ``work_arrays`` (from :func:`work`): no allocation per step."""
     n = x.shape[0]
-    S, F, M, T = W
-    k1, k2, k3, k4, y = S[0], S[1], S[2], S[3], S[4]
-    derivative_ws(x, cmd, eta, V, k1, F, M, T)
+    stages, F, M, T = work_arrays
+    k1, k2, k3, k4, y = stages[0], stages[1], stages[2], stages[3], stages[4]
+    derivative_ws(x, cmd, eta, vehicle, k1, F, M, T)
     for j in range(n):
         y[j] = x[j] + 0.5 * h * k1[j]
-    derivative_ws(y, cmd, eta, V, k2, F, M, T)
+    derivative_ws(y, cmd, eta, vehicle, k2, F, M, T)
     for j in range(n):
         y[j] = x[j] + 0.5 * h * k2[j]
-    derivative_ws(y, cmd, eta, V, k3, F, M, T)
+    derivative_ws(y, cmd, eta, vehicle, k3, F, M, T)
     for j in range(n):
         y[j] = x[j] + h * k3[j]
-    derivative_ws(y, cmd, eta, V, k4, F, M, T)
+    derivative_ws(y, cmd, eta, vehicle, k4, F, M, T)
     for j in range(n):
         x[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
     nq = np.sqrt(x[6] * x[6] + x[7] * x[7] + x[8] * x[8] + x[9] * x[9])
@@ -421,20 +421,20 @@ def rk4_ws(x, cmd, eta, V, h, W):
 
 
 @njit(cache=True)
-def fly_open_loop(x, cmd, eta, V, h, steps, out):
+def fly_open_loop(x, cmd, eta, vehicle, h, steps, out):
     """``steps`` RK4 steps with constant commands; ``out[k]`` the state after step k."""
-    W = work(V, x.shape[0])
+    work_arrays = work(vehicle, x.shape[0])
     for k in range(steps):
-        rk4_ws(x, cmd, eta, V, h, W)
+        rk4_ws(x, cmd, eta, vehicle, h, work_arrays)
         for j in range(x.shape[0]):
             out[k, j] = x[j]
 
 
 @njit(cache=True)
-def derivatives(states, cmds, etas, V, dx, thrusts):
+def derivatives(states, cmds, etas, vehicle, dx, thrusts):
     """``ẋ`` and the rotor thrusts along a flight (one row per step, with that step's rotor
     efficiencies), in place."""
     F = np.empty(3)
     M = np.empty(3)
     for k in range(states.shape[0]):
-        derivative_ws(states[k], cmds[k], etas[k], V, dx[k], F, M, thrusts[k])
+        derivative_ws(states[k], cmds[k], etas[k], vehicle, dx[k], F, M, thrusts[k])

@@ -5,12 +5,15 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from quadest.evaluation.metrics import AXES, euler_errors
 from quadest.plot.save import save_figure
 
 
-def plot_errors(t, q_true, results: dict, out_dir, *, title: str = "", t_from: float | None = None):
+def plot_errors(
+    t: ArrayLike, q_true: ArrayLike, results: dict, out_dir: str | Path, *, title: str = "", t_from: float | None = None
+) -> list[Path]:
     """One PNG per axis in ``out_dir`` (``error_roll.png`` ...), every estimator as a line.
     Returns the paths."""
     import matplotlib

@@ -3,13 +3,19 @@ speeds."""
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from quadest.plot.save import save_figure
 from quadest.rotation import quat_to_euler
 
+if TYPE_CHECKING:
+    from quadest.flight.common import Flight
 
-def plot_flight(flight, path, title: str = ""):
+
+def plot_flight(flight: Flight, path: str | Path, title: str = "") -> Path:
     """Top view and height of the path (true and estimated), roll and pitch (true and as the
     controller read them), rotor speeds; the failure and the end of a run that crashed marked."""
     import matplotlib

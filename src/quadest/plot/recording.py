@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from quadest.data.recording import Recording
@@ -9,7 +11,7 @@ from quadest.plot.save import save_figure
 from quadest.rotation import quat_to_euler
 
 
-def plot_recording(rec: Recording, path, title: str | None = None):
+def plot_recording(rec: Recording, path: str | Path, title: str | None = None) -> str | Path:
     """Write a PNG/PDF/SVG with attitude (when truth is present), rates, accelerometer and
     magnetometer over time. Returns the path."""
     import matplotlib

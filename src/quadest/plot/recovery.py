@@ -2,14 +2,21 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from quadest.plot.save import save_figure
 from quadest.recovery.logic import angle_deg, true_gravity_dir
 from quadest.rotation import quat_conj, quat_rotate
 
+if TYPE_CHECKING:
+    from quadest.data.recording import Recording
+    from quadest.recovery.logic import RecoveryResult
 
-def plot_recovery(res, rec, path, title: str = ""):
+
+def plot_recovery(res: RecoveryResult, rec: Recording, path: str | Path, title: str = "") -> str | Path:
     """Angle error of every hypothesis and of the most likely one (Fig 3, top), the hypothesis
     probabilities (Fig 3, bottom) and estimated against true body velocity (Fig 2)."""
     import matplotlib
@@ -63,7 +70,7 @@ def plot_recovery(res, rec, path, title: str = ""):
     return path
 
 
-def plot_recovery_histograms(runs: dict, path):
+def plot_recovery_histograms(runs: dict, path: str | Path) -> str | Path:
     """Gravity-direction and velocity errors at convergence over throws, per model case (Fig 1)."""
     import matplotlib
 

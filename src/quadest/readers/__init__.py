@@ -23,23 +23,30 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from quadest.data.recording import load_recording
+from quadest.data.recording import Recording, load_recording
 from quadest.readers import datasets, generic, logs, ros
 from quadest.readers.common import ReaderError
 
-FORMATS = ("quadest", "csv", "ulog", "dataflash", "rosbag", "broad", "dido", "blackbird", "repoimu")
+
+def _read_broad(path, **options) -> Recording:
+    read = datasets.read_broad_mat if Path(path).suffix.lower() == ".mat" else datasets.read_broad_hdf5
+    return read(path, **options)
 
 
-def _reader(fmt):
-    return {
-        "csv": generic.read_csv_mapped,
-        "ulog": logs.read_ulog,
-        "dataflash": logs.read_dataflash,
-        "rosbag": ros.read_rosbag,
-        "dido": datasets.read_dido,
-        "blackbird": datasets.read_blackbird,
-        "repoimu": datasets.read_repoimu,
-    }[fmt]
+READERS = {
+    "quadest": load_recording,
+    "csv": generic.read_csv_mapped,
+    "ulog": logs.read_ulog,
+    "dataflash": logs.read_dataflash,
+    "rosbag": ros.read_rosbag,
+    "broad": _read_broad,
+    "dido": datasets.read_dido,
+    "blackbird": datasets.read_blackbird,
+    "repoimu": datasets.read_repoimu,
+}
+"""The one registry of readers: each format's name to the function that reads it into a
+:class:`~quadest.data.Recording` (``read(path, **options)``)."""
+FORMATS = tuple(READERS)
 
 
 def _first_bytes(p: Path, n=256) -> bytes:
@@ -50,7 +57,7 @@ def _first_bytes(p: Path, n=256) -> bytes:
         return b""
 
 
-def detect_format(path) -> str:
+def detect_format(path: str | Path) -> str:
     """The format of ``path`` from its extension and first bytes (or, for HDF5, its datasets)."""
     p = Path(path)
     if not p.exists():
@@ -110,19 +117,14 @@ def detect_format(path) -> str:
     raise ReaderError(f"{path}: unknown file type {ext!r}; give --format (one of {', '.join(FORMATS)})")
 
 
-def read_recording(path, format: str | None = None, **options):
+def read_recording(path: str | Path, format: str | None = None, **options) -> Recording:
     """Read any supported file as a Recording (see the module docstring)."""
     fmt = format or detect_format(path)
-    if fmt not in FORMATS:
-        raise ReaderError(f"unknown format {fmt!r}; formats: {', '.join(FORMATS)}")
-    if fmt == "quadest":
-        return load_recording(path)
-    if fmt == "broad":
-        read = datasets.read_broad_mat if Path(path).suffix.lower() == ".mat" else datasets.read_broad_hdf5
-        return read(path, **options)
+    if fmt not in READERS:
+        raise ReaderError(f"unknown format {fmt!r}; formats: {', '.join(READERS)}")
     if not Path(path).exists():
         raise ReaderError(f"{path}: no such file or folder")
-    return _reader(fmt)(path, **options)
+    return READERS[fmt](path, **options)
 
 
-__all__ = ["FORMATS", "ReaderError", "detect_format", "read_recording"]
+__all__ = ["FORMATS", "READERS", "ReaderError", "detect_format", "read_recording"]

@@ -12,8 +12,10 @@ velocity kept). The paper's detection is per sample; requiring a few consecutive
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from quadest._jit import njit
 from quadest.conventions import GRAVITY
@@ -23,6 +25,9 @@ from quadest.recovery.bank import BankRecord, bank_step, gravity_body, summarize
 from quadest.recovery.sphere import spread_points
 from quadest.rotation import quat_conj, quat_rotate
 from quadest.rotation.kernels import FASTMATH
+
+if TYPE_CHECKING:
+    from quadest.data.recording import Recording
 
 _P = param
 
@@ -177,13 +182,13 @@ def detect_throw(acc, beta1: float, samples: int) -> int | None:
 
 
 def recover(
-    rec,
+    rec: Recording,
     model: AeroModel,
     params: RecoveryParams | None = None,
     *,
     record_all: bool = False,
     t_release: float | None = None,
-    dirs=None,
+    dirs: ArrayLike | None = None,
 ) -> RecoveryResult:
     """Run the recovery logic over a recording (IMU only). With truth in the recording the
     summary holds the errors at convergence; ``t_release`` (or a simulated throw's metadata)

@@ -17,6 +17,7 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 
 def _fibonacci(n: int) -> np.ndarray:
@@ -27,7 +28,7 @@ def _fibonacci(n: int) -> np.ndarray:
     return np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
 
 
-def min_angle(points) -> float:
+def min_angle(points: ArrayLike) -> float:
     """Smallest angle (rad) between any two of the points (unit vectors)."""
     p = np.asarray(points, float)
     c = np.clip(p @ p.T, -1.0, 1.0)

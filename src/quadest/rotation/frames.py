@@ -6,7 +6,10 @@ ENU -> NED about the axis ``(1, 1, 0)/√2``, FLU -> FRD about the body x axis. 
 ``q_T ⊗ q ⊗ q_F`` with ``q_T = [0, 1/√2, 1/√2, 0]`` and ``q_F = [0, 1, 0, 0]``.
 """
 
+from __future__ import annotations
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from quadest.conventions import ENU_TO_NED, FLU_TO_FRD
 from quadest.rotation.quaternion import quat_mul
@@ -16,7 +19,7 @@ _Q_ENU_TO_NED = np.array([0.0, _S, _S, 0.0])
 _Q_FLU_TO_FRD = np.array([0.0, 1.0, 0.0, 0.0])
 
 
-def vec_enu_to_ned(v):
+def vec_enu_to_ned(v: ArrayLike) -> np.ndarray:
     """Navigation-frame vector(s) from east-north-up to north-east-down."""
     return np.asarray(v, dtype=float) @ ENU_TO_NED.T
 
@@ -24,7 +27,7 @@ def vec_enu_to_ned(v):
 vec_ned_to_enu = vec_enu_to_ned  # the change is its own inverse
 
 
-def vec_flu_to_frd(v):
+def vec_flu_to_frd(v: ArrayLike) -> np.ndarray:
     """Body-frame vector(s) from forward-left-up to forward-right-down."""
     return np.asarray(v, dtype=float) @ FLU_TO_FRD.T
 
@@ -32,21 +35,21 @@ def vec_flu_to_frd(v):
 vec_frd_to_flu = vec_flu_to_frd
 
 
-def quat_enu_flu_to_ned_frd(q):
+def quat_enu_flu_to_ned_frd(q: ArrayLike) -> np.ndarray:
     """``q_nb`` of an ENU navigation frame and FLU body frame -> quadest's NED/FRD ``q_nb``."""
     return quat_mul(quat_mul(_Q_ENU_TO_NED, np.asarray(q, dtype=float)), _Q_FLU_TO_FRD)
 
 
-def quat_ned_frd_to_enu_flu(q):
+def quat_ned_frd_to_enu_flu(q: ArrayLike) -> np.ndarray:
     """quadest's NED/FRD ``q_nb`` -> ``q_nb`` of an ENU navigation frame and FLU body frame."""
     return quat_mul(quat_mul(_Q_ENU_TO_NED, np.asarray(q, dtype=float)), _Q_FLU_TO_FRD)
 
 
-def to_scalar_last(q):
+def to_scalar_last(q: ArrayLike) -> np.ndarray:
     """``[w, x, y, z]`` -> ``[x, y, z, w]`` (scipy's default, ROS messages)."""
     return np.roll(np.asarray(q, dtype=float), -1, axis=-1)
 
 
-def from_scalar_last(q):
+def from_scalar_last(q: ArrayLike) -> np.ndarray:
     """``[x, y, z, w]`` -> quadest's ``[w, x, y, z]``."""
     return np.roll(np.asarray(q, dtype=float), 1, axis=-1)

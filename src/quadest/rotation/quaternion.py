@@ -5,7 +5,10 @@ vectors into the navigation frame (:mod:`quadest.conventions`). Every function a
 quaternion ``(4,)`` / vector ``(3,)`` or a stack ``(N, 4)`` / ``(N, 3)`` and broadcasts.
 """
 
+from __future__ import annotations
+
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
 _GIMBAL_EPS = 1e-14
@@ -19,7 +22,7 @@ def _as_float(a):
     return np.asarray(a, dtype=float)
 
 
-def quat_mul(p, q):
+def quat_mul(p: ArrayLike, q: ArrayLike) -> np.ndarray:
     """Hamilton product ``p ⊗ q``."""
     p, q = _as_float(p), _as_float(q)
     pw, px, py, pz = np.moveaxis(p, -1, 0)
@@ -35,13 +38,13 @@ def quat_mul(p, q):
     )
 
 
-def quat_conj(q):
+def quat_conj(q: ArrayLike) -> np.ndarray:
     """Conjugate ``[w, -x, -y, -z]``: the inverse of a unit quaternion (``q_bn`` from ``q_nb``)."""
     q = _as_float(q)
     return q * np.array([1.0, -1.0, -1.0, -1.0])
 
 
-def quat_normalize(q):
+def quat_normalize(q: ArrayLike) -> np.ndarray:
     """Unit quaternion; raises ValueError for a zero or non-finite quaternion."""
     q = _as_float(q)
     n = np.linalg.norm(q, axis=-1, keepdims=True)
@@ -50,7 +53,7 @@ def quat_normalize(q):
     return q / n
 
 
-def quat_to_matrix(q):
+def quat_to_matrix(q: ArrayLike) -> np.ndarray:
     """Rotation matrix ``R_nb`` (``v_n = R_nb @ v_b``) of unit quaternion(s) ``q_nb``."""
     q = _as_float(q)
     w, x, y, z = np.moveaxis(q, -1, 0)
@@ -67,7 +70,7 @@ def quat_to_matrix(q):
     return R
 
 
-def matrix_to_quat(R):
+def matrix_to_quat(R: ArrayLike) -> np.ndarray:
     """Unit quaternion(s) of rotation matrix(es) ``R_nb``, with ``w >= 0``.
 
     Uses scipy's robust conversion (Markley's method); the result is our scalar-first form.
@@ -78,7 +81,7 @@ def matrix_to_quat(R):
     return q.reshape(R.shape[:-2] + (4,))
 
 
-def quat_rotate(q, v):
+def quat_rotate(q: ArrayLike, v: ArrayLike) -> np.ndarray:
     """Rotate body vector(s) ``v_b`` into the navigation frame: ``v_n = R(q_nb) @ v_b``."""
     q, v = _as_float(q), _as_float(v)
     w = q[..., :1]
@@ -87,7 +90,7 @@ def quat_rotate(q, v):
     return v + w * t + np.cross(u, t)
 
 
-def quat_from_rotvec(rv):
+def quat_from_rotvec(rv: ArrayLike) -> np.ndarray:
     """Exponential map: the quaternion of rotation vector(s) ``rv`` (axis times angle, rad)."""
     rv = _as_float(rv)
     th = np.linalg.norm(rv, axis=-1, keepdims=True)
@@ -98,7 +101,7 @@ def quat_from_rotvec(rv):
     return np.concatenate([np.cos(half), k * rv], axis=-1)
 
 
-def quat_to_rotvec(q):
+def quat_to_rotvec(q: ArrayLike) -> np.ndarray:
     """Logarithmic map: rotation vector (rad) of unit quaternion(s), angle in [0, π]."""
     q = _as_float(q)
     q = np.where(q[..., :1] < 0, -q, q)
@@ -111,7 +114,7 @@ def quat_to_rotvec(q):
     return k * u
 
 
-def quat_to_euler(q):
+def quat_to_euler(q: ArrayLike) -> np.ndarray:
     """ZYX Euler angles ``[roll, pitch, yaw]`` (rad) of ``q_nb``.
 
     ``R_nb = Rz(yaw) @ Ry(pitch) @ Rx(roll)``; roll and yaw in (-π, π], pitch in [-π/2, π/2].
@@ -132,7 +135,7 @@ def quat_to_euler(q):
     return np.stack([roll, pitch, yaw], axis=-1)
 
 
-def euler_to_quat(euler):
+def euler_to_quat(euler: ArrayLike) -> np.ndarray:
     """Quaternion ``q_nb`` from ZYX Euler angles ``[roll, pitch, yaw]`` (rad), ``(..., 3)``."""
     e = _as_float(euler)
     hr, hp, hy = 0.5 * e[..., 0], 0.5 * e[..., 1], 0.5 * e[..., 2]
@@ -148,14 +151,14 @@ def euler_to_quat(euler):
     )
 
 
-def angle_between(q1, q2):
+def angle_between(q1: ArrayLike, q2: ArrayLike) -> float | np.ndarray:
     """Rotation angle (rad, in [0, π]) of ``q1⁻¹ ⊗ q2``: the attitude error on the manifold."""
     # 2*atan2(|vec|, |w|) is accurate for small angles, unlike 2*acos(|w|)
     dq = quat_mul(quat_conj(q1), q2)
     return 2.0 * np.arctan2(np.linalg.norm(dq[..., 1:], axis=-1), np.abs(dq[..., 0]))
 
 
-def quat_continuous(q):
+def quat_continuous(q: ArrayLike) -> np.ndarray:
     """Flip signs along axis 0 so consecutive quaternions have a positive dot product."""
     q = np.array(q, dtype=float)
     if q.ndim != 2 or len(q) < 2:
@@ -165,7 +168,7 @@ def quat_continuous(q):
     return q * sign[:, None]
 
 
-def skew(v):
+def skew(v: ArrayLike) -> np.ndarray:
     """Cross-product matrix ``[v]×`` with ``skew(a) @ b == cross(a, b)``, shape ``(..., 3, 3)``."""
     v = _as_float(v)
     S = np.zeros(v.shape[:-1] + (3, 3))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections import namedtuple
+from pathlib import Path
 
 import numpy as np
 
@@ -20,7 +21,9 @@ MAX_SAMPLES = 2e7
 CHUNK_S = 10.0  # simulated seconds per chunk (memory and progress granularity)
 
 
-def build_config(preset: str = "bebop2", overrides: dict | None = None, toml=None, ideal: bool = False) -> SimConfig:
+def build_config(
+    preset: str = "bebop2", overrides: dict | None = None, toml: str | Path | None = None, ideal: bool = False
+) -> SimConfig:
     """A preset; ``ideal`` removes every sensor error (:meth:`SimConfig.idealized`); then a TOML
     file's overrides and ``overrides`` (``{"gyro.noise_std": 0.02}``), so that chosen errors can
     be put back on ideal sensors."""
@@ -60,10 +63,10 @@ def simulate(
     *,
     config: SimConfig | None = None,
     ideal: bool = False,
-    toml=None,
+    toml: str | Path | None = None,
     progress: bool = False,
     return_truth: bool = False,
-):
+) -> Recording | tuple[Recording, Truth]:
     """Simulate one flight and its sensors. Deterministic for a given seed and configuration.
 
     Parameters

@@ -16,10 +16,15 @@ import hashlib
 import os
 import time
 import uuid
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from quadest.evaluation.parallel import execute
 from quadest.sweep.runs import empty_row, group_runs, row_types, run_group, run_id
+
+if TYPE_CHECKING:
+    import pyarrow as pa
 
 
 # -- the result store ---------------------------------------------------------------------------------
@@ -28,7 +33,7 @@ class ResultStore:
     in ``<file>.parts/`` as they arrive; when it ends they are folded into the file and the
     folder is removed. A sweep that was killed leaves its parts, and the next one reads them."""
 
-    def __init__(self, path, flush_s: float = 2.0, flush_rows: int = 200):
+    def __init__(self, path: str | Path, flush_s: float = 2.0, flush_rows: int = 200):
         self.path = Path(path)
         if self.path.is_dir():
             raise ValueError(f"{path}: is a folder; give the results file to write (e.g. results.parquet)")
@@ -77,14 +82,14 @@ class ResultStore:
                 continue  # a part cut by a crash: its runs are simply run again
         return tables
 
-    def raw(self):
+    def raw(self) -> pa.Table | None:
         """Every row written, in order (None if none)."""
         import pyarrow as pa
 
         tables = self._tables()
         return pa.concat_tables(tables, promote_options="default") if tables else None
 
-    def read(self):
+    def read(self) -> pa.Table | None:
         """The results: the latest row of each run (None if empty)."""
         t = self.raw()
         if t is None:
@@ -100,12 +105,12 @@ class ResultStore:
         ids, status = t.column("run_id").to_pylist(), t.column("status").to_pylist()
         return {i for i, s in zip(ids, status) if s == "ok" or not retry_failed}
 
-    def add(self, row: dict):
+    def add(self, row: dict) -> None:
         self._buf.append(row)
         if len(self._buf) >= self.flush_rows or time.monotonic() - self._last > self.flush_s:
             self.flush()
 
-    def flush(self):
+    def flush(self) -> None:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
@@ -121,7 +126,7 @@ class ResultStore:
         self._n += 1
         self._buf = []
 
-    def compact(self):
+    def compact(self) -> None:
         """Fold the parts into the results file (atomically) and remove them. A failed row that
         a later row of the same run replaced (``--retry-failed``) is dropped; nothing else is."""
         import shutil
@@ -146,8 +151,8 @@ class ResultStore:
 
 
 def run_sweep(
-    runs,
-    out,
+    runs: Sequence[dict],
+    out: str | Path,
     *,
     workers: int | None = 0,
     scheduler: str | None = None,

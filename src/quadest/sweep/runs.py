@@ -14,6 +14,7 @@ import itertools
 import json
 import math
 import time
+from collections.abc import Iterable, Sequence
 from functools import lru_cache
 from pathlib import Path
 
@@ -122,7 +123,7 @@ def parse_values(text: str) -> list[float]:
         raise UsageError(f"grid values {text!r}: give a list (0.1,0.2) or lin:A:B:N or log:A:B:N") from None
 
 
-def parse_grid(items) -> dict:
+def parse_grid(items: Iterable[str] | None) -> dict:
     """``["madgwick.beta_marg=log:0.001:0.5:30", "mahony.k_p=0.5,1,2"]`` ->
     ``{"madgwick": {"beta_marg": [...]}, "mahony": {"k_p": [...]}}``."""
     out: dict = {}
@@ -144,7 +145,14 @@ def param_sets(grid: dict) -> list[dict]:
     return [dict(zip(keys, combo)) for combo in itertools.product(*(grid[k] for k in keys))]
 
 
-def sim_sources(scenario, preset, seeds, duration=None, overrides=None, t_from=None) -> list[dict]:
+def sim_sources(
+    scenario: str,
+    preset: str,
+    seeds: Iterable[int],
+    duration: float | None = None,
+    overrides: dict | None = None,
+    t_from: float | None = None,
+) -> list[dict]:
     return [
         {
             "kind": "sim",
@@ -160,7 +168,14 @@ def sim_sources(scenario, preset, seeds, duration=None, overrides=None, t_from=N
 
 
 def flown_sources(
-    scenario, seeds, *, controller=None, failures=(None,), duration=None, vehicle="recovery", preset=None
+    scenario: str,
+    seeds: Sequence[int],
+    *,
+    controller: str | None = None,
+    failures: Iterable[dict | None] = (None,),
+    duration: float | None = None,
+    vehicle: str = "recovery",
+    preset: str | None = None,
 ) -> list[dict]:
     """Flown flights (:func:`quadest.flight.fly`): one per (failure, seed); a failure as
     ``{"rotor", "time_s", "efficiency"[, "imbalance"]}`` or None."""
@@ -180,7 +195,7 @@ def flown_sources(
     ]
 
 
-def file_sources(paths, fmt=None) -> list[dict]:
+def file_sources(paths: Sequence[str | Path], fmt: str | None = None) -> list[dict]:
     out = []
     for p in paths:
         p = Path(p)
@@ -211,7 +226,9 @@ def flown_names(filters, scenario: str) -> list[str]:
     return names
 
 
-def build_runs(filters, grid: dict, sources, align: str | None = None) -> list[dict]:
+def build_runs(
+    filters: str | Iterable[str], grid: dict, sources: Sequence[dict], align: str | None = None
+) -> list[dict]:
     """Every (filter, parameter set, source) as a run spec."""
     flown = [s for s in sources if s["kind"] == "flown"]
     if flown:

@@ -5,6 +5,8 @@ set per trial."""
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable, Sequence
+from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
@@ -14,7 +16,7 @@ from quadest.sweep.engine import ResultStore, run_sweep
 from quadest.sweep.runs import run_id
 
 
-def select(table, filter_name: str, metric: str = "total_rmse_deg") -> dict:
+def select(table: pa.Table, filter_name: str, metric: str = "total_rmse_deg") -> dict:
     """``{"trial_agnostic": {...}, "per_trial": {source: {...}}}`` from a results table. A
     parameter set counts for the trial-agnostic choice only if it ran on every trial."""
     rows = [r for r in table.to_pylist() if r["filter"] == filter_name and r["status"] == "ok"]
@@ -47,7 +49,7 @@ def select(table, filter_name: str, metric: str = "total_rmse_deg") -> dict:
     }
 
 
-def halves(sources) -> tuple[list[str], list[str]]:
+def halves(sources: Iterable[str]) -> tuple[list[str], list[str]]:
     """The two halves of a split: the trials in sorted order, alternately (BROAD's trials are
     numbered by kind, so each half gets one of every kind: with and without rest breaks, each
     disturbance)."""
@@ -55,7 +57,7 @@ def halves(sources) -> tuple[list[str], list[str]]:
     return s[0::2], s[1::2]
 
 
-def split_select(table, filter_name: str, metric: str = "total_rmse_deg") -> dict:
+def split_select(table: pa.Table, filter_name: str, metric: str = "total_rmse_deg") -> dict:
     """Cross-validation by halves: the parameter set with the lowest mean over one half,
     scored on the other half it never saw, and the reverse. A parameter set counts only if it
     ran on every trial of both halves."""
@@ -136,7 +138,13 @@ def _tuning_table(runs, out, **engine):
 
 
 def tune(
-    runs, out, filter_name: str, metric: str = "total_rmse_deg", *, split: bool = False, **engine
+    runs: Sequence[dict],
+    out: str | Path,
+    filter_name: str,
+    metric: str = "total_rmse_deg",
+    *,
+    split: bool = False,
+    **engine,
 ) -> tuple[dict, dict]:
     """Run (or resume) a tuning sweep and choose parameters over exactly these runs: one set for
     all (:func:`select`) or, with ``split``, by halves (:func:`split_select`). Returns

@@ -21,7 +21,7 @@ are in docs/estimators.md (robust). One module per phase of the step:
 """
 
 from quadest.filters.robust.clipping import mag_rate_terms
-from quadest.filters.robust.params import UNKNOWN_HEADING_VAR, RobustParams, S
+from quadest.filters.robust.params import STATE, UNKNOWN_HEADING_VAR, RobustParams
 from quadest.filters.robust.step import Robust, robust_run, robust_step
 
-__all__ = ["UNKNOWN_HEADING_VAR", "Robust", "RobustParams", "S", "mag_rate_terms", "robust_run", "robust_step"]
+__all__ = ["UNKNOWN_HEADING_VAR", "Robust", "RobustParams", "STATE", "mag_rate_terms", "robust_run", "robust_step"]

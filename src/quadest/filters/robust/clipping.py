@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from quadest._jit import njit
-from quadest.filters.robust.params import PR, S
+from quadest.filters.robust.params import PARAM, STATE
 
 
 @njit(cache=True, inline="always")
@@ -39,37 +39,42 @@ def clip_rate_update(x, p, i, num, den, wi, mdt, kl):
     once ``Σ excess den²/V / sqrt(Σ den²/V)`` passes
     ``clip_confirm`` standard errors, and the weighted mean excess the top's spread
     (``clip_flat``), the top's level is the axis's limit for that sign."""
-    if x[S.gclip + i] == 0.0:
-        if x[S.gflat + i] != 0.0:
-            if x[S.Vt + i] >= p[PR.clip_learn_tau] and x[S.Vn + i] > 0.0 and den > 0.0 and x[S.flat + i] != 0.0:
-                sg = 1.0 if x[S.level + i] > 0.0 else -1.0
-                x[S.ev_s + i] += sg * (num - wi * den) * den / x[S.Vn + i]
-                x[S.ev_w + i] += den * den / x[S.Vn + i]
+    if x[STATE.gclip + i] == 0.0:
+        if x[STATE.gflat + i] != 0.0:
+            if (
+                x[STATE.Vt + i] >= p[PARAM.clip_learn_tau]
+                and x[STATE.Vn + i] > 0.0
+                and den > 0.0
+                and x[STATE.flat + i] != 0.0
+            ):
+                sg = 1.0 if x[STATE.level + i] > 0.0 else -1.0
+                x[STATE.ev_s + i] += sg * (num - wi * den) * den / x[STATE.Vn + i]
+                x[STATE.ev_w + i] += den * den / x[STATE.Vn + i]
                 # significant, and beyond the flat top's own spread (a quantised reading's
                 # rounding errs one way for as long as it holds its value)
                 if (
-                    x[S.ev_s + i] > p[PR.clip_confirm] * math.sqrt(x[S.ev_w + i])
-                    and x[S.ev_s + i] > p[PR.clip_flat] * abs(x[S.level + i]) * x[S.ev_w + i]
+                    x[STATE.ev_s + i] > p[PARAM.clip_confirm] * math.sqrt(x[STATE.ev_w + i])
+                    and x[STATE.ev_s + i] > p[PARAM.clip_flat] * abs(x[STATE.level + i]) * x[STATE.ev_w + i]
                 ):
                     if sg > 0.0:
-                        x[S.lim_pos + i] = x[S.level + i]
+                        x[STATE.lim_pos + i] = x[STATE.level + i]
                     else:
-                        x[S.lim_neg + i] = x[S.level + i]
+                        x[STATE.lim_neg + i] = x[STATE.level + i]
         else:
             # a running mean until clip_learn_tau has passed, then exponential forgetting
             e = num - wi * den
-            x[S.Vt + i] += mdt
-            x[S.Vn + i] += max(kl, mdt / x[S.Vt + i]) * (e * e - x[S.Vn + i])
-        x[S.rate + i] = wi
-        x[S.Pw + i] = 0.0
+            x[STATE.Vt + i] += mdt
+            x[STATE.Vn + i] += max(kl, mdt / x[STATE.Vt + i]) * (e * e - x[STATE.Vn + i])
+        x[STATE.rate + i] = wi
+        x[STATE.Pw + i] = 0.0
     else:
         if den <= 0.0:
             return
-        pw = x[S.Pw + i] + p[PR.clip_rate_q] * mdt
-        r = x[S.Vn + i] / (den * den)
+        pw = x[STATE.Pw + i] + p[PARAM.clip_rate_q] * mdt
+        r = x[STATE.Vn + i] / (den * den)
         k = pw / (pw + r) if pw + r > 0.0 else 1.0
-        x[S.rate + i] += k * (num / den - x[S.rate + i])
-        x[S.Pw + i] = (1.0 - k) * pw
+        x[STATE.rate + i] += k * (num / den - x[STATE.rate + i])
+        x[STATE.Pw + i] = (1.0 - k) * pw
 
 
 @njit(cache=True, inline="always")
@@ -88,54 +93,54 @@ def detect_clip(x, p, i, g):
     A confirmed limit is the sensor's: later readings within ``clip_flat`` of it are clipped at
     once, and a reading beyond it erases it."""
     a = abs(g)
-    tol = p[PR.clip_flat] * a
-    if p[PR.gyro_range] > 0.0:
-        return a >= p[PR.gyro_range] - tol
-    if a < p[PR.clip_min_rate]:
-        x[S.flat + i] = 0.0
+    tol = p[PARAM.clip_flat] * a
+    if p[PARAM.gyro_range] > 0.0:
+        return a >= p[PARAM.gyro_range] - tol
+    if a < p[PARAM.clip_min_rate]:
+        x[STATE.flat + i] = 0.0
         return False
-    x[S.peak_n + i] += 1.0
-    x[S.trough_n + i] += 1.0
-    if g > x[S.peak + i]:
-        x[S.peak + i] = g
-        x[S.peak_n + i] = 0.0
-    if g < x[S.trough + i]:
-        x[S.trough + i] = g
-        x[S.trough_n + i] = 0.0
-    lim = x[S.lim_pos + i] if g > 0.0 else x[S.lim_neg + i]
+    x[STATE.peak_n + i] += 1.0
+    x[STATE.trough_n + i] += 1.0
+    if g > x[STATE.peak + i]:
+        x[STATE.peak + i] = g
+        x[STATE.peak_n + i] = 0.0
+    if g < x[STATE.trough + i]:
+        x[STATE.trough + i] = g
+        x[STATE.trough_n + i] = 0.0
+    lim = x[STATE.lim_pos + i] if g > 0.0 else x[STATE.lim_neg + i]
     if lim != 0.0 and a > abs(lim) + tol:  # read beyond: it was no limit
         if g > 0.0:
-            x[S.lim_pos + i] = 0.0
+            x[STATE.lim_pos + i] = 0.0
         else:
-            x[S.lim_neg + i] = 0.0
+            x[STATE.lim_neg + i] = 0.0
         lim = 0.0
     if lim != 0.0 and abs(a - abs(lim)) <= tol:
-        x[S.flat + i] = 0.0
+        x[STATE.flat + i] = 0.0
         return True
-    if x[S.flat + i] != 0.0 and g * x[S.level + i] > 0.0:
-        cand = abs(a - abs(x[S.level + i])) <= tol
+    if x[STATE.flat + i] != 0.0 and g * x[STATE.level + i] > 0.0:
+        cand = abs(a - abs(x[STATE.level + i])) <= tol
     else:
         if g > 0.0:
-            cand = g >= x[S.peak + i] - tol and x[S.peak_n + i] >= p[PR.clip_plateau]
+            cand = g >= x[STATE.peak + i] - tol and x[STATE.peak_n + i] >= p[PARAM.clip_plateau]
         else:
-            cand = g <= x[S.trough + i] + tol and x[S.trough_n + i] >= p[PR.clip_plateau]
-        cand = cand and abs(g - x[S.gprev + i]) <= tol
-        x[S.level + i] = g
-        x[S.rep + i] = 0.0
-        x[S.ev_s + i] = 0.0
-        x[S.ev_w + i] = 0.0
+            cand = g <= x[STATE.trough + i] + tol and x[STATE.trough_n + i] >= p[PARAM.clip_plateau]
+        cand = cand and abs(g - x[STATE.gprev + i]) <= tol
+        x[STATE.level + i] = g
+        x[STATE.rep + i] = 0.0
+        x[STATE.ev_s + i] = 0.0
+        x[STATE.ev_w + i] = 0.0
     if not cand:
-        x[S.flat + i] = 0.0
+        x[STATE.flat + i] = 0.0
         return False
-    x[S.flat + i] = 1.0
-    x[S.gflat + i] = 1.0
-    x[S.rep + i] = x[S.rep + i] + 1.0 if g == x[S.gprev + i] else 0.0
-    if x[S.rep + i] >= p[PR.clip_repeat]:  # repeated exactly for long: the limit
+    x[STATE.flat + i] = 1.0
+    x[STATE.gflat + i] = 1.0
+    x[STATE.rep + i] = x[STATE.rep + i] + 1.0 if g == x[STATE.gprev + i] else 0.0
+    if x[STATE.rep + i] >= p[PARAM.clip_repeat]:  # repeated exactly for long: the limit
         if g > 0.0:
-            x[S.lim_pos + i] = g
+            x[STATE.lim_pos + i] = g
         else:
-            x[S.lim_neg + i] = g
-        x[S.flat + i] = 0.0
+            x[STATE.lim_neg + i] = g
+        x[STATE.flat + i] = 0.0
         return True
     return False
 
@@ -145,14 +150,14 @@ def clip_axis(x, p, i, g, dt):
     """Axis i's reading ``g`` clipped or not (:func:`detect_clip`; 1 or 0), the reading
     integrated over the magnetometer interval."""
     clipped = detect_clip(x, p, i, g)
-    x[S.gprev + i] = g
-    x[S.gsum + i] += g * dt
+    x[STATE.gprev + i] = g
+    x[STATE.gsum + i] += g * dt
     if clipped:
-        x[S.clipped + i] = 1.0
-        x[S.gclip + i] = 1.0
+        x[STATE.clipped + i] = 1.0
+        x[STATE.gclip + i] = 1.0
         return 1
-    x[S.clipped + i] = 0.0
-    x[S.debt + i] = 0.0
+    x[STATE.clipped + i] = 0.0
+    x[STATE.debt + i] = 0.0
     return 0
 
 
@@ -173,12 +178,12 @@ def held_rates(x, gyr, nclip):
     """The body rate used: a clipped axis's held rate, the reading on the others."""
     w0, w1, w2 = gyr[0], gyr[1], gyr[2]
     if nclip:
-        if x[S.clipped] != 0.0:
-            w0 = x[S.hold]
-        if x[S.clipped + 1] != 0.0:
-            w1 = x[S.hold + 1]
-        if x[S.clipped + 2] != 0.0:
-            w2 = x[S.hold + 2]
+        if x[STATE.clipped] != 0.0:
+            w0 = x[STATE.hold]
+        if x[STATE.clipped + 1] != 0.0:
+            w1 = x[STATE.hold + 1]
+        if x[STATE.clipped + 2] != 0.0:
+            w2 = x[STATE.hold + 2]
     return w0, w1, w2
 
 
@@ -187,25 +192,25 @@ def rates_from_field(x, p, m0, m1, m2):
     """A new magnetometer sample ``m`` closes an interval: eq R4 per axis from the field's change
     and the other axes' mean rates, then eqs R4b / R4c (:func:`clip_rate_update`); the interval's
     sums start again."""
-    if np.isfinite(x[S.mprev]) and x[S.mag_dt] > 0.0:
-        mdt = x[S.mag_dt]
-        kl = 1.0 - math.exp(-mdt / p[PR.clip_learn_tau])
-        c0, c1, c2 = 0.5 * (m0 + x[S.mprev]), 0.5 * (m1 + x[S.mprev + 1]), 0.5 * (m2 + x[S.mprev + 2])
-        d0, d1, d2 = (m0 - x[S.mprev]) / mdt, (m1 - x[S.mprev + 1]) / mdt, (m2 - x[S.mprev + 2]) / mdt
+    if np.isfinite(x[STATE.mprev]) and x[STATE.mag_dt] > 0.0:
+        mdt = x[STATE.mag_dt]
+        kl = 1.0 - math.exp(-mdt / p[PARAM.clip_learn_tau])
+        c0, c1, c2 = 0.5 * (m0 + x[STATE.mprev]), 0.5 * (m1 + x[STATE.mprev + 1]), 0.5 * (m2 + x[STATE.mprev + 2])
+        d0, d1, d2 = (m0 - x[STATE.mprev]) / mdt, (m1 - x[STATE.mprev + 1]) / mdt, (m2 - x[STATE.mprev + 2]) / mdt
         # the interval's mean rates; a clipped axis's from its estimate
-        v0 = x[S.gsum] / mdt if x[S.gclip] == 0.0 else x[S.rate]
-        v1 = x[S.gsum + 1] / mdt if x[S.gclip + 1] == 0.0 else x[S.rate + 1]
-        v2 = x[S.gsum + 2] / mdt if x[S.gclip + 2] == 0.0 else x[S.rate + 2]
+        v0 = x[STATE.gsum] / mdt if x[STATE.gclip] == 0.0 else x[STATE.rate]
+        v1 = x[STATE.gsum + 1] / mdt if x[STATE.gclip + 1] == 0.0 else x[STATE.rate + 1]
+        v2 = x[STATE.gsum + 2] / mdt if x[STATE.gclip + 2] == 0.0 else x[STATE.rate + 2]
         nu, de = mag_rate_terms(c0, c1, c2, d1, d2, v1, v2)
         clip_rate_update(x, p, 0, nu, de, v0, mdt, kl)
         nu, de = mag_rate_terms(c1, c2, c0, d2, d0, v2, v0)
         clip_rate_update(x, p, 1, nu, de, v1, mdt, kl)
         nu, de = mag_rate_terms(c2, c0, c1, d0, d1, v0, v1)
         clip_rate_update(x, p, 2, nu, de, v2, mdt, kl)
-    x[S.gsum], x[S.gsum + 1], x[S.gsum + 2] = 0.0, 0.0, 0.0
-    x[S.gclip], x[S.gclip + 1], x[S.gclip + 2] = 0.0, 0.0, 0.0
-    x[S.gflat], x[S.gflat + 1], x[S.gflat + 2] = 0.0, 0.0, 0.0
-    x[S.mprev], x[S.mprev + 1], x[S.mprev + 2] = m0, m1, m2
+    x[STATE.gsum], x[STATE.gsum + 1], x[STATE.gsum + 2] = 0.0, 0.0, 0.0
+    x[STATE.gclip], x[STATE.gclip + 1], x[STATE.gclip + 2] = 0.0, 0.0, 0.0
+    x[STATE.gflat], x[STATE.gflat + 1], x[STATE.gflat + 2] = 0.0, 0.0, 0.0
+    x[STATE.mprev], x[STATE.mprev + 1], x[STATE.mprev + 2] = m0, m1, m2
 
 
 @njit(cache=True, inline="always")
@@ -213,16 +218,16 @@ def hold_axis(x, i, g, dt):
     """A clipped axis's rate: the field's (eq R4b), never below the limit. What the limit adds
     beyond the field's rate is owed and paid back once that rate exceeds the limit, so the bound
     does not rectify the estimate's noise into a drift."""
-    if x[S.clipped + i] != 0.0:
+    if x[STATE.clipped + i] != 0.0:
         a = abs(g)
         sg = 1.0 if g > 0.0 else -1.0
-        r = sg * x[S.rate + i] + x[S.debt + i] / dt
+        r = sg * x[STATE.rate + i] + x[STATE.debt + i] / dt
         if r > a:
-            x[S.hold + i] = sg * r
-            x[S.debt + i] = 0.0
+            x[STATE.hold + i] = sg * r
+            x[STATE.debt + i] = 0.0
         else:
-            x[S.hold + i] = g
-            x[S.debt + i] = (r - a) * dt
+            x[STATE.hold + i] = g
+            x[STATE.debt + i] = (r - a) * dt
 
 
 @njit(cache=True, inline="always")

@@ -8,13 +8,14 @@ from collections import namedtuple
 from dataclasses import dataclass
 
 from quadest.conventions import GRAVITY
-from quadest.filters.base import P, Params, coefficient_offsets, params_record
+from quadest.filters.base import Params, coefficient_offsets, params_record
 from quadest.filters.common import BASE, layout
+from quadest.records import param
 
 DEG = math.pi / 180.0
 VQF = "Laidig & Seel 2023 (VQF), the published default"
 
-S = layout(
+STATE = layout(
     ("qg", 4),  # q_Ib: gyro strapdown, body -> almost-inertial frame I
     ("qi", 4),  # q_EI: inclination correction, I -> E
     ("delta", 1),  # heading offset δ about down, E -> n (rad)
@@ -79,8 +80,8 @@ UNKNOWN_HEADING_VAR = math.pi**2 / 3.0  # variance of a heading uniform on the c
 
 @dataclass(frozen=True)
 class RobustParams(Params):
-    use_mag: bool = P(True, "-", "use the magnetometer when samples are present", "quadest: 9-axis when present")
-    tau_acc: float = P(
+    use_mag: bool = param(True, "-", "use the magnetometer when samples are present", "quadest: 9-axis when present")
+    tau_acc: float = param(
         4.0,
         "s",
         "time constant of the specific force's low-pass in the almost-inertial frame",
@@ -88,14 +89,14 @@ class RobustParams(Params):
         "0.2 Hz to 1° of tilt; on BROAD's split 3-5 s are within 0.04° (VQF: 3 s)",
         bounds="(0, 1e3]",
     )
-    tau_mag: float = P(
+    tau_mag: float = param(
         15.0,
         "s",
         "time constant of the heading correction",
         "BROAD split (docs/estimators.md): the halves chose 15 and 25 s; the shorter one (VQF: 9 s)",
         bounds="(0, 1e4]",
     )
-    spin_min: float = P(
+    spin_min: float = param(
         3.0,
         "rad/s",
         "sustained rate about the vertical above which the vehicle is spinning",
@@ -103,7 +104,7 @@ class RobustParams(Params):
         "spinning after a rotor loss turns at 10-20 rad/s",
         bounds="[0, 1e3]",
     )
-    spin_rate: float = P(
+    spin_rate: float = param(
         0.6,
         "rad/s",
         "each this much of sustained rate above spin_min divides the heading's time constant once more",
@@ -111,42 +112,44 @@ class RobustParams(Params):
         "a 0.5 % scale-factor drift of the spin (4 °/s) within 3°",
         bounds="(0, 1e3]",
     )
-    spin_tau: float = P(
+    spin_tau: float = param(
         2.0,
         "s",
         "time constant of the low-pass of the (signed) rate about the vertical",
         "chosen: a spin lasts seconds; a hand's back-and-forth turns cancel within two",
         bounds="(0, 1e3]",
     )
-    bias_from_heading: bool = P(
+    bias_from_heading: bool = param(
         True,
         "-",
         "the heading correction's rate measures the vertical bias",
         "quadest's addition (VQF: inclination only)",
     )
-    gyro_noise: float = P(
+    gyro_noise: float = param(
         0.005,
         "rad/√s",
         "gyroscope noise density (for the reported covariance)",
         "chosen: a consumer MEMS gyro (0.3 °/s/√Hz)",
         bounds="[0, 1]",
     )
-    acc_corr_s: float = P(
+    acc_corr_s: float = param(
         0.02,
         "s",
         "correlation time of unmodelled accelerations (for the reported covariance)",
         "chosen on simulator seeds 11-15 (docs/estimators.md)",
         bounds="[0, 100]",
     )
-    bias_init: float = P(0.5 * DEG, "rad/s", "initial gyro bias std", VQF + " (σ_bias,init 0.5 °/s)", bounds="[0, 1]")
-    bias_drift: float = P(
+    bias_init: float = param(
+        0.5 * DEG, "rad/s", "initial gyro bias std", VQF + " (σ_bias,init 0.5 °/s)", bounds="[0, 1]"
+    )
+    bias_drift: float = param(
         0.1 * DEG / 10.0,
         "rad/s/√s",
         "gyro bias random walk",
         "from VQF's σ_motion 0.1 °/s over its 100 s forgetting time",
         bounds="[0, 1]",
     )
-    bias_motion_std: float = P(
+    bias_motion_std: float = param(
         0.2 * DEG,
         "rad/s",
         "noise of the bias measurement from the inclination correction, per τ_acc",
@@ -154,7 +157,7 @@ class RobustParams(Params):
         "0.2 and 0.8 °/s; the smaller one (the simulator's flights need the bias in motion)",
         bounds="(0, 1]",
     )
-    bias_gain: float = P(
+    bias_gain: float = param(
         0.25,
         "-",
         "largest gain of the bias loop closed by the inclination correction, in units "
@@ -162,14 +165,14 @@ class RobustParams(Params):
         "quadest: critical damping (eq R3b)",
         bounds="(0, 1]",
     )
-    bias_heading_std: float = P(
+    bias_heading_std: float = param(
         0.2 * DEG,
         "rad/s",
         "noise of the bias measurement from the heading correction, per τ_ψ",
         "chosen: as bias_motion_std",
         bounds="(0, 1]",
     )
-    bias_heading_gain: float = P(
+    bias_heading_gain: float = param(
         1.0,
         "-",
         "largest gain of the bias loop closed by the heading correction, in "
@@ -177,11 +180,13 @@ class RobustParams(Params):
         "chosen on simulator seeds 1-5 (docs/estimators.md)",
         bounds="(0, 4]",
     )
-    bias_rest_std: float = P(
+    bias_rest_std: float = param(
         0.03 * DEG, "rad/s", "noise of the bias measurement at rest", VQF + " (σ_rest 0.03 °/s)", bounds="(0, 1]"
     )
-    bias_clip: float = P(2.0 * DEG, "rad/s", "largest gyro bias estimated at rest", VQF + " (2 °/s)", bounds="(0, 1]")
-    scale_max: float = P(
+    bias_clip: float = param(
+        2.0 * DEG, "rad/s", "largest gyro bias estimated at rest", VQF + " (2 °/s)", bounds="(0, 1]"
+    )
+    scale_max: float = param(
         0.005,
         "-",
         "largest gyro scale-factor error: in motion the bias (which then also absorbs "
@@ -189,29 +194,31 @@ class RobustParams(Params):
         "chosen: consumer MEMS gyros are specified to ±0.5 % or better (the bebop2 preset: σ 0.3 %)",
         bounds="[0, 1]",
     )
-    rest_tau: float = P(0.5, "s", "low-pass time constant of the rest detection", VQF, bounds="(0, 100]")
-    rest_gyr: float = P(
+    rest_tau: float = param(0.5, "s", "low-pass time constant of the rest detection", VQF, bounds="(0, 100]")
+    rest_gyr: float = param(
         2.0 * DEG, "rad/s", "rest: largest gyro deviation from its low-pass", VQF + " (2 °/s)", bounds="(0, 10]"
     )
-    rest_acc: float = P(0.5, "m/s²", "rest: largest accelerometer deviation from its low-pass", VQF, bounds="(0, 100]")
-    rest_time: float = P(1.5, "s", "rest: how long both must hold", VQF, bounds="[0, 1e3]")
-    mag_lp_tau: float = P(0.05, "s", "low-pass time constant of the field's norm and dip", VQF, bounds="(0, 100]")
-    mag_norm_th: float = P(
+    rest_acc: float = param(
+        0.5, "m/s²", "rest: largest accelerometer deviation from its low-pass", VQF, bounds="(0, 100]"
+    )
+    rest_time: float = param(1.5, "s", "rest: how long both must hold", VQF, bounds="[0, 1e3]")
+    mag_lp_tau: float = param(0.05, "s", "low-pass time constant of the field's norm and dip", VQF, bounds="(0, 100]")
+    mag_norm_th: float = param(
         0.1, "-", "disturbed: relative deviation of the norm from the reference", VQF, bounds="(0, 10]"
     )
-    mag_dip_th: float = P(
+    mag_dip_th: float = param(
         10.0 * DEG, "rad", "disturbed: deviation of the dip from the reference", VQF + " (10°)", bounds="(0, 3.2]"
     )
-    mag_ref_tau: float = P(
+    mag_ref_tau: float = param(
         20.0, "s", "time constant of the reference's update while undisturbed", VQF, bounds="(0, 1e6]"
     )
-    mag_new_time: float = P(
+    mag_new_time: float = param(
         20.0, "s", "a new consistent field becomes the reference after this long", VQF, bounds="[0, 1e6]"
     )
-    mag_new_first: float = P(5.0, "s", "the same for the first reference", VQF, bounds="[0, 1e6]")
-    mag_min_undist: float = P(0.5, "s", "undisturbed after this long within the thresholds", VQF, bounds="[0, 1e3]")
-    mag_max_reject: float = P(60.0, "s", "longest rejection of a disturbed field", VQF, bounds="[0, 1e6]")
-    mag_reject_factor: float = P(
+    mag_new_first: float = param(5.0, "s", "the same for the first reference", VQF, bounds="[0, 1e6]")
+    mag_min_undist: float = param(0.5, "s", "undisturbed after this long within the thresholds", VQF, bounds="[0, 1e3]")
+    mag_max_reject: float = param(60.0, "s", "longest rejection of a disturbed field", VQF, bounds="[0, 1e6]")
+    mag_reject_factor: float = param(
         2.0,
         "-",
         "after the longest rejection: the gain divided by this; rejection time "
@@ -219,14 +226,14 @@ class RobustParams(Params):
         VQF,
         bounds="[1, 1e3]",
     )
-    clip_learn_tau: float = P(
+    clip_learn_tau: float = param(
         1.0,
         "s",
         "time constant over which the field's noise is learnt for a clipped axis's rate (eq R4b)",
         "chosen: many magnetometer samples, yet recent",
         bounds="(0, 1e4]",
     )
-    clip_heading_tau: float = P(
+    clip_heading_tau: float = param(
         0.25,
         "s",
         "longest time constant of the heading correction while a vertical axis "
@@ -234,28 +241,28 @@ class RobustParams(Params):
         "chosen: a 1 % rate error at 15 rad/s drifts 9 °/s, held to about 2° by 0.25 s (docs/estimators.md)",
         bounds="(0, 1e4]",
     )
-    gyro_range: float = P(
+    gyro_range: float = param(
         0.0,
         "rad/s",
         "the gyroscope's range (0: detect clipping from a flat top)",
         "quadest: unknown unless given",
         bounds="[0, 1e3]",
     )
-    clip_flat: float = P(
+    clip_flat: float = param(
         0.005,
         "-",
         "relative spread of a clipped axis's readings (flat top and known range)",
         "chosen: RepoIMU's calibrated readings wander by 0.3 % on a clipped axis",
         bounds="[0, 0.1]",
     )
-    clip_plateau: float = P(
+    clip_plateau: float = param(
         1.0,
         "samples",
         "a flat top's extreme must have stood this long before a reading at it counts as clipped",
         "chosen: a ramp sets a new extreme at every sample; a clipped axis repeats its limit",
         bounds="[0, 1e3]",
     )
-    clip_repeat: float = P(
+    clip_repeat: float = param(
         20.0,
         "samples",
         "exact repeats of a flat top's reading that confirm it a clip",
@@ -263,14 +270,14 @@ class RobustParams(Params):
         "a smooth peak, a clipped one as long as the clip",
         bounds="[1, 1e6]",
     )
-    clip_confirm: float = P(
+    clip_confirm: float = param(
         3.0,
         "-",
         "standard errors by which the field's rate must exceed a flat top's readings to confirm it a clip (eq R4c)",
         "chosen: a one-sided 3σ test; a steady spin at its fastest is no clip",
         bounds="(0, 1e3]",
     )
-    clip_rate_q: float = P(
+    clip_rate_q: float = param(
         16.0,
         "rad²/s³",
         "random-walk intensity of a clipped axis's rate (eq R4b)",
@@ -279,43 +286,43 @@ class RobustParams(Params):
         "averages a noisy one over a fraction of a second",
         bounds="(0, 1e6]",
     )
-    clip_min_rate: float = P(
+    clip_min_rate: float = param(
         4.3,
         "rad/s",
         "smallest rate a flat top can be clipping at",
         "chosen: the smallest common MEMS range, ±250 °/s",
         bounds="(0, 1e3]",
     )
-    lever_x: float = P(
+    lever_x: float = param(
         0.0, "m", "IMU position from the centre of gravity, forward", "chosen: unknown, none", bounds="[-10, 10]"
     )
-    lever_y: float = P(
+    lever_y: float = param(
         0.0, "m", "IMU position from the centre of gravity, right", "chosen: unknown, none", bounds="[-10, 10]"
     )
-    lever_z: float = P(
+    lever_z: float = param(
         0.0, "m", "IMU position from the centre of gravity, down", "chosen: unknown, none", bounds="[-10, 10]"
     )
-    mag_latency_s: float = P(0.0, "s", "age of a magnetometer sample", "chosen: unknown, none", bounds="[0, 1]")
-    init_tau: float = P(
+    mag_latency_s: float = param(0.0, "s", "age of a magnetometer sample", "chosen: unknown, none", bounds="[0, 1]")
+    init_tau: float = param(
         0.05,
         "s",
         "the initial averaging: time constant of the recent specific force compared with its mean (eq R8)",
         "chosen: a maneuver's onset within a few tens of ms, the noise averaged over 25 samples at 500 Hz",
         bounds="(0, 100]",
     )
-    init_acc: float = P(
+    init_acc: float = param(
         0.5,
         "m/s²",
         "the initial averaging ends once the recent specific force leaves its mean by this much (eq R8)",
         "chosen: VQF's rest threshold (rest_acc)",
         bounds="[0, 1e6]",
     )
-    gravity: float = P(GRAVITY, "m/s²", "gravity", "standard gravity", bounds="(0, 100]")
+    gravity: float = param(GRAVITY, "m/s²", "gravity", "standard gravity", bounds="(0, 100]")
 
 
-PR = Record = params_record(RobustParams)
+PARAM = Record = params_record(RobustParams)
 Coefficients = namedtuple("Coefficients", ["has_lever", "sg2"])
-CO = coefficient_offsets(Coefficients)
+COEF = coefficient_offsets(Coefficients)
 
 
 def coefficients(p: RobustParams) -> Coefficients:

@@ -13,7 +13,7 @@ from quadest.filters.common import INIT, Q_OUT, admit, publish
 from quadest.filters.robust.bias import rest_and_bias
 from quadest.filters.robust.clipping import detect_clipping, held_rates, hold_clipped, rates_from_field
 from quadest.filters.robust.heading import heading, latency_corrected
-from quadest.filters.robust.params import PR, UNKNOWN_HEADING_VAR, Record, RobustParams, S, coefficients
+from quadest.filters.robust.params import PARAM, STATE, UNKNOWN_HEADING_VAR, Record, RobustParams, coefficients
 from quadest.filters.robust.tilt import lever_arm, step_coefficients, strapdown, tilt
 from quadest.rotation.kernels import FASTMATH
 
@@ -24,12 +24,12 @@ def robust_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
     have_mag = (
-        p[PR.use_mag] != 0.0
+        p[PARAM.use_mag] != 0.0
         and not (np.isnan(mag[0]) or np.isnan(mag[1]) or np.isnan(mag[2]))
         and (mag[0] != 0.0 or mag[1] != 0.0 or mag[2] != 0.0)
     )
     step_coefficients(x, p, dt)
-    x[S.mag_dt] += dt
+    x[STATE.mag_dt] += dt
     nclip = detect_clipping(x, p, gyr, dt)
     w0, w1, w2 = held_rates(x, gyr, nclip)  # the latency is rotated out with the last rate held
     m0 = m1 = m2 = 0.0
@@ -47,21 +47,21 @@ def robust_step(x, p, c, gyr, acc, mag, dt, diag):
         if not fn > 0.0:
             return
         x[INIT] = 1.0
-    if x[S.mean_n] == 0.0:
+    if x[STATE.mean_n] == 0.0:
         for i in range(3):
-            x[S.rest_g + i] = gyr[i]
-            x[S.rest_a + i] = acc[i]
+            x[STATE.rest_g + i] = gyr[i]
+            x[STATE.rest_a + i] = acc[i]
     u0, u1, u2 = strapdown(x, w0, w1, w2, dt)
-    clip_b = p[PR.bias_clip] + p[PR.scale_max] * math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+    clip_b = p[PARAM.bias_clip] + p[PARAM.scale_max] * math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
     at_rest, rest_rate2 = rest_and_bias(x, p, gyr, acc, nclip, dt)
     tilt(x, p, c, gyr, (f0, f1, f2), fn, (u0, u1, u2), at_rest, nclip, rest_rate2, clip_b, dt)
     mupd = heading(x, p, c, m0, m1, m2, have_mag, u0, u1, u2, at_rest, nclip, clip_b, dt)
     diag[0] = 1.0 if at_rest else 0.0
-    diag[1] = x[S.disturbed]
+    diag[1] = x[STATE.disturbed]
     diag[2] = float(nclip)
-    diag[3], diag[4], diag[5] = x[S.bias], x[S.bias + 1], x[S.bias + 2]
-    diag[6] = x[S.Pt]
-    diag[7] = x[S.Ph]
+    diag[3], diag[4], diag[5] = x[STATE.bias], x[STATE.bias + 1], x[STATE.bias + 2]
+    diag[6] = x[STATE.Pt]
+    diag[7] = x[STATE.Ph]
     diag[8] = mupd
     publish(x)
 
@@ -102,7 +102,7 @@ class Robust(Estimator):
     Params = RobustParams
     Record = Record
     coefficients = staticmethod(coefficients)
-    state_size = S.end
+    state_size = STATE.end
     diag_names = (
         "rest",
         "mag_disturbed",
@@ -120,10 +120,10 @@ class Robust(Estimator):
 
     def _init_state(self, x):
         p = self.params
-        x[S.qg : S.qg + 4] = x[0:4]  # q0 (in the magnetic frame) or the identity: δ = 0, q_EI = 1
-        x[S.qi] = 1.0
-        x[S.Pb : S.Pb + 9] = (np.eye(3) * p.bias_init**2).ravel()
-        x[S.mprev : S.mprev + 3] = np.nan
-        x[S.Pt] = 0.0
-        x[S.Ph] = UNKNOWN_HEADING_VAR
-        x[S.coef_dt] = -1.0
+        x[STATE.qg : STATE.qg + 4] = x[0:4]  # q0 (in the magnetic frame) or the identity: δ = 0, q_EI = 1
+        x[STATE.qi] = 1.0
+        x[STATE.Pb : STATE.Pb + 9] = (np.eye(3) * p.bias_init**2).ravel()
+        x[STATE.mprev : STATE.mprev + 3] = np.nan
+        x[STATE.Pt] = 0.0
+        x[STATE.Ph] = UNKNOWN_HEADING_VAR
+        x[STATE.coef_dt] = -1.0

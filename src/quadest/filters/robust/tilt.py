@@ -9,26 +9,26 @@ import math
 
 from quadest._jit import njit
 from quadest.filters.robust.bias import bias_update
-from quadest.filters.robust.params import CO, PR, S
+from quadest.filters.robust.params import COEF, PARAM, STATE
 from quadest.rotation.kernels import normalize_s, qmul_s, rotate_s
 
 
 @njit(cache=True, inline="always")
 def step_coefficients(x, p, dt):
     """Cache the Δt-dependent coefficients (recomputed only when Δt changes by over 0.1 %)."""
-    if abs(dt - x[S.coef_dt]) <= 1e-3 * dt:
+    if abs(dt - x[STATE.coef_dt]) <= 1e-3 * dt:
         return
-    x[S.coef_dt] = dt
-    fc = math.sqrt(2.0) / (2.0 * math.pi * p[PR.tau_acc])  # the cut-off VQF uses for its τ_acc
+    x[STATE.coef_dt] = dt
+    fc = math.sqrt(2.0) / (2.0 * math.pi * p[PARAM.tau_acc])  # the cut-off VQF uses for its τ_acc
     K = math.tan(math.pi * min(fc * dt, 0.49))  # bilinear transform, prewarped
     nrm = 1.0 / (1.0 + math.sqrt(2.0) * K + K * K)
-    x[S.coef] = K * K * nrm  # b0 (b1 = 2 b0, b2 = b0)
-    x[S.coef + 1] = 2.0 * (K * K - 1.0) * nrm  # a1
-    x[S.coef + 2] = (1.0 - math.sqrt(2.0) * K + K * K) * nrm  # a2
-    x[S.coef + 3] = 1.0 - math.exp(-dt / p[PR.tau_acc])  # first-order equivalent gain
-    x[S.coef + 4] = 1.0 - math.exp(-dt / p[PR.rest_tau])
-    x[S.coef + 5] = 1.0 - math.exp(-dt / p[PR.mag_lp_tau])
-    x[S.coef + 6] = 1.0 - math.exp(-dt / p[PR.init_tau])
+    x[STATE.coef] = K * K * nrm  # b0 (b1 = 2 b0, b2 = b0)
+    x[STATE.coef + 1] = 2.0 * (K * K - 1.0) * nrm  # a1
+    x[STATE.coef + 2] = (1.0 - math.sqrt(2.0) * K + K * K) * nrm  # a2
+    x[STATE.coef + 3] = 1.0 - math.exp(-dt / p[PARAM.tau_acc])  # first-order equivalent gain
+    x[STATE.coef + 4] = 1.0 - math.exp(-dt / p[PARAM.rest_tau])
+    x[STATE.coef + 5] = 1.0 - math.exp(-dt / p[PARAM.mag_lp_tau])
+    x[STATE.coef + 6] = 1.0 - math.exp(-dt / p[PARAM.init_tau])
 
 
 @njit(cache=True, inline="always")
@@ -45,8 +45,8 @@ def biquad(x, i, v, b0, a1, a2):
 def lever_arm(p, c, acc, w0, w1, w2):
     """Item 7: the specific force at the centre of gravity, ``f − ω × (ω × r)``."""
     f0, f1, f2 = acc[0], acc[1], acc[2]
-    if c[CO.has_lever]:
-        r0, r1, r2 = p[PR.lever_x], p[PR.lever_y], p[PR.lever_z]
+    if c[COEF.has_lever]:
+        r0, r1, r2 = p[PARAM.lever_x], p[PARAM.lever_y], p[PARAM.lever_z]
         c0, c1, c2 = w1 * r2 - w2 * r1, w2 * r0 - w0 * r2, w0 * r1 - w1 * r0  # ω × r
         f0 -= w1 * c2 - w2 * c1
         f1 -= w2 * c0 - w0 * c2
@@ -58,15 +58,15 @@ def lever_arm(p, c, acc, w0, w1, w2):
 def strapdown(x, w0, w1, w2, dt):
     """Item 1: ``q_Ib ← q_Ib ⊗ Exp((ω − b) Δt)``; returns the rate with the bias removed (a
     clipped axis's rate is the true rate, from the field, or a bound: no bias is removed from it)."""
-    u0 = w0 - (x[S.bias] if x[S.clipped] == 0.0 else 0.0)
-    u1 = w1 - (x[S.bias + 1] if x[S.clipped + 1] == 0.0 else 0.0)
-    u2 = w2 - (x[S.bias + 2] if x[S.clipped + 2] == 0.0 else 0.0)
+    u0 = w0 - (x[STATE.bias] if x[STATE.clipped] == 0.0 else 0.0)
+    u1 = w1 - (x[STATE.bias + 1] if x[STATE.clipped + 1] == 0.0 else 0.0)
+    u2 = w2 - (x[STATE.bias + 2] if x[STATE.clipped + 2] == 0.0 else 0.0)
     th = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2) * dt
     if th > 0.0:
         s = math.sin(0.5 * th) / th * dt
-        gw, gx, gy, gz = x[S.qg], x[S.qg + 1], x[S.qg + 2], x[S.qg + 3]
+        gw, gx, gy, gz = x[STATE.qg], x[STATE.qg + 1], x[STATE.qg + 2], x[STATE.qg + 3]
         a0_, a1_, a2_, a3_ = qmul_s(gw, gx, gy, gz, math.cos(0.5 * th), u0 * s, u1 * s, u2 * s)
-        x[S.qg], x[S.qg + 1], x[S.qg + 2], x[S.qg + 3] = normalize_s(a0_, a1_, a2_, a3_)
+        x[STATE.qg], x[STATE.qg + 1], x[STATE.qg + 2], x[STATE.qg + 3] = normalize_s(a0_, a1_, a2_, a3_)
     return u0, u1, u2
 
 
@@ -78,27 +78,31 @@ def end_of_averaging(x, p, gyr, fI0, fI1, fI2, y0, y1, y2, n, rest_rate2):
     difference) ends it, and the low-pass starts from the mean as it was before the
     acceleration. Returns the mean to go on from."""
     if n == 1.0 and gyr[0] ** 2 + gyr[1] ** 2 + gyr[2] ** 2 > rest_rate2:
-        x[S.moved] = -1.0  # started turning: no still reference, the whole averaging
-    if x[S.moved] == 0.0:
-        k_init = x[S.coef + 6]
+        x[STATE.moved] = -1.0  # started turning: no still reference, the whole averaging
+    if x[STATE.moved] == 0.0:
+        k_init = x[STATE.coef + 6]
         ks = max(k_init, 1.0 / n)
-        x[S.ys] += ks * (fI0 - x[S.ys])
-        x[S.ys + 1] += ks * (fI1 - x[S.ys + 1])
-        x[S.ys + 2] += ks * (fI2 - x[S.ys + 2])
+        x[STATE.ys] += ks * (fI0 - x[STATE.ys])
+        x[STATE.ys + 1] += ks * (fI1 - x[STATE.ys + 1])
+        x[STATE.ys + 2] += ks * (fI2 - x[STATE.ys + 2])
         if n > 1.0:  # successive differences: var(f_k - f_k-1) = 2 σ²
-            e0, e1, e2 = fI0 - x[S.fprev], fI1 - x[S.fprev + 1], fI2 - x[S.fprev + 2]
-            x[S.fvar] += (0.5 * (e0 * e0 + e1 * e1 + e2 * e2) - x[S.fvar]) / (n - 1.0)
-        x[S.fprev], x[S.fprev + 1], x[S.fprev + 2] = fI0, fI1, fI2
+            e0, e1, e2 = fI0 - x[STATE.fprev], fI1 - x[STATE.fprev + 1], fI2 - x[STATE.fprev + 2]
+            x[STATE.fvar] += (0.5 * (e0 * e0 + e1 * e1 + e2 * e2) - x[STATE.fvar]) / (n - 1.0)
+        x[STATE.fprev], x[STATE.fprev + 1], x[STATE.fprev + 2] = fI0, fI1, fI2
         # against the mean as it was when the recent force last agreed with it (within half the
         # threshold): a slow onset, which the mean would follow, still shows in full
-        dy0, dy1, dy2 = x[S.ys] - x[S.yok], x[S.ys + 1] - x[S.yok + 1], x[S.ys + 2] - x[S.yok + 2]
+        dy0, dy1, dy2 = (
+            x[STATE.ys] - x[STATE.yok],
+            x[STATE.ys + 1] - x[STATE.yok + 1],
+            x[STATE.ys + 2] - x[STATE.yok + 2],
+        )
         dev2 = dy0 * dy0 + dy1 * dy1 + dy2 * dy2
-        thr2 = max(p[PR.init_acc] * p[PR.init_acc], 16.3 * x[S.fvar] * (ks / (2.0 - ks) + 1.0 / n))
+        thr2 = max(p[PARAM.init_acc] * p[PARAM.init_acc], 16.3 * x[STATE.fvar] * (ks / (2.0 - ks) + 1.0 / n))
         if n == 1.0 or dev2 <= 0.25 * thr2:
-            x[S.yok], x[S.yok + 1], x[S.yok + 2] = y0, y1, y2
+            x[STATE.yok], x[STATE.yok + 1], x[STATE.yok + 2] = y0, y1, y2
         elif dev2 > thr2:
-            x[S.moved] = 1.0  # the low-pass starts from the mean before the acceleration
-            y0, y1, y2 = x[S.yok], x[S.yok + 1], x[S.yok + 2]
+            x[STATE.moved] = 1.0  # the low-pass starts from the mean before the acceleration
+            y0, y1, y2 = x[STATE.yok], x[STATE.yok + 1], x[STATE.yok + 2]
     return y0, y1, y2
 
 
@@ -107,28 +111,28 @@ def filtered_force(x, p, gyr, fI0, fI1, fI2, rest_rate2, dt):
     """Item 2: the specific force in I low-passed (2nd-order Butterworth); for the first τ_acc a
     running mean (converges at once, no initial transient) until eq R8 ends it. Returns the
     filtered force, the equivalent first-order gain and the averaging's count (−1 once over)."""
-    b0, a1, a2, k_acc = x[S.coef], x[S.coef + 1], x[S.coef + 2], x[S.coef + 3]
-    n = x[S.mean_n]
+    b0, a1, a2, k_acc = x[STATE.coef], x[STATE.coef + 1], x[STATE.coef + 2], x[STATE.coef + 3]
+    n = x[STATE.mean_n]
     if n >= 0.0:
         n += 1.0
-        y0 = x[S.lpy] + (fI0 - x[S.lpy]) / n
-        y1 = x[S.lpy + 1] + (fI1 - x[S.lpy + 1]) / n
-        y2 = x[S.lpy + 2] + (fI2 - x[S.lpy + 2]) / n
+        y0 = x[STATE.lpy] + (fI0 - x[STATE.lpy]) / n
+        y1 = x[STATE.lpy + 1] + (fI1 - x[STATE.lpy + 1]) / n
+        y2 = x[STATE.lpy + 2] + (fI2 - x[STATE.lpy + 2]) / n
         kk = max(k_acc, 1.0 / n)
         y0, y1, y2 = end_of_averaging(x, p, gyr, fI0, fI1, fI2, y0, y1, y2, n, rest_rate2)
-        if n * dt >= p[PR.tau_acc] or x[S.moved] > 0.0:
+        if n * dt >= p[PARAM.tau_acc] or x[STATE.moved] > 0.0:
             n = -1.0
             # the low-pass starts in steady state at the mean
-            x[S.lp], x[S.lp + 1] = y0 - b0 * y0, b0 * y0 - a2 * y0
-            x[S.lp + 2], x[S.lp + 3] = y1 - b0 * y1, b0 * y1 - a2 * y1
-            x[S.lp + 4], x[S.lp + 5] = y2 - b0 * y2, b0 * y2 - a2 * y2
-        x[S.mean_n] = n
+            x[STATE.lp], x[STATE.lp + 1] = y0 - b0 * y0, b0 * y0 - a2 * y0
+            x[STATE.lp + 2], x[STATE.lp + 3] = y1 - b0 * y1, b0 * y1 - a2 * y1
+            x[STATE.lp + 4], x[STATE.lp + 5] = y2 - b0 * y2, b0 * y2 - a2 * y2
+        x[STATE.mean_n] = n
     else:
         kk = k_acc
-        y0 = biquad(x, S.lp, fI0, b0, a1, a2)
-        y1 = biquad(x, S.lp + 2, fI1, b0, a1, a2)
-        y2 = biquad(x, S.lp + 4, fI2, b0, a1, a2)
-    x[S.lpy], x[S.lpy + 1], x[S.lpy + 2] = y0, y1, y2
+        y0 = biquad(x, STATE.lp, fI0, b0, a1, a2)
+        y1 = biquad(x, STATE.lp + 2, fI1, b0, a1, a2)
+        y2 = biquad(x, STATE.lp + 4, fI2, b0, a1, a2)
+    x[STATE.lpy], x[STATE.lpy + 1], x[STATE.lpy + 2] = y0, y1, y2
     return y0, y1, y2, kk, n
 
 
@@ -138,7 +142,7 @@ def correct_inclination(x, p, y0, y1, y2, ew, ex, ey, ez, u0, u1, u2, motion_bia
     onto ``e_z``; with ``motion_bias`` the correction's rate measures the horizontal drift of a
     bias error (eq R3, ``q_Eb`` before the correction giving the rows ``H``), while the
     scale-factor error at this rate is below the bias it resolves (eq R3c)."""
-    iw, ix, iy, iz = x[S.qi], x[S.qi + 1], x[S.qi + 2], x[S.qi + 3]
+    iw, ix, iy, iz = x[STATE.qi], x[STATE.qi + 1], x[STATE.qi + 2], x[STATE.qi + 3]
     v0, v1, v2 = rotate_s(iw, ix, iy, iz, -y0, -y1, -y2)  # down, as estimated, in E
     vn = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
     if not vn > 0.0:
@@ -150,18 +154,18 @@ def correct_inclination(x, p, y0, y1, y2, ew, ex, ey, ez, u0, u1, u2, motion_bia
     else:
         cx, cy = 1.0, 0.0
     a0_, a1_, a2_, a3_ = qmul_s(cw, cx, cy, 0.0, iw, ix, iy, iz)
-    x[S.qi], x[S.qi + 1], x[S.qi + 2], x[S.qi + 3] = normalize_s(a0_, a1_, a2_, a3_)
+    x[STATE.qi], x[STATE.qi + 1], x[STATE.qi + 2], x[STATE.qi + 3] = normalize_s(a0_, a1_, a2_, a3_)
     rate2 = u0 * u0 + u1 * u1 + u2 * u2
-    if motion_bias and p[PR.scale_max] ** 2 * rate2 <= p[PR.bias_motion_std] ** 2:
+    if motion_bias and p[PARAM.scale_max] ** 2 * rate2 <= p[PARAM.bias_motion_std] ** 2:
         sn = math.sqrt(cx * cx + cy * cy)
         ang = 2.0 * math.atan2(sn, cw)
         sc = ang / sn / dt if sn > 1e-12 else 2.0 / dt
         y_n, y_e = cx * sc, cy * sc  # E-frame rate of the correction, north and east
-        r = p[PR.bias_motion_std] * p[PR.bias_motion_std] * p[PR.tau_acc] / dt
+        r = p[PARAM.bias_motion_std] * p[PARAM.bias_motion_std] * p[PARAM.tau_acc] / dt
         # rows of R(q_Eb): body -> E
         h00, h01, h02 = 1 - 2 * (ey * ey + ez * ez), 2 * (ex * ey - ew * ez), 2 * (ex * ez + ew * ey)
         h10, h11, h12 = 2 * (ex * ey + ew * ez), 1 - 2 * (ex * ex + ez * ez), 2 * (ey * ez - ew * ex)
-        gmax = p[PR.bias_gain] * dt / p[PR.tau_acc]
+        gmax = p[PARAM.bias_gain] * dt / p[PARAM.tau_acc]
         bias_update(x, h00, h01, h02, -y_n, r, clip_b, gmax)
         bias_update(x, h10, h11, h12, -y_e, r, clip_b, gmax)
 
@@ -174,12 +178,12 @@ def tilt(x, p, c, gyr, f, fn, u, at_rest, nclip, rest_rate2, clip_b, dt):
     the raw specific force and the vertical); ``u`` the strapdown's rate."""
     f0, f1, f2 = f
     u0, u1, u2 = u
-    gw, gx, gy, gz = x[S.qg], x[S.qg + 1], x[S.qg + 2], x[S.qg + 3]
-    iw, ix, iy, iz = x[S.qi], x[S.qi + 1], x[S.qi + 2], x[S.qi + 3]
+    gw, gx, gy, gz = x[STATE.qg], x[STATE.qg + 1], x[STATE.qg + 2], x[STATE.qg + 3]
+    iw, ix, iy, iz = x[STATE.qi], x[STATE.qi + 1], x[STATE.qi + 2], x[STATE.qi + 3]
     ew, ex, ey, ez = qmul_s(iw, ix, iy, iz, gw, gx, gy, gz)  # q_Eb
-    pt = x[S.Pt]
-    sb2 = (x[S.Pb] + x[S.Pb + 4] + x[S.Pb + 8]) / 3.0
-    pt += (c[CO.sg2] + p[PR.tau_acc] * sb2) * dt
+    pt = x[STATE.Pt]
+    sb2 = (x[STATE.Pb] + x[STATE.Pb + 4] + x[STATE.Pb + 8]) / 3.0
+    pt += (c[COEF.sg2] + p[PARAM.tau_acc] * sb2) * dt
     if fn > 0.0:
         fI0, fI1, fI2 = rotate_s(gw, gx, gy, gz, f0, f1, f2)
         y0, y1, y2, kk, n = filtered_force(x, p, gyr, fI0, fI1, fI2, rest_rate2, dt)
@@ -189,7 +193,7 @@ def tilt(x, p, c, gyr, f, fn, u, at_rest, nclip, rest_rate2, clip_b, dt):
         fe2 = rotate_s(ew, ex, ey, ez, f0, f1, f2)[2]
         cosang = min(1.0, max(-1.0, -fe2 / fn))
         ang2 = math.acos(cosang) ** 2
-        k_rest = x[S.coef + 4]
-        x[S.Ra] += k_rest * (ang2 - x[S.Ra]) if x[S.Ra] > 0.0 else ang2
-        pt = (1.0 - kk) ** 2 * pt + kk * kk * x[S.Ra] * (1.0 + 2.0 * p[PR.acc_corr_s] / dt)
-    x[S.Pt] = pt
+        k_rest = x[STATE.coef + 4]
+        x[STATE.Ra] += k_rest * (ang2 - x[STATE.Ra]) if x[STATE.Ra] > 0.0 else ang2
+        pt = (1.0 - kk) ** 2 * pt + kk * kk * x[STATE.Ra] * (1.0 + 2.0 * p[PARAM.acc_corr_s] / dt)
+    x[STATE.Pt] = pt
