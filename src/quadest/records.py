@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 import sys
 from collections import namedtuple
-from dataclasses import field, fields
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -102,3 +102,59 @@ def _checked(record: str, field_name: str, value, kind: str):
     if not value.flags.c_contiguous:
         raise TypeError(f"{record}.{field_name}: the array must be C-contiguous")
     return value
+
+
+@dataclass(frozen=True)
+class Params:
+    """Base of the parameter records; fields are floats or bools."""
+
+    @classmethod
+    def describe(cls) -> list[dict]:
+        return describe(cls)
+
+    def values(self) -> dict:
+        """``{name: value}`` with floats as ``float`` and flags as ``bool`` (the types the
+        compiled step was compiled for)."""
+        return {
+            f.name: (bool(getattr(self, f.name)) if f.type in (bool, "bool") else float(getattr(self, f.name)))
+            for f in fields(self)
+        }
+
+
+def field_offsets(names, typename: str = "Offsets"):
+    """``{name: index}`` as a namedtuple instance: the offsets of named values in a float64
+    array, read as constants by compiled code (``p[PARAM.beta]``), like a state layout."""
+    return namedtuple(typename, list(names))(*range(len(names)))
+
+
+def params_record(params_cls):
+    """The offsets of a parameter record's fields in the float64 array the compiled step reads
+    them from by name (``p[PARAM.beta]``, so the order of the fields never matters). Assign it at
+    module level (``PARAM = Record = params_record(MyParams)``).
+
+    An array, not a namedtuple, because a streaming call unboxes every argument: a namedtuple
+    of 35 floats costs about 0.3 µs a call, an array about 0.04 µs."""
+    return field_offsets([f.name for f in fields(params_cls)], "Record")
+
+
+def pack(values) -> np.ndarray:
+    """Floats (flags as 0 / 1) in order, as the float64 array compiled code reads; at least one
+    element (an estimator without coefficients gets ``[0.0]``)."""
+    a = np.array([float(v) for v in values], dtype=np.float64)
+    return a if len(a) else np.zeros(1)
+
+
+def layout(*slots, start: int = 0):
+    """Offsets of the named slots of a state vector, declared once:
+    ``layout(("P", 16), ("bias", 3), start=BASE)`` gives ``.P == BASE``, ``.bias == BASE + 16``
+    and ``.end`` (one past the last slot: the state size). Compiled code reads the offsets as
+    constants (``x[STATE.bias]``)."""
+    names, offsets = [], []
+    at = start
+    for name, size in slots:
+        if size < 1:
+            raise ValueError(f"slot {name!r}: size must be at least 1, got {size}")
+        names.append(name)
+        offsets.append(at)
+        at += size
+    return namedtuple("Layout", names + ["end"])(*offsets, at)

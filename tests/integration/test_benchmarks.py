@@ -170,6 +170,7 @@ def test_benchmark_speed_json(tmp_path, capsys):
     for v in res["filters"].values():  # figures, not a speed target: finite and of a plausible size
         assert 0 < v["batch_us"] < 1e4 and 0 < v["stream_us"] < 1e4
     assert 0 < res["recovery_bank_40_us"] < 1e5
+    assert 0 < res["detector_us"] < 1e3
 
 
 # -- the real data --------------------------------------------------------------------------------------------

@@ -141,3 +141,16 @@ def test_a_flight_with_a_damaged_rotor_is_recorded():
     rec = fly("hover", duration=4.0, seed=1, failure=Failure(rotor=2, time_s=2.0, efficiency=0.6)).recording
     assert rec.meta["failure"] == {"rotor": 2, "time_s": 2.0, "efficiency": 0.6, "imbalance": 0.0}
     assert np.isfinite(rec.acc).all() and len(rec) == 2000
+
+
+def test_figure_eight_reference_is_consistent():
+    """The figure eight's velocity and acceleration are its position's derivatives (central
+    differences at 1 ms: error of order h² times the third derivative, below 1e-3), through
+    the smooth start, which begins at rest at the origin."""
+    from quadest.control import figure_eight_reference
+
+    t = np.arange(0.0, 6.0, 1e-3)
+    p, v, a, yaw = figure_eight_reference(t, phase=0.7)
+    np.testing.assert_allclose(np.gradient(p, t, axis=0)[1:-1], v[1:-1], atol=1e-3)
+    np.testing.assert_allclose(np.gradient(v, t, axis=0)[1:-1], a[1:-1], atol=1e-2)
+    assert np.abs(p[0]).max() == 0 and np.abs(v[0]).max() == 0 and yaw[0] == 0

@@ -137,7 +137,7 @@ LAYERS = [  # the first four are the issue's layer 0, in the order they build on
     {"rotation"},
     {"data", ""},  # "": the package itself (its __init__ exposes Recording and the version)
     {"models"},
-    {"filters", "recovery", "sim", "readers", "calibration", "control"},
+    {"filters", "recovery", "sim", "readers", "calibration", "control", "detect"},
     {"flight"},
     {"evaluation"},
     {"sweep", "plot"},

@@ -22,7 +22,7 @@ from quadest.cli.common import (
     write_json,
     write_report_for,
 )
-from quadest.evaluation import benchmark, flown, reproduce
+from quadest.evaluation import benchmark, detection, flown, reproduce
 from quadest.evaluation.compare import compare, format_tables, parse_params
 from quadest.evaluation.runner import estimator_names, filter_notes
 from quadest.evaluation.speed import benchmark_speed
@@ -278,7 +278,42 @@ def _benchmark_sim(args):
     return res
 
 
+def _benchmark_detection(args):
+    seeds, nominal = parse_seeds(args.seeds), parse_seeds(args.nominal_seeds)
+    say(
+        f"the rotor-failure detector in the loop (bebop2): {len(seeds)} failures (a random rotor at a random "
+        "time, complete or partial, from a hover, on a circle or on a figure eight) and "
+        f"{len(nominal)} nominal flights of {args.duration:g} s, with rotor speeds and with commands; the "
+        "detector's model off by each flight's drawn ±10 %"
+    )
+    res = detection.benchmark_detection(seeds, nominal, nominal_s=args.duration, workers=args.workers, progress=True)
+    say(detection.format_detection(res))
+    return res
+
+
+def _benchmark_tradeoff(args):
+    train, test = parse_seeds(args.train_seeds), parse_seeds(args.seeds)
+    train_nominal, test_nominal = parse_seeds(args.train_nominal_seeds), parse_seeds(args.nominal_seeds)
+    say(
+        "the 'lost' test's threshold against delay and false alarms: every case flown once with the "
+        "SE(3) controller and the test unable to fire (the detector then changes nothing), each "
+        "threshold's first alarm read from its statistic; the threshold chosen on the training seeds "
+        f"({len(train)} failures, {len(train_nominal)} nominal flights of {args.duration:g} s), reported on "
+        f"the test seeds ({len(test)}, {len(test_nominal)})"
+    )
+    res = detection.benchmark_tradeoff(
+        train, test, train_nominal, test_nominal, nominal_s=args.duration, workers=args.workers, progress=True
+    )
+    say(detection.format_tradeoff(res))
+    return res
+
+
 def cmd_benchmark(args):
+    if args.what in ("detection", "detection-tradeoff"):
+        res = (_benchmark_detection if args.what == "detection" else _benchmark_tradeoff)(args)
+        if args.json:
+            write_json(args.json, res)
+        return 0
     if args.what == "sim":
         res = _benchmark_sim(args)
         if args.json:
@@ -301,6 +336,7 @@ def cmd_benchmark(args):
             names, args.duration, on_result=lambda n, r: say(f"{n:<15}{r['batch_us']:>10.3f}{r['stream_us']:>12.2f}")
         )
         say(f"{'recovery bank of 40 EKFs':<27}{res['recovery_bank_40_us']:>8.2f} µs per IMU sample (whole bank, batch)")
+        say(f"{'rotor-failure detector':<27}{res['detector_us']:>8.2f} µs per IMU sample (batch, rotor speeds)")
     else:
         if not args.data:
             raise CliError(
@@ -455,10 +491,18 @@ def _add_benchmark(sub):
         "sim: the flying vehicle's closed loop (rotor loss, fault-tolerant "
         "controller, --filters names the estimator in the loop, default afckf) "
         "and the SE(3) circle flown by quadest and RotorPy (when installed). "
+        "detection: the rotor-failure detector in the loop: failures flown for --seeds, nominal "
+        "flights of --duration s for --nominal-seeds (docs/detection.md). detection-tradeoff: the "
+        "'lost' test's threshold against delay and false alarms, chosen on --train-seeds and "
+        "--train-nominal-seeds, reported on --seeds and --nominal-seeds. "
         "quadest's filters and the installed peers (pip install 'quadest[peers]': "
         "vqf, imufusion, ahrs) run side by side.",
     )
-    b.add_argument("what", choices=["broad", "flights", "repoimu", "speed", "sim"], help="what to benchmark")
+    b.add_argument(
+        "what",
+        choices=["broad", "flights", "repoimu", "speed", "sim", "detection", "detection-tradeoff"],
+        help="what to benchmark",
+    )
     b.add_argument(
         "--data",
         metavar="DIR|NAME",
@@ -480,7 +524,17 @@ def _add_benchmark(sub):
         "--duration",
         type=float,
         default=60.0,
-        help="speed: seconds of simulated data; sim: seconds flown (RotorPy: at most 10) (default: 60)",
+        help="speed: seconds of simulated data; sim: seconds flown (RotorPy: at most 10); detection: each "
+        "nominal flight's seconds (default: 60)",
     )
+    b.add_argument("--seeds", default="0-99", help="detection: the failures' seeds (default: 0-99)")
+    b.add_argument(
+        "--nominal-seeds", default="1000-1019", help="detection: the nominal flights' seeds (default: 1000-1019)"
+    )
+    b.add_argument("--train-seeds", default="0-99", help="detection-tradeoff: the training failures' seeds")
+    b.add_argument(
+        "--train-nominal-seeds", default="0-19", help="detection-tradeoff: the training nominal flights' seeds"
+    )
+    b.add_argument("--workers", type=int, default=0, help="detection: Dask workers (0: this process; default: 0)")
     b.add_argument("--json", metavar="OUT", help="write the figures as JSON")
     b.set_defaults(func=cmd_benchmark)

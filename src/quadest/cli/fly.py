@@ -17,6 +17,7 @@ from quadest.flight import (
     fly_many,
     in_loop_estimators,
 )
+from quadest.flight.detection import DETECTION_MODES
 from quadest.models import VEHICLE_PRESETS
 from quadest.sim import PRESETS
 
@@ -117,6 +118,20 @@ def _report(flight, out: Path, plot: bool):
         )
         return
     end = f" at {s['end_time_s']:.2f} s" if s["end_time_s"] is not None else ""
+    det = s.get("detection")
+    if det is not None:
+        found = (
+            "nothing found"
+            if det["lost_rotor"] is None
+            else f"rotor {det['lost_rotor']} found lost at {det['lost_s']:.3f} s"
+        )
+        if det["delay_s"] is not None:
+            found += (
+                f" ({1e3 * det['delay_s']:.0f} ms after the failure{'' if det['isolated'] else ', the wrong rotor'})"
+            )
+        if det["false_alarm"]:
+            found += ": a false alarm"
+        extra += f"; detector: {found}"
     say(
         f"{s['estimator']}, seed {s['seed']}: {s['reason']}{end}; settled after {_fmt(s['time_to_settle_s'], ' s')}, "
         f"position RMS {_fmt(s['position_rms_settled_m'], ' m', 3)}, tilt error in the loop "
@@ -144,6 +159,7 @@ def cmd_fly(args):
         failure=failure,
         vehicle=args.vehicle,
         params=FlightParams(position_sensor=args.position_sensor),
+        detection=args.detection,
     )
     runs = []
     if len(estimators) == 1:
@@ -200,6 +216,7 @@ def add_parsers(sub):
         choices=FLIGHT_SCENARIOS,
         default="rotor-loss",
         help="hover: hold the origin from a disturbed start; trajectory: a 1 m circle at 0.2 Hz; "
+        "aggressive: a figure eight of 7-12 m/s² and 5-8 rad/s with the heading swinging ±2.5 rad; "
         "rotor-loss: hover, rotor 0 lost at 2 s (default); throw: released tumbling, recovered by the "
         "recovery paper's bank of EKFs, then held",
     )
@@ -249,6 +266,14 @@ def add_parsers(sub):
         default="mocap",
         help="the position sensor the loop reads: mocap (100 Hz, 1 mm, 10 ms) or gnss (5 Hz, 0.5 m "
         "horizontal, 1 m vertical, 100 ms) (default: mocap)",
+    )
+    s.add_argument(
+        "--detection",
+        choices=DETECTION_MODES,
+        default="oracle",
+        help="how the fault-tolerant controller learns of a rotor loss: oracle (told 50 ms after it, the "
+        "lost rotor's command zeroed from the failure on), rotor-speeds or commands (found by the "
+        "detector from the measured rotor speeds or from the commands; docs/detection.md) (default: oracle)",
     )
     s.add_argument("-o", "--output", required=True, metavar="DIR", help="folder for the runs' files")
     s.add_argument("--no-plot", action="store_true", help="skip the figures")

@@ -3,7 +3,7 @@ on SE(3), the fault-tolerant controller after a rotor loss, the recovery control
 throw, their registry, and what they are asked to fly. Layer 1: uses models."""
 
 from quadest.control.ftc import FtcParams, fit_yaw_damping, ftc_command, relaxed_hover
-from quadest.control.reference import Failure, circle_reference, hover_reference
+from quadest.control.reference import Failure, circle_reference, figure_eight_reference, hover_reference
 from quadest.control.registry import CONTROLLERS, Controller
 from quadest.control.se3 import SE3Params, allocation, se3_command
 
@@ -15,6 +15,7 @@ __all__ = [
     "SE3Params",
     "allocation",
     "circle_reference",
+    "figure_eight_reference",
     "fit_yaw_damping",
     "ftc_command",
     "hover_reference",

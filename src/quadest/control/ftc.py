@@ -139,8 +139,10 @@ class FtcParams:
         d_z = self.yaw_damping if self.yaw_damping is not None else fit_yaw_damping(vehicle, self.rho)
         return FtcModel.of(vehicle, d_z)
 
-    def gains(self, vehicle: MultirotorParams, failed: int) -> FtcGains:
-        model = self.model(vehicle)
+    def gains(self, vehicle: MultirotorParams, failed: int, model: FtcModel | None = None) -> FtcGains:
+        """The gains flying ``vehicle`` without rotor ``failed`` (``model``: the controller's
+        model of the vehicle, :meth:`model`'s by default)."""
+        model = model or self.model(vehicle)
         hover = relaxed_hover(model, failed, self.rho)
         active = np.array([j for j in range(vehicle.rotors) if j != failed], np.int64)
         pos = np.asarray(vehicle.rotor_pos, float)[active]
@@ -162,6 +164,11 @@ class FtcParams:
             float(vehicle.k_f),
             float(vehicle.k_f * vehicle.omega_max**2),
         )
+
+    def all_gains(self, vehicle: MultirotorParams) -> tuple[FtcGains, ...]:
+        """:meth:`gains` for each rotor that may be lost (one model of the vehicle for all)."""
+        model = self.model(vehicle)
+        return tuple(self.gains(vehicle, i, model) for i in range(vehicle.rotors))
 
     @classmethod
     def describe(cls) -> list[dict]:

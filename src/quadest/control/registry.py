@@ -56,8 +56,9 @@ def controller_id(name: str) -> int:
 Control = compiled_record(
     "Control",
     "What the controllers read and carry: the controller of each flight phase, the SE(3) and "
-    "fault-tolerant gains, the reference per sample, the sample from which a rotor loss is "
-    "known (-1: never), and the recovery's thresholds.",
+    "fault-tolerant gains (one set for each rotor that may be lost), the reference per sample, "
+    "the fault (the sample from which the fault-tolerant controller flies, -1: never; the rotor "
+    "it gives up), and the recovery's thresholds.",
     by_phase="i8[:]",
     gains="any",
     ftc="any",
@@ -65,7 +66,7 @@ Control = compiled_record(
     v_d="f8[:, :]",
     a_d="f8[:, :]",
     yaw_d="f8[:]",
-    ftc_k="i8",
+    fault="i8[:]",
     integral="f8[:]",
     cmd="f8[:]",
     beta3="f8",
@@ -84,7 +85,15 @@ def command(kind, k, xh, control, vehicle, dt):
         )
     elif kind == FTC:
         ftc_command(
-            xh, control.p_d[k], control.v_d[k], control.a_d[k], control.ftc, vehicle, dt, control.integral, control.cmd
+            xh,
+            control.p_d[k],
+            control.v_d[k],
+            control.a_d[k],
+            control.ftc[control.fault[1]],
+            vehicle,
+            dt,
+            control.integral,
+            control.cmd,
         )
     elif kind == RECOVERY:
         return recovery_command(

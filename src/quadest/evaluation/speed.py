@@ -8,8 +8,11 @@ import time
 
 import numpy as np
 
+from quadest.detect import Detector
 from quadest.filters import estimator_class, make_filter
 from quadest.filters.base import STREAM_C
+from quadest.flight import fly
+from quadest.models import vehicle_preset
 from quadest.recovery.logic import RecoveryParams, run_bank, shortest_arc
 from quadest.recovery.sphere import spread_points
 from quadest.rotation.frames import vec_frd_to_flu
@@ -72,6 +75,21 @@ def _peer_speed(name, rec) -> dict:
     return {"batch_us": us, "stream_us": stream}
 
 
+def time_detector(duration: float = 60.0, repeat: int = 3) -> float:
+    """µs per sample of the rotor-failure detector's batch run (rotor speeds given) on a flown
+    bebop2 circle, best of ``repeat`` after a warm-up."""
+    f = fly("trajectory", seed=1, duration=duration, vehicle="bebop2")
+    rec, speeds = f.recording, f.states[:, 13:]
+    Detector(vehicle_preset("bebop2")).run(rec.t[:100], rec.gyr[:100], rec.acc[:100], speeds[:100])
+    best = np.inf
+    for _ in range(repeat):
+        det = Detector(vehicle_preset("bebop2"))
+        t0 = time.perf_counter()
+        det.run(rec.t, rec.gyr, rec.acc, speeds)
+        best = min(best, time.perf_counter() - t0)
+    return 1e6 * best / len(rec)
+
+
 def time_bank(n_hypotheses: int = 40, duration: float = 20.0, seed: int = 1) -> float:
     """µs per IMU sample of the whole recovery bank advancing together (compiled loop over a
     simulated throw's free flight, after a warm-up; best of three)."""
@@ -123,4 +141,10 @@ def benchmark_speed(names, duration: float = 60.0, on_result=None) -> dict:
             out[name] = _peer_speed(name, rec)
         if on_result is not None:
             on_result(name, out[name])
-    return {"samples": len(rec), "filters": out, "recovery_bank_40_us": time_bank(40), "streaming_in_c": STREAM_C}
+    return {
+        "samples": len(rec),
+        "filters": out,
+        "recovery_bank_40_us": time_bank(40),
+        "detector_us": time_detector(duration),
+        "streaming_in_c": STREAM_C,
+    }

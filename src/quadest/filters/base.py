@@ -39,7 +39,7 @@ from numpy.typing import ArrayLike
 from quadest._jit import cfunc, types
 from quadest.errors import UsageError
 from quadest.filters.common import BASE, DECL, INIT, Q_OUT, RESTARTS, SKIPPED, T_LAST
-from quadest.records import check, describe
+from quadest.records import Params, check, field_offsets, pack, params_record  # noqa: F401 -- the filters take them from here
 from quadest.rotation import quat_mul, quat_to_euler
 from quadest.rotation.kernels import qmul
 
@@ -47,50 +47,10 @@ if TYPE_CHECKING:
     from quadest.data.recording import Recording
 
 
-@dataclass(frozen=True)
-class Params:
-    """Base of the parameter records; fields are floats or bools."""
-
-    @classmethod
-    def describe(cls) -> list[dict]:
-        return describe(cls)
-
-    def values(self) -> dict:
-        """``{name: value}`` with floats as ``float`` and flags as ``bool`` (the types the
-        compiled step was compiled for)."""
-        return {
-            f.name: (bool(getattr(self, f.name)) if f.type in (bool, "bool") else float(getattr(self, f.name)))
-            for f in fields(self)
-        }
-
-
-def field_offsets(names, typename: str = "Offsets"):
-    """``{name: index}`` as a namedtuple instance: the offsets of named values in a float64
-    array, read as constants by compiled code (``p[PARAM.beta]``), like a state layout."""
-    return namedtuple(typename, list(names))(*range(len(names)))
-
-
-def params_record(params_cls):
-    """The offsets of a parameter record's fields in the float64 array the compiled step reads
-    them from by name (``p[PARAM.beta]``, so the order of the fields never matters). Assign it at
-    module level (``PARAM = Record = params_record(MyParams)``).
-
-    An array, not a namedtuple, because a streaming call unboxes every argument: a namedtuple
-    of 35 floats costs about 0.3 µs a call, an array about 0.04 µs."""
-    return field_offsets([f.name for f in fields(params_cls)], "Record")
-
-
 def coefficient_offsets(coefficients_cls):
     """The offsets of a ``Coefficients`` namedtuple's fields in the float64 array the compiled
     step reads them from (``c[COEF.r_acc]``)."""
     return field_offsets(coefficients_cls._fields, "CoefficientOffsets")
-
-
-def pack(values) -> np.ndarray:
-    """Floats (flags as 0 / 1) in order, as the float64 array compiled code reads; at least one
-    element (an estimator without coefficients gets ``[0.0]``)."""
-    a = np.array([float(v) for v in values], dtype=np.float64)
-    return a if len(a) else np.zeros(1)
 
 
 NoCoefficients = namedtuple("NoCoefficients", [])

@@ -10,28 +10,10 @@ further arithmetic in Python). Each estimator's own
 state follows from ``x[BASE]``, declared once with :func:`layout`.
 """
 
-from collections import namedtuple
-
 import numpy as np
 
 from quadest._jit import njit
-
-
-def layout(*slots, start: int = 0):
-    """Offsets of the named slots of a state vector, declared once:
-    ``layout(("P", 16), ("bias", 3), start=BASE)`` gives ``.P == BASE``, ``.bias == BASE + 16``
-    and ``.end`` (one past the last slot: the state size). Compiled code reads the offsets as
-    constants (``x[STATE.bias]``)."""
-    names, offsets = [], []
-    at = start
-    for name, size in slots:
-        if size < 1:
-            raise ValueError(f"slot {name!r}: size must be at least 1, got {size}")
-        names.append(name)
-        offsets.append(at)
-        at += size
-    return namedtuple("Layout", names + ["end"])(*offsets, at)
-
+from quadest.records import layout
 
 COMMON = layout(
     ("q", 4), ("init", 1), ("yaw_pending", 1), ("t_last", 1), ("skipped", 1), ("restarts", 1), ("decl", 2), ("q_out", 4)

@@ -8,6 +8,9 @@ import numpy as np
 
 from quadest.control import FtcParams
 from quadest.control.registry import Control, controller_id
+from quadest.detect import Detector, DetectorParams
+from quadest.detect.effectiveness import DIAG, STATE
+from quadest.flight.detection import DETECTION_MODES, Detection
 from quadest.flight.loop import MAX_RATE, MAX_SPEED, Loop, Navigation, Plant, Record, Sensing, record_arrays
 from quadest.flight.phases import NAV, PHASES, Bank
 from quadest.models.multirotor import work
@@ -84,9 +87,11 @@ def navigation(kind: str, x0, gain=None):
     )
 
 
-def control(controllers: dict, *, gains, ftc, reference, ftc_k=-1, cmd0, beta3=0.0, upright_rad=0.0):
+def control(controllers: dict, *, gains, ftc, reference, fault=(-1, -1), cmd0, beta3=0.0, upright_rad=0.0):
     """The :data:`~quadest.control.registry.Control` flying ``controllers`` (phase name →
-    controller name) along ``reference`` ``(p_d, v_d, a_d, yaw_d)``, the rotors first at ``cmd0``."""
+    controller name) along ``reference`` ``(p_d, v_d, a_d, yaw_d)``, the rotors first at ``cmd0``;
+    ``ftc`` the fault-tolerant gains for each rotor, ``fault`` ``(sample, rotor)`` when the loss is
+    known beforehand (an oracle; else found in flight)."""
     by_phase = np.full(len(PHASES), controller_id("idle"), np.int64)
     for phase, name in controllers.items():
         by_phase[PHASES.index(phase)] = controller_id(name)
@@ -99,7 +104,7 @@ def control(controllers: dict, *, gains, ftc, reference, ftc_k=-1, cmd0, beta3=0
         v_d=v_d,
         a_d=a_d,
         yaw_d=yaw_d,
-        ftc_k=ftc_k,
+        fault=np.array(fault, np.int64),
         integral=np.zeros(3),
         cmd=np.array(cmd0, float),
         beta3=beta3,
@@ -110,7 +115,7 @@ def control(controllers: dict, *, gains, ftc, reference, ftc_k=-1, cmd0, beta3=0
 def unused_ftc_gains(vehicle):
     """Fault-tolerant gains of the record's type for a loop that never flies that controller
     (given a yaw damping, so nothing is fitted)."""
-    return FtcParams(yaw_damping=1e-3).gains(vehicle, 0)
+    return (FtcParams(yaw_damping=1e-3).gains(vehicle, 0),) * vehicle.rotors
 
 
 def bank(model=None, rp: RecoveryParams | None = None, *, mass=1.0, t_throw=0.0):
@@ -147,7 +152,31 @@ def bank(model=None, rp: RecoveryParams | None = None, *, mass=1.0, t_throw=0.0)
     )
 
 
-def loop(*, plant, sensing, nav, bank, control, n, rotors, phase):
+def detection(mode="oracle", *, vehicle=None, params=None, n=1, noise=None):
+    """The loop's :data:`~quadest.flight.detection.Detection`: the detector (``params``, a
+    :class:`~quadest.detect.DetectorParams`) with ``vehicle`` as its model of the vehicle (the
+    detector's own), the rotor speed readings' relative ``noise`` per sample; ``oracle``: none."""
+    rotors = 1 if vehicle is None else vehicle.rotors
+    if mode == "oracle":
+        x, p, c = np.zeros(STATE.end), np.zeros(1), np.zeros(1)
+    else:
+        det = Detector(vehicle, params or DetectorParams(rotor_speeds=mode == "rotor-speeds"))
+        x, p, c, _ = det.compiled()
+    return Detection.make(
+        mode=DETECTION_MODES.index(mode),
+        x=x,
+        p=p,
+        c=c,
+        diag=np.zeros(DIAG),
+        noise=np.zeros((n, rotors)) if noise is None else np.ascontiguousarray(noise, dtype=float),
+        reading=np.zeros(rotors),
+        found=np.full(2, -1, np.int64),
+        eta=np.full((n if mode != "oracle" else 1, rotors), np.nan),
+        statistics=np.full((n if mode != "oracle" else 1, 4), np.nan),
+    )
+
+
+def loop(*, plant, sensing, nav, bank, control, detection, n, rotors, phase):
     """The :data:`~quadest.flight.loop.Loop` of ``n`` samples starting in ``phase``, with its record."""
     record = Record.make(**record_arrays(n, rotors))
     state = np.array([PHASES.index(phase), 0, 0], np.int64)
@@ -157,6 +186,7 @@ def loop(*, plant, sensing, nav, bank, control, n, rotors, phase):
         nav=nav,
         bank=bank,
         control=control,
+        detection=detection,
         record=record,
         state=state,
         held=np.full(2, np.nan),

@@ -88,10 +88,25 @@ class FlightParams:
     detect_delay_s: float = param(
         0.05,
         "s",
-        "a rotor loss is known to the controller this long after it "
+        "detection oracle: a rotor loss is known to the controller this long after it "
         "happens (known at t + delay, not detected from measurements)",
         "chosen: the order of the detection delays reported for rotor failures",
         bounds="[0, 10]",
+    )
+    speed_noise: float = param(
+        0.01,
+        "-",
+        "relative noise of each rotor speed reading (ESC telemetry) the detector reads",
+        "chosen: eRPM telemetry resolves about 1 % at hover speed",
+        bounds="[0, 1]",
+    )
+    detector_model_error: float = param(
+        0.1,
+        "-",
+        "the detector's model of the vehicle: mass, each moment of inertia and the thrust "
+        "coefficient each off by a factor drawn uniformly within ±this per flight",
+        "chosen: a vehicle weighed and its propellers measured within 10 %",
+        bounds="[0, 0.9]",
     )
     settle_m: float = param(
         0.3,
@@ -142,6 +157,8 @@ class Flight:
     eta: np.ndarray | None = None  # each rotor's efficiency at each row
     imbalance: np.ndarray | None = None  # each propeller's imbalance at each row (kg m)
     vehicle: object = None  # the MultirotorParams flown
+    effectiveness: np.ndarray | None = None  # with a detector in the loop: each rotor's effectiveness it estimates
+    detector_statistics: np.ndarray | None = None  # and its tests' statistics (detect.effectiveness.DIAG)
 
 
 def position_gain(p: FlightParams, imu_rate_hz: float) -> np.ndarray:

@@ -12,15 +12,23 @@ import math
 import time
 from collections import namedtuple
 from collections.abc import Callable, Iterable
-from dataclasses import asdict
+from dataclasses import asdict, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from quadest.control import Failure, FtcParams, SE3Params, circle_reference, hover_reference
+from quadest.control import (
+    Failure,
+    FtcParams,
+    SE3Params,
+    circle_reference,
+    figure_eight_reference,
+    hover_reference,
+)
 from quadest.control.ftc import relaxed_hover
 from quadest.control.registry import CONTROLLERS as REGISTRY
 from quadest.data.recording import Recording
+from quadest.detect import DetectorParams
 from quadest.errors import UsageError
 from quadest.filters import ESTIMATORS, Estimator, filter_name, make_filter
 from quadest.flight import build
@@ -35,6 +43,7 @@ from quadest.flight.common import (
     rms,
     sensors_for,
 )
+from quadest.flight.detection import DETECTION_MODES, found_damaged
 from quadest.flight.loop import (
     ESTIMATE_NAN,
     OK,
@@ -52,7 +61,7 @@ from quadest.sim import build_config
 from quadest.sim.flown import flown_recording
 from quadest.sim.params import SimConfig
 
-FLIGHT_SCENARIOS = ("hover", "trajectory", "rotor-loss", "throw")
+FLIGHT_SCENARIOS = ("hover", "trajectory", "aggressive", "rotor-loss", "throw")
 
 
 def in_loop_estimators() -> list[str]:
@@ -62,7 +71,13 @@ def in_loop_estimators() -> list[str]:
 
 
 CONTROLLERS = tuple(name for name, c in REGISTRY.items() if c.selectable)  # what a user may fly by name
-DEFAULT_DURATION = {"hover": 10.0, "trajectory": 20.0, "rotor-loss": 10.0, "throw": 14.0}  # a throw: from the release
+DEFAULT_DURATION = {
+    "hover": 10.0,
+    "trajectory": 20.0,
+    "aggressive": 20.0,
+    "rotor-loss": 10.0,
+    "throw": 14.0,
+}  # a throw: from the release
 DEFAULT_PRESET = {"throw": "fma"}  # the recovery paper's sensors (IMU 1 kHz, no magnetometer); else bebop2
 
 
@@ -75,6 +90,14 @@ def _reference(scenario, t, rng, vehicle):
     elif scenario == "trajectory":
         ref = circle_reference(t)
         x0[0], x0[4] = 1.0, 2 * np.pi * 0.2
+    elif scenario == "aggressive":
+        ref = figure_eight_reference(
+            t,
+            size=(rng.uniform(1.0, 1.5), rng.uniform(0.3, 0.45)),
+            freq_hz=rng.uniform(0.3, 0.35),
+            yaw_amplitude=2.5,
+            phase=rng.uniform(0, 2 * np.pi),
+        )
     else:
         ref = hover_reference(len(t))
     return x0, ref
@@ -96,16 +119,18 @@ def fly(
     config: SimConfig | None = None,
     estimator_params: dict | None = None,
     throw: ThrowParams | None = None,
+    detection: str | DetectorParams = "oracle",
 ) -> Flight:
     """Fly ``scenario`` with ``estimator`` in the loop: a quadest filter by name (with the
     preset's declination), an :class:`~quadest.filters.Estimator` (it continues from its state),
     or ``truth`` (an oracle: the controller reads the true state).
 
     Scenarios: ``hover`` (hold the origin from a disturbed start), ``trajectory`` (a 1 m circle
-    at 0.2 Hz), ``rotor-loss`` (hover; rotor 0 lost at 2 s unless ``failure`` says otherwise),
-    ``throw`` (released tumbling; the recovery paper's bank of EKFs and logic in the loop, then
-    the recovery controller: :mod:`quadest.flight.throw`; estimator ``recovery`` or ``truth``,
-    sensors ``fma`` by default).
+    at 0.2 Hz), ``aggressive`` (a figure eight drawn from the seed, 1-1.5 m by 0.3-0.45 m at
+    0.3-0.35 Hz, the heading swinging ±2.5 rad, grown in over 2 s), ``rotor-loss`` (hover; rotor
+    0 lost at 2 s unless ``failure`` says otherwise), ``throw`` (released tumbling; the recovery
+    paper's bank of EKFs and logic in the loop, then the recovery controller:
+    :mod:`quadest.flight.throw`; estimator ``recovery`` or ``truth``, sensors ``fma`` by default).
     ``controller``: ``se3`` (nominal only) or ``ftc`` (SE(3), then the fault-tolerant controller
     once a complete rotor loss is known, holding the point the reference had reached then: a
     trajectory with a loss ends in a relaxed hover); default ``ftc`` for ``rotor-loss``, else ``se3``.
@@ -113,7 +138,12 @@ def fly(
     assumes ``params``'; ``vehicle`` a :class:`MultirotorParams` or a preset name
     (:data:`~quadest.models.VEHICLE_PRESETS`, default ``recovery``); ``estimator_params`` the
     named estimator's parameters (``{"beta_marg": 0.05}``); ``throw`` a throw's parameters
-    (:class:`~quadest.flight.throw.ThrowParams`; its duration counts from the release)."""
+    (:class:`~quadest.flight.throw.ThrowParams`; its duration counts from the release).
+    ``detection``: how the fault-tolerant controller learns of a rotor loss: ``oracle`` (told
+    ``params.detect_delay_s`` after it, the lost rotor's command zeroed from the failure on),
+    ``rotor-speeds`` or ``commands`` (found by the detector of :mod:`quadest.detect` with a model
+    of the vehicle off by ``params.detector_model_error``), or a
+    :class:`~quadest.detect.DetectorParams` (its ``rotor_speeds`` says which)."""
     estimator = filter_name(estimator) if isinstance(estimator, str) else estimator
     controller, duration = _check_request(scenario, estimator, controller, duration)
     vehicle_name = vehicle if isinstance(vehicle, str) else ("recovery" if vehicle is None else "custom")
@@ -137,22 +167,30 @@ def fly(
     processes, sm = sensors_for(cfg, n, seed, vehicle)  # the generators and order of flown_recording's
     nav, est = _in_loop(estimator, cfg, rate, estimator_params)
     ftc = ftc or FtcParams()
-    ftc_k = _ftc_sample(controller, failure, params, rate, n)
+    detection, detector = (detection, None) if isinstance(detection, str) else (_mode(detection), detection)
+    oracle = detection == "oracle"
     loop = build.loop(
         plant=build.plant(
-            vehicle, h=1.0 / SIM_RATE_HZ, substeps=substeps, ground_z=float(params.height_m), failure=failure, rate=rate
-        ),
+            vehicle,
+            h=1.0 / SIM_RATE_HZ,
+            substeps=substeps,
+            ground_z=float(params.height_m),
+            failure=failure,
+            rate=rate,
+            zero_failed=oracle,
+        ),  # fmt: skip
         sensing=_position_sensing(sm, params, rate, every, n, x0, rng_mocap, vehicle.rotors),
         nav=build.navigation(nav, x0, position_gain(params, rate)),
         bank=build.bank(),
         control=build.control(
             dict(REGISTRY[controller].phases),
             gains=(se3 or SE3Params()).gains(vehicle),
-            ftc=ftc.gains(vehicle, failure.rotor if controller == "ftc" else 0),
-            reference=_held_after(ref, ftc_k),
-            ftc_k=ftc_k,
-            cmd0=np.zeros(vehicle.rotors),
+            ftc=_ftc_gains(ftc, vehicle, controller, failure, oracle),
+            reference=ref,
+            fault=_known_fault(controller, failure, params, rate, n) if oracle else (-1, -1),
+            cmd0=x0[13:].copy(),  # what the rotors were doing (a detector reads it before the first command)
         ),
+        detection=_detection(detection, detector, vehicle, params, seed, n),
         n=n,
         rotors=vehicle.rotors,
         phase="flying",
@@ -182,7 +220,42 @@ def fly(
         vehicle=vehicle,
         ref=(loop.control.p_d, loop.control.yaw_d),
     )
+    if detection != "oracle":
+        _add_detection(flight, loop.detection, detection, failure, flown)
     return flight
+
+
+def _add_detection(flight: Flight, det, mode: str, failure: Failure | None, flown: int) -> None:
+    """The detector's estimates and statistics per sample, and its summary; a false alarm makes
+    the run a failed one."""
+    flight.effectiveness = det.eta[:flown].copy()
+    flight.detector_statistics = det.statistics[:flown].copy()
+    flight.summary["detection"] = detection_summary(det, mode, failure, flight.recording.t)
+    if flight.summary["detection"]["false_alarm"]:
+        flight.summary["status"] = "false alarm"
+
+
+def detection_summary(det, mode: str, failure: Failure | None, t: np.ndarray) -> dict:
+    """What the detector in the loop found: the rotor found lost and when (s; ``delay_s`` after
+    the failure), whether it is the rotor that failed, whether it was a false alarm (a rotor found
+    lost before any failed: it counts as a failed run, the controller gives an intact rotor up),
+    and the rotor found damaged."""
+    k, rotor = (int(v) for v in det.found)
+    found_s = float(t[k]) if k >= 0 else None
+    fail_s = failure.time_s if failure is not None else None
+    out = {
+        "mode": mode,
+        "lost_rotor": rotor if k >= 0 else None,
+        "lost_s": found_s,
+        "delay_s": None if found_s is None or fail_s is None or found_s < fail_s else found_s - fail_s,
+        "isolated": None if k < 0 or failure is None else rotor == failure.rotor,
+        "false_alarm": k >= 0 and (fail_s is None or found_s < fail_s),
+    }
+    damaged = found_damaged(det)
+    out["damaged_rotor"], out["damaged_s"], out["damaged_effectiveness"] = (
+        (None, None, None) if damaged is None else (damaged[0], float(t[0]) + damaged[1], damaged[2])
+    )
+    return out
 
 
 def _check_request(scenario, estimator, controller, duration):
@@ -285,23 +358,44 @@ def _in_loop(estimator, cfg, rate, estimator_params):
     return "filter", InLoop(est.name, None if est.peer else tuple(est.compiled()), est if est.peer else None)
 
 
-def _ftc_sample(controller, failure, params, rate, n):
-    """The sample from which the fault-tolerant controller flies: ``detect_delay_s`` after a
-    complete loss (the loss is known, not detected: an oracle), -1 for none."""
+def _mode(detector: DetectorParams) -> str:
+    return "rotor-speeds" if detector.rotor_speeds else "commands"
+
+
+def _known_fault(controller, failure, params, rate, n):
+    """The oracle's fault: the fault-tolerant controller flies ``detect_delay_s`` after a complete
+    loss, giving the lost rotor up (known, not detected); ``(-1, -1)`` for none."""
     if controller != "ftc":
-        return -1
-    return min(n, int(round(failure.time_s * rate)) + int(round(params.detect_delay_s * rate)))
+        return -1, -1
+    return min(n, int(round(failure.time_s * rate)) + int(round(params.detect_delay_s * rate))), failure.rotor
 
 
-def _held_after(ref, k):
-    """The reference, holding from sample ``k`` on the point it had reached (a spinning vehicle
-    does not track a circle)."""
-    p_d, v_d, a_d, yaw_d = (np.array(a, dtype=float) for a in ref)
-    if 0 <= k < len(yaw_d):
-        p_d[k:] = p_d[k]
-        v_d[k:] = 0.0
-        a_d[k:] = 0.0
-    return p_d, v_d, a_d, yaw_d
+def _ftc_gains(ftc, vehicle, controller, failure, oracle):
+    """The fault-tolerant gains for each rotor that may be lost: with the oracle only the known
+    rotor's are needed (every entry), with a detector each rotor's."""
+    if controller == "ftc" and not oracle:
+        return ftc.all_gains(vehicle)
+    return (ftc.gains(vehicle, failure.rotor if controller == "ftc" else 0),) * vehicle.rotors
+
+
+def _detection(mode, detector, vehicle, params, seed, n):
+    """The detector in the loop, with its own model of the vehicle (the flight's, each of mass,
+    inertia and thrust coefficient off by a factor drawn per flight) and the rotor speed
+    readings' noise, both from the flight's seed."""
+    if mode not in DETECTION_MODES:
+        raise UsageError(f"unknown detection {mode!r}; detection: {', '.join(DETECTION_MODES)}")
+    if mode == "oracle":
+        return build.detection()
+    rng_model, rng_speed = (np.random.default_rng(s) for s in np.random.SeedSequence([int(seed), 29]).spawn(2))
+    e = params.detector_model_error
+    model = replace(
+        vehicle,
+        mass_kg=vehicle.mass_kg * (1 + rng_model.uniform(-e, e)),
+        inertia=tuple(np.asarray(vehicle.inertia) * (1 + rng_model.uniform(-e, e, 3))),
+        k_f=vehicle.k_f * (1 + rng_model.uniform(-e, e)),
+    )
+    noise = rng_speed.standard_normal((n, vehicle.rotors)) * params.speed_noise
+    return build.detection(mode, vehicle=model, params=detector, n=n, noise=noise)
 
 
 def _run(x, loop, est: InLoop):

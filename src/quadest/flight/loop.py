@@ -24,6 +24,7 @@ import numpy as np
 
 from quadest._jit import NO_ALLOCATION, copy_into, njit
 from quadest.control.registry import command
+from quadest.flight.detection import notice_failure
 from quadest.flight.phases import FAULT, FLYING, NAV_FILTER, NAV_TRUE_STATE, PHASE, recovery_phase
 from quadest.models.multirotor import derivative_ws, rk4_ws
 from quadest.records import compiled_record
@@ -124,7 +125,8 @@ Record = compiled_record(
 
 Loop = compiled_record(
     "Loop",
-    "One flight: its plant, sensing, navigation, recovery bank, control and record, and what "
+    "One flight: its plant, sensing, navigation, recovery bank, control, rotor-failure detection "
+    "and record, and what "
     "it carries from sample to sample (state: phase, samples below the throw threshold, the "
     "accelerometer gate; held: the yaw and height a recovery holds).",
     plant="any",
@@ -132,6 +134,7 @@ Loop = compiled_record(
     nav="any",
     bank="any",
     control="any",
+    detection="any",
     record="any",
     state="i8[:]",
     held="f8[:]",
@@ -244,14 +247,31 @@ def navigate(k, x, loop, q_est):
 
 @njit(cache=True, inline="always")
 def control_flight(k, loop):
-    """The controller of a flight's phase: nominal, or fault-tolerant once the loss is known;
-    the lost rotor's command zeroed (its motor spins down) when the plant says so."""
+    """The controller of a flight's phase: nominal, or fault-tolerant once the loss is known
+    (holding the point the reference had reached: a spinning vehicle does not track a path, and
+    giving the lost rotor up); the lost rotor's command zeroed from the failure on when the
+    plant says so (an oracle)."""
     plant, control = loop.plant, loop.control
-    phase = FAULT if control.ftc_k >= 0 and k >= control.ftc_k else FLYING
+    fault = control.fault
+    if k == fault[0]:
+        hold_reference(control, k)
+    phase = FAULT if fault[0] >= 0 and k >= fault[0] else FLYING
     loop.state[PHASE] = phase
     command(control.by_phase[phase], k, loop.nav.xh, control, plant.vehicle, loop.sensing.dt)
+    if phase == FAULT:
+        control.cmd[fault[1]] = 0.0
     if plant.zero_failed and plant.fail_rotor >= 0 and k >= plant.fail_k and plant.fail_eta == 0.0:
         control.cmd[plant.fail_rotor] = 0.0
+
+
+@njit(cache=True, inline="always")
+def hold_reference(control, k):
+    """From sample ``k`` on, the reference holds the point it had reached."""
+    for i in range(k, control.p_d.shape[0]):
+        for j in range(3):
+            control.p_d[i, j] = control.p_d[k, j]
+            control.v_d[i, j] = 0.0
+            control.a_d[i, j] = 0.0
 
 
 @njit(cache=True, inline="always")
@@ -301,6 +321,7 @@ def fly_sample(k, x, loop, q_est):
     status = navigate(k, x, loop, q_est)
     if status != OK:
         return status
+    notice_failure(k, x, loop)
     control_flight(k, loop)
     record, nav = loop.record, loop.nav
     copy_into(record.q[k], nav.xh[6:10])

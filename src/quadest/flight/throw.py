@@ -301,6 +301,7 @@ def fly_throw(
             n=n,
         ),
         nav=build.navigation("true-state" if estimator == "truth" else "bank", hand_x[0]),
+        detection=build.detection(),
         bank=build.bank(
             model, rp, mass=vehicle.mass_kg, t_throw=vehicle.rotors * gains.k_f * throw.rotor_speed * throw.rotor_speed
         ),

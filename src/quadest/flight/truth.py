@@ -44,6 +44,7 @@ def fly_se3(
         ),
         sensing=build.sensing(sm, dt=1.0 / rate_hz, rotors=vehicle.rotors, position0=x[0:3], n=steps, on=False),
         nav=build.navigation("true-state", x),
+        detection=build.detection(),
         bank=build.bank(),
         control=build.control(
             {"flying": "se3"},

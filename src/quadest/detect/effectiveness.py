@@ -1,0 +1,479 @@
+"""Rotor-failure detection and isolation: a Kalman filter on each rotor's effectiveness, and a
+sequential test on what it finds (docs/detection.md).
+
+The filter's state is the body rate ``ω`` and each rotor's effectiveness ``η_i`` (1 intact, 0
+lost). Between samples the rate follows the detector's model of the vehicle (docs/detection.md
+has the inflow and rotor-drag terms)::
+
+    J ω̇ = Σ_i η_i k_f Ω_i² g_i − ω × J ω − D ω − C_r |ω| ω,   g_i = (−r_iy, r_ix, −s_i k_m/k_f)
+
+with ``Ω_i`` the rotor speeds (measured, or from the commands through the detector's motor
+model), and the effectiveness walks randomly. The gyroscope measures ``ω``; the
+accelerometer's z measures ``−Σ η_i k_f Ω_i² / m``. Both are linear in the state given the
+rotor speeds and the measured rate, so the filter is a linear Kalman filter, updated one scalar
+at a time.
+
+Each rotor's deficit ``d_i`` is the mean effectiveness of the others minus its own (a common
+error of ``k_f`` or of the mass moves every ``η`` alike and cancels). Two CUSUM tests
+(Page 1954) accumulate it: ``S_i ← max(0, S_i + Δt (d_i − ν))``; the rotor whose sum first
+passes its threshold ``h`` is the one that failed. The test with the larger drift answers
+"lost" (the fault-tolerant controller takes over), the one with the smaller drift "damaged".
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from quadest._jit import NO_ALLOCATION, njit
+from quadest.records import Params, check, layout, pack, param, params_record
+
+if TYPE_CHECKING:
+    from quadest.models.multirotor import MultirotorParams
+
+MAX_ROTORS = 8
+NS = 3 + MAX_ROTORS  # the filter's largest state: rate and effectiveness
+STATE = layout(
+    ("w", 3),
+    ("eta", MAX_ROTORS),
+    ("P", NS * NS),
+    ("omega", MAX_ROTORS),  # the rotor speeds over the last interval (root mean square)
+    ("omega_end", MAX_ROTORS),  # at its end
+    ("s_lost", MAX_ROTORS),
+    ("s_damaged", MAX_ROTORS),
+    ("init", 1),
+    ("time", 1),
+    ("lost", 1),  # the rotor found lost (-1: none), the time, the effectiveness left
+    ("lost_t", 1),
+    ("lost_eta", 1),
+    ("damaged", 1),
+    ("damaged_t", 1),
+    ("damaged_eta", 1),
+    ("B", 3 * MAX_ROTORS),  # scratch of one step: the input matrix, F P's rows, P h, h
+    ("FP", 3 * NS),
+    ("ph", NS),
+    ("h", NS),
+)
+MODEL = layout(
+    ("rotors", 1),
+    ("mass", 1),
+    ("inertia", 3),
+    ("k_f", 1),
+    ("k_z", 1),
+    ("k_h", 1),
+    ("tau", 1),
+    ("omega_min", 1),
+    ("omega_max", 1),
+    ("omega_dot_max", 1),
+    ("damping", 3),
+    ("rot_drag", 3),
+    ("g", 3 * MAX_ROTORS),  # per rotor: the moment per unit thrust
+)
+
+
+@dataclass(frozen=True)
+class DetectorParams(Params):
+    rotor_speeds: bool = param(
+        True,
+        "-",
+        "the rotor speeds are measured (ESC telemetry); otherwise they follow from the commands "
+        "through the detector's motor model",
+    )
+    gyro_noise: float = param(
+        0.02,
+        "rad/s",
+        "gyroscope noise with vibration, per sample",
+        "chosen: the presets' noise and vibration",
+        "(0, 10]",
+    )
+    acc_noise: float = param(
+        1.0, "m/s²", "accelerometer z noise with vibration, per sample", "chosen: the presets' vibration", "(0, 100]"
+    )
+    moment_noise: float = param(
+        8.0,
+        "rad/s²",
+        "angular acceleration the model misses (inertia and thrust errors, aerodynamics)",
+        "chosen: 10 % of the 80 rad/s² of aggressive flight",
+        "(0, 1e4]",
+    )
+    model_error: float = param(
+        0.15,
+        "-",
+        "relative error of the modelled roll and pitch moments (inertia, thrust coefficient)",
+        "chosen: the ±10 % model errors the campaign draws, with margin",
+        "[0, 10]",
+    )
+    yaw_model_error: float = param(
+        0.3,
+        "-",
+        "relative error of the modelled yaw moment (drag torque coefficient, rotor drag)",
+        "chosen: the yaw moment is the least known",
+        "[0, 10]",
+    )
+    eta_walk: float = param(
+        3.0, "1/√s", "random walk of a rotor's effectiveness", "chosen: tuned on training seeds", "(0, 1e3]"
+    )
+    deficit_sd_ratio: float = param(
+        2.0,
+        "-",
+        "a rotor's deficit counts only while the deviation of its effectiveness is below this "
+        "many times the best-known rotor's (a rotor turning slowly shows little of its effectiveness)",
+        "chosen",
+        "[1, 100]",
+    )
+    lost_drift: float = param(0.6, "-", "deficit the 'lost' test ignores (ν)", "chosen: above a 50 % loss", "(0, 1]")
+    lost_threshold: float = param(
+        0.004, "s", "the 'lost' test's threshold (h, deficit-seconds)", "chosen: tuned on training seeds", "(0, 10]"
+    )
+    damaged_drift: float = param(
+        0.15,
+        "-",
+        "deficit the 'damaged' test ignores (ν)",
+        "chosen: half the smallest loss looked for (30 %)",
+        "(0, 1]",
+    )
+    damaged_threshold: float = param(
+        0.02, "s", "the 'damaged' test's threshold (h)", "chosen: tuned on training seeds", "(0, 100]"
+    )
+
+
+PARAM = Record = params_record(DetectorParams)
+DIAG = MAX_ROTORS + 4
+"""A step's diagnostics: each rotor's effectiveness (``MAX_ROTORS`` slots), then the largest
+'lost' sum and its rotor, the largest 'damaged' sum and its rotor (the tests' statistics)."""
+STAT = MAX_ROTORS
+
+
+def model_coefficients(vehicle) -> np.ndarray:
+    """The detector's model of a vehicle (a :class:`~quadest.models.multirotor.MultirotorParams`:
+    the detector's own, never the simulated truth's) packed for the compiled step."""
+    pos, spin = np.asarray(vehicle.rotor_pos, float), np.asarray(vehicle.spin, float)
+    n = len(pos)
+    if not 2 <= n <= MAX_ROTORS:
+        raise ValueError(f"detector: {n} rotors; it handles 2 to {MAX_ROTORS}")
+    g = np.zeros((MAX_ROTORS, 3))
+    g[:n] = np.column_stack([-pos[:, 1], pos[:, 0], -spin * vehicle.k_m / vehicle.k_f])
+    values = [n, vehicle.mass_kg, *vehicle.inertia, vehicle.k_f, vehicle.k_z, vehicle.k_h, vehicle.motor_tau_s]
+    values += [vehicle.omega_min]
+    values += [vehicle.omega_max, vehicle.omega_dot_max, *vehicle.damping, *vehicle.rot_drag, *g.ravel()]
+    return pack(values)
+
+
+@njit(cache=True, inline="always")
+def _motor(omega, cmd, c, dt):
+    """The detector's motor model: first order with its time constant, speed and rate limits."""
+    target = min(max(cmd, c[MODEL.omega_min]), c[MODEL.omega_max])
+    rate = (target - omega) / c[MODEL.tau]
+    lim = c[MODEL.omega_dot_max]
+    return omega + dt * min(max(rate, -lim), lim)
+
+
+@njit(cache=True, inline="always")
+def _thrust(c, om, w0, w1, gx, gy):
+    """An intact rotor's thrust at speed ``om`` on a body turning at ``(w0, w1)``: ``k_f Ω² + k_z Ω
+    u_z`` with the hub's axial speed from the rotation, ``u_z = ω_x r_y − ω_y r_x`` (the
+    vehicle's own velocity is not known here: it moves every rotor alike)."""
+    return c[MODEL.k_f] * om * om + c[MODEL.k_z] * om * (-w0 * gx - w1 * gy)
+
+
+@njit(cache=True, inline="always")
+def _start(x, p, c, gyr, rotors):
+    """The first sample: the rate from the gyroscope, every rotor intact, the speeds read."""
+    n = int(c[MODEL.rotors])
+    ns = 3 + n
+    for i in range(NS * NS):
+        x[STATE.P + i] = 0.0
+    for j in range(3):
+        x[STATE.w + j] = gyr[j]
+        x[STATE.P + j * ns + j] = p[PARAM.gyro_noise] ** 2
+    for i in range(n):
+        x[STATE.eta + i] = 1.0
+        x[STATE.P + (3 + i) * ns + 3 + i] = 0.01  # intact within ±10 % at the start
+        x[STATE.omega + i] = x[STATE.omega_end + i] = rotors[i]
+        x[STATE.s_lost + i] = 0.0
+        x[STATE.s_damaged + i] = 0.0
+    x[STATE.lost] = x[STATE.damaged] = -1.0
+
+
+@njit(cache=True, inline="always")
+def _predict(x, p, c, gyr, dt):
+    """``ω`` over the interval with the mean squared speed over it (``STATE.omega`` holds
+    ``√(½(Ω²_begin + Ω²_end))``); ``P ← F P Fᵀ + Q``."""
+    n = int(c[MODEL.rotors])
+    ns = 3 + n
+    P, B, FP = STATE.P, STATE.B, STATE.FP  # offsets into x
+    w0, w1, w2 = gyr[0], gyr[1], gyr[2]  # the measured rate for the gyroscopic and drag terms
+    J0, J1, J2 = c[MODEL.inertia], c[MODEL.inertia + 1], c[MODEL.inertia + 2]
+    kf = c[MODEL.k_f]
+    m0 = -(w1 * J2 * w2 - w2 * J1 * w1) - c[MODEL.rot_drag] * abs(w0) * w0
+    m1 = -(w2 * J0 * w0 - w0 * J2 * w2) - c[MODEL.rot_drag + 1] * abs(w1) * w1
+    m2 = -(w0 * J1 * w1 - w1 * J0 * w0) - c[MODEL.rot_drag + 2] * abs(w2) * w2
+    # B[j, i]: the rate change over dt per unit effectiveness of rotor i
+    for i in range(n):
+        om = x[STATE.omega + i]
+        gx, gy, gz = c[MODEL.g + 3 * i], c[MODEL.g + 3 * i + 1], c[MODEL.g + 3 * i + 2]  # gx = −r_y, gy = r_x
+        thrust = _thrust(c, om, w0, w1, gx, gy)
+        yaw = kf * om * om * gz - c[MODEL.k_h] * om * w2 * (gx * gx + gy * gy)  # reaction, rotor drag
+        x[B + i] = dt * thrust * gx / J0
+        x[B + MAX_ROTORS + i] = dt * thrust * gy / J1
+        x[B + 2 * MAX_ROTORS + i] = dt * yaw / J2
+    a = (1.0 - dt * c[MODEL.damping] / J0, 1.0 - dt * c[MODEL.damping + 1] / J1, 1.0 - dt * c[MODEL.damping + 2] / J2)
+    base = (dt * m0 / J0, dt * m1 / J1, dt * m2 / J2)
+    rel = (p[PARAM.model_error], p[PARAM.model_error], p[PARAM.yaw_model_error])
+    floor = (p[PARAM.moment_noise] * dt) ** 2
+    for j in range(3):
+        rotors_part = 0.0
+        for i in range(n):
+            rotors_part += x[B + j * MAX_ROTORS + i] * x[STATE.eta + i]
+        x[STATE.w + j] = a[j] * x[STATE.w + j] + base[j] + rotors_part
+        x[FP + j] = floor + (rel[j] * rotors_part) ** 2  # the model's error grows with the moment
+    # F = [[diag(a), B], [0, I]]: rows 0-2 of F P, then (F P) Fᵀ
+    q0, q1, q2 = x[FP], x[FP + 1], x[FP + 2]
+    for j in range(3):
+        for col in range(ns):
+            s = a[j] * x[P + j * ns + col]
+            for i in range(n):
+                s += x[B + j * MAX_ROTORS + i] * x[P + (3 + i) * ns + col]
+            x[FP + j * NS + col] = s
+    for j in range(3):
+        for r in range(ns):  # (F P Fᵀ)[j, r] = (F P)[j, :] · F[r, :]
+            if r < 3:
+                s = a[r] * x[FP + j * NS + r]
+                for i in range(n):
+                    s += x[FP + j * NS + 3 + i] * x[B + r * MAX_ROTORS + i]
+            else:
+                s = x[FP + j * NS + r]
+            x[P + j * ns + r] = s
+            x[P + r * ns + j] = s
+    qe = p[PARAM.eta_walk] ** 2 * dt
+    x[P] += q0
+    x[P + ns + 1] += q1
+    x[P + 2 * ns + 2] += q2
+    for i in range(n):
+        x[P + (3 + i) * ns + 3 + i] += qe
+
+
+@njit(cache=True, inline="always")
+def _update(x, ns, z, r):
+    """Scalar Kalman update with the measurement row ``x[STATE.h:]`` (``ns`` values), value
+    ``z``, variance ``r``. The state's rate and effectiveness are contiguous (``STATE.w``)."""
+    P, h, ph, s0 = STATE.P, STATE.h, STATE.ph, STATE.w
+    s = r
+    pred = 0.0
+    for a in range(ns):
+        v = 0.0
+        for b in range(ns):
+            v += x[P + a * ns + b] * x[h + b]
+        x[ph + a] = v
+        s += x[h + a] * v
+        pred += x[h + a] * x[s0 + a]
+    e = (z - pred) / s
+    for a in range(ns):
+        x[s0 + a] += x[ph + a] * e
+    for a in range(ns):
+        for b in range(ns):
+            x[P + a * ns + b] -= x[ph + a] * x[ph + b] / s
+
+
+@njit(cache=True, inline="always")
+def _correct(x, p, c, gyr, acc):
+    """The gyroscope's three rates and the accelerometer's z."""
+    n = int(c[MODEL.rotors])
+    ns = 3 + n
+    h = STATE.h
+    for a in range(ns):
+        x[h + a] = 0.0
+    rg = p[PARAM.gyro_noise] ** 2
+    for j in range(3):
+        x[h + j] = 1.0
+        _update(x, ns, gyr[j], rg)
+        x[h + j] = 0.0
+    if np.isfinite(acc[2]):
+        for i in range(n):
+            gx, gy = c[MODEL.g + 3 * i], c[MODEL.g + 3 * i + 1]
+            x[h + 3 + i] = -_thrust(c, x[STATE.omega + i], gyr[0], gyr[1], gx, gy) / c[MODEL.mass]
+        _update(x, ns, acc[2], p[PARAM.acc_noise] ** 2)
+
+
+@njit(cache=True, inline="always")
+def _test(x, p, c, dt):
+    """The two CUSUM tests on each rotor's deficit; the first alarm of each is kept."""
+    n = int(c[MODEL.rotors])
+    total = 0.0
+    for i in range(n):
+        total += x[STATE.eta + i]
+    var_total = 0.0
+    var_min = np.inf
+    for i in range(n):
+        var_total += x[STATE.P + (3 + i) * (3 + n) + 3 + i]
+        var_min = min(var_min, x[STATE.P + (3 + i) * (3 + n) + 3 + i])
+    sd_max = p[PARAM.deficit_sd_ratio] * np.sqrt(var_min)
+    for i in range(n):
+        others = (total - x[STATE.eta + i]) / (n - 1)
+        var_i = x[STATE.P + (3 + i) * (3 + n) + 3 + i]
+        d = others - x[STATE.eta + i] if np.sqrt(var_i) < sd_max else 0.0  # too uncertain: no evidence
+        left = x[STATE.eta + i] / others if others > 0.0 else 0.0
+        sl = max(0.0, x[STATE.s_lost + i] + dt * (d - p[PARAM.lost_drift]))
+        sd = max(0.0, x[STATE.s_damaged + i] + dt * (d - p[PARAM.damaged_drift]))
+        x[STATE.s_lost + i], x[STATE.s_damaged + i] = sl, sd
+        if x[STATE.lost] < 0.0 and sl > p[PARAM.lost_threshold]:
+            x[STATE.lost], x[STATE.lost_t], x[STATE.lost_eta] = i, x[STATE.time], left
+        if x[STATE.damaged] < 0.0 and sd > p[PARAM.damaged_threshold]:
+            x[STATE.damaged], x[STATE.damaged_t], x[STATE.damaged_eta] = i, x[STATE.time], left
+
+
+@njit(cache=True, **NO_ALLOCATION)
+def detect_step(x, p, c, gyr, acc, rotors, dt, diag):
+    """One sample: gyroscope (rad/s), accelerometer (m/s²), each rotor's measured speed or the
+    command it was given over the interval that ends here (rad/s, ``p.rotor_speeds``), the
+    interval (s). ``diag``: each rotor's effectiveness.
+    Returns the rotor found lost (-1: none yet)."""
+    if not (dt > 0.0 and np.isfinite(gyr[0]) and np.isfinite(gyr[1]) and np.isfinite(gyr[2])):
+        return int(x[STATE.lost])
+    n = int(c[MODEL.rotors])
+    if x[STATE.init] == 0.0:
+        _start(x, p, c, gyr, rotors)
+        x[STATE.init] = 1.0
+        for i in range(n):
+            diag[i] = 1.0
+        for j in range(4):
+            diag[STAT + j] = 0.0
+        return -1
+    measured = p[PARAM.rotor_speeds] != 0.0
+    for i in range(n):  # the speeds over the interval: √(½(Ω²_begin + Ω²_end)), Ω² being what thrust needs
+        begin = x[STATE.omega_end + i]
+        end = rotors[i] if measured else _motor(begin, rotors[i], c, dt)
+        x[STATE.omega + i] = np.sqrt(0.5 * (begin * begin + end * end))
+        x[STATE.omega_end + i] = end
+    _predict(x, p, c, gyr, dt)
+    _correct(x, p, c, gyr, acc)
+    x[STATE.time] += dt
+    _test(x, p, c, dt)
+    for j in range(4):
+        diag[STAT + j] = 0.0
+    for i in range(n):
+        diag[i] = x[STATE.eta + i]
+        if x[STATE.s_lost + i] > diag[STAT]:
+            diag[STAT], diag[STAT + 1] = x[STATE.s_lost + i], i
+        if x[STATE.s_damaged + i] > diag[STAT + 2]:
+            diag[STAT + 2], diag[STAT + 3] = x[STATE.s_damaged + i], i
+    return int(x[STATE.lost])
+
+
+@njit(cache=True, **NO_ALLOCATION)
+def detect_run(x, p, c, dt, gyr, acc, rotors, diag_out):
+    """Batch: the same step over every sample."""
+    for k in range(len(dt)):
+        detect_step(x, p, c, gyr[k], acc[k], rotors[k], dt[k], diag_out[k])
+
+
+@dataclass
+class Detection:
+    """What the detector found over a run: each rotor's effectiveness per sample, and the rotor
+    found lost and the one found damaged (0-based; None when none), with when (s from the
+    start) and the effectiveness left (relative to the other rotors)."""
+
+    t: np.ndarray
+    effectiveness: np.ndarray
+    lost: int | None
+    lost_t: float | None
+    lost_effectiveness: float | None
+    damaged: int | None
+    damaged_t: float | None
+    damaged_effectiveness: float | None
+    statistics: np.ndarray | None = None
+    """Per sample: the largest 'lost' sum and its rotor, the largest 'damaged' sum and its rotor."""
+
+
+class Detector:
+    """Rotor-failure detection and isolation for one vehicle (module doc): ``vehicle`` is the
+    detector's model (a :class:`~quadest.models.multirotor.MultirotorParams`), ``params`` a
+    :class:`DetectorParams` (or keyword overrides). Streaming :meth:`update` and batch
+    :meth:`run` call one compiled step."""
+
+    def __init__(self, vehicle: MultirotorParams, params: DetectorParams | None = None, **overrides):
+        params = params if params is not None else DetectorParams()
+        if overrides:
+            params = replace(params, **overrides)
+        check_params(params)
+        self.params, self.vehicle = params, vehicle
+        self._values = pack(params.values()[f] for f in PARAM._fields)
+        self._model = model_coefficients(vehicle)
+        self.rotors = vehicle.rotors
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the start: every rotor intact, nothing found."""
+        self._state = np.zeros(STATE.end)
+        self._out = np.zeros(DIAG)
+
+    def compiled(self) -> tuple:
+        """The live arrays of the compiled step ``detect_step(x, p, c, ...)`` for a compiled loop."""
+        return self._state, self._values, self._model, self._out
+
+    def update(self, gyr: ArrayLike, acc: ArrayLike, rotors: ArrayLike, *, dt: float) -> int | None:
+        """One sample (rotor speeds or commands, rad/s, one per rotor): the rotor found lost, or None."""
+        lost = detect_step(
+            self._state,
+            self._values,
+            self._model,
+            _vec(gyr, 3),
+            _vec(acc, 3),
+            _vec(rotors, self.rotors),
+            float(dt),
+            self._out,
+        )
+        return None if lost < 0 else lost
+
+    @property
+    def effectiveness(self) -> np.ndarray:
+        return self._state[STATE.eta : STATE.eta + self.rotors].copy()
+
+    def result(self, t: ArrayLike | None = None, effectiveness: ArrayLike | None = None) -> Detection:
+        """What was found so far (with the per-sample times and effectiveness given, if any)."""
+        x = self._state
+
+        def found(key):
+            return None if x[key] < 0 else int(x[key])
+
+        lost, damaged = found(STATE.lost), found(STATE.damaged)
+        return Detection(
+            np.asarray(t if t is not None else []),
+            np.asarray(effectiveness if effectiveness is not None else np.empty((0, self.rotors))),
+            lost,
+            None if lost is None else float(x[STATE.lost_t]),
+            None if lost is None else float(x[STATE.lost_eta]),
+            damaged,
+            None if damaged is None else float(x[STATE.damaged_t]),
+            None if damaged is None else float(x[STATE.damaged_eta]),
+        )
+
+    def run(self, t: ArrayLike, gyr: ArrayLike, acc: ArrayLike, rotors: ArrayLike) -> Detection:
+        """Over whole arrays (rows of samples), from the current state. Times in the result are
+        seconds from the first sample the detector saw."""
+        t = np.asarray(t, float)
+        n = len(t)
+        gyr, acc = (np.ascontiguousarray(a, dtype=float) for a in (gyr, acc))
+        rotors = np.ascontiguousarray(rotors, dtype=float)
+        if gyr.shape != (n, 3) or acc.shape != (n, 3) or rotors.shape != (n, self.rotors):
+            raise ValueError(f"detector: gyr and acc must be ({n}, 3) and rotors ({n}, {self.rotors})")
+        dt = np.diff(t, prepend=t[0] - (np.median(np.diff(t)) if n > 1 else 0.0))
+        diag = np.zeros((n, DIAG))
+        detect_run(self._state, self._values, self._model, dt, gyr, acc, rotors, diag)
+        res = self.result(t, diag[:, : self.rotors])
+        res.statistics = diag[:, STAT : STAT + 4]
+        return res
+
+
+def _vec(v, n):
+    a = np.ascontiguousarray(v, dtype=np.float64)
+    if a.shape != (n,):
+        raise ValueError(f"detector: expected {n} values, got shape {a.shape}")
+    return a
+
+
+def check_params(params: DetectorParams) -> None:
+    check(params, "detector")

@@ -1,0 +1,265 @@
+"""How well the rotor-failure detector does in the loop (``quadest benchmark detection``;
+docs/detection.md): flown failures (a random rotor at a random time, complete or partial, from a
+hover, on a circle or on a figure eight) for the detection delay, the isolation and the survival, and flown
+nominal flights for the false alarms, each with the detector's model of the vehicle off by
+the flight's drawn errors. Every case follows from its seed, so that thresholds are chosen on
+one set of seeds and reported on another."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from quadest.control import Failure
+from quadest.detect import DetectorParams
+from quadest.evaluation.parallel import execute
+from quadest.flight import fly
+
+SCENARIOS = ("hover", "trajectory", "aggressive")
+
+
+def failure_case(seed: int, mode: str, duration: float = 6.0) -> dict:
+    """The failure flown for ``seed``: the scenario in turn (hover from a disturbed start, the
+    circle, the figure eight), a random rotor at a random time
+    between 2 and 4 s; complete for three seeds in four, else left at 0-70 % effectiveness."""
+    rng = np.random.default_rng([int(seed), 31])
+    partial = seed % 4 == 3
+    return {
+        "seed": int(seed),
+        "mode": mode,
+        "scenario": SCENARIOS[seed % len(SCENARIOS)],
+        "rotor": int(rng.integers(4)),
+        "time_s": float(rng.uniform(2.0, 4.0)),
+        "efficiency": float(rng.uniform(0.0, 0.7)) if partial else 0.0,
+        "duration": duration,
+    }
+
+
+def nominal_case(seed: int, mode: str, duration: float) -> dict:
+    """The nominal flight flown for ``seed``: the scenarios in turn, no failure."""
+    return {"seed": int(seed), "mode": mode, "scenario": SCENARIOS[seed % len(SCENARIOS)], "rotor": None,
+            "duration": duration}  # fmt: skip
+
+
+def fly_case(case: dict, detector: DetectorParams | None = None) -> dict:
+    """Fly one failure (``efficiency`` > 0: the SE(3) controller flies on) or one nominal flight
+    (``rotor`` None) with the detector in the loop; the flight's summary with the case."""
+    failure = None
+    if case.get("rotor") is not None:
+        failure = Failure(rotor=case["rotor"], time_s=case["time_s"], efficiency=case["efficiency"])
+    controller = "ftc" if failure is not None and failure.efficiency == 0.0 else "se3"
+    f = fly(
+        case["scenario"],
+        seed=case["seed"],
+        duration=case["duration"],
+        vehicle="bebop2",
+        failure=failure,
+        controller=controller,
+        detection=_detection(case["mode"], detector),
+    )
+    return {**case, "status": f.summary["status"], **f.summary.get("detection", {}), "flown_s": f.summary["flown_s"]}
+
+
+def _detection(mode: str, detector: DetectorParams | None):
+    """What :func:`~quadest.flight.fly` takes: the mode, or the parameters with that mode."""
+    if mode == "oracle" or detector is None:
+        return mode
+    return replace(detector, rotor_speeds=mode == "rotor-speeds")
+
+
+def percentile(values, q: float) -> float | None:
+    v = np.asarray([x for x in values if x is not None], float)
+    return float(np.percentile(v, q)) if len(v) else None
+
+
+def summarize_failures(rows: list[dict]) -> dict:
+    """Detection delay (median, p90, p99, max), isolation, misses and survival over complete
+    losses; delay, isolation and the effectiveness found over partial ones."""
+    complete = [r for r in rows if r["efficiency"] == 0.0]
+    partial = [r for r in rows if r["efficiency"] > 0.0]
+    delays = [r["delay_s"] for r in complete if r["delay_s"] is not None]
+    out = {
+        "complete": len(complete),
+        "found": len(delays),
+        "isolated": sum(bool(r["isolated"]) for r in complete),
+        "false_alarms": sum(bool(r["false_alarm"]) for r in rows),
+        "survived": sum(r["status"] == "survived" for r in complete),
+        "delay_ms": {q: _ms(percentile(delays, p)) for q, p in (("median", 50), ("p90", 90), ("p99", 99))},
+    }
+    out["delay_ms"]["max"] = _ms(max(delays)) if delays else None
+    found = [r for r in partial if r["damaged_rotor"] is not None or r["lost_rotor"] is not None]
+    damaged = [r for r in partial if r["damaged_rotor"] == r["rotor"] and r["damaged_s"] is not None]
+    out["partial"] = {
+        "flights": len(partial),
+        "found": len(found),
+        "isolated": len(damaged),
+        "delay_ms_median": _ms(percentile([r["damaged_s"] - r["time_s"] for r in damaged], 50)),
+        "effectiveness_error_median": percentile(
+            [abs(r["damaged_effectiveness"] - r["efficiency"]) for r in damaged], 50
+        ),
+    }
+    return out
+
+
+def summarize_nominal(rows: list[dict]) -> dict:
+    hours = sum(r["flown_s"] for r in rows) / 3600.0
+    alarms = sum(r["lost_rotor"] is not None for r in rows)
+    damaged = sum(r["damaged_rotor"] is not None for r in rows)
+    return {"flights": len(rows), "hours": hours, "lost_alarms": alarms, "damaged_alarms": damaged}
+
+
+def benchmark_detection(
+    seeds, nominal_seeds, *, modes=("rotor-speeds", "commands"), nominal_s: float = 60.0,
+    detector: DetectorParams | None = None, workers: int | None = 0, progress: bool = False,
+) -> dict:  # fmt: skip
+    """Failures for ``seeds`` and nominal flights of ``nominal_s`` for ``nominal_seeds``, in each
+    detection mode; per mode the summaries of :func:`summarize_failures` and
+    :func:`summarize_nominal`, the complete losses' survival with the oracle (told 50 ms after
+    the loss) beside, and every run's row."""
+    cases = [failure_case(s, m) for m in modes for s in seeds]
+    oracle = [c for c in (failure_case(s, "oracle") for s in seeds) if c["efficiency"] == 0.0]
+    cases += oracle
+    cases += [nominal_case(s, m, nominal_s) for m in modes for s in nominal_seeds]
+    rows = execute(lambda c: fly_case(c, detector), cases, workers=workers, progress=progress, desc="flights")
+    bad = [r for r in rows if isinstance(r, BaseException)]
+    if bad:
+        raise RuntimeError(f"{len(bad)} flight(s) failed; the first: {bad[0]!r}")
+    told = [r for r in rows if r["mode"] == "oracle"]
+    out = {"modes": {}, "oracle_survived": sum(r["status"] == "survived" for r in told), "oracle_flights": len(told)}
+    out["runs"] = rows
+    for m in modes:
+        mine = [r for r in rows if r["mode"] == m]
+        out["modes"][m] = {
+            "failures": summarize_failures([r for r in mine if r["rotor"] is not None]),
+            "nominal": summarize_nominal([r for r in mine if r["rotor"] is None]),
+        }
+    return out
+
+
+THRESHOLDS = (0.002, 0.003, 0.004, 0.006, 0.008, 0.012, 0.016, 0.024)
+"""The 'lost' test's thresholds (deficit-seconds) the trade-off looks at."""
+
+
+def crossings(case: dict, thresholds=THRESHOLDS, detector: DetectorParams | None = None) -> dict:
+    """One case flown with the SE(3) controller and the 'lost' test unable to fire: the detector
+    then changes nothing, and the first sample at which its largest 'lost' sum passes each
+    threshold (time, rotor; None if never) is what a detector with that threshold would say,
+    up to its alarm."""
+    det = replace(detector or DetectorParams(), lost_threshold=10.0)
+    failure = None
+    if case.get("rotor") is not None:
+        failure = Failure(rotor=case["rotor"], time_s=case["time_s"], efficiency=case["efficiency"])
+    f = fly(case["scenario"], seed=case["seed"], duration=case["duration"], vehicle="bebop2", failure=failure,
+            controller="se3", detection=_detection(case["mode"], det))  # fmt: skip
+    t, stat = f.recording.t, f.detector_statistics
+    first = {}
+    for h in thresholds:
+        k = np.flatnonzero(stat[:, 0] > h)
+        first[str(h)] = None if len(k) == 0 else (float(t[k[0]]), int(stat[k[0], 1]))
+    return {**case, "first": first, "flown_s": f.summary["flown_s"]}
+
+
+def tradeoff(rows: list[dict], thresholds=THRESHOLDS) -> list[dict]:
+    """Per threshold: the complete losses found, named and their delays; the alarms in nominal
+    flight (per hour) and before a failure."""
+    out = []
+    nominal = [r for r in rows if r["rotor"] is None]
+    hours = sum(r["flown_s"] for r in nominal) / 3600.0
+    complete = [r for r in rows if r["rotor"] is not None and r["efficiency"] == 0.0]
+    for h in thresholds:
+        key = str(h)
+        early = [r for r in rows if r["rotor"] is not None and r["first"][key] and r["first"][key][0] < r["time_s"]]
+        found = [r for r in complete if r["first"][key] and r["first"][key][0] >= r["time_s"]]
+        delays = [r["first"][key][0] - r["time_s"] for r in found]
+        alarms = sum(r["first"][key] is not None for r in nominal)
+        out.append(
+            {
+                "threshold": h,
+                "complete": len(complete),
+                "found": len(found),
+                "isolated": sum(r["first"][key][1] == r["rotor"] for r in found),
+                "delay_ms": {q: _ms(percentile(delays, p)) for q, p in (("median", 50), ("p90", 90), ("p99", 99))}
+                | {"max": _ms(max(delays)) if delays else None},
+                "nominal_hours": hours,
+                "nominal_alarms": alarms,
+                "alarms_before_failure": len(early),
+            }
+        )
+    return out
+
+
+def choose_threshold(table: list[dict]) -> float:
+    """The smallest threshold without any alarm in nominal flight or before a failure (the
+    training seeds' table); the largest looked at when every one alarms."""
+    quiet = [r["threshold"] for r in table if r["nominal_alarms"] == 0 and r["alarms_before_failure"] == 0]
+    return min(quiet) if quiet else max(r["threshold"] for r in table)
+
+
+def benchmark_tradeoff(
+    train, test, train_nominal, test_nominal, *, modes=("rotor-speeds", "commands"), nominal_s: float = 60.0,
+    workers: int | None = 0, progress: bool = False,
+) -> dict:  # fmt: skip
+    """The trade-off of the 'lost' test's threshold: per mode, the table on the training seeds,
+    the threshold chosen there (:func:`choose_threshold`) and the table on the test seeds."""
+    out = {"modes": {}}
+    for m in modes:
+        tables = {}
+        for name, seeds, nominal in (("train", train, train_nominal), ("test", test, test_nominal)):
+            cases = [failure_case(s, m) for s in seeds]
+            cases += [nominal_case(s, m, nominal_s) for s in nominal]
+            rows = execute(crossings, cases, workers=workers, progress=progress, desc=f"{m} {name}")
+            bad = [r for r in rows if isinstance(r, BaseException)]
+            if bad:
+                raise RuntimeError(f"{len(bad)} flight(s) failed; the first: {bad[0]!r}")
+            tables[name] = tradeoff(rows)
+            tables[f"{name}_runs"] = rows
+        out["modes"][m] = {**tables, "chosen": choose_threshold(tables["train"])}
+    return out
+
+
+def format_tradeoff(result: dict) -> str:
+    lines = []
+    for m, r in result["modes"].items():
+        lines.append(f"{m}: threshold chosen on the training seeds: {r['chosen']} deficit-seconds")
+        lines.append(f"{'set':<6}{'h':>7}{'found':>9}{'named':>7}{'median':>8}{'p90':>7}{'p99':>7}{'max':>7}"
+                     f"{'nominal alarms':>16}{'before':>8}")  # fmt: skip
+        for name in ("train", "test"):
+            for row in r[name]:
+                d = row["delay_ms"]
+                mark = " <" if row["threshold"] == r["chosen"] else ""
+                lines.append(
+                    f"{name:<6}{row['threshold']:>7}{row['found']:>5}/{row['complete']:<3}{row['isolated']:>7}"
+                    f"{_fmt_ms(d['median']):>8}{_fmt_ms(d['p90']):>7}{_fmt_ms(d['p99']):>7}{_fmt_ms(d['max']):>7}"
+                    f"{row['nominal_alarms']:>6} in {row['nominal_hours']:.1f} h{row['alarms_before_failure']:>8}{mark}"
+                )
+    return "\n".join(lines)
+
+
+def _fmt_ms(v):
+    return "-" if v is None else f"{v:.0f}"
+
+
+def _ms(v):
+    return None if v is None else round(1e3 * v, 1)
+
+
+def format_detection(result: dict) -> str:
+    lines = []
+    for mode, r in result["modes"].items():
+        f, n, p = r["failures"], r["nominal"], r["failures"]["partial"]
+        d = f["delay_ms"]
+        lines += [
+            f"{mode}: {f['complete']} complete losses: found {f['found']}, isolated {f['isolated']}, "
+            f"survived {f['survived']}; delay median {d['median']} ms, p90 {d['p90']}, p99 {d['p99']}, "
+            f"max {d['max']} ms; false alarms before a failure {f['false_alarms']}",
+            f"  {p['flights']} partial losses: found {p['found']}, isolated as damaged {p['isolated']}, "
+            f"delay median {p['delay_ms_median']} ms, effectiveness error median {p['effectiveness_error_median']}",
+            f"  nominal: {n['flights']} flights, {n['hours']:.2f} h: {n['lost_alarms']} 'lost' and "
+            f"{n['damaged_alarms']} 'damaged' alarms",
+        ]
+    lines.append(
+        f"the oracle (told 50 ms after each complete loss): survived {result['oracle_survived']} of "
+        f"{result['oracle_flights']}"
+    )
+    return "\n".join(lines)
