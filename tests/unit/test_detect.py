@@ -128,7 +128,8 @@ def test_benchmark_detection_command(tmp_path, capsys):
         assert f["complete"] == len(mine) == 3  # seed 3 is a partial loss
         assert f["found"] == sum(r["delay_s"] is not None for r in mine)
         assert res["modes"][mode]["nominal"]["flights"] == 2
-    assert res["oracle_flights"] == 3
+    assert res["oracle_flights"] == 3 and res["estimator"] == "truth"
+    assert sum(n for _, n in res["survival_by_scenario"]["oracle"].values()) == 3
     assert "complete losses" in capsys.readouterr().out
 
 

@@ -286,7 +286,14 @@ def _benchmark_detection(args):
         f"{len(nominal)} nominal flights of {args.duration:g} s, with rotor speeds and with commands; the "
         "detector's model off by each flight's drawn ±10 %"
     )
-    res = detection.benchmark_detection(seeds, nominal, nominal_s=args.duration, workers=args.workers, progress=True)
+    est = args.filters if args.filters in ("truth", *FILTERS) else "truth"
+    say(
+        f"the estimator in the loop: {est}"
+        + (" (an oracle: the controller reads the true state)" if est == "truth" else "")
+    )
+    res = detection.benchmark_detection(
+        seeds, nominal, nominal_s=args.duration, estimator=est, workers=args.workers, progress=True
+    )
     say(detection.format_detection(res))
     return res
 
@@ -492,7 +499,8 @@ def _add_benchmark(sub):
         "controller, --filters names the estimator in the loop, default afckf) "
         "and the SE(3) circle flown by quadest and RotorPy (when installed). "
         "detection: the rotor-failure detector in the loop: failures flown for --seeds, nominal "
-        "flights of --duration s for --nominal-seeds (docs/detection.md). detection-tradeoff: the "
+        "flights of --duration s for --nominal-seeds, --filters naming the estimator in the loop "
+        "(default truth) (docs/detection.md). detection-tradeoff: the "
         "'lost' test's threshold against delay and false alarms, chosen on --train-seeds and "
         "--train-nominal-seeds, reported on --seeds and --nominal-seeds. "
         "quadest's filters and the installed peers (pip install 'quadest[peers]': "

@@ -42,9 +42,10 @@ def nominal_case(seed: int, mode: str, duration: float) -> dict:
             "duration": duration}  # fmt: skip
 
 
-def fly_case(case: dict, detector: DetectorParams | None = None) -> dict:
+def fly_case(case: dict, detector: DetectorParams | None = None, estimator: str = "truth") -> dict:
     """Fly one failure (``efficiency`` > 0: the SE(3) controller flies on) or one nominal flight
-    (``rotor`` None) with the detector in the loop; the flight's summary with the case."""
+    (``rotor`` None) with the detector and ``estimator`` in the loop; the flight's summary with
+    the case."""
     failure = None
     if case.get("rotor") is not None:
         failure = Failure(rotor=case["rotor"], time_s=case["time_s"], efficiency=case["efficiency"])
@@ -56,6 +57,7 @@ def fly_case(case: dict, detector: DetectorParams | None = None) -> dict:
         vehicle="bebop2",
         failure=failure,
         controller=controller,
+        estimator=estimator,
         detection=_detection(case["mode"], detector),
     )
     return {**case, "status": f.summary["status"], **f.summary.get("detection", {}), "flown_s": f.summary["flown_s"]}
@@ -66,6 +68,17 @@ def _detection(mode: str, detector: DetectorParams | None):
     if mode == "oracle" or detector is None:
         return mode
     return replace(detector, rotor_speeds=mode == "rotor-speeds")
+
+
+def survival_by_scenario(rows: list[dict]) -> dict:
+    """``{mode: {scenario: [survived, flights]}}`` over the complete losses."""
+    out: dict = {}
+    for r in rows:
+        if r["rotor"] is not None and r["efficiency"] == 0.0:
+            cell = out.setdefault(r["mode"], {}).setdefault(r["scenario"], [0, 0])
+            cell[0] += r["status"] == "survived"
+            cell[1] += 1
+    return out
 
 
 def percentile(values, q: float) -> float | None:
@@ -111,22 +124,28 @@ def summarize_nominal(rows: list[dict]) -> dict:
 
 def benchmark_detection(
     seeds, nominal_seeds, *, modes=("rotor-speeds", "commands"), nominal_s: float = 60.0,
-    detector: DetectorParams | None = None, workers: int | None = 0, progress: bool = False,
+    detector: DetectorParams | None = None, estimator: str = "truth", workers: int | None = 0,
+    progress: bool = False,
 ) -> dict:  # fmt: skip
     """Failures for ``seeds`` and nominal flights of ``nominal_s`` for ``nominal_seeds``, in each
-    detection mode; per mode the summaries of :func:`summarize_failures` and
-    :func:`summarize_nominal`, the complete losses' survival with the oracle (told 50 ms after
-    the loss) beside, and every run's row."""
+    detection mode, with ``estimator`` in the loop (``truth``: an oracle, the true state); per
+    mode the summaries of :func:`summarize_failures` and :func:`summarize_nominal`, the complete
+    losses' survival (by scenario) with the oracle (told 50 ms after the loss) beside, and every
+    run's row."""
     cases = [failure_case(s, m) for m in modes for s in seeds]
     oracle = [c for c in (failure_case(s, "oracle") for s in seeds) if c["efficiency"] == 0.0]
     cases += oracle
     cases += [nominal_case(s, m, nominal_s) for m in modes for s in nominal_seeds]
-    rows = execute(lambda c: fly_case(c, detector), cases, workers=workers, progress=progress, desc="flights")
+    rows = execute(
+        lambda c: fly_case(c, detector, estimator), cases, workers=workers, progress=progress, desc="flights"
+    )
     bad = [r for r in rows if isinstance(r, BaseException)]
     if bad:
         raise RuntimeError(f"{len(bad)} flight(s) failed; the first: {bad[0]!r}")
     told = [r for r in rows if r["mode"] == "oracle"]
-    out = {"modes": {}, "oracle_survived": sum(r["status"] == "survived" for r in told), "oracle_flights": len(told)}
+    out = {"estimator": estimator, "modes": {}, "oracle_flights": len(told)}
+    out["oracle_survived"] = sum(r["status"] == "survived" for r in told)
+    out["survival_by_scenario"] = survival_by_scenario(rows)
     out["runs"] = rows
     for m in modes:
         mine = [r for r in rows if r["mode"] == m]
@@ -262,4 +281,6 @@ def format_detection(result: dict) -> str:
         f"the oracle (told 50 ms after each complete loss): survived {result['oracle_survived']} of "
         f"{result['oracle_flights']}"
     )
+    for mode, cells in result["survival_by_scenario"].items():
+        lines.append(f"  survived, {mode}: " + ", ".join(f"{sc} {a}/{b}" for sc, (a, b) in cells.items()))
     return "\n".join(lines)
