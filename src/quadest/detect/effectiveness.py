@@ -398,7 +398,7 @@ class Detector:
         params = params if params is not None else DetectorParams()
         if overrides:
             params = replace(params, **overrides)
-        check_params(params)
+        check(params, "detector")
         self.params, self.vehicle = params, vehicle
         self._values = pack(params.values()[f] for f in PARAM._fields)
         self._model = model_coefficients(vehicle)
@@ -473,7 +473,3 @@ def _vec(v, n):
     if a.shape != (n,):
         raise ValueError(f"detector: expected {n} values, got shape {a.shape}")
     return a
-
-
-def check_params(params: DetectorParams) -> None:
-    check(params, "detector")

@@ -42,13 +42,18 @@ def nominal_case(seed: int, mode: str, duration: float) -> dict:
             "duration": duration}  # fmt: skip
 
 
+def case_failure(case: dict) -> Failure | None:
+    """The case's rotor failure (None for a nominal flight)."""
+    if case.get("rotor") is None:
+        return None
+    return Failure(rotor=case["rotor"], time_s=case["time_s"], efficiency=case["efficiency"])
+
+
 def fly_case(case: dict, detector: DetectorParams | None = None, estimator: str = "truth") -> dict:
     """Fly one failure (``efficiency`` > 0: the SE(3) controller flies on) or one nominal flight
     (``rotor`` None) with the detector and ``estimator`` in the loop; the flight's summary with
     the case."""
-    failure = None
-    if case.get("rotor") is not None:
-        failure = Failure(rotor=case["rotor"], time_s=case["time_s"], efficiency=case["efficiency"])
+    failure = case_failure(case)
     controller = "ftc" if failure is not None and failure.efficiency == 0.0 else "se3"
     f = fly(
         case["scenario"],
@@ -166,9 +171,7 @@ def crossings(case: dict, thresholds=THRESHOLDS, detector: DetectorParams | None
     threshold (time, rotor; None if never) is what a detector with that threshold would say,
     up to its alarm."""
     det = replace(detector or DetectorParams(), lost_threshold=10.0)
-    failure = None
-    if case.get("rotor") is not None:
-        failure = Failure(rotor=case["rotor"], time_s=case["time_s"], efficiency=case["efficiency"])
+    failure = case_failure(case)
     f = fly(case["scenario"], seed=case["seed"], duration=case["duration"], vehicle="bebop2", failure=failure,
             controller="se3", detection=_detection(case["mode"], det))  # fmt: skip
     t, stat = f.recording.t, f.detector_statistics
