@@ -23,6 +23,7 @@ ORDER = (
     "simulate",
     "fly",
     "info",
+    "diagnose",
     "report",
     "compare",
     "reproduce",

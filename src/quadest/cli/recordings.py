@@ -21,6 +21,7 @@ from quadest.cli.common import (
 )
 from quadest.data import format_summary, summarize, write_table
 from quadest.evaluation.compare import parse_params
+from quadest.evaluation.diagnose import DiagnoseParams, diagnose_log, format_diagnosis
 from quadest.evaluation.inspect import events
 from quadest.evaluation.runner import estimate, estimator_names, filter_notes
 from quadest.filters import ESTIMATORS, filter_name
@@ -38,6 +39,21 @@ def cmd_info(args):
         say(json.dumps(s, indent=2))
     else:
         say(format_summary(s, str(args.file)))
+    return 0
+
+
+def cmd_diagnose(args):
+    if not args.file.exists():
+        raise CliError(f"{args.file}: no such file")
+    if not args.moment_gain > 0:
+        raise CliError(f"--moment-gain {args.moment_gain}: must be positive (rad/s² per unit thrust)")
+    if not 0 < args.excess_threshold < 10:
+        raise CliError(f"--excess-threshold {args.excess_threshold}: must be a share between 0 and 10")
+    params = DiagnoseParams(moment_gain=args.moment_gain, excess_threshold=args.excess_threshold)
+    d = diagnose_log(args.file, params)
+    say(format_diagnosis(d))
+    if args.json:
+        write_json(args.json, d.as_json())
     return 0
 
 
@@ -179,6 +195,43 @@ def _sweep_report(args):
     return 0
 
 
+def _add_diagnose(sub):
+    d = sub.add_parser(
+        "diagnose",
+        help="find rotor failures and damaged propellers in an autopilot log",
+        description="Run quadest's rotor-failure detector on a recorded flight (ArduPilot DataFlash "
+        ".bin or PX4 ULog .ulg) at the log's own rates, with a vehicle model built from the log "
+        "(frame, motor numbering and thrust curve from its parameters, thrust over mass from its "
+        "accelerometer), and compare each motor's share of the thrust with the others' (a "
+        "damaged propeller makes its motor work harder). Times in the log's own time base, motors "
+        "in the autopilot's numbering (docs/diagnose.md).",
+    )
+    d.add_argument("file", type=Path, help="ArduPilot DataFlash (.bin) or PX4 ULog (.ulg) log")
+    d.add_argument(
+        "--json",
+        type=Path,
+        default=None,
+        help='also write {"failures": [{time_s, motor, effectiveness}], "damaged": [{motor, excess}], "motors": [...]}',
+    )
+    d.add_argument(
+        "--moment-gain",
+        type=float,
+        default=DiagnoseParams.moment_gain,
+        metavar="RAD_S2",
+        help="roll/pitch angular acceleration per unit of one motor's thrust on a unit arm "
+        f"(default {DiagnoseParams.moment_gain:g}; docs/diagnose.md shows the range that works)",
+    )
+    d.add_argument(
+        "--excess-threshold",
+        type=float,
+        default=DiagnoseParams.excess_threshold,
+        metavar="SHARE",
+        help="flag a motor whose thrust exceeds the others' mean by more than this share "
+        f"(default {DiagnoseParams.excess_threshold:g})",
+    )
+    d.set_defaults(func=cmd_diagnose)
+
+
 def add_parsers(sub):
     i = sub.add_parser(
         "info",
@@ -190,6 +243,8 @@ def add_parsers(sub):
     i.add_argument("--json", action="store_true", help="print JSON instead of text")
     add_input_args(i)
     i.set_defaults(func=cmd_info)
+
+    _add_diagnose(sub)
 
     r = sub.add_parser(
         "report",

@@ -124,6 +124,14 @@ class DetectorParams(Params):
         "chosen",
         "[1, 100]",
     )
+    deficit_sigmas: float = param(
+        0.0,
+        "-",
+        "a rotor's deficit counts only beyond this many of its standard deviations (0: always); "
+        "for logs, whose rates and noise leave the effectiveness uncertain",
+        "chosen: 0 in flight (the fast sensors make it certain), 3 for logs",
+        "[0, 100]",
+    )
     lost_drift: float = param(0.6, "-", "deficit the 'lost' test ignores (ν)", "chosen: above a 50 % loss", "(0, 1]")
     lost_threshold: float = param(
         0.004, "s", "the 'lost' test's threshold (h, deficit-seconds)", "chosen: tuned on training seeds", "(0, 10]"
@@ -315,6 +323,8 @@ def _test(x, p, c, dt):
         others = (total - x[STATE.eta + i]) / (n - 1)
         var_i = x[STATE.P + (3 + i) * (3 + n) + 3 + i]
         d = others - x[STATE.eta + i] if np.sqrt(var_i) < sd_max else 0.0  # too uncertain: no evidence
+        if d * d < p[PARAM.deficit_sigmas] ** 2 * var_i * n / (n - 1):  # within its noise
+            d = 0.0
         left = x[STATE.eta + i] / others if others > 0.0 else 0.0
         sl = max(0.0, x[STATE.s_lost + i] + dt * (d - p[PARAM.lost_drift]))
         sd = max(0.0, x[STATE.s_damaged + i] + dt * (d - p[PARAM.damaged_drift]))

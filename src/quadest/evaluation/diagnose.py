@@ -1,0 +1,257 @@
+"""A recorded flight's motors diagnosed (docs/diagnose.md): rotor failures found by quadest's
+detector run at the log's own rates on a vehicle model built from the log, and each motor's
+share of the thrust against the others (a damaged propeller makes its motor work harder)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from quadest.detect import Detector, DetectorParams
+from quadest.models.multirotor import MultirotorParams
+from quadest.readers.motors import MotorLog, read_motor_log
+
+OMEGA_REF = 1000.0
+"""The equivalent rotor speed of full thrust: a log has outputs, not speeds; the detector is
+given ``OMEGA_REF √(thrust fraction)``, whose square is what thrust needs."""
+
+
+@dataclass(frozen=True)
+class DiagnoseParams:
+    """What the diagnosis assumes where a log says nothing (docs/diagnose.md has the sources)."""
+
+    moment_gain: float = 10.0
+    """Roll and pitch angular acceleration per unit of one motor's thrust fraction on a unit arm
+    (rad/s²): not identifiable from outputs logged at 10 Hz; chosen on the SITL loss of motor 1,
+    checked on motor 2 and the reverse (docs/diagnose.md)."""
+    yaw_ratio: float = 0.07
+    """Yaw acceleration per unit of reaction torque relative to roll's: k_m/k_f ≈ 0.14 arm and
+    I_zz ≈ 2 I_xx, typical of small quadrotors."""
+    deficit_sigmas: float = 3.0
+    """The detector counts a rotor's deficit only beyond this many standard deviations."""
+    model_error: float = 1.0
+    """Relative error of the moments the logged outputs predict: a 10 Hz snapshot of a
+    rate controller's output can be a spike that lasted a few milliseconds."""
+    settle_s: float = 2.0
+    """Seconds after take-off before the detector starts (leaving the ground)."""
+    before_landing_s: float = 1.5
+    """Seconds before the landing the autopilot reports at which the detector stops (ground effect)."""
+    excess_threshold: float = 0.15
+    """A motor whose thrust exceeds the others' mean by more than this share is flagged:
+    twice the largest excess of the intact flights in ../shared/data (0.07; in-sample)."""
+    min_flight_s: float = 10.0
+    """Flight time below which motor shares are not reported."""
+
+
+@dataclass
+class Diagnosis:
+    """What :func:`diagnose_log` found: failures (time in the log's own base, motor in the
+    autopilot's numbering, effectiveness left), damaged motors, each motor's share, notes."""
+
+    log: MotorLog
+    failures: list[dict]
+    damaged: list[dict]
+    motors: list[dict]
+    model: dict
+    notes: list[str] = field(default_factory=list)
+
+    def as_json(self) -> dict:
+        return {
+            "file": self.log.path,
+            "autopilot": self.log.autopilot,
+            "frame": self.log.frame,
+            "imu_rate_hz": round(self.log.imu_rate, 1),
+            "output_rate_hz": round(self.log.output_rate, 1),
+            "flying": [[a, None if not np.isfinite(b) else b] for a, b in self.log.flying],
+            "failures": self.failures,
+            "damaged": self.damaged,
+            "motors": self.motors,
+            "model": self.model,
+            "parameter_changes": [{"time_s": t, "name": n, "value": v} for t, n, v in self.log.changes],
+            "notes": self.notes,
+        }
+
+
+def flying_mask(t, spans, settle=0.0, before_landing=0.0) -> np.ndarray:
+    """Samples inside the flying spans, ``settle`` s after each take-off and ``before_landing`` s
+    before each landing."""
+    mask = np.zeros(len(t), bool)
+    for a, b in spans:
+        mask |= (t >= a + settle) & (t <= b - before_landing)
+    return mask
+
+
+def held(t, t_out, values) -> tuple[np.ndarray, np.ndarray]:
+    """Each output as last logged at the times ``t`` (the log's zero-order hold: nothing from
+    the future), and whether one had been logged yet."""
+    k = np.searchsorted(t_out, t, side="right") - 1
+    return values[np.clip(k, 0, None)], k >= 0
+
+
+def motor_shares(log: MotorLog, params: DiagnoseParams = DiagnoseParams()) -> list[dict]:
+    """Each motor's median output and thrust over the flight against the mean of the others."""
+    fly = flying_mask(log.t_out, log.flying, params.settle_s, params.before_landing_s)
+    out, thrust = log.outputs[fly], log.thrust[fly]
+    rows = []
+    for k, motor in enumerate(log.motors):
+        others = np.delete(np.arange(len(log.motors)), k)
+        row = {
+            "motor": motor,
+            "output": float(np.median(out[:, k])) if fly.any() else None,
+            "output_excess": float(np.median(out[:, k] - out[:, others].mean(axis=1))) if fly.any() else None,
+            "excess": None,
+        }
+        ratio = thrust[:, k] / np.maximum(thrust[:, others].mean(axis=1), 1e-6)
+        row["excess"] = float(np.median(ratio) - 1.0) if fly.any() else None
+        rows.append(row)
+    return rows
+
+
+def thrust_per_mass(log: MotorLog, mask_out) -> float:
+    """Full thrust of one motor over the mass (m/s²): the accelerometer's z against the summed
+    thrust fractions in flight, ``f_z = −(T/m) Σ thrust_i``, as a median ratio."""
+    az = np.interp(log.t_out[mask_out], log.t, log.acc[:, 2])
+    total = log.thrust[mask_out].sum(axis=1)
+    ok = total > 0.05
+    return float(np.median(-az[ok] / total[ok]))
+
+
+def log_vehicle(log: MotorLog, t_over_m: float, params: DiagnoseParams) -> MultirotorParams:
+    """The detector's model of a logged vehicle: unit mass and arm, the log's frame and senses,
+    full thrust ``t_over_m`` per motor, inertias from the moment gains (docs/diagnose.md)."""
+    k_f = t_over_m / OMEGA_REF**2
+    i_xy = t_over_m / params.moment_gain
+    return MultirotorParams(
+        mass_kg=1.0,
+        inertia=(i_xy, i_xy, t_over_m / (params.moment_gain * params.yaw_ratio)),
+        rotor_pos=tuple((float(x), float(y), 0.0) for x, y in log.positions),
+        spin=tuple(float(s) for s in log.spin),
+        k_f=k_f,
+        k_m=k_f,
+        k_z=0.0,
+        k_h=0.0,
+        omega_min=0.0,
+        omega_max=OMEGA_REF,
+        rot_drag=(0.0, 0.0, 0.0),
+    )
+
+
+def robust_sd(x) -> float:
+    """Standard deviation from the median absolute deviation (what outliers leave alone)."""
+    x = np.asarray(x, float)
+    return float(1.4826 * np.median(np.abs(x - np.median(x, axis=0))))
+
+
+def find_failures(log: MotorLog, vehicle: MultirotorParams, params: DiagnoseParams) -> tuple[list[dict], dict]:
+    """The detector over each flying span of the log (module doc); its noise levels from the
+    log's own gyroscope and accelerometer."""
+    mask = flying_mask(log.t, log.flying, params.settle_s, params.before_landing_s)
+    rotors, logged = held(log.t, log.t_out, log.thrust)
+    mask &= logged
+    if mask.sum() < 10:
+        return [], {}
+    dt = np.diff(log.t[mask])
+    gyro_noise = max(robust_sd(np.diff(log.gyr[mask], axis=0)) / np.sqrt(2.0), 1e-3)
+    noise = {
+        "gyro_noise": float(gyro_noise),
+        "acc_noise": float(max(robust_sd(np.diff(log.acc[mask, 2])) / np.sqrt(2.0), 0.01)),
+        "moment_noise": max(robust_sd(np.diff(log.gyr[mask], axis=0) / dt[:, None]), 0.1),
+    }
+    detector_params = DetectorParams(
+        deficit_sigmas=params.deficit_sigmas,
+        model_error=params.model_error,
+        yaw_model_error=params.model_error,
+        **noise,
+    )
+    failures = []
+    for start, end in _runs(mask):
+        det = Detector(vehicle, detector_params)
+        sl = slice(start, end)
+        found = det.run(log.t[sl], log.gyr[sl], log.acc[sl], OMEGA_REF * np.sqrt(rotors[sl]))
+        if found.lost is not None:
+            failures.append(
+                {
+                    "time_s": round(float(log.t[start] + found.lost_t), 4),
+                    "motor": log.motors[found.lost],
+                    "effectiveness": round(float(np.clip(found.lost_effectiveness, 0.0, 1.0)), 3),
+                }
+            )
+    return failures, noise
+
+
+def _runs(mask) -> list[tuple[int, int]]:
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(int), [0]])))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True) if b - a > 10]
+
+
+def diagnose_log(path, params: DiagnoseParams | None = None) -> Diagnosis:
+    """Read a log (ArduPilot DataFlash or PX4 ULog) and diagnose its motors (module doc)."""
+    params = params or DiagnoseParams()
+    log = read_motor_log(path)
+    notes = list(log.notes)
+    fly_out = flying_mask(log.t_out, log.flying, params.settle_s, params.before_landing_s)
+    if fly_out.sum() < 3:
+        notes.append("the vehicle did not fly in this log (no take-off, or too short): nothing to diagnose")
+        return Diagnosis(log, [], [], motor_shares(log, params), {}, notes)
+    t_over_m = thrust_per_mass(log, fly_out)
+    vehicle = log_vehicle(log, t_over_m, params)
+    failures, noise = find_failures(log, vehicle, params)
+    shares = motor_shares(log, params)
+    flown = float(np.ptp(log.t_out[fly_out]))
+    damaged = []
+    if flown < params.min_flight_s:
+        notes.append(f"{flown:.0f} s of flight: too short for motor shares (at least {params.min_flight_s:.0f} s)")
+    elif not failures:
+        damaged = [
+            {"motor": r["motor"], "excess": round(r["excess"], 3)}
+            for r in shares
+            if r["excess"] > params.excess_threshold
+        ]
+    notes += _rate_notes(log)
+    model = {"thrust_per_mass": round(t_over_m, 3), "moment_gain": params.moment_gain, "yaw_ratio": params.yaw_ratio}
+    model.update({k: round(v, 4) for k, v in noise.items()})
+    return Diagnosis(log, failures, damaged, shares, model, notes)
+
+
+def _rate_notes(log: MotorLog) -> list[str]:
+    notes = []
+    if log.output_rate < 50.0:
+        notes.append(
+            f"motor outputs logged at {log.output_rate:.0f} Hz: a failure's time is known to within "
+            f"{1e3 / max(log.imu_rate, 1e-9):.0f} ms (the IMU's interval), its effectiveness only roughly"
+        )
+    if log.imu_rate < 100.0:
+        notes.append(f"IMU logged at {log.imu_rate:.0f} Hz: too low for the in-flight detection-delay figures")
+    return notes
+
+
+def format_diagnosis(d: Diagnosis) -> str:
+    """The diagnosis as text: the log's rates, failures, motors and notes."""
+    log = d.log
+    lines = [
+        f"{log.path}: {log.autopilot}, {log.frame}, IMU {log.imu_rate:.0f} Hz, motor outputs {log.output_rate:.0f} Hz",
+        "flying: " + ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in log.flying) if log.flying else "flying: never",
+    ]
+    for t, name, value in log.changes:
+        lines.append(f"parameter change at {t:.3f} s: {name} = {value:g}")
+    if d.failures:
+        for f in d.failures:
+            lines.append(
+                f"FAILURE: motor {f['motor']} lost at {f['time_s']:.3f} s (effectiveness left {f['effectiveness']:.2f})"
+            )
+    else:
+        lines.append("no rotor failure found")
+    unit = "us" if log.output_unit == "us" else ""
+    lines.append("motor  output  vs others  thrust vs others")
+    for r in d.motors:
+        if r["output"] is None:
+            continue
+        flag = (
+            "  <- works harder than intact vehicles spread" if any(x["motor"] == r["motor"] for x in d.damaged) else ""
+        )
+        lines.append(
+            f"{r['motor']:5d}  {r['output']:6.0f}  {r['output_excess']:+7.1f}{unit}  {100 * r['excess']:+6.1f} %{flag}"
+        )
+    lines += [f"note: {n}" for n in d.notes]
+    return "\n".join(lines)

@@ -1,0 +1,282 @@
+"""Motor outputs from autopilot logs, for diagnosing the motors (docs/diagnose.md): the IMU, each
+motor's output with the autopilot's numbering, the frame's geometry, the thrust curve, when the
+vehicle flew, and the logged parameter changes. Times stay in the log's own time base."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from quadest.readers.common import ReaderError
+from quadest.readers.logs import LOG_DAMAGE, _printed
+
+# ArduPilot's motor tables (AP_MotorsMatrix): per motor, the arm's angle from forward (degrees,
+# positive towards the right) and its sense seen from above (+1 clockwise, -1 counter-clockwise)
+ARDUPILOT_FRAMES = {
+    (1, 0): ("quad plus", [(90, -1), (-90, -1), (0, 1), (180, 1)]),
+    (1, 1): ("quad X", [(45, -1), (-135, -1), (-45, 1), (135, 1)]),
+    (2, 0): ("hexa plus", [(0, 1), (180, -1), (-120, 1), (60, -1), (-60, -1), (120, 1)]),
+    (2, 1): ("hexa X", [(90, 1), (-90, -1), (-30, 1), (150, -1), (30, -1), (-150, 1)]),
+}
+# ArduPilot's event ids (AP_Logger LogEvent): taken off, landing (maybe / complete), disarmed
+EV_TAKEOFF, EV_LANDING = 28, (17, 18, 11)
+STATISTICS = ("STAT_",)  # parameters ArduPilot updates itself (flight time): not changes of setting
+
+
+@dataclass
+class MotorLog:
+    """What :func:`read_motor_log` reads: arrays in the log's own time (s), the outputs as the
+    autopilot logged them (µs of PWM, or the normalised thrust PX4 logs in ``actuator_motors``)."""
+
+    path: str
+    autopilot: str
+    t: np.ndarray
+    gyr: np.ndarray
+    acc: np.ndarray
+    t_out: np.ndarray
+    outputs: np.ndarray
+    motors: list[int]
+    frame: str
+    positions: np.ndarray  # unit arm, body FRD (x forward, y right)
+    spin: np.ndarray
+    thrust: np.ndarray  # each output as a fraction of the motor's full thrust
+    flying: list[tuple[float, float]]
+    changes: list[tuple[float, str, float]] = field(default_factory=list)
+    output_unit: str = "us"
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def imu_rate(self) -> float:
+        return _rate(self.t)
+
+    @property
+    def output_rate(self) -> float:
+        return _rate(self.t_out)
+
+
+def _rate(t) -> float:
+    return float(1.0 / np.median(np.diff(t))) if len(t) > 2 else 0.0
+
+
+def frame_geometry(angles_spins) -> tuple[np.ndarray, np.ndarray]:
+    """Unit-arm rotor positions (x forward, y right) and senses from (angle, sense) pairs."""
+    a = np.radians([x[0] for x in angles_spins])
+    return np.column_stack([np.cos(a), np.sin(a)]), np.array([float(x[1]) for x in angles_spins])
+
+
+def pwm_thrust(pwm, pwm_min, pwm_max, spin_min, spin_max, expo) -> np.ndarray:
+    """ArduPilot's thrust curve inverted (AP_Motors_Thrust_Linearization): the output's fraction
+    of the motor's full thrust, ``(1 − e) x + e x²`` with ``x`` the output between the spin
+    limits (battery compensation left out)."""
+    a = (np.asarray(pwm, float) - pwm_min) / (pwm_max - pwm_min)
+    x = np.clip((a - spin_min) / (spin_max - spin_min), 0.0, 1.0)
+    return (1.0 - expo) * x + expo * x * x
+
+
+def read_motor_log(path: str | Path) -> MotorLog:
+    """An ArduPilot DataFlash (.bin) or PX4 ULog (.ulg) log's motors (module doc)."""
+    p = Path(path)
+    if not p.exists():
+        raise ReaderError(f"{path}: no such file")
+    reader = _read_px4 if p.suffix.lower() == ".ulg" else _read_ardupilot
+    try:
+        return reader(p)
+    except LOG_DAMAGE as exc:
+        raise ReaderError(f"{path}: the log is damaged ({type(exc).__name__}: {exc})") from None
+
+
+# -- ArduPilot ------------------------------------------------------------------------------------------
+def _read_ardupilot(path: Path) -> MotorLog:
+    from pymavlink import DFReader
+
+    imu, rcou, events, params, changes = [], [], [], {}, []
+    with _printed():
+        try:
+            log = DFReader.DFReader_binary(str(path), zero_time_base=True)
+        except Exception as exc:  # pymavlink raises many kinds on bad files
+            raise ReaderError(f"{path}: not a readable DataFlash log ({type(exc).__name__}: {exc})") from None
+        while (m := log.recv_match(type=["IMU", "RCOU", "PARM", "EV"])) is not None:
+            kind = m.get_type()
+            if kind == "IMU" and getattr(m, "I", 0) == 0:
+                imu.append((m.TimeUS, m.GyrX, m.GyrY, m.GyrZ, m.AccX, m.AccY, m.AccZ))
+            elif kind == "RCOU":
+                rcou.append([m.TimeUS] + [getattr(m, f"C{i}", 0) for i in range(1, 15)])
+            elif kind == "EV":
+                events.append((m.TimeUS * 1e-6, m.Id))
+            elif kind == "PARM":
+                if m.Name in params and params[m.Name] != m.Value and not m.Name.startswith(STATISTICS):
+                    changes.append((m.TimeUS * 1e-6, m.Name, float(m.Value)))
+                params.setdefault(m.Name, float(m.Value))
+    if not imu or len(rcou) < 2:
+        raise ReaderError(f"{path}: the log has no IMU or no RCOU (motor output) messages to diagnose")
+    imu, rcou = np.array(imu, float), np.array(rcou, float)
+    notes = []
+    key = (int(params.get("FRAME_CLASS", 1)), int(params.get("FRAME_TYPE", 1)))
+    if key not in ARDUPILOT_FRAMES:
+        raise ReaderError(
+            f"{path}: frame FRAME_CLASS={key[0]} FRAME_TYPE={key[1]} is not one quadest knows "
+            f"(quad and hexa, plus and X)"
+        )
+    name, table = ARDUPILOT_FRAMES[key]
+    channels = _motor_channels(params, len(table), notes)
+    pwm_min, pwm_max = params.get("MOT_PWM_MIN", 0.0), params.get("MOT_PWM_MAX", 0.0)
+    if pwm_min <= 0 or pwm_max <= pwm_min:  # ArduPilot then takes the throttle channel's range
+        pwm_min, pwm_max = params.get("RC3_MIN", 1000.0), params.get("RC3_MAX", 2000.0)
+    outputs = rcou[:, [c for c in channels]]
+    thrust = pwm_thrust(
+        outputs,
+        pwm_min,
+        pwm_max,
+        params.get("MOT_SPIN_MIN", 0.15),
+        params.get("MOT_SPIN_MAX", 0.95),
+        params.get("MOT_THST_EXPO", 0.65),
+    )
+    t_out = rcou[:, 0] * 1e-6
+    hover = params.get("MOT_THST_HOVER", 0.35)
+    flying = _flying_from_events(events) or _flying_from_thrust(t_out, thrust, 0.5 * hover)
+    if not _flying_from_events(events):
+        notes.append("no take-off event in the log: flight taken as where the mean thrust exceeds half the hover's")
+    positions, spin = frame_geometry(table)
+    return MotorLog(
+        str(path),
+        "ArduPilot",
+        imu[:, 0] * 1e-6,
+        imu[:, 1:4],
+        imu[:, 4:7],
+        t_out,
+        outputs,
+        list(range(1, len(table) + 1)),
+        name,
+        positions,
+        spin,
+        thrust,
+        flying,
+        changes,
+        "us",
+        notes,
+    )
+
+
+def _motor_channels(params, n, notes) -> list[int]:
+    """The RCOU column of each motor: the output whose SERVOn_FUNCTION is 32 + motor at the log's
+    start (33 is motor 1); without those parameters, channel k is motor k."""
+    by_function = {int(v): int(k[5:-9]) for k, v in params.items() if k.startswith("SERVO") and k.endswith("_FUNCTION")}
+    channels = [by_function.get(32 + k) for k in range(1, n + 1)]
+    if None in channels:
+        notes.append("motor outputs not all named by SERVOn_FUNCTION: channel k taken as motor k")
+        return list(range(1, n + 1))
+    return channels
+
+
+def _flying_from_events(events) -> list[tuple[float, float]]:
+    spans, start = [], None
+    for t, ev in events:
+        if ev == EV_TAKEOFF and start is None:
+            start = t
+        elif ev in EV_LANDING and start is not None:
+            spans.append((start, t))
+            start = None
+    if start is not None:
+        spans.append((start, np.inf))
+    return spans
+
+
+def _flying_from_thrust(t, thrust, level) -> list[tuple[float, float]]:
+    up = thrust.mean(axis=1) > level
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], up.astype(int), [0]])))
+    return [(float(t[a]), float(t[b - 1])) for a, b in zip(edges[::2], edges[1::2], strict=True) if b - a > 1]
+
+
+# -- PX4 ------------------------------------------------------------------------------------------------
+PX4_QUAD_X = [(45, -1), (-135, -1), (-45, 1), (135, 1)]  # PX4's quad X numbering, as ArduPilot's
+
+
+def _read_px4(path: Path) -> MotorLog:
+    from pyulog import ULog
+
+    topics = ["sensor_combined", "actuator_motors", "actuator_outputs", "vehicle_land_detected"]
+    try:
+        ulog = ULog(str(path), topics)
+    except Exception as exc:  # pyulog raises plain Exceptions on bad files
+        raise ReaderError(f"{path}: not a readable ULog file ({type(exc).__name__}: {exc})") from None
+    data = {d.name: d.data for d in ulog.data_list if d.multi_id == 0}
+    params = ulog.initial_parameters
+    if "sensor_combined" not in data:
+        raise ReaderError(f"{path}: the ULog has no sensor_combined (IMU) topic")
+    sc = data["sensor_combined"]
+    notes = []
+    table, frame = _px4_geometry(params, notes)
+    n = len(table)
+    if "actuator_motors" in data:
+        am = data["actuator_motors"]
+        t_out = am["timestamp"] * 1e-6
+        outputs = np.column_stack([am[f"control[{i}]"] for i in range(n)])
+        thrust, unit = np.clip(outputs, 0.0, 1.0), "thrust"
+    elif "actuator_outputs" in data:
+        ao = data["actuator_outputs"]
+        t_out = ao["timestamp"] * 1e-6
+        outputs = np.column_stack([ao[f"output[{i}]"] for i in range(n)])
+        lo, hi = (
+            float(params.get("PWM_MIN", params.get("PWM_MAIN_MIN1", 1000))),
+            float(params.get("PWM_MAX", params.get("PWM_MAIN_MAX1", 2000))),
+        )
+        fac = float(params.get("THR_MDL_FAC", 0.0))
+        x = np.clip((outputs - lo) / (hi - lo), 0.0, 1.0)
+        thrust, unit = (1.0 - fac) * x + fac * x * x, "us"
+    else:
+        raise ReaderError(f"{path}: the ULog has no actuator_motors or actuator_outputs topic to diagnose")
+    flying = []
+    if "vehicle_land_detected" in data:
+        ld = data["vehicle_land_detected"]
+        flying = _flying_from_landed(ld["timestamp"] * 1e-6, ld["landed"] == 0)
+    if not flying:
+        flying = _flying_from_thrust(t_out, thrust, 0.2)
+        notes.append("no land detector in the log: flight taken as where the mean thrust exceeds 20 %")
+    positions, spin = frame_geometry(table)
+    return MotorLog(
+        str(path),
+        "PX4",
+        sc["timestamp"] * 1e-6,
+        np.column_stack([sc[f"gyro_rad[{i}]"] for i in range(3)]),
+        np.column_stack([sc[f"accelerometer_m_s2[{i}]"] for i in range(3)]),
+        t_out,
+        outputs,
+        list(range(1, n + 1)),
+        frame,
+        positions,
+        spin,
+        thrust,
+        flying,
+        [],
+        unit,
+        notes,
+    )
+
+
+def _px4_geometry(params, notes):
+    """Rotors from PX4's control allocation (CA_ROTORi_PX/PY, CA_ROTORi_KM > 0 counter-clockwise);
+    older logs without it are taken as quad X."""
+    n = int(params.get("CA_ROTOR_COUNT", 0))
+    if n == 0:
+        notes.append("no CA_ROTOR parameters (PX4 before 1.13): the frame taken as quad X")
+        return PX4_QUAD_X, "quad X (assumed)"
+    table = []
+    for i in range(n):
+        x, y = float(params.get(f"CA_ROTOR{i}_PX", 0.0)), float(params.get(f"CA_ROTOR{i}_PY", 0.0))
+        table.append((np.degrees(np.arctan2(y, x)), -1 if float(params.get(f"CA_ROTOR{i}_KM", 0.05)) > 0 else 1))
+    return table, f"{n} rotors (CA_ geometry)"
+
+
+def _flying_from_landed(t, airborne) -> list[tuple[float, float]]:
+    spans, start = [], None
+    for ti, up in zip(t, airborne, strict=True):
+        if up and start is None:
+            start = ti
+        elif not up and start is not None:
+            spans.append((float(start), float(ti)))
+            start = None
+    if start is not None:
+        spans.append((float(start), np.inf))
+    return spans
