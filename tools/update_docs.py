@@ -341,6 +341,80 @@ def _rpy(d, fmt="{:.2f}"):
     return " / ".join(fmt.format(d[a]) for a in ("roll", "pitch", "yaw"))
 
 
+def _ms(delay):
+    if delay is None:
+        return "not found"
+    if delay < 0:
+        return f"{-delay:.2f} s before it happened"
+    return f"{1e3 * delay:.0f} ms" if delay < 1 else f"{delay:.2f} s"
+
+
+def results_diagnose() -> str:
+    """docs/diagnose.md: each log diagnosed with the default model."""
+    rows = []
+    for name, log in _load("diagnose")["logs"].items():
+        d, truth = log["variants"]["default"], log["truth"]
+        failure = "none" if truth is None else f"motor {truth['motor']} at {truth['time_s']:.3f} s"
+        found = ", ".join(f"motor {f['motor']} at {f['time_s']:.3f} s" for f in d["failures"]) or "nothing"
+        if truth is not None and d["failures"]:
+            found += f" ({_ms(d['delay_s'])} after)"
+        top = max(log["motors"], key=lambda r: r["excess"])
+        largest = f"motor {top['motor']}: {100 * top['excess']:+.1f} % ({top['output_excess']:+.0f} µs)"
+        flagged = ", ".join(f"motor {x['motor']}" for x in d["damaged"]) or "none"
+        rate = f"{log['imu_rate_hz']:.0f} / {log['output_rate_hz']:.0f} Hz"
+        rows.append((name, rate, failure, found, largest, flagged))
+    header = ("log", "IMU / outputs", "failure in the log (truth)", "found", "largest excess", "flagged")
+    return _table(header, rows)
+
+
+def results_diagnose_sweep() -> str:
+    """docs/diagnose.md: the model's chosen values across their range, and its ablations."""
+    res = _load("diagnose")
+    losses = {n: log for n, log in res["logs"].items() if log["truth"] is not None}
+    intact = [n for n, log in res["logs"].items() if log["truth"] is None]
+    rows = []
+    for variant in res["variants"]:
+        cells = [variant]
+        for log in losses.values():
+            v = log["variants"][variant]
+            cells.append(_ms(v["delay_s"]) + ("" if v["named"] or v["delay_s"] is None else " (wrong motor)"))
+        false = [n for n in intact if res["logs"][n]["variants"][variant]["false_failures"]]
+        cells.append(", ".join(false) or "none")
+        rows.append(cells)
+    header = ("variant", *(f"{n}: found after" for n in losses), "flights without a failure: false losses")
+    return _table(header, rows)
+
+
+def results_diagnose_synthetic() -> str:
+    """docs/diagnose.md: the log mode on synthetic losses, with and without its significance test."""
+    rows = []
+    for r in _load("diagnose")["synthetic"]:
+        found = [f for f in r["found"] if f is not None]
+        early = [f for f in found if f[1] < 0]
+        right = [f[1] for f in found if f[0] == 1 and f[1] >= 0]
+        wrong = [f[1] for f in found if f[0] != 1 and f[1] >= 0]
+        cells = [f"right motor {len(right)}" + (f" (median {_ms(sorted(right)[len(right) // 2])})" if right else "")]
+        cells += [f"wrong motor {len(wrong)}" + (f" (after {_ms(min(wrong))} or more)" if wrong else "")]
+        cells += [f"before the loss {len(early)}", f"none {len(r['found']) - len(found)}"]
+        rows.append(
+            (
+                f"{r['gain_factor']:g}×",
+                f"{r['gyro_noise']:g}",
+                f"{r['deficit_sigmas']:g}",
+                f"of {len(r['found'])}: " + ", ".join(cells),
+                f"{r['false_losses']} of {r['flights']}",
+            )
+        )
+    header = (
+        "vehicle's gain / model's",
+        "gyro noise (rad/s)",
+        "deficit_sigmas",
+        "a loss of motor 1",
+        "60 s without a loss: false losses",
+    )
+    return _table(header, rows)
+
+
 def results_overview() -> str:
     """README: BROAD groups, flights and speed per filter."""
     broad, flights, speed = _load("broad"), _load("flights"), _load("speed")
@@ -711,6 +785,9 @@ GENERATORS = {
     "results-repoimu": results_repoimu,
     "results-split": results_split,
     "results-robust-targets": results_robust_targets,
+    "results-diagnose": results_diagnose,
+    "results-diagnose-sweep": results_diagnose_sweep,
+    "results-diagnose-synthetic": results_diagnose_synthetic,
 }
 PATTERN = re.compile(r"(<!-- generated:([a-z-]+) -->\n)(.*?)(<!-- /generated -->)", re.S)
 

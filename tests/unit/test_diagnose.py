@@ -16,8 +16,24 @@ import pytest
 
 from quadest.cli.main import main
 from quadest.detect import DetectorParams
-from quadest.evaluation.diagnose import DiagnoseParams, diagnose_log, flying_mask, held, motor_shares
-from quadest.readers.motors import ARDUPILOT_FRAMES, MotorLog, frame_geometry, pwm_thrust, read_motor_log
+from quadest.evaluation.diagnose import (
+    DiagnoseParams,
+    diagnose,
+    diagnose_log,
+    flying_mask,
+    held,
+    motor_shares,
+    synthetic_loss_log,
+)
+from quadest.readers.motors import (
+    ARDUPILOT_FRAMES,
+    MotorLog,
+    frame_geometry,
+    logged_failure,
+    pwm_thrust,
+    read_motor_log,
+    runs,
+)
 
 DATA = Path(os.environ.get("QUADEST_DATA", Path(__file__).resolve().parents[3] / "shared" / "data"))
 LOGS = sorted(p for p in (DATA / "ardupilot").glob("*") if p.suffix.lower() == ".bin") if DATA.is_dir() else []
@@ -54,6 +70,23 @@ def test_outputs_are_held_never_read_ahead():
     np.testing.assert_array_equal(got[1:, 0], [10.0, 10.0, 20.0, 20.0])
 
 
+def test_runs_are_the_masks_stretches():
+    mask = np.array([0, 1, 1, 0, 1, 0, 1, 1, 1], bool)
+    assert runs(mask) == [(1, 3), (4, 5), (6, 9)]
+    assert runs(mask, shortest=2) == [(1, 3), (6, 9)]
+
+
+def test_the_logged_failure_is_a_motor_channel_handed_away():
+    """SERVO3_FUNCTION 35 is motor 3's; set to 1 (RC pass-through) at 12 s it fails motor 3;
+    changes of other parameters or channels are not failures."""
+    log = synthetic_log([1.0] * 4)
+    log.channels = [1, 2, 3, 4]
+    log.changes = [(5.0, "MOT_THST_HOVER", 0.4), (8.0, "SERVO9_FUNCTION", 1.0), (12.0, "SERVO3_FUNCTION", 1.0)]
+    assert logged_failure(log) == (12.0, 3)
+    log.changes = log.changes[:2]
+    assert logged_failure(log) is None
+
+
 def test_flying_mask_leaves_out_take_off_and_landing():
     t = np.arange(0.0, 20.0, 0.5)
     mask = flying_mask(t, [(2.0, 12.0)], settle=2.0, before_landing=1.5)
@@ -81,10 +114,21 @@ def test_a_motor_working_harder_is_its_excess():
     assert max(abs(excess[k]) for k in (0, 2, 3)) < 0.1
 
 
-def test_the_log_mode_of_the_detector_leaves_flight_unchanged():
-    """The deficit's significance test is off in flight (the in-flight figures are unchanged)."""
-    assert DetectorParams().deficit_sigmas == 0.0
-    assert DiagnoseParams().deficit_sigmas > 0.0
+def test_the_log_modes_significance_test_is_off_in_flight():
+    """In flight the test is off (the in-flight figures stand); for logs it is on."""
+    assert DetectorParams().deficit_sigmas == 0.0 < DiagnoseParams().deficit_sigmas
+
+
+def test_a_large_loss_is_found_at_log_rates_and_noise_alone_is_not():
+    """Synthetic logs at 25 Hz / 10 Hz with the real flights' gyro noise: a loss of motor 1 on a
+    vehicle whose gain is 8 times the model's is found within two samples, naming motor 1, and
+    60 s without a loss raise nothing; without the significance test the noise alone does."""
+    for seed in range(3):
+        found = diagnose(synthetic_loss_log(0.05, 20.0, seed, gain_factor=8.0)).failures
+        assert found and found[0]["motor"] == 1 and 0.0 <= found[0]["time_s"] - 20.0 <= 0.08
+        assert diagnose(synthetic_loss_log(0.05, None, seed, 60.0, 8.0)).failures == []
+    no_test = DiagnoseParams(deficit_sigmas=0.0)
+    assert any(diagnose(synthetic_loss_log(0.05, None, s, 60.0, 8.0), no_test).failures for s in range(3))
 
 
 def _expected(path: Path):
@@ -154,3 +198,5 @@ def test_diagnose_refuses_bad_input_in_one_line(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "junk.bin" in err[0]
     assert main(["diagnose", str(junk), "--moment-gain", "-1"]) == 2
+    assert main(["diagnose", str(junk), "--json", str(junk)]) == 2  # never onto its input
+    assert junk.read_bytes() == b"\x00" * 100

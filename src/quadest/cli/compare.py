@@ -22,7 +22,7 @@ from quadest.cli.common import (
     write_json,
     write_report_for,
 )
-from quadest.evaluation import benchmark, detection, flown, reproduce
+from quadest.evaluation import benchmark, detection, diagnose, flown, reproduce
 from quadest.evaluation.compare import compare, format_tables, parse_params
 from quadest.evaluation.runner import estimator_names, filter_notes
 from quadest.evaluation.speed import benchmark_speed
@@ -315,7 +315,34 @@ def _benchmark_tradeoff(args):
     return res
 
 
+def _benchmark_diagnose(args):
+    folder = Path(args.data) if args.data else None
+    if folder is None or not folder.is_dir():
+        raise CliError("benchmark diagnose: --data must name a folder of ArduPilot (.bin) or PX4 (.ulg) logs")
+    paths = sorted(p for p in folder.iterdir() if p.suffix.lower() in (".bin", ".ulg"))
+    if not paths:
+        raise CliError(f"{folder}: no .bin or .ulg logs in it")
+    say(
+        f"quadest diagnose on {len(paths)} logs in {folder}, with each variant of its model; a failure "
+        "scored against the one the log itself records (ArduPilot: the SERVOn_FUNCTION change; truth, "
+        "never read by the diagnosis)"
+    )
+
+    def progress(path, r):
+        d = r["variants"]["default"]
+        found = ", ".join(f"motor {f['motor']} at {f['time_s']:.3f} s" for f in d["failures"]) or "no failure"
+        flagged = ", ".join(f"motor {x['motor']} +{100 * x['excess']:.0f} %" for x in d["damaged"]) or "none flagged"
+        say(f"  {path.name}: {found}; {flagged}")
+
+    return diagnose.benchmark_diagnose(paths, on_log=progress)
+
+
 def cmd_benchmark(args):
+    if args.what == "diagnose":
+        res = _benchmark_diagnose(args)
+        if args.json:
+            write_json(args.json, res)
+        return 0
     if args.what in ("detection", "detection-tradeoff"):
         res = (_benchmark_detection if args.what == "detection" else _benchmark_tradeoff)(args)
         if args.json:
@@ -502,20 +529,21 @@ def _add_benchmark(sub):
         "flights of --duration s for --nominal-seeds, --filters naming the estimator in the loop "
         "(default truth) (docs/detection.md). detection-tradeoff: the "
         "'lost' test's threshold against delay and false alarms, chosen on --train-seeds and "
-        "--train-nominal-seeds, reported on --seeds and --nominal-seeds. "
+        "--train-nominal-seeds, reported on --seeds and --nominal-seeds. diagnose: quadest diagnose "
+        "on every log in --data with its model's chosen values across their range (docs/diagnose.md). "
         "quadest's filters and the installed peers (pip install 'quadest[peers]': "
         "vqf, imufusion, ahrs) run side by side.",
     )
     b.add_argument(
         "what",
-        choices=["broad", "flights", "repoimu", "speed", "sim", "detection", "detection-tradeoff"],
+        choices=["broad", "flights", "repoimu", "speed", "sim", "detection", "detection-tradeoff", "diagnose"],
         help="what to benchmark",
     )
     b.add_argument(
         "--data",
         metavar="DIR|NAME",
         help="broad, flights, repoimu: folder with the data, or a dataset "
-        "in the cache (broad, repoimu; all: every dataset there)",
+        "in the cache (broad, repoimu; all: every dataset there); diagnose: a folder of logs",
     )
     b.add_argument(
         "--filters", default="all", help="all (quadest and installed peers), quadest, peers, or a comma-separated list"

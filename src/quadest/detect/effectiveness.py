@@ -323,7 +323,8 @@ def _test(x, p, c, dt):
         others = (total - x[STATE.eta + i]) / (n - 1)
         var_i = x[STATE.P + (3 + i) * (3 + n) + 3 + i]
         d = others - x[STATE.eta + i] if np.sqrt(var_i) < sd_max else 0.0  # too uncertain: no evidence
-        if d * d < p[PARAM.deficit_sigmas] ** 2 * var_i * n / (n - 1):  # within its noise
+        k = p[PARAM.deficit_sigmas]
+        if k > 0.0 and d * d < k * k * _deficit_variance(x, i, n):  # within its noise
             d = 0.0
         left = x[STATE.eta + i] / others if others > 0.0 else 0.0
         sl = max(0.0, x[STATE.s_lost + i] + dt * (d - p[PARAM.lost_drift]))
@@ -333,6 +334,21 @@ def _test(x, p, c, dt):
             x[STATE.lost], x[STATE.lost_t], x[STATE.lost_eta] = i, x[STATE.time], left
         if x[STATE.damaged] < 0.0 and sd > p[PARAM.damaged_threshold]:
             x[STATE.damaged], x[STATE.damaged_t], x[STATE.damaged_eta] = i, x[STATE.time], left
+
+
+@njit(cache=True, inline="always")
+def _deficit_variance(x, i, n):
+    """The variance of rotor ``i``'s deficit ``d_i = aᵀη``, ``a_j = 1/(n−1)`` for the others and
+    −1 for itself: ``aᵀ P a`` (the effectivenesses are correlated: their differences are known
+    far better than each one)."""
+    ns = 3 + n
+    total = 0.0
+    for j in range(n):
+        aj = -1.0 if j == i else 1.0 / (n - 1)
+        for k in range(n):
+            ak = -1.0 if k == i else 1.0 / (n - 1)
+            total += aj * ak * x[STATE.P + (3 + j) * ns + 3 + k]
+    return total
 
 
 @njit(cache=True, **NO_ALLOCATION)

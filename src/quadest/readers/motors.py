@@ -4,6 +4,7 @@ vehicle flew, and the logged parameter changes. Times stay in the log's own time
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -46,6 +47,7 @@ class MotorLog:
     changes: list[tuple[float, str, float]] = field(default_factory=list)
     output_unit: str = "us"
     notes: list[str] = field(default_factory=list)
+    channels: list[int] = field(default_factory=list)  # each motor's output channel (1-based)
 
     @property
     def imu_rate(self) -> float:
@@ -58,6 +60,23 @@ class MotorLog:
 
 def _rate(t) -> float:
     return float(1.0 / np.median(np.diff(t))) if len(t) > 2 else 0.0
+
+
+def runs(mask, shortest: int = 1) -> list[tuple[int, int]]:
+    """The index ranges ``[start, end)`` where ``mask`` holds, each at least ``shortest`` long."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], np.asarray(mask).astype(int), [0]])))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True) if b - a >= shortest]
+
+
+def logged_failure(log: MotorLog) -> tuple[float, int] | None:
+    """The first motor whose output was handed to something else in flight (ArduPilot: its
+    ``SERVOn_FUNCTION`` changed away from the motor's), and when: how a failure is made in
+    ArduPilot's simulator. *Truth for scoring a diagnosis*; the diagnosis never reads it."""
+    for t, name, value in log.changes:
+        m = re.fullmatch(r"SERVO(\d+)_FUNCTION", name)
+        if m and int(m.group(1)) in log.channels and int(value) != 32 + log.channels.index(int(m.group(1))) + 1:
+            return t, log.motors[log.channels.index(int(m.group(1)))]
+    return None
 
 
 def frame_geometry(angles_spins) -> tuple[np.ndarray, np.ndarray]:
@@ -156,6 +175,7 @@ def _read_ardupilot(path: Path) -> MotorLog:
         changes,
         "us",
         notes,
+        channels,
     )
 
 
@@ -184,9 +204,7 @@ def _flying_from_events(events) -> list[tuple[float, float]]:
 
 
 def _flying_from_thrust(t, thrust, level) -> list[tuple[float, float]]:
-    up = thrust.mean(axis=1) > level
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], up.astype(int), [0]])))
-    return [(float(t[a]), float(t[b - 1])) for a, b in zip(edges[::2], edges[1::2], strict=True) if b - a > 1]
+    return [(float(t[a]), float(t[b - 1])) for a, b in runs(thrust.mean(axis=1) > level, shortest=2)]
 
 
 # -- PX4 ------------------------------------------------------------------------------------------------
@@ -252,6 +270,7 @@ def _read_px4(path: Path) -> MotorLog:
         [],
         unit,
         notes,
+        list(range(1, n + 1)),
     )
 
 
@@ -270,13 +289,5 @@ def _px4_geometry(params, notes):
 
 
 def _flying_from_landed(t, airborne) -> list[tuple[float, float]]:
-    spans, start = [], None
-    for ti, up in zip(t, airborne, strict=True):
-        if up and start is None:
-            start = ti
-        elif not up and start is not None:
-            spans.append((float(start), float(ti)))
-            start = None
-    if start is not None:
-        spans.append((float(start), np.inf))
-    return spans
+    """From the first airborne sample to the first landed one after it (open when none)."""
+    return [(float(t[a]), float(t[b]) if b < len(t) else np.inf) for a, b in runs(airborne)]
