@@ -4,7 +4,7 @@ half-written left), a download that breaks off (resumed with a range request), a
 not there (one line saying how to get it). No test reaches outside the machine."""
 
 import hashlib
-import os
+import random
 import re
 import threading
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -76,7 +76,12 @@ def _toy(server, files):
     )
 
 
-FILES = {"01_slow_A.hdf5": os.urandom(300_000), "02_fast_B.hdf5": os.urandom(200_000), "trials.json": b'{"trials": {}}'}
+_RNG = random.Random(7)
+FILES = {
+    "01_slow_A.hdf5": _RNG.randbytes(300_000),
+    "02_fast_B.hdf5": _RNG.randbytes(200_000),
+    "trials.json": b'{"trials": {}}',
+}
 
 
 def test_fetch_checks_and_keeps(server, tmp_path):
@@ -101,7 +106,8 @@ def test_only_the_chosen_trials(server, tmp_path):
 
 def test_a_checksum_that_differs_is_refused_and_nothing_is_kept(server, tmp_path):
     cat = {"toy": _toy(server, FILES)}
-    server.files["/repo/commit/02_fast_B.hdf5"] = b"x" + FILES["02_fast_B.hdf5"][1:]  # the source changed
+    body = FILES["02_fast_B.hdf5"]
+    server.files["/repo/commit/02_fast_B.hdf5"] = bytes([body[0] ^ 0xFF]) + body[1:]  # the source changed
     with pytest.raises(ValueError, match="differs from the known"):
         C.fetch("toy", root=tmp_path, catalog=cat, trials=["02"], progress=False)
     assert not (tmp_path / "toy" / "02_fast_B.hdf5").exists()
