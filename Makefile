@@ -6,7 +6,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 OUT    ?= demo-output
 
-.PHONY: demo api test test-unit test-integration test-examples lint install clean clean-cache
+.PHONY: demo api test test-unit test-integration test-examples lint wheel-check install clean clean-cache
 
 $(BIN)/python:
 	@echo "==> creating virtual environment $(VENV)"
@@ -15,7 +15,7 @@ $(BIN)/python:
 
 $(VENV)/.installed: pyproject.toml setup.py src/quadest/filters/_stream.c | $(BIN)/python
 	@echo "==> installing quadest and its dependencies into $(VENV)"
-	$(BIN)/python -m pip install --quiet -e .
+	$(BIN)/python -m pip install --quiet -e '.[plot,report]'
 	@touch $@
 
 $(VENV)/.installed-test: $(VENV)/.installed
@@ -50,6 +50,11 @@ api: $(VENV)/.installed-docs
 lint: $(VENV)/.installed-test
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
+
+# the package as a user installs it: sdist and wheel built, the wheel installed into a new
+# virtual environment without extras and checked, then with [logs] (tools/check_wheel.py)
+wheel-check: $(VENV)/.installed-test
+	$(BIN)/python tools/check_wheel.py
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache build

@@ -1,9 +1,16 @@
 """quadest: quadcopter attitude and state estimation that keeps working when things go wrong.
 
+In three lines (:mod:`quadest.api`)::
+
+    import quadest
+    rec = quadest.read("flight.ulg")
+    est = quadest.estimate(rec)  # or quadest.estimate(gyr, acc, mag, rate=200.0)
+
 Every array in quadest follows one convention, stated in :mod:`quadest.conventions`
 (and docs/conventions.md): Hamilton quaternions ``[w, x, y, z]`` rotating body vectors
 into the navigation frame, navigation frame north-east-down, body frame
-forward-right-down, ZYX Euler angles, SI units.
+forward-right-down, ZYX Euler angles, SI units. ``import quadest`` loads no compiler: the
+names below that run estimators are loaded when first used.
 """
 
 from importlib.metadata import PackageNotFoundError
@@ -14,10 +21,22 @@ try:
 except PackageNotFoundError:  # running from a source tree that is not installed
     __version__ = "0.0.0+unknown"
 
-from quadest.data.recording import Recording, load_recording, save_recording
+from quadest.data.recording import Recording, save_recording
+
+API = ("read", "estimate", "score")
+FILTER_NAMES = ("make_filter", "ESTIMATORS", "FilterResult", "Robust", "Afckf", "Qukf", "Ekf", "Madgwick", "Mahony")
+FILTER_NAMES += ("Valenti", "Roetenberg")
 
 
 def __getattr__(name: str):
+    if name in API or name == "load_recording":  # load_recording: read's former name at the top level
+        from quadest import api
+
+        return getattr(api, "read" if name == "load_recording" else name)
+    if name in FILTER_NAMES:
+        from quadest import filters
+
+        return getattr(filters, name)
     if name == "NUMBA_CACHE_DIR":  # where compiled code is cached (quadest._jit); None: the user's own
         from quadest import _jit
 
@@ -25,4 +44,8 @@ def __getattr__(name: str):
     raise AttributeError(f"module 'quadest' has no attribute {name!r}")
 
 
-__all__ = ["Recording", "load_recording", "save_recording", "__version__"]
+def __dir__():
+    return sorted([*globals(), *API, *FILTER_NAMES])
+
+
+__all__ = ["Recording", "save_recording", "__version__", *API, *FILTER_NAMES]

@@ -64,7 +64,7 @@ def _originals():
     )
     out["mat"] = (d / "b.mat").read_bytes()
     # autopilot logs, written byte by byte as tests/unit/test_readers.py does
-    from test_readers import write_dataflash, write_ulog
+    from logwriters import write_dataflash, write_ulog
 
     short = simulate("hover", "bebop2", seed=4, duration=1.0, overrides={"imu.rate_hz": 100.0, "mag.rate_hz": 100.0})
     write_ulog(d / "l.ulg", short)

@@ -3,11 +3,11 @@ frames and units, read back, and compared with the simulation (which is in quade
 files give one clear line; the real samples in ../shared/data are read when present."""
 
 import os
-import struct
 from pathlib import Path
 
 import numpy as np
 import pytest
+from logwriters import write_dataflash, write_ulog
 
 from quadest.cli.main import main
 from quadest.readers import ReaderError, detect_format, read_recording
@@ -29,8 +29,9 @@ def flight():
 
 
 def _same(rec, ref, tol=1e-9, q_tol=1e-9, fields=("gyr", "acc")):
+    """The same samples at the same intervals (a file's own time may start anywhere: it is kept)."""
     assert len(rec) == len(ref)
-    assert np.allclose(rec.t, ref.t - ref.t[0], atol=1e-6)
+    assert np.allclose(rec.t - rec.t[0], ref.t - ref.t[0], atol=1e-6)
     for f in fields:
         assert np.allclose(getattr(rec, f), getattr(ref, f), atol=tol * 20, rtol=tol), f
     if rec.true_q is not None:
@@ -81,7 +82,7 @@ def test_generic_csv_with_units_frames_and_order(tmp_path, flight):
     rec = read(args, p)
     _same(rec, flight, tol=1e-9)
     assert np.allclose(rec.mag, flight.mag, atol=1e-9)
-    assert rec.meta["t0_s"] == pytest.approx(100.0)
+    assert rec.meta["t0_s"] == pytest.approx(100.0) and rec.t[0] == pytest.approx(100.0)  # the file's own time
     out = tmp_path / "att.csv"
     assert main(["estimate", str(p), "--filter", "madgwick", "-o", str(out), *opts]) == 0
     assert out.read_text().splitlines()[0] == "t,q_w,q_x,q_y,q_z,roll,pitch,yaw"
@@ -267,65 +268,38 @@ def test_rosbag_round_trip(tmp_path, flight, ros1):
     ref = short
     assert len(rec) == len(ref)
     assert np.allclose(rec.gyr, ref.gyr, atol=1e-12) and np.allclose(rec.acc, ref.acc, atol=1e-12)
-    assert np.allclose(rec.t, ref.t - ref.t[0], atol=2e-9)
+    assert np.allclose(rec.t, 1000.0 + ref.t - ref.t[0], atol=2e-9)  # the bag's own time, kept
     assert np.allclose(rec.mag, ref.mag, atol=1e-9)
     assert angle_between(rec.true_q, ref.true_q).max() < 1e-6
     assert np.allclose(rec.true_pos, [0.0, 0.0, -1.0])
 
 
-# -- PX4 ULog and ArduPilot DataFlash, written by hand from their specifications --------------------------
-def _ulog_msg(kind, payload):
-    return struct.pack("<HB", len(payload), ord(kind)) + payload
-
-
-def write_ulog(path, flight, truncate_at=None):
-    """A minimal ULog (format version 1): header, flag bits, formats, subscriptions, data."""
-    topics = {
-        "sensor_combined": ("uint64_t timestamp;float[3] gyro_rad;float[3] accelerometer_m_s2;", 0),
-        "vehicle_magnetometer": ("uint64_t timestamp;float[3] magnetometer_ga;", 1),
-        "vehicle_attitude": ("uint64_t timestamp;float[4] q;", 2),
-    }
-    out = b"ULog\x01\x12\x35\x01" + struct.pack("<Q", 0)
-    out += _ulog_msg("B", bytes(16) + struct.pack("<3Q", 0, 0, 0))
-    for name, (fmt, _) in topics.items():
-        out += _ulog_msg("F", f"{name}:{fmt}".encode())
-    for name, (_, mid) in topics.items():
-        out += _ulog_msg("A", struct.pack("<BH", 0, mid) + name.encode())
-    for k in range(len(flight)):
-        us = int(round(flight.t[k] * 1e6)) + 1_000_000
-        out += _ulog_msg("D", struct.pack("<HQ6f", 0, us, *flight.gyr[k], *flight.acc[k]))
-        out += _ulog_msg("D", struct.pack("<HQ3f", 1, us, *(flight.mag[k] / 100.0)))
-        if k % 4 == 0:
-            out += _ulog_msg("D", struct.pack("<HQ4f", 2, us, *flight.true_q[k]))
-    Path(path).write_bytes(out[:truncate_at] if truncate_at else out)
-
-
-def _df_fmt(mid, name, fmt, cols):
-    sizes = {"Q": 8, "B": 1, "f": 4, "n": 4, "N": 16, "Z": 64}
-    length = 3 + sum(sizes[c] for c in fmt)
-    return (
-        b"\xa3\x95\x80"
-        + struct.pack("<BB", mid, length)
-        + name.encode().ljust(4, b"\0")
-        + fmt.encode().ljust(16, b"\0")
-        + cols.encode().ljust(64, b"\0")
-    )
-
-
-def write_dataflash(path, flight):
-    out = _df_fmt(128, "FMT", "BBnNZ", "Type,Length,Name,Format,Columns")
-    out += _df_fmt(129, "IMU", "QBffffff", "TimeUS,I,GyrX,GyrY,GyrZ,AccX,AccY,AccZ")
-    out += _df_fmt(130, "MAG", "QBfff", "TimeUS,I,MagX,MagY,MagZ")
-    out += _df_fmt(131, "ATT", "Qfff", "TimeUS,Roll,Pitch,Yaw")
-    from quadest.rotation import quat_to_euler
-
-    eul = np.degrees(quat_to_euler(flight.true_q))
-    for k in range(len(flight)):
-        us = int(round(flight.t[k] * 1e6)) + 500_000
-        out += b"\xa3\x95\x81" + struct.pack("<QB6f", us, 0, *flight.gyr[k], *flight.acc[k])
-        out += b"\xa3\x95\x82" + struct.pack("<QB3f", us, 0, *(flight.mag[k] * 10.0))
-        out += b"\xa3\x95\x83" + struct.pack("<Q3f", us, *eul[k])
-    Path(path).write_bytes(out)
+# -- PX4 ULog and ArduPilot DataFlash, written by hand from their specifications (tests/logwriters.py) -----
+def test_logs_keep_their_own_time_and_declination(tmp_path, flight, capsys):
+    """A log is read in its own time (an output joins its other topics) with the declination it
+    stores; ArduPilot's reference is the EKF's quaternion (XKQ) where the log has it."""
+    p = tmp_path / "log.ulg"
+    write_ulog(p, flight, params={"EKF2_MAG_DECL": 10.5}, t0_us=20_330_000)
+    rec = read_recording(p)
+    assert rec.t[0] == pytest.approx(20.33, abs=1e-9) and rec.meta["t0_s"] == rec.t[0]
+    assert rec.declination == pytest.approx(np.radians(10.5), rel=1e-6)
+    assert main(["info", str(p)]) == 0
+    assert "declination +10.50° (the log's EKF2_MAG_DECL)" in capsys.readouterr().out
+    out = tmp_path / "att.csv"
+    assert main(["estimate", str(p), "--filter", "madgwick", "-o", str(out)]) == 0
+    assert "from 20.330 s; declination +10.50°" in capsys.readouterr().out
+    t_out = np.loadtxt(out, delimiter=",", skiprows=1, usecols=0)
+    assert np.allclose(t_out, rec.t)
+    d = tmp_path / "log.bin"
+    write_dataflash(d, flight, params={"COMPASS_DEC": 0.2}, xkq=True)
+    rec = read_recording(d)
+    assert rec.declination == pytest.approx(0.2, rel=1e-6) and rec.t[0] == pytest.approx(0.5)
+    assert rec.meta["reference"].startswith("XKQ")
+    ok = np.isfinite(rec.ref_q[:, 0])
+    assert ok.mean() > 0.99 and angle_between(rec.ref_q[ok], flight.true_q[ok]).max() < 1e-3
+    write_dataflash(d, flight)  # no XKQ, no COMPASS_DEC: ATT, and no declination
+    rec = read_recording(d)
+    assert rec.meta["reference"].startswith("ATT") and rec.declination == 0.0
 
 
 def test_ulog_round_trip(tmp_path, flight):

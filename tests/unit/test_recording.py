@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from quadest import Recording, load_recording, save_recording
+from quadest import Recording, save_recording
 from quadest.data import format_summary, summarize
-from quadest.data.recording import columns_of
+from quadest.data.recording import columns_of, load_recording
 
 
 def make(n=200, rate=100.0, truth=True, rng=None):

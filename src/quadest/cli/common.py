@@ -9,6 +9,7 @@ from pathlib import Path
 from quadest.data import files
 from quadest.errors import UsageError
 from quadest.evaluation.inspect import report_data, report_json
+from quadest.extras import need
 from quadest.readers import FORMATS, read_recording
 from quadest.readers.generic import parse_columns, parse_units
 from quadest.sim import build_config
@@ -192,6 +193,7 @@ def read(args, path):
 def write_report_for(rec, names, params, path, title, json_path=None, recovery=None, recovery_model="", rotors=None):
     """``quadest report`` and every ``--report PATH``: the HTML page for ``rec`` with the
     estimators ``names`` and a throw's ``recovery`` (docs/report.md)."""
+    need("bokeh", "the HTML report (--report)")
     from quadest.plot.report import write_report  # bokeh: only when a report is written
 
     summ, att = report_data(rec, names, params, recovery)

@@ -17,6 +17,7 @@ from quadest.cli import compare, data, fly, recordings, recovery, sim, sweep
 from quadest.cli.common import CliError
 from quadest.data.files import refuse_overwriting_inputs
 from quadest.errors import UsageError
+from quadest.extras import MissingExtra, need
 
 GROUPS = (sim, fly, recordings, compare, recovery, sweep, data)
 ORDER = (
@@ -82,6 +83,23 @@ def check_outputs(args) -> None:
         raise UsageError(str(exc)) from None
 
 
+# options whose output needs an extra, checked before any work is done
+EXTRA_OPTIONS = {
+    "plot": ("matplotlib", "--plot"),
+    "plot_dir": ("matplotlib", "--plot-dir"),
+    "report": ("bokeh", "--report"),
+}
+
+
+def check_extras(args) -> None:
+    """Say at once, in one line, which extra an asked-for output needs, not after the run."""
+    for name, (module, option) in EXTRA_OPTIONS.items():
+        if getattr(args, name, None):
+            need(module, option)
+    if args.command == "demo":
+        need("matplotlib", "quadest demo's plots")
+
+
 def _one_line_note(message, category, filename, lineno, line=None):
     """A library warning as the command line says it: one line, no source location."""
     return f"quadest: note: {message}\n"
@@ -99,6 +117,7 @@ def main(argv=None):
         return 2
     try:
         check_outputs(args)
+        check_extras(args)
         return args.func(args)
     except BrokenPipeError:  # output piped into a command that stopped reading (head)
         return 0
@@ -109,7 +128,7 @@ def main(argv=None):
         if debug:
             traceback.print_exc()
         usage = isinstance(exc, (CliError, UsageError))
-        if usage or isinstance(exc, (ValueError, OSError)):
+        if usage or isinstance(exc, (ValueError, OSError, MissingExtra)):
             msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         else:
             msg = (

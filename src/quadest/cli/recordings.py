@@ -24,6 +24,7 @@ from quadest.evaluation.compare import parse_params
 from quadest.evaluation.diagnose import DiagnoseParams, diagnose_log, format_diagnosis
 from quadest.evaluation.inspect import events
 from quadest.evaluation.runner import estimate, estimator_names, filter_notes
+from quadest.extras import need
 from quadest.filters import ESTIMATORS, filter_name
 from quadest.models.aero import AeroModel
 from quadest.recovery import recover
@@ -112,6 +113,9 @@ def cmd_estimate(args):
     write_table(cols, Path(args.output))
     extra = f", diag_{', diag_'.join(res.diag)}" if args.diagnostics else ""
     say(f"{args.filter}: {len(rec)} samples -> {args.output} (t, q_w, q_x, q_y, q_z, roll, pitch, yaw; rad{extra})")
+    decl = np.degrees(rec.declination if decl is None else decl)
+    source = "--declination-deg" if args.declination_deg is not None else rec.meta.get("declination_source", "none")
+    say(f"  t in the file's own time, from {rec.t[0]:.3f} s; declination {decl:+.2f}° ({source})")
     if args.report:
         write_report_for(
             rec,
@@ -185,6 +189,7 @@ def _rotor_speeds(path, explicit: bool):
 def _sweep_report(args):
     import pyarrow.parquet as pq
 
+    need("bokeh", "the HTML report (--report)")
     from quadest.plot.report import write_sweep_report  # bokeh: only when a report is written
 
     summ = sweep_summary(pq.read_table(args.file))
@@ -336,7 +341,8 @@ def add_parsers(sub):
         "--declination-deg",
         type=float,
         default=None,
-        help="magnetic declination (default: from a simulation's metadata, else 0)",
+        help="magnetic declination, east positive (default: the log's own, PX4 EKF2_MAG_DECL or ArduPilot "
+        "COMPASS_DEC, or a simulation's; else 0; `quadest info` shows which)",
     )
     add_calibration_arg(es)
     add_input_args(es)

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
-from quadest.conventions import GRAVITY
+from quadest.data.checks import check_units
 from quadest.data.files import atomic_output
 
 FORMAT_TAG = "quadest recording v2"
@@ -45,11 +45,6 @@ TRUTH_FIELDS = {
     ),
 }
 SENSOR_FIELDS = ("gyr", "acc", "mag")
-
-REST_RATE = 0.2  # rad/s: the gyroscope below this on every axis counts as rest
-MIN_REST_SAMPLES = 20
-GYR_LIMIT = 70.0  # rad/s: ±4000 °/s, beyond any MEMS gyroscope's range
-ACC_LIMIT = 1600.0  # m/s²: about 160 g, beyond the range of a flight IMU
 
 
 def columns_of(name: str) -> list[str]:
@@ -179,54 +174,7 @@ class Recording:
             raise ValueError(f"{name}: infinite value at row {_first_row(inf)}")
 
     def _check_units(self):
-        big = np.abs(self.gyr).max(axis=1) > GYR_LIMIT
-        if big.any():
-            i = _first_row(big)
-            raise ValueError(
-                f"gyr: {np.abs(self.gyr[i]).max():.1f} at row {i} exceeds {GYR_LIMIT:.0f} rad/s, "
-                "more than any MEMS gyroscope measures: is the gyroscope in deg/s? "
-                "quadest takes rad/s (multiply deg/s by pi/180)"
-            )
-        with np.errstate(over="ignore"):  # a damaged file may hold 1e300: its norm is inf, refused below
-            norm = np.linalg.norm(self.acc, axis=1)
-        big = norm > ACC_LIMIT
-        if big.any():
-            i = _first_row(big)
-            raise ValueError(
-                f"acc: norm {norm[i]:.1f} at row {i} exceeds {ACC_LIMIT:.0f} m/s²: "
-                "is the accelerometer in mg or raw counts? quadest takes m/s²"
-            )
-        med, p95 = np.median(norm), np.percentile(norm, 95)
-        if len(norm) >= 10 and 0.5 < med < 1.5 and p95 < 3.0:
-            raise ValueError(
-                f"acc: norms look like g, not m/s² (median {med:.3f}, row 0 reads "
-                f"{norm[0]:.3f}); quadest takes m/s² (multiply g by 9.80665)"
-            )
-        # not rotating (gyroscope quiet), the accelerometer reads gravity (about 9.8 m/s²) or,
-        # falling without rotation, less: never much more
-        rest = np.abs(self.gyr).max(axis=1) < REST_RATE
-        if rest.sum() >= MIN_REST_SAMPLES:
-            g_rest = float(np.median(norm[rest]))
-            if 500.0 < g_rest < 2000.0:  # 1 g = 1000 mg
-                raise ValueError(
-                    f"acc: at rest the accelerometer reads {g_rest:.0f} (median norm): that is gravity "
-                    "in mg (or cm/s²), not m/s²; quadest takes m/s² (multiply mg by 0.00980665)"
-                )
-            if g_rest > 2.0 * GRAVITY:
-                raise ValueError(
-                    f"acc: at rest (gyroscope below {REST_RATE} rad/s, {int(rest.sum())} samples) the "
-                    f"accelerometer reads {g_rest:.3g} (median norm), not gravity (9.81 m/s²): is "
-                    "it in another unit (ft/s²?) or scaled? quadest takes m/s²"
-                )
-        # the time: an IMU samples faster than once a second
-        if len(self.t) >= 10:
-            med_dt = float(np.median(np.diff(self.t)))
-            if med_dt > 1.0:
-                unit = "µs" if med_dt > 200.0 else "ms"
-                raise ValueError(
-                    f"t: the median interval is {med_dt:g} s ({1 / med_dt:.3g} Hz), slower than any "
-                    f"IMU: is the time in {unit}? quadest takes seconds"
-                )
+        check_units(self.t, self.gyr, self.acc, self.mag if self.has_mag else None)
 
     # -- properties ---------------------------------------------------------------------
     def __len__(self):

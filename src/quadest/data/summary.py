@@ -2,16 +2,18 @@
 
 import numpy as np
 
+from quadest.data.checks import GAP_FACTOR, GAP_MIN_S
 from quadest.data.recording import TRUTH_FIELDS, Recording
 
-GAP_FACTOR = 1.5  # an interval longer than this many median intervals counts as a gap
+IRREGULAR_FACTOR = 1.5  # an interval longer than this many median intervals is irregular
 
 
 def summarize(rec: Recording) -> dict:
     """Facts about a recording as a plain dict (JSON-serialisable)."""
     dt = np.diff(rec.t)
     med = float(np.median(dt)) if len(dt) else float("nan")
-    gaps = np.flatnonzero(dt > GAP_FACTOR * med) if len(dt) else np.array([], int)
+    gaps = np.flatnonzero(dt > max(GAP_FACTOR * med, GAP_MIN_S)) if len(dt) else np.array([], int)
+    irregular = int((dt > IRREGULAR_FACTOR * med).sum()) if len(dt) else 0
     out = {
         "samples": len(rec),
         "t_start_s": float(rec.t[0]),
@@ -26,6 +28,7 @@ def summarize(rec: Recording) -> dict:
             "longest_s": float(dt[gaps].max()) if len(gaps) else 0.0,
             "first_at_s": float(rec.t[gaps[0]]) if len(gaps) else None,
         },
+        "irregular_intervals": irregular,
         "ranges": {},
         "truth": {k: TRUTH_FIELDS[k][1] for k in rec.truth},
         "units": rec.meta.get("units", {}),
@@ -41,9 +44,11 @@ def summarize(rec: Recording) -> dict:
                 "max": a[ok].max(axis=0).tolist(),
                 "norm_mean": float(np.linalg.norm(a[ok], axis=1).mean()),
             }
-    for key in ("source", "format", "dataset", "frames", "scenario", "preset", "seed"):
+    for key in ("source", "format", "dataset", "frames", "reference", "scenario", "preset", "seed"):
         if key in rec.meta:
             out[key] = rec.meta[key]
+    out["declination_deg"] = float(np.degrees(rec.declination))
+    out["declination_source"] = rec.meta.get("declination_source", "none stated: 0 (give --declination-deg)")
     return out
 
 
@@ -51,9 +56,11 @@ def format_summary(s: dict, name: str = "") -> str:
     """Human-readable text of :func:`summarize`'s dict."""
     u = s.get("units", {})
     lines = [f"recording   {name}".rstrip()]
-    for key in ("source", "format", "dataset", "frames", "scenario", "preset", "seed"):
+    for key in ("source", "format", "dataset", "frames", "reference", "scenario", "preset", "seed"):
         if key in s:
             lines.append(f"{key:<11} {s[key]}")
+    if "declination_deg" in s:
+        lines.append(f"declination {s['declination_deg']:+.2f}° ({s['declination_source']})")
     lines += [
         f"samples     {s['samples']}",
         f"duration    {s['duration_s']:.3f} s (from t = {s['t_start_s']:.3f} s)",
@@ -71,11 +78,13 @@ def format_summary(s: dict, name: str = "") -> str:
         )
     g = s["gaps"]
     lines.append(
-        f"gaps        {g['count']} (intervals > {GAP_FACTOR:g}x median), longest "
-        f"{g['longest_s'] * 1e3:.1f} ms, first at t = {g['first_at_s']:.3f} s"
+        f"gaps        {g['count']} (intervals > {GAP_FACTOR:g}x median and {GAP_MIN_S:g} s: the estimators "
+        f"start again after each), longest {g['longest_s'] * 1e3:.1f} ms, first at t = {g['first_at_s']:.3f} s"
         if g["count"]
         else "gaps        none"
     )
+    if s.get("irregular_intervals"):
+        lines.append(f"irregular   {s['irregular_intervals']} intervals > {IRREGULAR_FACTOR:g}x median")
     for name, r in s["ranges"].items():
         unit = u.get(name, "")
         lo = ", ".join(f"{v:+.3g}" for v in r["min"])

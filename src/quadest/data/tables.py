@@ -4,10 +4,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pyarrow as pa
-import pyarrow.csv as pcsv
-import pyarrow.parquet as pq
-
 from quadest.data.files import atomic_output
 
 
@@ -18,6 +14,10 @@ def write_table(cols: dict, path: str | Path) -> Path:
     suffix = path.suffix.lower()
     if suffix not in (".csv", ".parquet", ".pq"):
         raise ValueError(f"{path}: use .csv or .parquet")
+    import pyarrow as pa  # loaded when a table is written, not by `import quadest`
+    import pyarrow.csv as pcsv
+    import pyarrow.parquet as pq
+
     table = pa.table(cols)
     with atomic_output(path) as tmp:
         if suffix == ".csv":

@@ -10,6 +10,8 @@ from collections.abc import Callable, Iterable, Sequence
 from contextlib import contextmanager
 from typing import Any
 
+from quadest.extras import need
+
 
 def _connect(scheduler: str, timeout_s: float):
     """A client on ``scheduler``, within ``timeout_s`` for the whole handshake: Dask's own
@@ -18,7 +20,7 @@ def _connect(scheduler: str, timeout_s: float):
     The client is made in a daemon thread, so a hung handshake cannot keep the process alive."""
     import threading
 
-    from dask.distributed import Client
+    Client = need("distributed", "a Dask cluster (workers or a scheduler)").Client
 
     box: dict = {}
 
@@ -50,7 +52,8 @@ def dask_client(workers: int | None = None, scheduler: str | None = None, timeou
     """A client on ``scheduler`` (tcp://host:port; the handshake must finish within
     ``timeout_s``), or on a local cluster of ``workers`` single-threaded worker processes
     (default: one per core)."""
-    from dask.distributed import Client, LocalCluster
+    distributed = need("distributed", "a Dask cluster (workers or a scheduler)")
+    Client, LocalCluster = distributed.Client, distributed.LocalCluster
 
     if workers is not None and workers < 0:
         raise ValueError(f"workers must be 0 or more, got {workers}")
@@ -61,7 +64,7 @@ def dask_client(workers: int | None = None, scheduler: str | None = None, timeou
         finally:
             client.close()
         return
-    import dask
+    dask = need("dask", "a Dask cluster (workers or a scheduler)")
 
     n = workers or os.cpu_count() or 1
     # Dask's nanny sets MALLOC_TRIM_THRESHOLD_=65536 in its workers, which switches off glibc's
@@ -138,7 +141,7 @@ def execute(
                 done(i, r)
             stats["compute_s"] = time.perf_counter() - t0
             return results
-        from dask.distributed import as_completed
+        as_completed = need("distributed", "a Dask cluster (workers or a scheduler)").as_completed
 
         with dask_client(workers, scheduler) as client:
             nthreads = sum(client.nthreads().values()) or 1

@@ -92,7 +92,8 @@ def truth_of(rec: Recording) -> str:
 
 def evaluation_mask(rec: Recording, t_from: float | None = None) -> np.ndarray:
     """Rows to evaluate: ``meta['evaluate_intervals_s']`` (BROAD's movement phases) or all,
-    from ``t_from`` on."""
+    from ``t_from`` seconds after the recording's first sample on (a log's time need not start
+    at 0)."""
     iv = rec.meta.get("evaluate_intervals_s")
     if iv:
         m = np.zeros(len(rec), bool)
@@ -101,7 +102,7 @@ def evaluation_mask(rec: Recording, t_from: float | None = None) -> np.ndarray:
     else:
         m = np.ones(len(rec), bool)
     if t_from is not None:
-        m &= rec.t >= t_from
+        m &= rec.t >= rec.t[0] + t_from
     return m
 
 

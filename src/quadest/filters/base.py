@@ -37,7 +37,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from quadest._jit import cfunc, types
+from quadest.data.checks import GAP_FACTOR, GAP_MIN_S
 from quadest.errors import UsageError
+from quadest.extras import need
 from quadest.filters.common import BASE, DECL, INIT, Q_OUT, RESTARTS, SKIPPED, T_LAST
 from quadest.records import Params, check, field_offsets, pack, params_record  # noqa: F401 -- the filters take them from here
 from quadest.rotation import quat_mul, quat_to_euler
@@ -76,10 +78,27 @@ class FilterResult:
     restarts: tuple = ()
     """Times (s) at which the estimator started again from the sensors after a gap."""
 
+    frame: str = "ned-frd"
+    """The frames of ``q``: ``"ned-frd"`` (quadest's) or ``"enu-flu"`` (as the input was given)."""
+
     @property
     def euler(self) -> np.ndarray:
         """``[roll, pitch, yaw]`` (rad, ZYX) per sample."""
         return quat_to_euler(self.q)
+
+    @property
+    def diagnostics(self) -> dict:
+        """The estimator's per-sample diagnostics by name (``diag``)."""
+        return self.diag
+
+    def to_pandas(self) -> pandas.DataFrame:  # noqa: F821 (pandas is optional: loaded when called)
+        """A pandas DataFrame indexed by ``t``: ``q_w..q_z``, ``roll, pitch, yaw`` (rad) and the
+        diagnostics."""
+        pd = need("pandas", "FilterResult.to_pandas")
+        cols = {f"q_{a}": self.q[:, i] for i, a in enumerate("wxyz")}
+        cols.update(zip(("roll", "pitch", "yaw"), self.euler.T))
+        cols.update({k: v for k, v in self.diag.items() if k not in cols})
+        return pd.DataFrame(cols, index=pd.Index(self.t, name="t"))
 
 
 def declination_quat(declination: float) -> np.ndarray:
@@ -334,12 +353,14 @@ class Estimator:
         gyr: ArrayLike | None = None,
         acc: ArrayLike | None = None,
         mag: ArrayLike | None = None,
+        rate: float | None = None,
     ) -> FilterResult:
         """Run over a whole recording (or arrays) in compiled code, continuing from the current
-        state. Returns the attitude per sample and the diagnostics."""
+        state. Returns the attitude per sample and the diagnostics. Arrays are timed by ``t``
+        (s) or, evenly, by ``rate`` (Hz)."""
         if rec is not None:
             t, gyr, acc, mag = rec.t, rec.gyr, rec.acc, rec.mag
-        t = np.asarray(t, dtype=np.float64)
+        t = sample_times(t, rate, gyr, self.name)
         n = len(t)
         gyr = np.ascontiguousarray(gyr, dtype=np.float64)
         acc = np.ascontiguousarray(acc, dtype=np.float64)
@@ -428,10 +449,6 @@ def _vec3(v):
     return a
 
 
-GAP_FACTOR = 10.0
-"""Batch: an interval longer than this many nominal intervals is a gap..."""
-GAP_MIN_S = 0.1
-"""...and longer than this many seconds (a brief hiccup of a fast sensor is integrated over)."""
 STREAM_GAP_S = 0.5
 """Streaming: an interval longer than this is a gap (no median is known there); set
 ``max_gap_s`` to choose."""
@@ -441,6 +458,17 @@ def _nominal_interval(dt) -> float:
     """The median of the usable (positive, finite) intervals; 0 when there is none."""
     ok = dt[np.isfinite(dt) & (dt > 0)]
     return float(np.median(ok)) if len(ok) else 0.0
+
+
+def sample_times(t, rate, gyr, who: str) -> np.ndarray:
+    """``t`` as float64, or ``k / rate`` for the rows of ``gyr``; exactly one must be given."""
+    if (t is None) == (rate is None):
+        raise UsageError(f"{who}: give the sample times t (s) or the sample rate rate (Hz), one of them")
+    if t is not None:
+        return np.asarray(t, dtype=np.float64)
+    if not (isinstance(rate, (int, float, np.number)) and math.isfinite(rate) and rate > 0):
+        raise UsageError(f"{who}: rate must be a positive number of samples per second, got {rate!r}")
+    return np.arange(len(np.asarray(gyr))) / float(rate)
 
 
 def sample_intervals(t) -> np.ndarray:

@@ -34,7 +34,7 @@ from numpy.typing import ArrayLike
 
 from quadest.conventions import GRAVITY
 from quadest.errors import UsageError
-from quadest.filters.base import Estimator, FilterResult, Params, declination_quat, sample_intervals
+from quadest.filters.base import Estimator, FilterResult, Params, declination_quat, sample_intervals, sample_times
 from quadest.records import param
 from quadest.rotation import quat_conj, quat_mul
 from quadest.rotation.frames import quat_enu_flu_to_ned_frd, vec_frd_to_flu
@@ -139,11 +139,12 @@ class Peer(Estimator):
         gyr: ArrayLike | None = None,
         acc: ArrayLike | None = None,
         mag: ArrayLike | None = None,
+        rate: float | None = None,
     ) -> FilterResult:
-        """The peer over a whole recording (or arrays), from its own start."""
+        """The peer over a whole recording (or arrays timed by ``t`` or ``rate``), from its own start."""
         if rec is not None:
             t, gyr, acc, mag = rec.t, rec.gyr, rec.acc, rec.mag
-        t = np.asarray(t, float)
+        t = sample_times(t, rate, gyr, self.name)
         mag = np.full((len(t), 3), np.nan) if mag is None else np.asarray(mag, float)
         has_mag = bool(np.isfinite(mag[:, 0]).any())
         self._require()

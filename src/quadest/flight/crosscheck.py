@@ -18,6 +18,7 @@ import time
 import numpy as np
 
 from quadest.control import SE3Params, circle_reference, hover_reference
+from quadest.extras import need
 from quadest.flight.truth import fly_se3
 from quadest.models.multirotor import vehicle_preset
 
@@ -30,6 +31,7 @@ def rotorpy_available() -> bool:
 
 
 def _rotorpy_flight(trajectory, x0, duration, rate_hz, start=None):
+    need("rotorpy", "the cross-check against RotorPy")
     from rotorpy.controllers.quadrotor_control import SE3Control
     from rotorpy.environments import Environment
     from rotorpy.vehicles.hummingbird_params import quad_params

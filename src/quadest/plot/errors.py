@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from quadest.evaluation.metrics import AXES, euler_errors
-from quadest.plot.save import save_figure
+from quadest.plot.save import pyplot, save_figure
 
 
 def plot_errors(
@@ -16,10 +16,7 @@ def plot_errors(
 ) -> list[Path]:
     """One PNG per axis in ``out_dir`` (``error_roll.png`` ...), every estimator as a line.
     Returns the paths."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -30,7 +27,7 @@ def plot_errors(
         for name, e in errs.items():
             ax.plot(t, e[:, i], lw=0.7, label=name)
         if t_from is not None:
-            ax.axvline(t_from, color="k", ls=":", lw=0.8)
+            ax.axvline(t[0] + t_from, color="k", ls=":", lw=0.8)
         ax.set_xlabel("time [s]")
         ax.set_ylabel(f"{axis} error [deg]")
         ax.set_title(f"{axis} estimate error {title}".strip())

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from quadest.plot.save import save_figure
+from quadest.plot.save import pyplot, save_figure
 from quadest.rotation import quat_to_euler
 
 if TYPE_CHECKING:
@@ -18,10 +18,7 @@ if TYPE_CHECKING:
 def plot_flight(flight: Flight, path: str | Path, title: str = "") -> Path:
     """Top view and height of the path (true and estimated), roll and pitch (true and as the
     controller read them), rotor speeds; the failure and the end of a run that crashed marked."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     rec, x, s = flight.recording, flight.states, flight.summary
     t = rec.t

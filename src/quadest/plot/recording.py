@@ -7,17 +7,14 @@ from pathlib import Path
 import numpy as np
 
 from quadest.data.recording import Recording
-from quadest.plot.save import save_figure
+from quadest.plot.save import pyplot, save_figure
 from quadest.rotation import quat_to_euler
 
 
 def plot_recording(rec: Recording, path: str | Path, title: str | None = None) -> str | Path:
     """Write a PNG/PDF/SVG with attitude (when truth is present), rates, accelerometer and
     magnetometer over time. Returns the path."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     panels = (["att"] if rec.true_q is not None else []) + ["gyr", "acc"] + (["mag"] if rec.has_mag else [])
     fig, axes = plt.subplots(len(panels), 1, figsize=(10, 2.4 * len(panels)), sharex=True, constrained_layout=True)

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from quadest.plot.save import save_figure
+from quadest.plot.save import pyplot, save_figure
 from quadest.recovery.logic import angle_deg, true_gravity_dir
 from quadest.rotation import quat_conj, quat_rotate
 
@@ -19,10 +19,7 @@ if TYPE_CHECKING:
 def plot_recovery(res: RecoveryResult, rec: Recording, path: str | Path, title: str = "") -> str | Path:
     """Angle error of every hypothesis and of the most likely one (Fig 3, top), the hypothesis
     probabilities (Fig 3, bottom) and estimated against true body velocity (Fig 2)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     t = res.t - res.t[0]
     k0 = res.detect_index if res.detect_index is not None else 0
@@ -72,10 +69,7 @@ def plot_recovery(res: RecoveryResult, rec: Recording, path: str | Path, title: 
 
 def plot_recovery_histograms(runs: dict, path: str | Path) -> str | Path:
     """Gravity-direction and velocity errors at convergence over throws, per model case (Fig 1)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 3.8), constrained_layout=True)
     for name, summaries in runs.items():

@@ -24,6 +24,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from quadest.data.recording import Recording, load_recording
+from quadest.extras import need
 from quadest.readers import datasets, generic, logs, ros
 from quadest.readers.common import ReaderError
 
@@ -84,7 +85,7 @@ def detect_format(path: str | Path) -> str:
     if ext == ".mat":
         return "broad"
     if ext in (".hdf5", ".h5") or head.startswith(b"\x89HDF"):
-        import h5py
+        h5py = need("h5py", "reading an HDF5 file")
 
         try:
             with h5py.File(p, "r") as f:

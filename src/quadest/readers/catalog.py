@@ -18,10 +18,10 @@ import urllib.request
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import pooch
 from tqdm import tqdm
 
 from quadest.errors import UsageError
+from quadest.extras import need
 
 
 @dataclass(frozen=True)
@@ -257,6 +257,7 @@ def fetch(name: str, *, root=None, trials=None, progress: bool = True, catalog=N
         raise UsageError(f"dataset {name!r} is not fetched by quadest: {d.instructions}")
     folder = cache_dir(root) / d.name
     partial = cache_dir(root) / ".partial"
+    pooch = need("pooch", "quadest data fetch")
     pooch.get_logger().setLevel("WARNING")
     for f in select_files(d, trials):
         target = folder / f.path

@@ -82,11 +82,11 @@ MAX_DROPPED_SHARE = 0.05
 
 
 def make_recording(path, fmt: str, t, gyr, acc, mag=None, meta=None, **truth) -> Recording:
-    """A Recording from a reader's converted arrays: time starts at 0 (the file's first time is
-    kept in ``meta['t0_s']``), rows with repeated or decreasing timestamps or non-finite IMU
-    values are dropped (and counted in ``meta['dropped_rows']``; every command reports them),
-    more than ``MAX_DROPPED_SHARE`` of them is refused, and any validation error names the
-    file."""
+    """A Recording from a reader's converted arrays, in the file's own time (so an output joins
+    the file's other data; where it starts is also ``meta['t0_s']``); rows with repeated or
+    decreasing timestamps or non-finite IMU values are dropped (and counted in
+    ``meta['dropped_rows']``; every command reports them), more than ``MAX_DROPPED_SHARE`` of
+    them is refused, and any validation error names the file."""
     t = np.asarray(t, float)
     if len(t) == 0:
         raise ReaderError(f"{path}: no IMU samples")
@@ -110,7 +110,7 @@ def make_recording(path, fmt: str, t, gyr, acc, mag=None, meta=None, **truth) ->
     kw = {k: (np.asarray(v, float)[good] if v is not None else None) for k, v in truth.items()}
     try:
         return Recording(
-            t=t[good] - t[good][0],
+            t=t[good],
             gyr=np.asarray(gyr, float)[good],
             acc=np.asarray(acc, float)[good],
             mag=None if mag is None else np.asarray(mag, float)[good],

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from quadest.extras import need
 from quadest.readers.common import ReaderError, make_recording, resample_quat, z_up_nav_to_ned
 from quadest.rotation.frames import quat_enu_flu_to_ned_frd, vec_enu_to_ned, vec_flu_to_frd
 
@@ -21,7 +22,7 @@ DAMAGE = (OSError, RuntimeError, KeyError, TypeError, IndexError, AttributeError
 def _h5(path):
     """An open HDF5 file; any failure of h5py inside the block (a damaged file) becomes one
     ReaderError naming the file."""
-    import h5py
+    h5py = need("h5py", "reading an HDF5 file")
 
     try:
         f = h5py.File(path, "r")
@@ -43,7 +44,7 @@ def _h5_read(f, name, path):
     """A dataset of an open HDF5 file as an array, after checking what it declares against what
     the file stores: a damaged or crafted file can declare 10⁸ rows in a few kilobytes, and
     reading it would allocate gigabytes of fill values."""
-    import h5py
+    h5py = need("h5py", "reading an HDF5 file")
 
     ds = f[name]
     if not isinstance(ds, h5py.Dataset):

@@ -8,6 +8,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
+from quadest.extras import need
 from quadest.readers.common import ReaderError, mag_on_imu_rows, make_recording, resample_quat
 from quadest.rotation import euler_to_quat
 
@@ -44,7 +45,7 @@ def _read_ulog(path, *, instance: int = 0):
     ``sensor_gyro``), magnetometer from ``vehicle_magnetometer``, ``sensor_mag`` or the
     ``magnetometer_ga`` fields of old ``sensor_combined`` (gauss -> µT), and the onboard EKF2
     attitude ``vehicle_attitude.q`` as ``ref_q``."""
-    from pyulog import ULog
+    ULog = need("pyulog", "reading a PX4 ULog").ULog
 
     topics = [
         "sensor_combined",
@@ -106,6 +107,7 @@ def _read_ulog(path, *, instance: int = 0):
         "frames": "NED/FRD (PX4's own)",
         "reference": "vehicle_attitude (EKF2) as ref_q",
         "ulog_corrupt": corrupt,
+        **_ulog_declination(ulog),
     }
     if corrupt:
         meta["warnings"] = [
@@ -114,6 +116,21 @@ def _read_ulog(path, *, instance: int = 0):
             "from a complete one)"
         ]
     return make_recording(path, "ulog", t, gyr, acc, mag, meta, **truth)
+
+
+PX4_DECLINATION = ("EKF2_MAG_DECL", "ATT_MAG_DECL")
+"""PX4's declination parameters (degrees, east positive): EKF2's, and the older attitude
+estimator's; the log's last value is the one the autopilot used last."""
+
+
+def _ulog_declination(ulog) -> dict:
+    """``{"declination_rad", "declination_source"}`` from the log's parameters, or nothing."""
+    for name in PX4_DECLINATION:
+        values = [v for _, n, v in getattr(ulog, "changed_parameters", []) if n == name]
+        value = values[-1] if values else ulog.initial_parameters.get(name)
+        if value is not None and np.isfinite(value):
+            return {"declination_rad": float(np.radians(value)), "declination_source": f"the log's {name}"}
+    return {}
 
 
 def _ulog_cut(path) -> bool:
@@ -132,18 +149,19 @@ def _ulog_cut(path) -> bool:
 
 # -- ArduPilot ------------------------------------------------------------------------------------------
 def _read_dataflash(path, *, instance: int = 0):
-    """IMU (GyrX.. rad/s, AccX.. m/s²), MAG (MagX.. milligauss -> µT) and ATT (Roll, Pitch, Yaw
-    in degrees, the EKF's attitude) as ``ref_q``; instance ``I`` 0 unless chosen."""
-    from pymavlink import DFReader
+    """IMU (GyrX.. rad/s, AccX.. m/s²), MAG (MagX.. milligauss -> µT), the EKF's attitude as
+    ``ref_q`` (:func:`_dataflash_reference`) and the declination ``COMPASS_DEC``; instance ``I``
+    0 unless chosen."""
+    DFReader = need("pymavlink.DFReader", "reading an ArduPilot DataFlash log")
 
-    imu, mag, att = [], [], []
+    imu, mag, att, xkq, params = [], [], [], [], {}
     with _printed() as said:  # pymavlink prints what it skips; quadest counts it and says it once
         try:
             log = DFReader.DFReader_binary(str(path), zero_time_base=True)
         except Exception as exc:  # pymavlink raises many kinds on bad files
             raise ReaderError(f"{path}: not a readable DataFlash log ({type(exc).__name__}: {exc})") from None
         try:
-            _read_dataflash_messages(log, instance, imu, mag, att)
+            _read_dataflash_messages(log, instance, imu, mag, att, xkq, params)
         except Exception as exc:
             raise ReaderError(
                 f"{path}: DataFlash log broken after {len(imu)} IMU messages ({type(exc).__name__}: {exc})"
@@ -157,24 +175,36 @@ def _read_dataflash(path, *, instance: int = 0):
     if mag:
         mag = np.array(mag, float)
         magv = mag_on_imu_rows(t, mag[:, 0] * 1e-6, mag[:, 1:4] * 0.1)
-    truth = {}
-    if att:
-        att = np.array(att, float)
-        truth["ref_q"] = resample_quat(att[:, 0] * 1e-6, euler_to_quat(np.radians(att[:, 1:4])), t, max_gap=0.5)
+    truth, reference = _dataflash_reference(t, att, xkq)
     meta = {
         "source_format": "ArduPilot DataFlash",
         "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT"},
         "frames": "NED/FRD (ArduPilot's own)",
-        "reference": "ATT (EKF attitude) as ref_q",
+        "reference": reference,
     }
+    if np.isfinite(params.get("COMPASS_DEC", np.nan)):  # radians, east positive; its last value
+        meta.update(declination_rad=float(params["COMPASS_DEC"]), declination_source="the log's COMPASS_DEC")
     if warnings:
         meta["warnings"] = warnings
     return make_recording(path, "dataflash", t, imu[:, 1:4], imu[:, 4:7], magv, meta, **truth)
 
 
-def _read_dataflash_messages(log, instance, imu, mag, att):
+def _dataflash_reference(t, att, xkq) -> tuple[dict, str]:
+    """The EKF's quaternion (XKQ, core 0) on the IMU's rows as ``ref_q``, else ATT's Euler
+    angles (rounded to 0.01°, logged more slowly), else none."""
+    if xkq:
+        xkq = np.array(xkq, float)
+        return {"ref_q": resample_quat(xkq[:, 0] * 1e-6, xkq[:, 1:5], t, max_gap=0.5)}, "XKQ (EKF quaternion) as ref_q"
+    if att:
+        att = np.array(att, float)
+        q = euler_to_quat(np.radians(att[:, 1:4]))
+        return {"ref_q": resample_quat(att[:, 0] * 1e-6, q, t, max_gap=0.5)}, "ATT (EKF attitude) as ref_q"
+    return {}, "none"
+
+
+def _read_dataflash_messages(log, instance, imu, mag, att, xkq, params):
     while True:
-        m = log.recv_match(type=["IMU", "MAG", "ATT"])
+        m = log.recv_match(type=["IMU", "MAG", "ATT", "XKQ", "PARM"])
         if m is None:
             return
         kind = m.get_type()
@@ -185,6 +215,10 @@ def _read_dataflash_messages(log, instance, imu, mag, att):
             mag.append((m.TimeUS, m.MagX, m.MagY, m.MagZ))
         elif kind == "ATT":
             att.append((m.TimeUS, m.Roll, m.Pitch, m.Yaw))
+        elif kind == "XKQ" and getattr(m, "C", 0) == 0:
+            xkq.append((m.TimeUS, m.Q1, m.Q2, m.Q3, m.Q4))
+        elif kind == "PARM":
+            params[m.Name] = m.Value
 
 
 @contextmanager

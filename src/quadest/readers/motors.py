@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from quadest.extras import need
 from quadest.readers.common import ReaderError
 from quadest.readers.logs import LOG_DAMAGE, _printed
 
@@ -108,7 +109,7 @@ def read_motor_log(path: str | Path) -> MotorLog:
 
 # -- ArduPilot ------------------------------------------------------------------------------------------
 def _read_ardupilot(path: Path) -> MotorLog:
-    from pymavlink import DFReader
+    DFReader = need("pymavlink.DFReader", "reading an ArduPilot DataFlash log")
 
     imu, rcou, events, params, changes = [], [], [], {}, []
     with _printed():
@@ -212,7 +213,7 @@ PX4_QUAD_X = [(45, -1), (-135, -1), (-45, 1), (135, 1)]  # PX4's quad X numberin
 
 
 def _read_px4(path: Path) -> MotorLog:
-    from pyulog import ULog
+    ULog = need("pyulog", "reading a PX4 ULog").ULog
 
     topics = ["sensor_combined", "actuator_motors", "actuator_outputs", "vehicle_land_detected"]
     try:

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from quadest.extras import need
 from quadest.readers.common import ReaderError, mag_on_imu_rows, make_recording, resample_quat
 from quadest.rotation.frames import quat_enu_flu_to_ned_frd, vec_enu_to_ned, vec_flu_to_frd
 
@@ -66,8 +67,9 @@ def _pose_of(msg):
 
 
 def read_rosbag(path, *, imu_topic=None, mag_topic=None, truth_topic=None, **_):
-    from rosbags.highlevel import AnyReader
-    from rosbags.typesys import Stores, get_typestore
+    AnyReader = need("rosbags.highlevel", "reading a ROS bag").AnyReader
+    typesys = need("rosbags.typesys", "reading a ROS bag")
+    Stores, get_typestore = typesys.Stores, typesys.get_typestore
 
     p = Path(path)
     try:

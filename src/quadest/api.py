@@ -1,0 +1,126 @@
+"""quadest as a library, in three lines (README, Python)::
+
+    import quadest
+    est = quadest.estimate(gyr, acc, mag, rate=200.0)  # rad/s, m/s², any unit; FRD body frame
+    est.q, est.euler, est.to_pandas()
+
+    rec = quadest.read("flight.ulg")  # every format quadest reads (docs/readers.md)
+    print(quadest.score(rec, quadest.estimate(rec)))
+
+Arrays are checked like files are (:mod:`quadest.data.checks`): a gyroscope in deg/s, an
+accelerometer in g or mg, a time in ms, a z-up body frame are each named in one error or warning
+with the fix. A sample that cannot be used (NaN, an interval that is not positive) is skipped and
+counted (``est.skipped``), never refused.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from quadest.data.checks import check_units
+from quadest.data.recording import Recording
+from quadest.errors import UsageError
+from quadest.evaluation import runner
+from quadest.filters import FilterResult, estimator_class
+from quadest.filters.base import sample_intervals, sample_times
+from quadest.readers import read_recording
+from quadest.rotation.frames import quat_ned_frd_to_enu_flu, vec_flu_to_frd
+
+FRAMES = ("ned-frd", "enu-flu")
+"""``ned-frd``: quadest's (north-east-down, forward-right-down); ``enu-flu``: ROS's (REP 103)."""
+
+
+def read(path: str | Path, format: str | None = None, **options) -> Recording:
+    """Any file or folder quadest reads, as a :class:`Recording` in quadest's conventions:
+    ULog, DataFlash, ROS bags, BROAD / DIDO / RepoIMU / Blackbird, CSV or Parquet (generic with
+    ``columns=``, or quadest's own). ``format`` overrides the detection; ``options`` go to the
+    format's reader (docs/readers.md)."""
+    return read_recording(path, format, **options)
+
+
+def _vectors(name: str, a, n: int | None) -> np.ndarray:
+    try:
+        v = np.array(a, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise UsageError(f"quadest.estimate: {name} must be a numeric array of shape (N, 3)") from None
+    if v.ndim != 2 or v.shape[1] != 3 or (n is not None and len(v) != n):
+        want = f"({n}, 3)" if n is not None else "(N, 3)"
+        raise UsageError(f"quadest.estimate: {name} must have shape {want}, got {v.shape}")
+    return v
+
+
+def _checked(t, gyr, acc, mag) -> None:
+    """The unit and frame checks of a file, on the rows an estimator would use."""
+    rows = np.isfinite(t) & (sample_intervals(t) > 0) & np.isfinite(gyr).all(1) & np.isfinite(acc).all(1)
+    if rows.sum() >= 2:
+        check_units(t[rows], gyr[rows], acc[rows], None if mag is None else mag[rows])
+
+
+def _from_recording(rec: Recording, method: str, declination: float | None, others: dict, params: dict):
+    given = sorted(k for k, v in others.items() if v is not None)
+    if given:
+        raise UsageError(f"quadest.estimate: a Recording carries its own {', '.join(given)}; give those with arrays")
+    return runner.estimate(rec, method, params, declination=declination)
+
+
+def estimate(
+    gyr: ArrayLike | Recording,
+    acc: ArrayLike | None = None,
+    mag: ArrayLike | None = None,
+    *,
+    rate: float | None = None,
+    t: ArrayLike | None = None,
+    method: str = "robust",
+    frame: str = "ned-frd",
+    declination: float | None = None,
+    check: bool = True,
+    **params,
+) -> FilterResult:
+    """The attitude over a whole recording, or over arrays: ``gyr`` (rad/s) and ``acc`` (m/s²)
+    of shape (N, 3), ``mag`` optional (any unit; a NaN row: no new sample), timed by ``t`` (s) or
+    ``rate`` (Hz). ``method``: an estimator's name (``quadest.ESTIMATORS``); ``params`` its
+    parameters. ``frame``: the body and navigation frames of the arrays and of the result's
+    ``q`` (:data:`FRAMES`). ``declination`` (rad, east positive) turns the magnetic heading
+    into the geographic one (a recording's own by default). ``check=False`` skips the unit checks.
+
+    Returns a :class:`~quadest.filters.FilterResult`: ``.t``, ``.q`` (``[w, x, y, z]``, body to
+    navigation), ``.euler`` (rad), ``.diagnostics``, ``.skipped``, ``.to_pandas()``."""
+    if isinstance(gyr, Recording):
+        return _from_recording(gyr, method, declination, {"acc": acc, "mag": mag, "rate": rate, "t": t}, params)
+    if frame not in FRAMES:
+        raise UsageError(f"quadest.estimate: frame must be one of {', '.join(FRAMES)}, got {frame!r}")
+    if acc is None:
+        raise UsageError("quadest.estimate: give the accelerometer acc (m/s², shape (N, 3)) beside gyr")
+    gyr = _vectors("gyr", gyr, None)
+    acc = _vectors("acc", acc, len(gyr))
+    mag = None if mag is None else _vectors("mag", mag, len(gyr))
+    t = sample_times(t, rate, gyr, "quadest.estimate")
+    if t.shape != (len(gyr),):
+        raise UsageError(f"quadest.estimate: t must have shape ({len(gyr)},), got {t.shape}")
+    if frame == "enu-flu":
+        gyr, acc = vec_flu_to_frd(gyr), vec_flu_to_frd(acc)
+        mag = None if mag is None else vec_flu_to_frd(mag)
+    if check:
+        _checked(t, gyr, acc, mag)
+    cls = estimator_class(method)
+    runner.check_params(cls.name, params)
+    res = cls(declination=0.0 if declination is None else declination, **params).run(t=t, gyr=gyr, acc=acc, mag=mag)
+    return replace(res, q=quat_ned_frd_to_enu_flu(res.q), frame=frame) if frame == "enu-flu" else res
+
+
+def score(rec: Recording, est: FilterResult | ArrayLike, **options) -> dict:
+    """Error figures (degrees) of an estimate against the recording's truth (``true_q``, or a
+    log's onboard attitude ``ref_q``): RMS and percentiles of roll, pitch, yaw and the total
+    angle, after removing the constant rotations the recording's reader names (docs/metrics).
+    ``options`` go to :func:`quadest.evaluation.runner.score` (``t_from``, ``nav``, ``body``)."""
+    if isinstance(est, FilterResult):
+        if est.frame != "ned-frd":
+            raise UsageError("quadest.score: the estimate is in ENU/FLU; a Recording is in NED/FRD")
+        if not options:
+            return runner.score_result(rec, est)
+        est = est.q
+    return runner.score(rec, np.asarray(est, dtype=np.float64), **options)

@@ -1,0 +1,163 @@
+"""Unit and frame mistakes found from the samples themselves (docs/recordings.md, checks).
+
+Magnitudes give away a gyroscope far beyond any sensor's range or an accelerometer in g or mg.
+A gyroscope in deg/s at ordinary rates does not: its values look like fast rad/s. What gives it
+away is kinematics: the magnetic field, fixed in the navigation frame and measured in the body,
+turns as ``dm/dt = −ω × m``, so the gyroscope's rates scaled by ``s`` must explain its turning
+with ``s ≈ 1``. ``s`` is fitted by least squares (with the magnetometer's constant offset, hard
+iron, beside it); a gyroscope in deg/s gives ``s ≈ π/180``. Without a magnetometer only the
+magnitudes are checked. A body frame that is z-up (FLU) reads ``+g`` on z at rest.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from quadest.conventions import GRAVITY
+
+REST_RATE = 0.2  # rad/s: the gyroscope below this on every axis counts as rest
+MIN_REST_SAMPLES = 20
+GYR_LIMIT = 70.0  # rad/s: ±4000 °/s, beyond any MEMS gyroscope's range
+ACC_LIMIT = 1600.0  # m/s²: about 160 g, beyond the range of a flight IMU
+
+GAP_FACTOR = 10.0
+"""The estimators' rule (batch): an interval longer than this many nominal intervals is a gap..."""
+GAP_MIN_S = 0.1
+"""...and longer than this many seconds (a brief hiccup of a fast sensor is integrated over)."""
+SCALE_BAND = 0.25
+"""The gyroscope is called too fast (deg/s) when ``s`` ± 4 standard errors lies within ±this:
+nowhere near 1, and near π/180 ≈ 0.017 (on every real recording quadest has, rad/s gave a band
+around 1 or a wide one; docs/recordings.md)."""
+
+
+def _skew(w: np.ndarray) -> np.ndarray:
+    z = np.zeros(len(w))
+    return np.stack(
+        [np.stack([z, -w[:, 2], w[:, 1]], 1), np.stack([w[:, 2], z, -w[:, 0]], 1), np.stack([-w[:, 1], w[:, 0], z], 1)],
+        1,
+    )
+
+
+def turn_scale(t, gyr, v, *, offset: bool) -> tuple[float, float]:
+    """``(s, standard error)`` of the least-squares fit ``dv/dt = −s ω × (v − b)`` over the rows
+    where ``v`` is finite (``b`` a constant offset, fitted when ``offset``), ω the gyroscope's
+    mean rate over each interval between such rows; ``(nan, inf)`` with too few rows."""
+    rows = np.flatnonzero(np.isfinite(v).all(axis=1))
+    if len(rows) < 50:
+        return float("nan"), float("inf")
+    angle = np.vstack([np.zeros((1, 3)), np.cumsum(gyr[:-1] * np.diff(t)[:, None], axis=0)])
+    dt = np.diff(t[rows])
+    w = (angle[rows[1:]] - angle[rows[:-1]]) / dt[:, None]
+    dv = np.diff(v[rows], axis=0) / dt[:, None]
+    mid = 0.5 * (v[rows[1:]] + v[rows[:-1]])
+    cols = [-np.cross(w, mid)[:, :, None]] + ([_skew(w)] if offset else [])  # ω × (s b): linear in s b
+    a, y = np.concatenate(cols, axis=2).reshape(-1, 4 if offset else 1), dv.reshape(-1)
+    keep = np.isfinite(y) & np.isfinite(a).all(axis=1)
+    a, y = a[keep], y[keep]
+    normal = a.T @ a
+    if len(y) <= a.shape[1] or np.linalg.cond(normal) > 1e12:
+        return float("nan"), float("inf")
+    x = np.linalg.solve(normal, a.T @ y)
+    r = y - a @ x
+    cov = np.linalg.inv(normal) * float(r @ r) / (len(y) - a.shape[1])
+    return float(x[0]), float(np.sqrt(cov[0, 0]))
+
+
+def gyro_scale(t, gyr, mag) -> tuple[float, float]:
+    """``(s, standard error)`` against the magnetometer's field (free of accelerations, unlike
+    gravity in the accelerometer, which on a multirotor in flight reads the thrust's direction
+    and does not turn with the body); ``(nan, inf)`` without enough magnetometer samples."""
+    if mag is None or np.isfinite(mag).all(axis=1).sum() < 50:
+        return float("nan"), float("inf")
+    return turn_scale(t, gyr, mag, offset=True)
+
+
+def check_gyro_scale(t, gyr, mag=None) -> None:
+    """Refuse a gyroscope whose rates are far faster than the turning it should explain."""
+    s, se = gyro_scale(t, gyr, mag)
+    if np.isfinite(se) and -SCALE_BAND < s - 4 * se and s + 4 * se < SCALE_BAND:
+        raise ValueError(
+            f"gyr: the gyroscope reads about {1 / max(abs(s), 1e-3):.0f} times the rotation that turns "
+            f"the magnetometer's field (scale {s:.4f} ± {se:.4f}; deg/s gives 0.0175): is it in deg/s? quadest takes "
+            "rad/s (multiply deg/s by pi/180)"
+        )
+
+
+def warn_z_up(gyr, acc) -> None:
+    """Warn when, at rest, the accelerometer reads +g along z most of the time: an FRD body
+    frame reads −g level, a z-up (FLU) one +g."""
+    norm = np.linalg.norm(acc, axis=1)
+    rest = (np.abs(gyr).max(axis=1) < REST_RATE) & (np.abs(norm - GRAVITY) < 0.1 * GRAVITY)
+    if rest.sum() >= MIN_REST_SAMPLES and np.mean(acc[rest, 2] > 0.8 * norm[rest]) > 0.5:
+        warnings.warn(
+            "acc: at rest the accelerometer reads +g along z (up): the body frame looks z-up (FLU, "
+            "ROS's); quadest takes forward-right-down: give frame='enu-flu' (--frame enu-flu)",
+            stacklevel=3,
+        )
+
+
+def _first_row(mask) -> int:
+    return int(np.flatnonzero(mask)[0])
+
+
+def check_magnitudes(t, gyr, acc) -> None:
+    """Refuse magnitudes that show a unit mistake: a gyroscope beyond any sensor, an
+    accelerometer in g or mg or scaled, a time in ms or µs."""
+    big = np.abs(gyr).max(axis=1) > GYR_LIMIT
+    if big.any():
+        i = _first_row(big)
+        raise ValueError(
+            f"gyr: {np.abs(gyr[i]).max():.1f} at row {i} exceeds {GYR_LIMIT:.0f} rad/s, "
+            "more than any MEMS gyroscope measures: is the gyroscope in deg/s? "
+            "quadest takes rad/s (multiply deg/s by pi/180)"
+        )
+    with np.errstate(over="ignore"):  # a damaged file may hold 1e300: its norm is inf, refused below
+        norm = np.linalg.norm(acc, axis=1)
+    big = norm > ACC_LIMIT
+    if big.any():
+        i = _first_row(big)
+        raise ValueError(
+            f"acc: norm {norm[i]:.1f} at row {i} exceeds {ACC_LIMIT:.0f} m/s²: "
+            "is the accelerometer in mg or raw counts? quadest takes m/s²"
+        )
+    med, p95 = np.median(norm), np.percentile(norm, 95)
+    if len(norm) >= 10 and 0.5 < med < 1.5 and p95 < 3.0:
+        raise ValueError(
+            f"acc: norms look like g, not m/s² (median {med:.3f}, row 0 reads "
+            f"{norm[0]:.3f}); quadest takes m/s² (multiply g by 9.80665)"
+        )
+    # not rotating (gyroscope quiet), the accelerometer reads gravity (about 9.8 m/s²) or,
+    # falling without rotation, less: never much more
+    rest = np.abs(gyr).max(axis=1) < REST_RATE
+    if rest.sum() >= MIN_REST_SAMPLES:
+        g_rest = float(np.median(norm[rest]))
+        if 500.0 < g_rest < 2000.0:  # 1 g = 1000 mg
+            raise ValueError(
+                f"acc: at rest the accelerometer reads {g_rest:.0f} (median norm): that is gravity "
+                "in mg (or cm/s²), not m/s²; quadest takes m/s² (multiply mg by 0.00980665)"
+            )
+        if g_rest > 2.0 * GRAVITY:
+            raise ValueError(
+                f"acc: at rest (gyroscope below {REST_RATE} rad/s, {int(rest.sum())} samples) the "
+                f"accelerometer reads {g_rest:.3g} (median norm), not gravity (9.81 m/s²): is "
+                "it in another unit (ft/s²?) or scaled? quadest takes m/s²"
+            )
+    # the time: an IMU samples faster than once a second
+    if len(t) >= 10:
+        med_dt = float(np.median(np.diff(t)))
+        if med_dt > 1.0:
+            unit = "µs" if med_dt > 200.0 else "ms"
+            raise ValueError(
+                f"t: the median interval is {med_dt:g} s ({1 / med_dt:.3g} Hz), slower than any "
+                f"IMU: is the time in {unit}? quadest takes seconds"
+            )
+
+
+def check_units(t, gyr, acc, mag=None) -> None:
+    """Every check of this module on finite samples: errors for unit mistakes, a warning for a
+    z-up body frame."""
+    check_magnitudes(t, gyr, acc)
+    check_gyro_scale(t, gyr, mag)
+    warn_z_up(gyr, acc)

@@ -1,0 +1,76 @@
+"""PX4 ULog and ArduPilot DataFlash logs written by hand from their specifications, for the
+tests and for the check of the built wheel (tools/check_wheel.py): numpy and struct only."""
+
+import struct
+from pathlib import Path
+
+import numpy as np
+
+from quadest.rotation import quat_to_euler
+
+
+def _ulog_msg(kind, payload):
+    return struct.pack("<HB", len(payload), ord(kind)) + payload
+
+
+def _ulog_param(name: str, value: float) -> bytes:
+    key = f"float {name}".encode()
+    return _ulog_msg("P", struct.pack("<B", len(key)) + key + struct.pack("<f", value))
+
+
+def write_ulog(path, flight, truncate_at=None, params=None, t0_us=1_000_000):
+    """A minimal ULog (format version 1): header, flag bits, formats, ``params`` (name → float),
+    subscriptions, data; the IMU's first timestamp ``t0_us``."""
+    topics = {
+        "sensor_combined": ("uint64_t timestamp;float[3] gyro_rad;float[3] accelerometer_m_s2;", 0),
+        "vehicle_magnetometer": ("uint64_t timestamp;float[3] magnetometer_ga;", 1),
+        "vehicle_attitude": ("uint64_t timestamp;float[4] q;", 2),
+    }
+    out = b"ULog\x01\x12\x35\x01" + struct.pack("<Q", 0)
+    out += _ulog_msg("B", bytes(16) + struct.pack("<3Q", 0, 0, 0))
+    for name, (fmt, _) in topics.items():
+        out += _ulog_msg("F", f"{name}:{fmt}".encode())
+    for name, value in (params or {}).items():
+        out += _ulog_param(name, value)
+    for name, (_, mid) in topics.items():
+        out += _ulog_msg("A", struct.pack("<BH", 0, mid) + name.encode())
+    for k in range(len(flight)):
+        us = int(round(flight.t[k] * 1e6)) + t0_us
+        out += _ulog_msg("D", struct.pack("<HQ6f", 0, us, *flight.gyr[k], *flight.acc[k]))
+        out += _ulog_msg("D", struct.pack("<HQ3f", 1, us, *(flight.mag[k] / 100.0)))
+        if k % 4 == 0:
+            out += _ulog_msg("D", struct.pack("<HQ4f", 2, us, *flight.true_q[k]))
+    Path(path).write_bytes(out[:truncate_at] if truncate_at else out)
+
+
+def _df_fmt(mid, name, fmt, cols):
+    sizes = {"Q": 8, "B": 1, "f": 4, "n": 4, "N": 16, "Z": 64}
+    length = 3 + sum(sizes[c] for c in fmt)
+    return (
+        b"\xa3\x95\x80"
+        + struct.pack("<BB", mid, length)
+        + name.encode().ljust(4, b"\0")
+        + fmt.encode().ljust(16, b"\0")
+        + cols.encode().ljust(64, b"\0")
+    )
+
+
+def write_dataflash(path, flight, params=None, xkq=False):
+    """A DataFlash log: IMU, MAG, ATT (and XKQ when ``xkq``), PARM for ``params``."""
+    out = _df_fmt(128, "FMT", "BBnNZ", "Type,Length,Name,Format,Columns")
+    out += _df_fmt(129, "IMU", "QBffffff", "TimeUS,I,GyrX,GyrY,GyrZ,AccX,AccY,AccZ")
+    out += _df_fmt(130, "MAG", "QBfff", "TimeUS,I,MagX,MagY,MagZ")
+    out += _df_fmt(131, "ATT", "Qfff", "TimeUS,Roll,Pitch,Yaw")
+    out += _df_fmt(132, "PARM", "QNf", "TimeUS,Name,Value")
+    out += _df_fmt(133, "XKQ", "QBffff", "TimeUS,C,Q1,Q2,Q3,Q4")
+    for name, value in (params or {}).items():
+        out += b"\xa3\x95\x84" + struct.pack("<Q16sf", 400_000, name.encode(), value)
+    eul = np.degrees(quat_to_euler(flight.true_q))
+    for k in range(len(flight)):
+        us = int(round(flight.t[k] * 1e6)) + 500_000
+        out += b"\xa3\x95\x81" + struct.pack("<QB6f", us, 0, *flight.gyr[k], *flight.acc[k])
+        out += b"\xa3\x95\x82" + struct.pack("<QB3f", us, 0, *(flight.mag[k] * 10.0))
+        out += b"\xa3\x95\x83" + struct.pack("<Q3f", us, *eul[k])
+        if xkq and k % 2 == 0:
+            out += b"\xa3\x95\x85" + struct.pack("<QB4f", us, 0, *flight.true_q[k])
+    Path(path).write_bytes(out)
