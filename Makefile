@@ -1,5 +1,5 @@
 # quadest: two commands on a fresh machine (Python >= 3.11, pip, make):
-#   make demo   creates .venv, installs quadest, runs its main job (quadest reproduce afckf)
+#   make demo   creates .venv, installs quadest, runs its main job (quadest demo: reproduce afckf)
 #   make test   installs the test extra into .venv and runs every test
 PYTHON ?= python3
 VENV   ?= .venv
@@ -26,7 +26,7 @@ $(VENV)/.installed-test: $(VENV)/.installed
 install: $(VENV)/.installed
 
 demo: $(VENV)/.installed
-	@$(BIN)/quadest reproduce afckf --plot-dir $(OUT) --json $(OUT)/afckf.json --report $(OUT)/report.html
+	@$(BIN)/quadest demo --out $(OUT)
 
 test: $(VENV)/.installed-test
 	$(BIN)/python -m pytest

@@ -18,14 +18,34 @@ def _ulog_param(name: str, value: float) -> bytes:
     return _ulog_msg("P", struct.pack("<B", len(key)) + key + struct.pack("<f", value))
 
 
-def write_ulog(path, flight, truncate_at=None, params=None, t0_us=1_000_000):
+FIFO = "uint64_t timestamp;uint64_t timestamp_sample;uint32_t device_id;float dt;float scale;uint8_t samples;"
+FIFO += "int16_t[32] x;int16_t[32] y;int16_t[32] z;"
+FIFO_SCALE = {"sensor_gyro_fifo": 1e-3, "sensor_accel_fifo": 5e-3}  # rad/s, m/s² per count
+
+
+def _ulog_fifo(flight, k, us, mid, name, value):
+    """One FIFO message holding the ``k``-th group of four samples (PX4's layout: the stamp is
+    the last sample's, ``dt`` µs apart, int16 counts times ``scale``)."""
+    rows = value[4 * k : 4 * k + 4]
+    counts = np.zeros((3, 32), np.int16)
+    counts[:, : len(rows)] = np.round(rows.T / FIFO_SCALE[name])
+    dt = (flight.t[1] - flight.t[0]) * 1e6
+    head = struct.pack("<HQQIffB", mid, us, us, 1, dt, FIFO_SCALE[name], len(rows))
+    return _ulog_msg("D", head + counts.astype("<i2").tobytes())
+
+
+def write_ulog(path, flight, truncate_at=None, params=None, t0_us=1_000_000, fifo=False):
     """A minimal ULog (format version 1): header, flag bits, formats, ``params`` (name → float),
-    subscriptions, data; the IMU's first timestamp ``t0_us``."""
+    subscriptions, data; the IMU's first timestamp ``t0_us``. With ``fifo`` every sample goes
+    into sensor_gyro_fifo / sensor_accel_fifo (four a message) and sensor_combined logs every
+    fourth."""
     topics = {
         "sensor_combined": ("uint64_t timestamp;float[3] gyro_rad;float[3] accelerometer_m_s2;", 0),
         "vehicle_magnetometer": ("uint64_t timestamp;float[3] magnetometer_ga;", 1),
         "vehicle_attitude": ("uint64_t timestamp;float[4] q;", 2),
     }
+    if fifo:
+        topics.update({"sensor_gyro_fifo": (FIFO, 3), "sensor_accel_fifo": (FIFO, 4)})
     out = b"ULog\x01\x12\x35\x01" + struct.pack("<Q", 0)
     out += _ulog_msg("B", bytes(16) + struct.pack("<3Q", 0, 0, 0))
     for name, (fmt, _) in topics.items():
@@ -36,6 +56,11 @@ def write_ulog(path, flight, truncate_at=None, params=None, t0_us=1_000_000):
         out += _ulog_msg("A", struct.pack("<BH", 0, mid) + name.encode())
     for k in range(len(flight)):
         us = int(round(flight.t[k] * 1e6)) + t0_us
+        if fifo and k % 4 == 3:
+            out += _ulog_fifo(flight, k // 4, us, 3, "sensor_gyro_fifo", flight.gyr)
+            out += _ulog_fifo(flight, k // 4, us, 4, "sensor_accel_fifo", flight.acc)
+        if fifo and k % 4:
+            continue
         out += _ulog_msg("D", struct.pack("<HQ6f", 0, us, *flight.gyr[k], *flight.acc[k]))
         out += _ulog_msg("D", struct.pack("<HQ3f", 1, us, *(flight.mag[k] / 100.0)))
         if k % 4 == 0:
@@ -55,20 +80,27 @@ def _df_fmt(mid, name, fmt, cols):
     )
 
 
-def write_dataflash(path, flight, params=None, xkq=False):
-    """A DataFlash log: IMU, MAG, ATT (and XKQ when ``xkq``), PARM for ``params``."""
+def write_dataflash(path, flight, params=None, xkq=False, batch=False):
+    """A DataFlash log: IMU, MAG, ATT (and XKQ when ``xkq``; every sample as the batch sampler's
+    GYR / ACC, and IMU every fourth, when ``batch``), PARM for ``params``."""
     out = _df_fmt(128, "FMT", "BBnNZ", "Type,Length,Name,Format,Columns")
     out += _df_fmt(129, "IMU", "QBffffff", "TimeUS,I,GyrX,GyrY,GyrZ,AccX,AccY,AccZ")
     out += _df_fmt(130, "MAG", "QBfff", "TimeUS,I,MagX,MagY,MagZ")
     out += _df_fmt(131, "ATT", "Qfff", "TimeUS,Roll,Pitch,Yaw")
     out += _df_fmt(132, "PARM", "QNf", "TimeUS,Name,Value")
     out += _df_fmt(133, "XKQ", "QBffff", "TimeUS,C,Q1,Q2,Q3,Q4")
+    out += _df_fmt(134, "GYR", "QBQfff", "TimeUS,I,SampleUS,GyrX,GyrY,GyrZ")
+    out += _df_fmt(135, "ACC", "QBQfff", "TimeUS,I,SampleUS,AccX,AccY,AccZ")
     for name, value in (params or {}).items():
         out += b"\xa3\x95\x84" + struct.pack("<Q16sf", 400_000, name.encode(), value)
     eul = np.degrees(quat_to_euler(flight.true_q))
     for k in range(len(flight)):
         us = int(round(flight.t[k] * 1e6)) + 500_000
-        out += b"\xa3\x95\x81" + struct.pack("<QB6f", us, 0, *flight.gyr[k], *flight.acc[k])
+        if batch:
+            out += b"\xa3\x95\x86" + struct.pack("<QBQ3f", us + 50, 0, us, *flight.gyr[k])
+            out += b"\xa3\x95\x87" + struct.pack("<QBQ3f", us + 50, 0, us, *flight.acc[k])
+        if not batch or k % 4 == 0:
+            out += b"\xa3\x95\x81" + struct.pack("<QB6f", us, 0, *flight.gyr[k], *flight.acc[k])
         out += b"\xa3\x95\x82" + struct.pack("<QB3f", us, 0, *(flight.mag[k] * 10.0))
         out += b"\xa3\x95\x83" + struct.pack("<Q3f", us, *eul[k])
         if xkq and k % 2 == 0:

@@ -107,6 +107,13 @@ def configure() -> str | None:
 CACHE_DIR = configure()
 """Where compiled code is cached (None when ``NUMBA_CACHE_DIR`` was set by the user)."""
 
+
+def cold() -> bool:
+    """Whether nothing has been compiled into this version's cache folder yet (the first run
+    after installing or changing quadest compiles what it uses, for a minute or so)."""
+    return CACHE_DIR is not None and not any(Path(CACHE_DIR).rglob("*.nbi"))
+
+
 from numba import carray, cfunc, types  # noqa: E402  (after the cache folder is set)
 from numba import njit as _numba_njit  # noqa: E402
 
@@ -143,4 +150,4 @@ def copy_into(dst, src):
         dst[i] = src[i]
 
 
-__all__ = ["CACHE_DIR", "NO_ALLOCATION", "carray", "cfunc", "copy_into", "njit", "types"]
+__all__ = ["CACHE_DIR", "NO_ALLOCATION", "carray", "cfunc", "cold", "copy_into", "njit", "types"]

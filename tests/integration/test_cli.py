@@ -1,7 +1,9 @@
 """The command line, run in-process and headless."""
 
+import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -104,12 +106,14 @@ def test_errors_are_one_line(tmp_path, capsys):
     assert code == 1 and "missing column" in err
 
 
-def test_demo(tmp_path, capsys):
-    code, text, _ = run(capsys, "demo", "--out", str(tmp_path))
-    assert code == 0 and "step 3/3" in text
-    rec = load_recording(tmp_path / "damaged-rotor.csv")
-    assert len(rec) == 15001 and np.isfinite(rec.gyr).all()
-    assert (tmp_path / "damaged-rotor.png").is_file()
+def test_demo_is_what_make_demo_runs(tmp_path, capsys):
+    """`make demo` runs `quadest demo`, which is reproduce afckf with its plots, JSON and report."""
+    make = (Path(__file__).resolve().parents[2] / "Makefile").read_text()
+    assert "$(BIN)/quadest demo --out $(OUT)" in make
+    code, text, _ = run(capsys, "demo", "--out", str(tmp_path), "--seeds", "1")
+    assert code == 0 and "quadest demo: quadest reproduce afckf --plot-dir" in text
+    assert json.loads((tmp_path / "afckf.json").read_text())["seeds"] == [1]
+    assert (tmp_path / "report.html").stat().st_size > 10_000 and list(tmp_path.glob("afckf/*.png"))
 
 
 def test_console_script_entry_point():
@@ -380,3 +384,24 @@ def test_reproduce_recovery_flies_the_throws(tmp_path, capsys):
     case = r["cases"]["upward"]
     assert case["throws"] == 2 and len(case["runs"]) == 2 and case["detected"] == 2
     assert (tmp_path / "p" / "recovery" / "flown-throw.png").is_file()
+
+
+def test_a_cold_compile_is_said_at_a_terminal(monkeypatch):
+    """One line before the first compile of a version, for a person at a terminal only."""
+    import io
+
+    from quadest import _jit
+    from quadest.cli import main as cli_main
+    from quadest.cli.main import build_parser
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    args = build_parser().parse_args(["estimate", "x.csv", "-o", "y.csv"])
+    for tty, cold, said in ((True, True, True), (False, True, False), (True, False, False)):
+        err = Terminal() if tty else io.StringIO()
+        monkeypatch.setattr(cli_main.sys, "stderr", err)
+        monkeypatch.setattr(_jit, "cold", lambda cold=cold: cold)
+        cli_main.say_if_compiling(args)
+        assert ("compiling its numerical code" in err.getvalue()) == said

@@ -322,3 +322,48 @@ def test_a_report_never_overwrites_an_input(reports, capsys):
         err = capsys.readouterr().err
         assert len(err.strip().splitlines()) == 1, err
     assert (reports / "flight.csv").read_bytes() == before
+
+
+def test_one_colour_per_estimator_and_legends_beside_the_data(reports):
+    """An estimator has one colour in every plot of a page (attitude and errors alike), and each
+    legend stands beside its plot, not over the data."""
+    from bokeh.models import Legend, Plot
+
+    from quadest.evaluation.inspect import report_data
+    from quadest.plot.report import report_layout
+
+    rec = read_recording(reports / "flight.csv")
+    summ, att = report_data(rec, ["robust", "madgwick", "afckf"])
+    colour_of, seen = {}, 0
+    for plot in report_layout(rec, summ, att, "t").select({"type": Plot}):
+        if not (plot.name or "").startswith(("attitude-", "error-")):
+            continue
+        (legend,) = [r for r in plot.right if isinstance(r, Legend)]
+        assert not [r for r in plot.center if isinstance(r, Legend)]
+        for item in legend.items:
+            colour = item.renderers[0].glyph.line_color
+            assert colour_of.setdefault(item.label.value, colour) == colour, item.label.value
+            seen += 1
+    assert seen == 3 * 4 + 3 * 3 and len(set(colour_of.values())) == 4  # truth and three estimators
+
+
+def test_report_defaults_span_and_vibration(reports, tmp_path):
+    """robust is among the default estimators; --from / --to cut the span shown and scored (seconds
+    after the first sample); vibration says n/a where the IMU is too slow to tell it."""
+    from quadest.cli.main import build_parser
+    from quadest.evaluation.inspect import summary
+
+    assert "robust" in build_parser().parse_args(["report", "x.csv", "-o", "y.html"]).filters.split(",")
+    out = tmp_path / "span.json"
+    argv = ["report", str(reports / "flight.csv"), "--filters", "madgwick", "--from", "2", "--to", "4.5"]
+    assert main([*argv, "-o", str(tmp_path / "span.html"), "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["summary"]["duration_s"] == pytest.approx(2.5, abs=0.01)
+    assert main([*argv[:-4], "--from", "9", "--to", "3", "-o", str(tmp_path / "x.html")]) == 2
+    slow = simulate("nominal", "lowcost-20hz", seed=1, duration=20.0)
+    s = summary(slow)
+    assert s["vibration_rms_m_s2"] is None and s["vibration_source"].startswith("n/a: the IMU at 20 Hz")
+    fast = read_recording(reports / "flight.csv")
+    assert summary(fast)["vibration_source"] == "the accelerometer"
+    own = {"source": "the log's VIBE messages", "rms_m_s2": [0.1, 0.2, 0.3], "max_m_s2": [1, 1, 1], "clips": 0}
+    fast.meta["vibration"] = own
+    assert summary(fast)["vibration_rms_m_s2"] == [0.1, 0.2, 0.3]

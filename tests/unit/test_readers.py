@@ -11,7 +11,7 @@ from logwriters import write_dataflash, write_ulog
 
 from quadest.cli.main import main
 from quadest.readers import ReaderError, detect_format, read_recording
-from quadest.rotation import angle_between, quat_rotate
+from quadest.rotation import angle_between, quat_mul, quat_rotate
 from quadest.rotation.frames import quat_ned_frd_to_enu_flu, vec_frd_to_flu, vec_ned_to_enu
 from quadest.sim import simulate
 
@@ -200,7 +200,9 @@ def test_repoimu_zero_quaternions_have_no_truth(tmp_path, flight):
 
 
 # -- ROS bags --------------------------------------------------------------------------------------------
-def _ros_msgs(ts, flight, ros1):
+def _ros_msgs(ts, flight, ros1, orientation=True):
+    """Imu (with the true orientation as the driver's own when ``orientation``; REP 145's −1
+    covariance when not), MagneticField and PoseStamped messages of ``flight``."""
     T = ts.types
     out = []
     for k in range(len(flight)):
@@ -217,8 +219,8 @@ def _ros_msgs(ts, flight, ros1):
         Q = T["geometry_msgs/msg/Quaternion"](x=q[1], y=q[2], z=q[3], w=q[0])
         imu = T["sensor_msgs/msg/Imu"](
             header=hdr,
-            orientation=T["geometry_msgs/msg/Quaternion"](x=0, y=0, z=0, w=1),
-            orientation_covariance=np.zeros(9),
+            orientation=Q if orientation else T["geometry_msgs/msg/Quaternion"](x=0, y=0, z=0, w=1),
+            orientation_covariance=np.zeros(9) if orientation else np.full(9, -1.0),
             angular_velocity=V(x=w[0], y=w[1], z=w[2]),
             angular_velocity_covariance=np.zeros(9),
             linear_acceleration=V(x=a[0], y=a[1], z=a[2]),
@@ -271,6 +273,7 @@ def test_rosbag_round_trip(tmp_path, flight, ros1):
     assert np.allclose(rec.t, 1000.0 + ref.t - ref.t[0], atol=2e-9)  # the bag's own time, kept
     assert np.allclose(rec.mag, ref.mag, atol=1e-9)
     assert angle_between(rec.true_q, ref.true_q).max() < 1e-6
+    assert angle_between(rec.ref_q, ref.true_q).max() < 1e-6  # the Imu message's own orientation
     assert np.allclose(rec.true_pos, [0.0, 0.0, -1.0])
 
 
@@ -469,7 +472,7 @@ def test_rosbag_odometry_as_truth(tmp_path, flight):
     with Writer(path, version=8) as w:
         ci = w.add_connection("/imu", "sensor_msgs/msg/Imu", typestore=ts)
         co = w.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=ts)
-        for t_ns, imu, _, pose in _ros_msgs(ts, short, ros1=False):
+        for t_ns, imu, _, pose in _ros_msgs(ts, short, ros1=False, orientation=False):
             odom = T["nav_msgs/msg/Odometry"](
                 header=pose.header,
                 child_frame_id="base_link",
@@ -488,6 +491,7 @@ def test_rosbag_odometry_as_truth(tmp_path, flight):
     assert rec.meta["topics"] == {"imu": "/imu", "mag": None, "truth": "/odom"}
     assert not rec.has_mag
     assert angle_between(rec.true_q, short.true_q).max() < 1e-6
+    assert rec.ref_q is None and rec.meta["reference"] == "none"  # covariance −1: no orientation given
 
 
 def test_both_repoimu_headers_are_read(tmp_path):
@@ -509,3 +513,156 @@ def test_both_repoimu_headers_are_read(tmp_path):
     ra, rb = (read_recording(p) for p in (a, b))
     assert detect_format(a) == detect_format(b) == "repoimu"
     assert len(ra) == len(rb) == 50 and np.array_equal(ra.gyr, rb.gyr) and np.array_equal(ra.true_q, rb.true_q)
+
+
+# -- ASL (EuRoC / TUM-VI) ----------------------------------------------------------------------------------
+def _write_asl(root: Path, flight, truth: str):
+    """A folder in the ASL layout: mav0/imu0/data.csv and the ground truth (``truth``: EuRoC's
+    state_groundtruth_estimate0 or TUM-VI's mocap0) at half the IMU's rate, nanosecond stamps
+    from 1.4e18, a z-up world."""
+    mav = root / "mav0"
+    (mav / "imu0").mkdir(parents=True)
+    ns = 1_403_636_579_758_555_392 + np.round(flight.t * 1e9).astype(np.int64)
+    with open(mav / "imu0" / "data.csv", "w") as f:
+        f.write("#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y,w_RS_S_z,a_RS_S_x [m s^-2],a_RS_S_y,a_RS_S_z\n")
+        for k in range(len(flight)):
+            f.write(f"{ns[k]}," + ",".join(repr(float(v)) for v in (*flight.gyr[k], *flight.acc[k])) + "\n")
+    (mav / truth).mkdir()
+    q_up = quat_ned_frd_to_enu_flu(flight.true_q)  # a z-up world; the body kept FRD below
+    q_up = quat_mul(q_up, np.array([0.0, 1.0, 0.0, 0.0]))  # undo the FLU body: ENU world, FRD body
+    pos = vec_ned_to_enu(flight.true_pos)
+    with open(mav / truth / "data.csv", "w") as f:
+        f.write("#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z []\n")
+        for k in range(0, len(flight), 2):
+            f.write(f"{ns[k]}," + ",".join(repr(float(v)) for v in (*pos[k], *q_up[k])) + "\n")
+    return mav
+
+
+@pytest.mark.parametrize("truth", ["state_groundtruth_estimate0", "mocap0"])
+def test_asl_folder(tmp_path, flight, truth):
+    """The folder that holds mav0/ and mav0/ itself are read alike: the IMU in its own axes, the
+    z-up truth turned to NED, the stamps in seconds of the file's own time."""
+    mav = _write_asl(tmp_path / "seq", flight, truth)
+    for path in (tmp_path / "seq", mav):
+        assert detect_format(path) == "asl"
+        rec = read_recording(path)
+        _same(rec, flight, tol=1e-12, q_tol=2e-3)  # the truth at half the rate, slerped
+        assert rec.t[0] == pytest.approx(1_403_636_579.758555, abs=1e-6)
+        ok = np.isfinite(rec.true_q[:, 0])
+        assert ok.sum() >= len(flight) - 1 and angle_between(rec.true_q[ok], flight.true_q[ok]).max() < 2e-3
+        assert np.nanmax(np.abs(rec.true_pos - flight.true_pos)) < 0.01
+        assert rec.meta["align"] == {"nav": "heading", "body": truth == "mocap0"}
+    (mav / "imu0" / "data.csv").write_text("#timestamp\n1,2\n")
+    with pytest.raises(ReaderError, match="at least 7 comma-separated columns"):
+        read_recording(tmp_path / "seq")
+
+
+def test_high_rate_imu_samples_of_a_log(tmp_path):
+    """--imu fifo: PX4's sensor_gyro_fifo / sensor_accel_fifo and ArduPilot's GYR / ACC batch
+    samples at their full rate, where the logged IMU keeps every fourth; info says they are there."""
+    fast = simulate("nominal", "bebop2", seed=4, duration=2.0, overrides={"imu.rate_hz": 1000.0}).select(slice(2000))
+    p, d = tmp_path / "fifo.ulg", tmp_path / "batch.bin"
+    write_ulog(p, fast, fifo=True)
+    write_dataflash(d, fast, batch=True)
+    for path, quantum in ((p, 5e-3), (d, 1e-5)):
+        logged, full = read_recording(path), read_recording(path, imu="fifo")
+        assert len(logged) == len(fast) // 4 and len(full) == len(fast), path
+        assert np.allclose(full.t - full.t[0], fast.t - fast.t[0], atol=1e-6)
+        assert np.abs(full.gyr - fast.gyr).max() <= 1e-3 / 2 + 1e-5 and np.abs(full.acc - fast.acc).max() <= quantum
+        assert logged.meta["imu_sources"] == ["logged", "fifo"] and full.meta["imu_source"] != logged.meta["imu_source"]
+    assert main(["info", str(p)]) == 0
+    with pytest.raises(ReaderError, match="no sensor_gyro_fifo / sensor_accel_fifo"):
+        write_ulog(p, fast)
+        read_recording(p, imu="fifo")
+
+
+PX4_MSGS = {
+    "SensorCombined": "uint64 timestamp\nfloat32[3] gyro_rad\nuint32 gyro_integral_dt\n"
+    "int32 accelerometer_timestamp_relative\nfloat32[3] accelerometer_m_s2\nuint32 accelerometer_integral_dt\n"
+    "uint8 accelerometer_clipping\nuint8 gyro_clipping\nuint8 accel_calibration_count\nuint8 gyro_calibration_count\n",
+    "VehicleAttitude": "uint64 timestamp\nuint64 timestamp_sample\nfloat32[4] q\nfloat32[4] delta_q_reset\n"
+    "uint8 quat_reset_counter\n",
+    "VehicleMagnetometer": "uint64 timestamp\nuint64 timestamp_sample\nuint32 device_id\nfloat32[3] magnetometer_ga\n"
+    "uint8 calibration_count\n",
+}
+
+
+def test_a_ros2_bag_of_px4_topics(tmp_path, flight):
+    """PX4's uXRCE-DDS topics in a ROS 2 bag (px4_msgs): SensorCombined, VehicleMagnetometer and
+    VehicleAttitude, read in PX4's own NED / FRD and its own time, with the definitions the bag
+    carries or those of a px4_msgs msg/ folder."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from quadest.readers.ros import px4_types
+
+    msg = tmp_path / "px4_msgs" / "msg"
+    msg.mkdir(parents=True)
+    for name, text in PX4_MSGS.items():
+        (msg / f"{name}.msg").write_text(text)
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    ts.register(px4_types(msg))
+    T, short, path = ts.types, flight.select(slice(0, 400)), tmp_path / "px4_bag"
+    with Writer(path, version=9) as w:
+        conns = {n: w.add_connection(f"/fmu/out/{n}", f"px4_msgs/msg/{n}", typestore=ts) for n in PX4_MSGS}
+        for k in range(len(short)):
+            us = 7_000_000 + int(round(short.t[k] * 1e6))
+            t_ns = 1_700_000_000_000_000_000 + 1000 * us  # the bag's receive time: not what is read
+            g, a, q = (v[k].astype(np.float32) for v in (short.gyr, short.acc, short.true_q))
+            sc = T["px4_msgs/msg/SensorCombined"](us, g, 0, 0, a, 0, 0, 0, 0, 0)
+            w.write(conns["SensorCombined"], t_ns, ts.serialize_cdr(sc, "px4_msgs/msg/SensorCombined"))
+            if k % 4 == 0:
+                va = T["px4_msgs/msg/VehicleAttitude"](us, us, q, np.zeros(4, np.float32), 0)
+                w.write(conns["VehicleAttitude"], t_ns, ts.serialize_cdr(va, "px4_msgs/msg/VehicleAttitude"))
+                vm = T["px4_msgs/msg/VehicleMagnetometer"](us, us, 1, (short.mag[k] / 100).astype(np.float32), 0)
+                w.write(conns["VehicleMagnetometer"], t_ns, ts.serialize_cdr(vm, "px4_msgs/msg/VehicleMagnetometer"))
+    for options in ({}, {"msgs": msg}):
+        rec = read_recording(path, **options)
+        assert rec.t[0] == pytest.approx(7.0) and np.allclose(rec.t - rec.t[0], short.t, atol=1e-6)
+        assert np.allclose(rec.gyr, short.gyr, rtol=FLOAT32, atol=1e-6)  # NED / FRD kept
+        assert np.allclose(rec.acc, short.acc, rtol=FLOAT32, atol=1e-5)
+        assert np.nanmax(np.abs(rec.mag - short.mag)) < 1e-3 and np.isfinite(rec.mag[::4, 0]).all()
+        ok = np.isfinite(rec.ref_q[:, 0])
+        assert ok.mean() > 0.98 and angle_between(rec.ref_q[ok], short.true_q[ok]).max() < 1e-3
+        assert rec.meta["topics"]["imu"] == "/fmu/out/SensorCombined"
+    with pytest.raises(ReaderError, match="no .msg files"):
+        read_recording(path, msgs=tmp_path)
+
+
+def test_real_logs_keep_their_time_and_declination():
+    """On every autopilot log in the data folder: the time starts where the log's IMU does, the
+    declination is the log's own, and where it is large it is what brings an estimate's heading
+    onto the autopilot's (ArduPilot's SITL stores 12.65°), over the first 10 s (before a loss)."""
+    from quadest.api import estimate, score
+    from quadest.evaluation.runner import evaluation_mask
+
+    logs = sorted(DATA.glob("px4_ulog/*.ulg")) + sorted(DATA.glob("ardupilot/*.[bB][iI][nN]"))
+    if not logs:
+        pytest.skip(f"no PX4 or ArduPilot logs under {DATA} (set QUADEST_DATA)")
+    for path in logs:
+        rec = read_recording(path)
+        assert rec.t[0] > 1.0 and rec.meta["t0_s"] == rec.t[0], path.name  # seconds since boot
+        assert rec.meta["declination_source"].startswith("the log's "), path.name
+        if abs(rec.declination) > np.radians(5):
+            first = evaluation_mask(rec) & (rec.t < rec.t[0] + 10.0)
+            yaw = [score(rec, estimate(rec, declination=d), mask=first)["rms_deg"]["yaw"] for d in (None, 0.0)]
+            assert yaw[0] < 0.5 * yaw[1], (path.name, yaw)
+
+
+def test_a_z_up_csv_read_as_frd_draws_one_note(tmp_path):
+    """A hover logged z-up (ROS's FLU) and read without --frame enu-flu: the command says, in one
+    note on stderr, that the frame looks z-up and which option reads it; with the option, no note."""
+    import subprocess
+    import sys
+
+    rest = simulate("nominal", "bebop2", seed=1, duration=5.0)
+    p = tmp_path / "zup.csv"
+    cols = np.column_stack([rest.t, vec_frd_to_flu(rest.gyr), vec_frd_to_flu(rest.acc)])
+    np.savetxt(p, cols, delimiter=",", header="t,gx,gy,gz,ax,ay,az", comments="", fmt="%.17g")
+    argv = [sys.executable, "-m", "quadest.cli.main", "info", str(p), "--format", "csv", "--map", "t=t"]
+    argv += ["--map", "gyr=gx,gy,gz", "--map", "acc=ax,ay,az"]
+    for frame, noted in (("ned-frd", True), ("enu-flu", False)):
+        done = subprocess.run([*argv, "--frame", frame], capture_output=True, text=True, timeout=300)
+        assert done.returncode == 0, done.stderr
+        notes = [line for line in done.stderr.splitlines() if "z-up" in line]
+        assert len(notes) == noted and all(n.startswith("quadest: note: ") and "--frame enu-flu" in n for n in notes)

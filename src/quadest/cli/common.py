@@ -6,12 +6,15 @@ import argparse
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from quadest.data import files
 from quadest.errors import UsageError
 from quadest.evaluation.inspect import report_data, report_json
 from quadest.extras import need
 from quadest.readers import FORMATS, read_recording
 from quadest.readers.generic import parse_columns, parse_units
+from quadest.readers.logs import IMU_SOURCES
 from quadest.sim import build_config
 
 
@@ -65,6 +68,30 @@ def parse_seeds(text) -> list[int]:
 
 
 # -- options -------------------------------------------------------------------------------------
+def add_span_args(p):
+    """``--from`` / ``--to``: a span of the recording, in seconds after its first sample."""
+    p.add_argument("--from", dest="t_from", type=float, default=None, metavar="SECONDS", help=SPAN_HELP.format("start"))
+    p.add_argument("--to", dest="t_to", type=float, default=None, metavar="SECONDS", help=SPAN_HELP.format("end"))
+
+
+SPAN_HELP = "the {} of the span shown and scored, in seconds after the recording's first sample"
+
+
+def cropped(rec, t_from: float | None, t_to: float | None):
+    """The rows of ``rec`` within ``--from`` / ``--to`` (seconds after its first sample)."""
+    if t_from is None and t_to is None:
+        return rec
+    t0 = float(rec.t[0])
+    a, b = t0 + (t_from or 0.0), t0 + (t_to if t_to is not None else np.inf)
+    out = rec.between(a, b) if a < b else None
+    if out is None or len(out) < 2:
+        raise CliError(
+            f"--from/--to: the span {t_from or 0:g} to {t_to if t_to is not None else 'the end'} s holds fewer "
+            f"than two samples of this {rec.duration:.2f} s recording"
+        )
+    return out
+
+
 def add_input_args(p):
     """The options every recording-taking command shares (docs/readers.md)."""
     g = p.add_argument_group("input format (chosen from the file unless --format is given)")
@@ -94,6 +121,21 @@ def add_input_args(p):
         action="append",
         metavar="KIND=TOPIC",
         help="ROS bags: imu=/imu/data, mag=/imu/mag, truth=/vicon/pose when several are present",
+    )
+    g.add_argument(
+        "--msgs",
+        metavar="DIR",
+        default=None,
+        help="ROS 2 bags of PX4 topics that do not carry their message definitions (Humble): the "
+        "px4_msgs msg/ folder of the PX4 that recorded them",
+    )
+    g.add_argument(
+        "--imu",
+        choices=IMU_SOURCES,
+        default=None,
+        help="autopilot logs: the IMU at its logged rate (default) or its high-rate samples, where the "
+        "log has them (fifo: PX4 sensor_gyro_fifo / sensor_accel_fifo, ArduPilot's GYR / ACC batch "
+        "sampler; `quadest info` lists what a log has)",
     )
 
 
@@ -177,6 +219,10 @@ def read(args, path):
         if not sep or kind not in ("imu", "mag", "truth"):
             raise CliError(f"--topic {item!r}: expected imu=TOPIC, mag=TOPIC or truth=TOPIC")
         opts[f"{kind}_topic"] = topic
+    if getattr(args, "imu", None):
+        opts["imu"] = args.imu
+    if getattr(args, "msgs", None):
+        opts["msgs"] = args.msgs
     rec = read_recording(path, fmt, **opts)
     dropped = rec.meta.get("dropped_rows")
     if dropped:  # said on stderr, so that JSON on stdout stays clean

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 import numpy as np
@@ -401,10 +402,39 @@ def cmd_benchmark(args):
     return 0
 
 
+def demo_argv(out: str, seeds: str | None) -> list[str]:
+    """``quadest demo``'s job as the command it is (``make demo`` runs ``quadest demo``)."""
+    argv = ["reproduce", "afckf", "--plot-dir", out, "--json", f"{out}/afckf.json", "--report", f"{out}/report.html"]
+    return argv + (["--seeds", seeds] if seeds else [])
+
+
+def cmd_demo(args):
+    argv = demo_argv(str(args.out), args.seeds)
+    say(f"quadest demo: quadest {' '.join(argv)}")
+    parser = argparse.ArgumentParser(prog="quadest")
+    _add_reproduce(parser.add_subparsers(dest="command"))
+    Path(args.out).mkdir(parents=True, exist_ok=True)
+    return cmd_reproduce(parser.parse_args(argv))
+
+
+def _add_demo(sub):
+    d = sub.add_parser(
+        "demo",
+        help="the main job: a Bebop 2 flies, loses a rotor, five estimators judged (what make demo runs)",
+        description="Runs `quadest reproduce afckf` with its plots, JSON and HTML report written to --out: "
+        "the AFCKF paper's rotor loss flown by the simulated Bebop 2, each estimator's errors beside "
+        "the paper's tables. The same job as `make demo`.",
+    )
+    d.add_argument("--out", default="demo-output", help="output folder (default: demo-output)")
+    d.add_argument("--seeds", default=None, help="seed range or list (default: reproduce afckf's, 1-5)")
+    d.set_defaults(func=cmd_demo, plot_dir=None, report=None)
+
+
 def add_parsers(sub):
     _add_compare(sub)
     _add_reproduce(sub)
     _add_benchmark(sub)
+    _add_demo(sub)
 
 
 def _add_compare(sub):
@@ -432,8 +462,8 @@ def _add_compare(sub):
     c.add_argument(
         "--filters",
         default="all",
-        help="all (quadest's seven), peers (installed peers), or a comma-separated list of filters and peers "
-        "(default: all)",
+        help=f"all (quadest's {len(FILTERS)}: {', '.join(FILTERS)}), peers (installed peers), or a "
+        "comma-separated list of filters and peers (default: all)",
     )
     c.add_argument(
         "--param",

@@ -12,7 +12,7 @@ import traceback
 import warnings
 from pathlib import Path
 
-from quadest import __version__
+from quadest import __version__, _jit
 from quadest.cli import compare, data, fly, recordings, recovery, sim, sweep
 from quadest.cli.common import CliError
 from quadest.data.files import refuse_overwriting_inputs
@@ -98,6 +98,22 @@ def check_extras(args) -> None:
             need(module, option)
     if args.command == "demo":
         need("matplotlib", "quadest demo's plots")
+        need("bokeh", "quadest demo's report")
+
+
+QUICK = ("info", "data")
+"""Commands that compile nothing."""
+
+
+def say_if_compiling(args) -> None:
+    """One line before a cold compile, so that the first run's wait is not silent (for a person at
+    a terminal: a log or a pipe is not told)."""
+    if args.command not in QUICK and sys.stderr.isatty() and _jit.cold():
+        print(
+            "quadest: compiling its numerical code for this version, once (the first run takes about a "
+            f"minute longer; cached in {_jit.CACHE_DIR})",
+            file=sys.stderr,
+        )
 
 
 def _one_line_note(message, category, filename, lineno, line=None):
@@ -118,6 +134,7 @@ def main(argv=None):
     try:
         check_outputs(args)
         check_extras(args)
+        say_if_compiling(args)
         return args.func(args)
     except BrokenPipeError:  # output piped into a command that stopped reading (head)
         return 0

@@ -14,6 +14,8 @@ from quadest.cli.common import (
     add_calibration_arg,
     add_input_args,
     add_report_arg,
+    add_span_args,
+    cropped,
     read,
     say,
     write_json,
@@ -130,7 +132,7 @@ def cmd_estimate(args):
 def cmd_report(args):
     if Path(args.file).suffix.lower() == ".parquet" and is_results(args.file):
         return _sweep_report(args)
-    rec = read(args, args.file)
+    rec = cropped(read(args, args.file), args.t_from, args.t_to)
     rec, cal_params = apply_calibrations(rec, args.calibration)
     names = estimator_names(args.filters, all_includes_peers=False)
     params = parse_params(args.param)
@@ -270,10 +272,11 @@ def add_parsers(sub):
     )
     r.add_argument(
         "--filters",
-        default="madgwick,afckf,roetenberg",
+        default="robust,madgwick,afckf",
         help="estimators to run: comma-separated, quadest (all of quadest's), or peers (default: "
-        "madgwick,afckf,roetenberg)",
+        "robust,madgwick,afckf)",
     )
+    add_span_args(r)
     r.add_argument("--param", action="append", metavar="FILTER.NAME=VALUE", help="a filter parameter (repeatable)")
     r.add_argument("--title", default=None, help="the page's title (default: from the file name)")
     r.add_argument("-o", "--output", type=Path, required=True, help="the HTML file to write")

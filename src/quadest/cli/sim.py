@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 from quadest.cli.common import CliError, say, sim_config
-from quadest.data import format_summary, save_recording, summarize
+from quadest.data import save_recording
 from quadest.sim import PRESCRIBED_SCENARIOS, PRESETS, param_table, simulate
 
 
@@ -47,29 +46,6 @@ def cmd_simulate(args):
     return 0
 
 
-def cmd_demo(args):
-    """The main job on a fresh machine; grows with the project."""
-    from quadest.plot import plot_recording
-
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    say("quadest demo: a Bebop 2 loses a rotor after 5 s of hover and spins at about 15.5 rad/s.")
-    say("step 1/3  simulating the flight and its MARG sensors (compiling on first use)...")
-    rec = simulate("damaged-rotor", "bebop2", seed=1, progress=True)
-    path = save_recording(rec, out / "damaged-rotor.csv")
-    say(f"          wrote {path} ({len(rec)} samples)")
-    say("step 2/3  what the recording holds:")
-    for line in format_summary(summarize(rec), str(path)).splitlines():
-        say("          " + line)
-    sat = 100 * rec.meta["gyro_saturated_share"]
-    say(f"          the ±1000 °/s gyroscope saturates in {sat:.1f} % of the samples")
-    say("step 3/3  drawing attitude, rates and sensor signals...")
-    png = plot_recording(rec, out / "damaged-rotor.png", title="damaged-rotor / bebop2 / seed 1")
-    say(f"          wrote {png}")
-    say("done. Next: `quadest simulate --help`, `quadest info FILE`, docs/ for the details.")
-    return 0
-
-
 def add_parsers(sub):
     s = sub.add_parser(
         "simulate",
@@ -102,11 +78,3 @@ def add_parsers(sub):
     )
     s.add_argument("--markdown", action="store_true", help="with --list-params: a Markdown table")
     s.set_defaults(func=cmd_simulate)
-
-    d = sub.add_parser(
-        "demo",
-        help="the simulator demo: a rotor failure, summarised and plotted",
-        description="Simulate a rotor failure on a Bebop 2, summarise and plot it.",
-    )
-    d.add_argument("--out", default="demo-output", help="output folder (default: demo-output)")
-    d.set_defaults(func=cmd_demo)

@@ -47,6 +47,9 @@ def summarize(rec: Recording) -> dict:
     for key in ("source", "format", "dataset", "frames", "reference", "scenario", "preset", "seed"):
         if key in rec.meta:
             out[key] = rec.meta[key]
+    if "imu_sources" in rec.meta:
+        out["imu_source"] = rec.meta.get("imu_source")
+        out["imu_sources"] = rec.meta["imu_sources"]
     out["declination_deg"] = float(np.degrees(rec.declination))
     out["declination_source"] = rec.meta.get("declination_source", "none stated: 0 (give --declination-deg)")
     return out
@@ -59,6 +62,10 @@ def format_summary(s: dict, name: str = "") -> str:
     for key in ("source", "format", "dataset", "frames", "reference", "scenario", "preset", "seed"):
         if key in s:
             lines.append(f"{key:<11} {s[key]}")
+    if "imu_sources" in s:
+        others = [x for x in s["imu_sources"] if x != "logged"]
+        also = f" (also in the log: --imu {', '.join(others)})" if others else ""
+        lines.append(f"IMU from    {s['imu_source']}{also}")
     if "declination_deg" in s:
         lines.append(f"declination {s['declination_deg']:+.2f}° ({s['declination_source']})")
     lines += [

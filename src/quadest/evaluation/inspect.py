@@ -11,7 +11,7 @@ import numpy as np
 from quadest.conventions import GRAVITY
 from quadest.data.recording import Recording
 from quadest.evaluation.metrics import euler_errors
-from quadest.evaluation.runner import estimate_all, score
+from quadest.evaluation.runner import estimate_all, first_mag_time, score
 from quadest.rotation import quat_conj, quat_rotate, quat_to_euler
 
 REST_RATE = 0.05  # rad/s: below this a body is at rest (chosen: gyro noise and bias of a MEMS IMU)
@@ -23,6 +23,7 @@ SPIN_RATE = 5.0  # rad/s about one axis, sustained: a spin (a rotor loss makes 1
 SPIN_MIN_S = 1.0  # s (chosen)
 MAG_DISTURBED = 0.10  # a field whose norm is more than 10 % off the recording's median is disturbed (chosen)
 VIBRATION_WINDOW_S = 0.05  # s: the accelerometer minus its moving average over this is vibration (chosen)
+VIBRATION_MIN_SAMPLES = 5  # fewer samples in that window cannot tell vibration from motion
 
 
 def _runs(mask, t, min_s):
@@ -95,11 +96,7 @@ def summary(rec: Recording) -> dict:
         "acc_clipped_share": _flat_top_share(rec.acc),
         "truth": "true_q" if rec.true_q is not None else ("ref_q" if rec.ref_q is not None else None),
     }
-    n = max(1, int(round(VIBRATION_WINDOW_S / med))) if med > 0 else 1
-    k = np.ones(n) / n
-    smooth = np.column_stack([np.convolve(rec.acc[:, i], k, mode="same") for i in range(3)])
-    edge = slice(n, len(t) - n) if len(t) > 2 * n else slice(None)
-    out["vibration_rms_m_s2"] = [float(v) for v in np.sqrt(np.mean((rec.acc - smooth)[edge] ** 2, axis=0))]
+    out.update(vibration(rec, med))
     if rec.mag is not None and np.isfinite(rec.mag).any():
         rows = np.isfinite(rec.mag).all(axis=1)
         mt = t[rows]
@@ -108,6 +105,25 @@ def summary(rec: Recording) -> dict:
         out["mag_disturbed_share"] = float(np.mean(np.abs(norm / np.median(norm) - 1.0) > MAG_DISTURBED))
     out["events"] = events(rec)
     return out
+
+
+def vibration(rec: Recording, med: float) -> dict:
+    """``vibration_rms_m_s2`` and where it comes from: the log's own figures where it has them
+    (ArduPilot's VIBE), else the accelerometer minus its moving average over
+    :data:`VIBRATION_WINDOW_S`, or None (with the reason) when the IMU is too slow for that window
+    to hold :data:`VIBRATION_MIN_SAMPLES` samples."""
+    own = rec.meta.get("vibration")
+    if own:
+        return {"vibration_rms_m_s2": own["rms_m_s2"], "vibration_source": own["source"]}
+    n = int(round(VIBRATION_WINDOW_S / med)) if med > 0 else 0
+    if n < VIBRATION_MIN_SAMPLES:
+        rate = f"{1 / med:.0f} Hz" if med > 0 else "an unknown rate"
+        return {"vibration_rms_m_s2": None, "vibration_source": f"n/a: the IMU at {rate} is too slow to tell"}
+    k = np.ones(n) / n
+    smooth = np.column_stack([np.convolve(rec.acc[:, i], k, mode="same") for i in range(3)])
+    edge = slice(n, len(rec.t) - n) if len(rec.t) > 2 * n else slice(None)
+    rms = np.sqrt(np.mean((rec.acc - smooth)[edge] ** 2, axis=0))
+    return {"vibration_rms_m_s2": [float(v) for v in rms], "vibration_source": "the accelerometer"}
 
 
 def attitude(rec: Recording, names, params: dict | None = None) -> dict:
@@ -122,6 +138,8 @@ def attitude(rec: Recording, names, params: dict | None = None) -> dict:
     # benchmarks do), unless the reader asked for more
     nav = "heading" if not has_mag(rec) and rec.meta.get("align", {}).get("nav", "none") == "none" else None
     out["heading_offset_removed"] = nav == "heading"
+    first = first_mag_time(rec)
+    out["scored_from_s"] = first if first > rec.t[0] and truth else None
     for name, res in results.items():
         out["euler_deg"][name] = np.degrees(quat_to_euler(res.q))
         if truth:

@@ -92,8 +92,9 @@ def truth_of(rec: Recording) -> str:
 
 def evaluation_mask(rec: Recording, t_from: float | None = None) -> np.ndarray:
     """Rows to evaluate: ``meta['evaluate_intervals_s']`` (BROAD's movement phases) or all,
-    from ``t_from`` seconds after the recording's first sample on (a log's time need not start
-    at 0)."""
+    from the first magnetometer sample on when there is a magnetometer (before it a 9-axis
+    estimator's heading is not yet known: :func:`first_mag_time`), and from ``t_from`` seconds
+    after the recording's first sample on (a log's time need not start at 0)."""
     iv = rec.meta.get("evaluate_intervals_s")
     if iv:
         m = np.zeros(len(rec), bool)
@@ -103,7 +104,13 @@ def evaluation_mask(rec: Recording, t_from: float | None = None) -> np.ndarray:
         m = np.ones(len(rec), bool)
     if t_from is not None:
         m &= rec.t >= rec.t[0] + t_from
-    return m
+    return m & (rec.t >= first_mag_time(rec))
+
+
+def first_mag_time(rec: Recording) -> float:
+    """The time of the first magnetometer sample (the first sample's time without one)."""
+    rows = np.flatnonzero(np.isfinite(rec.mag[:, 0])) if rec.has_mag else []
+    return float(rec.t[rows[0]]) if len(rows) else float(rec.t[0])
 
 
 def alignment_of(rec: Recording, nav: str | None = None, body: bool | None = None) -> tuple[str, bool]:

@@ -62,21 +62,23 @@ def _figure(title, x_range, y_label, name, height=230):
     return f
 
 
-def _lines(f, t, series: dict, dashed=()):
+def _lines(f, t, series: dict, dashed=(), colours: dict | None = None):
+    """One line per series, coloured by ``colours[label]`` (one colour per estimator across a
+    page) or in order; the legend beside the plot, not over the data."""
     for i, (label, y) in enumerate(series.items()):
         tt, yy = decimate(t, y)
         f.line(
             tt,
             yy,
             legend_label=label,
-            color=Category10_10[i % 10],
+            color=(colours or {}).get(label, Category10_10[i % 10]),
             line_width=1.4,
             line_dash="dashed" if label in dashed else "solid",
         )
     if series:
         f.legend.click_policy = "hide"
-        f.legend.location = "top_left"
         f.legend.label_text_font_size = "9pt"
+        f.add_layout(f.legend[0], "right")
 
 
 def _table(header, rows, table_id=None) -> str:
@@ -115,8 +117,12 @@ def summary_html(title: str, s: dict) -> str:
         ["gyroscope clipped", f"{100 * s['gyro_clipped_share']:.2f} % of rows"],
         ["accelerometer clipped", f"{100 * s['acc_clipped_share']:.2f} % of rows"],
         [
-            "vibration (accelerometer minus its 50 ms mean), RMS x / y / z",
-            " / ".join(f"{v:.2f}" for v in s["vibration_rms_m_s2"]) + " m/s²",
+            f"vibration RMS x / y / z (from {s['vibration_source']})"
+            if s["vibration_rms_m_s2"]
+            else "vibration RMS x / y / z",
+            " / ".join(f"{v:.2f}" for v in s["vibration_rms_m_s2"]) + " m/s²"
+            if s["vibration_rms_m_s2"]
+            else s["vibration_source"],
         ],
         [
             "magnetic field disturbed (norm > 10 % off its median)",
@@ -151,12 +157,18 @@ def summary_html(title: str, s: dict) -> str:
 
 def build_report(rec, summ: dict, att: dict, title: str) -> str:
     """The report's HTML (a string)."""
+    return file_html(report_layout(rec, summ, att, title), INLINE, title)
+
+
+def report_layout(rec, summ: dict, att: dict, title: str):
+    """The report's bokeh layout: the summary, the attitude and its errors, the sensors."""
     t = rec.t
     xr = Range1d(float(t[0]), float(t[-1]))
     parts = [Div(text=summary_html(title, summ), sizing_mode="stretch_width")]
     truth = att["truth"]
     truth_label = {"true_q": "truth", "ref_q": "autopilot's estimate", None: None}[truth]
     euler = {(truth_label if k == truth else k): v for k, v in att["euler_deg"].items()}
+    colours = {name: Category10_10[i % 10] for i, name in enumerate(euler)}  # one per estimator, every plot
     parts.append(
         Div(
             text=STYLE
@@ -171,7 +183,7 @@ def build_report(rec, summ: dict, att: dict, title: str) -> str:
     )
     for i, a in enumerate(AXES):
         f = _figure(f"{a} [deg]", xr, "deg", f"attitude-{a}")
-        _lines(f, t, {k: v[:, i] for k, v in euler.items()}, dashed=(truth_label,))
+        _lines(f, t, {k: v[:, i] for k, v in euler.items()}, dashed=(truth_label,), colours=colours)
         parts.append(f)
     if att["scores"]:
         label = "truth" if truth == "true_q" else "the autopilot's estimate (not an independent truth)"
@@ -184,6 +196,8 @@ def build_report(rec, summ: dict, att: dict, title: str) -> str:
             if att.get("heading_offset_removed")
             else ""
         )
+        if att.get("scored_from_s") is not None:
+            note += f" (scored from the first magnetometer sample, t = {att['scored_from_s']:.3f} s)"
         parts.append(
             Div(
                 text=f"<h2>Errors against {label}{note}</h2>"
@@ -194,7 +208,7 @@ def build_report(rec, summ: dict, att: dict, title: str) -> str:
         )
         for i, a in enumerate(AXES):
             f = _figure(f"{a} error [deg]", xr, "deg", f"error-{a}")
-            _lines(f, t, {k: v[:, i] for k, v in att["error_deg"].items()})
+            _lines(f, t, {k: v[:, i] for k, v in att["error_deg"].items()}, colours=colours)
             parts.append(f)
     parts += _failure_sections(rec, att, xr)
     parts.append(Div(text=STYLE + "<h2>Sensors</h2>"))
@@ -218,7 +232,7 @@ def build_report(rec, summ: dict, att: dict, title: str) -> str:
         _lines(f, tr, {k.replace("_speed", ""): v for k, v in speeds.items()})
         parts.append(f)
     parts.append(_spectrogram(rec, xr))
-    return file_html(column(*parts, sizing_mode="stretch_width"), INLINE, title)
+    return column(*parts, sizing_mode="stretch_width")
 
 
 def _failure_sections(rec, att, xr) -> list:

@@ -14,6 +14,7 @@ broad         BROAD trial, HDF5 or MAT
 dido          DIDO flight, HDF5
 blackbird     Blackbird as prepared by UZH-RPG: folder with data.hdf5 + ground truth
 repoimu       RepoIMU CSV
+asl           EuRoC / TUM-VI layout: the folder holding mav0/ (or mav0/ itself)
 ============  =====================================================================
 
 Every failure is a :class:`ReaderError` (a ValueError) with one line naming the file.
@@ -25,7 +26,7 @@ from pathlib import Path
 
 from quadest.data.recording import Recording, load_recording
 from quadest.extras import need
-from quadest.readers import datasets, generic, logs, ros
+from quadest.readers import asl, datasets, generic, logs, ros
 from quadest.readers.common import ReaderError
 
 
@@ -44,6 +45,7 @@ READERS = {
     "dido": datasets.read_dido,
     "blackbird": datasets.read_blackbird,
     "repoimu": datasets.read_repoimu,
+    "asl": asl.read_asl,
 }
 """The one registry of readers: each format's name to the function that reads it into a
 :class:`~quadest.data.Recording` (``read(path, **options)``)."""
@@ -68,9 +70,11 @@ def detect_format(path: str | Path) -> str:
             return "rosbag"
         if (p / "data.hdf5").is_file() and (p / "stamped_groundtruth_imu.txt").is_file():
             return "blackbird"
+        if asl.asl_folder(p) is not None:
+            return "asl"
         raise ReaderError(
-            f"{path}: a folder that is neither a ROS 2 bag (metadata.yaml) nor a Blackbird "
-            "sequence (data.hdf5 + stamped_groundtruth_imu.txt)"
+            f"{path}: a folder that is neither a ROS 2 bag (metadata.yaml), a Blackbird sequence "
+            "(data.hdf5 + stamped_groundtruth_imu.txt) nor an ASL one (mav0/imu0/data.csv)"
         )
     ext = p.suffix.lower()
     head = _first_bytes(p)

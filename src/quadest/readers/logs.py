@@ -22,25 +22,69 @@ def _gauss_to_ut(g):
     return np.asarray(g, dtype=np.float64) * 100.0
 
 
-def read_ulog(path, *, instance: int = 0, **_):
+IMU_SOURCES = ("logged", "fifo")
+"""Which IMU samples a log's reader takes: the ones logged at the IMU topic's rate, or the
+high-rate samples of the sensor's FIFO where the log has them."""
+
+
+def _imu_source(imu, path) -> str:
+    imu = imu or "logged"
+    if imu not in IMU_SOURCES:
+        raise ReaderError(f"{path}: unknown IMU source {imu!r}; one of {', '.join(IMU_SOURCES)}")
+    return imu
+
+
+def read_ulog(path, *, instance: int = 0, imu: str | None = None, **_):
     """See :func:`_read_ulog`; a log whose topics lack the fields they should have is refused
     naming the file."""
+    imu = _imu_source(imu, path)
     try:
-        return _read_ulog(path, instance=instance)
+        return _read_ulog(path, instance=instance, imu=imu)
     except LOG_DAMAGE as exc:
         raise ReaderError(f"{path}: the ULog is damaged or not from PX4 ({type(exc).__name__}: {exc})") from None
 
 
-def read_dataflash(path, *, instance: int = 0, **_):
+def read_dataflash(path, *, instance: int = 0, imu: str | None = None, **_):
     """See :func:`_read_dataflash`; a log whose messages lack the fields they should have is
     refused naming the file."""
+    imu = _imu_source(imu, path)
     try:
-        return _read_dataflash(path, instance=instance)
+        return _read_dataflash(path, instance=instance, imu=imu)
     except LOG_DAMAGE as exc:
         raise ReaderError(f"{path}: the DataFlash log is damaged ({type(exc).__name__}: {exc})") from None
 
 
-def _read_ulog(path, *, instance: int = 0):
+PX4_FIFO = ("sensor_gyro_fifo", "sensor_accel_fifo")
+
+
+def _fifo_samples(d) -> tuple[np.ndarray, np.ndarray]:
+    """``(t, xyz)`` of every sample of a PX4 FIFO topic: ``samples`` int16 values per axis and
+    message, times ``timestamp_sample − (samples − 1 − i)·dt`` (the stamp is the last sample's;
+    µs), values times ``scale``."""
+    n = d["samples"].astype(np.int64)
+    i = np.arange(32)
+    keep = i[None, :] < n[:, None]
+    t = d["timestamp_sample"][:, None] - (n[:, None] - 1 - i[None, :]) * d["dt"][:, None].astype(np.float64)
+    axes = [np.column_stack([d[f"{a}[{k}]"] for k in range(32)]) * d["scale"][:, None] for a in "xyz"]
+    return t[keep] * 1e-6, np.column_stack([ax[keep] for ax in axes])
+
+
+def _ulog_fifo(data, path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The gyroscope's FIFO samples with the accelerometer's interpolated onto their times."""
+    missing = [name for name in PX4_FIFO if name not in data]
+    if missing:
+        raise ReaderError(
+            f"{path}: --imu fifo, but the log has no {' / '.join(missing)} (PX4 logs them with "
+            "SDLOG_PROFILE's high-rate IMU bit); leave out --imu fifo for the logged IMU"
+        )
+    t, gyr = _fifo_samples(data["sensor_gyro_fifo"])
+    ta, acc = _fifo_samples(data["sensor_accel_fifo"])
+    order = np.argsort(ta, kind="stable")
+    acc = np.column_stack([np.interp(t, ta[order], acc[order, k]) for k in range(3)])
+    return t, gyr, acc
+
+
+def _read_ulog(path, *, instance: int = 0, imu: str = "logged"):
     """Raw IMU from ``sensor_combined`` (or ``vehicle_imu``-less logs' ``sensor_accel`` /
     ``sensor_gyro``), magnetometer from ``vehicle_magnetometer``, ``sensor_mag`` or the
     ``magnetometer_ga`` fields of old ``sensor_combined`` (gauss -> µT), and the onboard EKF2
@@ -54,7 +98,7 @@ def _read_ulog(path, *, instance: int = 0):
         "vehicle_magnetometer",
         "sensor_mag",
         "vehicle_attitude",
-    ]
+    ] + (list(PX4_FIFO) if imu == "fifo" else [])
     try:
         ulog = ULog(str(path), topics)
     except Exception as exc:  # pyulog raises plain Exceptions and struct errors on bad files
@@ -63,7 +107,9 @@ def _read_ulog(path, *, instance: int = 0):
     for d in ulog.data_list:
         if d.multi_id == instance or d.name not in data:
             data[d.name] = d.data
-    if "sensor_combined" in data:
+    if imu == "fifo":
+        t, gyr, acc = _ulog_fifo(data, path)
+    elif "sensor_combined" in data:
         sc = data["sensor_combined"]
         t = sc["timestamp"] * 1e-6
         gyr = np.column_stack([sc[f"gyro_rad[{i}]"] for i in range(3)])
@@ -107,6 +153,8 @@ def _read_ulog(path, *, instance: int = 0):
         "frames": "NED/FRD (PX4's own)",
         "reference": "vehicle_attitude (EKF2) as ref_q",
         "ulog_corrupt": corrupt,
+        "imu_source": "sensor_gyro_fifo / sensor_accel_fifo" if imu == "fifo" else "the logged IMU topic",
+        "imu_sources": ["logged"] + (["fifo"] if all(n in ulog.message_formats for n in PX4_FIFO) else []),
         **_ulog_declination(ulog),
     }
     if corrupt:
@@ -148,26 +196,30 @@ def _ulog_cut(path) -> bool:
 
 
 # -- ArduPilot ------------------------------------------------------------------------------------------
-def _read_dataflash(path, *, instance: int = 0):
-    """IMU (GyrX.. rad/s, AccX.. m/s²), MAG (MagX.. milligauss -> µT), the EKF's attitude as
-    ``ref_q`` (:func:`_dataflash_reference`) and the declination ``COMPASS_DEC``; instance ``I``
-    0 unless chosen."""
+def _read_dataflash(path, *, instance: int = 0, imu: str = "logged"):
+    """IMU (GyrX.. rad/s, AccX.. m/s²; or with ``imu="fifo"`` the batch sampler's GYR / ACC at
+    their ``SampleUS``), MAG (MagX.. milligauss -> µT), the EKF's attitude as ``ref_q``
+    (:func:`_dataflash_reference`) and the declination ``COMPASS_DEC``; instance ``I`` 0 unless
+    chosen."""
     DFReader = need("pymavlink.DFReader", "reading an ArduPilot DataFlash log")
-
-    imu, mag, att, xkq, params = [], [], [], [], {}
+    fifo = imu == "fifo"
+    imu, mag, att, xkq, vibe, params = [], [], [], [], [], {}
+    batch = {"GYR": [], "ACC": []} if fifo else None
     with _printed() as said:  # pymavlink prints what it skips; quadest counts it and says it once
         try:
             log = DFReader.DFReader_binary(str(path), zero_time_base=True)
         except Exception as exc:  # pymavlink raises many kinds on bad files
             raise ReaderError(f"{path}: not a readable DataFlash log ({type(exc).__name__}: {exc})") from None
         try:
-            _read_dataflash_messages(log, instance, imu, mag, att, xkq, params)
+            _read_dataflash_messages(log, instance, (imu, mag, att, xkq, vibe), params, batch)
         except Exception as exc:
             raise ReaderError(
                 f"{path}: DataFlash log broken after {len(imu)} IMU messages ({type(exc).__name__}: {exc})"
             ) from None
     warnings = _dataflash_damage(said)
-    if not imu:
+    if fifo:
+        imu = _dataflash_batch(batch, path)
+    if not len(imu):
         raise ReaderError(f"{path}: no IMU messages (instance {instance}) in the DataFlash log")
     imu = np.array(imu, float)
     t = imu[:, 0] * 1e-6
@@ -181,7 +233,11 @@ def _read_dataflash(path, *, instance: int = 0):
         "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT"},
         "frames": "NED/FRD (ArduPilot's own)",
         "reference": reference,
+        "imu_source": "the batch sampler's GYR / ACC" if fifo else "IMU",
+        "imu_sources": ["logged"] + (["fifo"] if _has_messages(log, ("GYR", "ACC")) else []),
     }
+    if vibe:
+        meta["vibration"] = _vibration(np.array(vibe, float))
     if np.isfinite(params.get("COMPASS_DEC", np.nan)):  # radians, east positive; its last value
         meta.update(declination_rad=float(params["COMPASS_DEC"]), declination_source="the log's COMPASS_DEC")
     if warnings:
@@ -202,14 +258,52 @@ def _dataflash_reference(t, att, xkq) -> tuple[dict, str]:
     return {}, "none"
 
 
-def _read_dataflash_messages(log, instance, imu, mag, att, xkq, params):
+def _vibration(vibe: np.ndarray) -> dict:
+    """ArduPilot's own vibration figures (VIBE: the accelerometer's high-passed RMS per axis,
+    m/s², and the clipping count)."""
+    return {
+        "source": "the log's VIBE messages",
+        "rms_m_s2": np.median(vibe[:, 1:4], axis=0).tolist(),
+        "max_m_s2": vibe[:, 1:4].max(axis=0).tolist(),
+        "clips": int(vibe[:, 4].max()),
+    }
+
+
+def _has_messages(log, kinds) -> bool:
+    """Whether the log holds messages of every one of ``kinds`` (pymavlink counts each type when
+    it opens a log; a format defined is not a message logged)."""
+    ids = [log.name_to_id.get(k) for k in kinds]
+    counts = getattr(log, "counts", None)
+    return counts is not None and all(i is not None and counts[i] > 0 for i in ids)
+
+
+def _dataflash_batch(batch, path) -> np.ndarray:
+    """Rows ``(t_us, gyr xyz, acc xyz)`` of the batch sampler: GYR's samples, ACC's interpolated
+    onto their times."""
+    if not batch["GYR"] or not batch["ACC"]:
+        raise ReaderError(
+            f"{path}: --imu fifo, but the log has no GYR / ACC batch samples (ArduPilot logs them with "
+            "INS_LOG_BAT_MASK); leave out --imu fifo for the logged IMU"
+        )
+    g, a = (np.array(sorted(batch[k]), float) for k in ("GYR", "ACC"))
+    acc = np.column_stack([np.interp(g[:, 0], a[:, 0], a[:, k]) for k in (1, 2, 3)])
+    return np.column_stack([g, acc])
+
+
+def _read_dataflash_messages(log, instance, lists, params, batch=None):
+    imu, mag, att, xkq, vibe = lists
+    kinds = ["IMU", "MAG", "ATT", "XKQ", "PARM", "VIBE"] + (list(batch) if batch is not None else [])
     while True:
-        m = log.recv_match(type=["IMU", "MAG", "ATT", "XKQ", "PARM"])
+        m = log.recv_match(type=kinds)
         if m is None:
             return
         kind = m.get_type()
         inst = getattr(m, "I", getattr(m, "Instance", 0))
-        if kind == "IMU" and inst == instance:
+        if batch is not None and kind in batch:
+            if inst == instance:
+                axes = ("GyrX", "GyrY", "GyrZ") if kind == "GYR" else ("AccX", "AccY", "AccZ")
+                batch[kind].append((m.SampleUS, *(getattr(m, a) for a in axes)))
+        elif kind == "IMU" and inst == instance:
             imu.append((m.TimeUS, m.GyrX, m.GyrY, m.GyrZ, m.AccX, m.AccY, m.AccZ))
         elif kind == "MAG" and inst == instance:
             mag.append((m.TimeUS, m.MagX, m.MagY, m.MagZ))
@@ -219,6 +313,8 @@ def _read_dataflash_messages(log, instance, imu, mag, att, xkq, params):
             xkq.append((m.TimeUS, m.Q1, m.Q2, m.Q3, m.Q4))
         elif kind == "PARM":
             params[m.Name] = m.Value
+        elif kind == "VIBE" and getattr(m, "IMU", 0) == instance:
+            vibe.append((m.TimeUS, m.VibeX, m.VibeY, m.VibeZ, getattr(m, "Clip", getattr(m, "Clip0", 0))))
 
 
 @contextmanager

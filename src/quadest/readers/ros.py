@@ -7,6 +7,7 @@ give ``imu_topic`` / ``mag_topic`` / ``truth_topic``."""
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,9 @@ from quadest.readers.common import ReaderError, mag_on_imu_rows, make_recording,
 from quadest.rotation.frames import quat_enu_flu_to_ned_frd, vec_enu_to_ned, vec_flu_to_frd
 
 IMU = ("sensor_msgs/msg/Imu", "sensor_msgs/Imu")
+PX4_IMU = ("px4_msgs/msg/SensorCombined",)
+PX4_MAG = ("px4_msgs/msg/VehicleMagnetometer",)
+PX4_ATTITUDE = ("px4_msgs/msg/VehicleAttitude", "px4_msgs/msg/VehicleOdometry")
 MAG = ("sensor_msgs/msg/MagneticField", "sensor_msgs/MagneticField")
 POSE = (
     "geometry_msgs/msg/PoseStamped",
@@ -66,30 +70,69 @@ def _pose_of(msg):
     return (p.position.x, p.position.y, p.position.z), p.orientation
 
 
-def read_rosbag(path, *, imu_topic=None, mag_topic=None, truth_topic=None, **_):
-    AnyReader = need("rosbags.highlevel", "reading a ROS bag").AnyReader
-    typesys = need("rosbags.typesys", "reading a ROS bag")
-    Stores, get_typestore = typesys.Stores, typesys.get_typestore
+def _imu_orientation(orient, t) -> np.ndarray | None:
+    """The IMU messages' own orientation (the driver's or autopilot's estimate, ENU/FLU by
+    REP 145) on the IMU's rows in NED/FRD, where it is given and a unit quaternion; else None."""
+    if not orient:
+        return None
+    o = np.array(sorted(orient), float)
+    norm = np.linalg.norm(o[:, 1:5], axis=1)
+    o = o[np.abs(norm - 1.0) < 0.01]
+    if len(o) < 2:
+        return None
+    return quat_enu_flu_to_ned_frd(resample_quat(o[:, 0], o[:, 1:5], t))
 
+
+def px4_types(folder) -> dict:
+    """The message types of a px4_msgs ``msg/`` folder (``*.msg``), as rosbags registers them:
+    for a bag that does not carry its definitions (ROS 2 Humble), from the PX4 version that
+    recorded it (the layouts change between versions: quadest never guesses them)."""
+    get_types_from_msg = need("rosbags.typesys", "reading a ROS bag").get_types_from_msg
+    files = sorted(Path(folder).glob("*.msg"))
+    if not files:
+        raise ReaderError(f"{folder}: no .msg files (give px4_msgs's msg/ folder of the PX4 that recorded the bag)")
+    types = {}
+    for f in files:
+        types.update(get_types_from_msg(f.read_text(), f"px4_msgs/msg/{f.stem}"))
+    return types
+
+
+def _typestore(msgs):
+    typesys = need("rosbags.typesys", "reading a ROS bag")
+    store = typesys.get_typestore(typesys.Stores.LATEST)
+    if msgs is not None:
+        store.register(px4_types(msgs))
+    return store
+
+
+def read_rosbag(path, *, imu_topic=None, mag_topic=None, truth_topic=None, msgs=None, **_):
+    AnyReader = need("rosbags.highlevel", "reading a ROS bag").AnyReader
     p = Path(path)
     try:
-        reader = AnyReader([p], default_typestore=get_typestore(Stores.LATEST))
+        reader = AnyReader([p], default_typestore=_typestore(msgs))
         reader.open()
+    except ReaderError:
+        raise
     except Exception as exc:  # rosbags raises its own error types per format
         raise ReaderError(f"{path}: not a readable ROS bag ({type(exc).__name__}: {exc})") from None
+    if not any(c.msgtype in IMU for c in reader.connections) and any(c.msgtype in PX4_IMU for c in reader.connections):
+        with _closing(reader):
+            return _read_px4_bag(reader, path, imu_topic, mag_topic, truth_topic)
     try:
         conns = reader.connections
         ci = _pick(conns, IMU, imu_topic, "sensor_msgs/Imu", path, True)
         cm = _pick(conns, MAG, mag_topic, "sensor_msgs/MagneticField", path, False)
         ct = _pick(conns, POSE, truth_topic, "pose or odometry", path, False)
-        imu, mag, pose = [], [], []
+        imu, mag, pose, orient = [], [], [], []
         chosen = [c for c in (ci, cm, ct) if c is not None]
         for conn, t_log, raw in reader.messages(connections=chosen):
             msg = reader.deserialize(raw, conn.msgtype)
             ts = _stamp(msg, t_log)
             if conn is ci or conn.topic == ci.topic:
-                w, a = msg.angular_velocity, msg.linear_acceleration
+                w, a, o = msg.angular_velocity, msg.linear_acceleration, msg.orientation
                 imu.append((ts, w.x, w.y, w.z, a.x, a.y, a.z))
+                if msg.orientation_covariance[0] != -1.0:  # REP 145: -1, no orientation given
+                    orient.append((ts, o.w, o.x, o.y, o.z))
             elif cm is not None and conn.topic == cm.topic:
                 f = msg.magnetic_field
                 mag.append((ts, f.x, f.y, f.z))
@@ -120,8 +163,12 @@ def read_rosbag(path, *, imu_topic=None, mag_topic=None, truth_topic=None, **_):
             np.column_stack([np.interp(t[inside], pose[:, 0], pose[:, 5 + i]) for i in range(3)])
         )
         truth["true_pos"] = pos
+    ref = _imu_orientation(orient, t)
+    if ref is not None:
+        truth["ref_q"] = ref
     meta = {
         "source_format": "ROS bag",
+        "reference": f"{ci.topic}'s own orientation (the driver's estimate) as ref_q" if ref is not None else "none",
         "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT"},
         "frames": "REP 103: ENU world, FLU body -> NED/FRD; tesla -> µT",
         "topics": {"imu": ci.topic, "mag": cm.topic if cm else None, "truth": ct.topic if ct else None},
@@ -129,3 +176,57 @@ def read_rosbag(path, *, imu_topic=None, mag_topic=None, truth_topic=None, **_):
     return make_recording(
         path, "rosbag", t, vec_flu_to_frd(imu[:, 1:4]), vec_flu_to_frd(imu[:, 4:7]), magv, meta, **truth
     )
+
+
+@contextmanager
+def _closing(reader):
+    try:
+        yield reader
+    finally:
+        reader.close()
+
+
+def _px4_messages(reader, conn, path):
+    """Every message of ``conn``, deserialised; a type the bag does not define is one line."""
+    try:
+        for c, _, raw in reader.messages(connections=[conn]):
+            yield reader.deserialize(raw, c.msgtype)
+    except Exception as exc:
+        why = str(exc).splitlines()[0] if str(exc) else ""
+        raise ReaderError(
+            f"{path}: cannot read {conn.msgtype} ({type(exc).__name__}: {why}); a bag without its message "
+            "definitions (ROS 2 Humble) needs the px4_msgs msg/ folder of the PX4 that recorded it: --msgs PATH"
+        ) from None
+
+
+def _read_px4_bag(reader, path, imu_topic, mag_topic, truth_topic):
+    """A ROS 2 bag of PX4's uXRCE-DDS topics: SensorCombined as the IMU, VehicleMagnetometer
+    (gauss), VehicleAttitude's (else VehicleOdometry's) quaternion as ``ref_q``. PX4 keeps its own
+    NED / FRD frames and its own time (``timestamp``, µs since boot) on the bridge: no conversion."""
+    conns = reader.connections
+    ci = _pick(conns, PX4_IMU, imu_topic, "px4_msgs SensorCombined", path, True)
+    cm = _pick(conns, PX4_MAG, mag_topic, "px4_msgs VehicleMagnetometer", path, False)
+    attitude = [c for c in conns if c.msgtype == PX4_ATTITUDE[0]] or conns  # VehicleAttitude first
+    ca = _pick(attitude, PX4_ATTITUDE, truth_topic, "PX4 attitude", path, False)
+    imu = np.array(
+        sorted((m.timestamp, *m.gyro_rad, *m.accelerometer_m_s2) for m in _px4_messages(reader, ci, path)), float
+    )
+    if not len(imu):
+        raise ReaderError(f"{path}: the IMU topic {ci.topic} has no messages")
+    t = imu[:, 0] * 1e-6
+    magv, truth = None, {}
+    if cm is not None:
+        m = np.array(sorted((m.timestamp, *m.magnetometer_ga) for m in _px4_messages(reader, cm, path)), float)
+        magv = mag_on_imu_rows(t, m[:, 0] * 1e-6, m[:, 1:4] * 100.0) if len(m) else None
+    if ca is not None:
+        q = np.array(sorted((m.timestamp, *m.q) for m in _px4_messages(reader, ca, path)), float)
+        if len(q) > 1:
+            truth["ref_q"] = resample_quat(q[:, 0] * 1e-6, q[:, 1:5], t)
+    meta = {
+        "source_format": "ROS 2 bag of PX4 topics (px4_msgs)",
+        "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT"},
+        "frames": "NED/FRD (PX4's own, kept on the ROS 2 bridge)",
+        "reference": f"{ca.topic} ({ca.msgtype.split('/')[-1]}, PX4's EKF2) as ref_q" if ca else "none",
+        "topics": {"imu": ci.topic, "mag": cm.topic if cm else None, "truth": ca.topic if ca else None},
+    }
+    return make_recording(path, "rosbag", t, imu[:, 1:4], imu[:, 4:7], magv, meta, **truth)
