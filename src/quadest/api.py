@@ -15,6 +15,7 @@ counted (``est.skipped``), never refused.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
@@ -56,12 +57,17 @@ def _vectors(name: str, a, n: int | None) -> np.ndarray:
 def _checked(t, gyr, acc, mag) -> None:
     """The unit and frame checks of a file, on the rows an estimator would use."""
     rows = np.isfinite(t) & (sample_intervals(t) > 0) & np.isfinite(gyr).all(1) & np.isfinite(acc).all(1)
+    if rows.sum() >= 10 and not acc[rows].any():
+        raise ValueError(
+            "quadest.estimate: acc is exactly zero on every row: a dead sensor or the wrong array? (even "
+            "in free fall an accelerometer's noise is not zero)"
+        )
     if rows.sum() >= 2:
         check_units(t[rows], gyr[rows], acc[rows], None if mag is None else mag[rows])
 
 
 def _from_recording(rec: Recording, method: str, declination: float | None, others: dict, params: dict):
-    given = sorted(k for k, v in others.items() if v is not None)
+    given = sorted(k for k, v in others.items() if v is not None and not (k == "frame" and v == "ned-frd"))
     if given:
         raise UsageError(f"quadest.estimate: a Recording carries its own {', '.join(given)}; give those with arrays")
     return runner.estimate(rec, method, params, declination=declination)
@@ -89,8 +95,10 @@ def estimate(
 
     Returns a :class:`~quadest.filters.FilterResult`: ``.t``, ``.q`` (``[w, x, y, z]``, body to
     navigation), ``.euler`` (rad), ``.diagnostics``, ``.skipped``, ``.to_pandas()``."""
+    _check_declination(declination)
     if isinstance(gyr, Recording):
-        return _from_recording(gyr, method, declination, {"acc": acc, "mag": mag, "rate": rate, "t": t}, params)
+        others = {"acc": acc, "mag": mag, "rate": rate, "t": t, "frame": frame}
+        return _said_if_skipped(_from_recording(gyr, method, declination, others, params))
     if frame not in FRAMES:
         raise UsageError(f"quadest.estimate: frame must be one of {', '.join(FRAMES)}, got {frame!r}")
     if acc is None:
@@ -109,7 +117,41 @@ def estimate(
     cls = estimator_class(method)
     runner.check_params(cls.name, params)
     res = cls(declination=0.0 if declination is None else declination, **params).run(t=t, gyr=gyr, acc=acc, mag=mag)
+    res = _said_if_skipped(res)
     return replace(res, q=quat_ned_frd_to_enu_flu(res.q), frame=frame) if frame == "enu-flu" else res
+
+
+SKIPPED_WARN = 0.01
+"""Skipping more than this share of the samples is said (a warning); skipping all is an error."""
+
+
+def _said_if_skipped(res: FilterResult) -> FilterResult:
+    n = len(res.t)
+    if n >= 2 and res.skipped == n:
+        raise ValueError(
+            f"quadest.estimate: none of the {n} samples could be used (times not increasing, or not "
+            "finite, or sensor values not finite): check t (float32 seconds since the epoch lose "
+            "their fraction: use float64) and the arrays"
+        )
+    if n and res.skipped > SKIPPED_WARN * n:
+        warnings.warn(
+            f"{res.name}: skipped {res.skipped} of {n} samples (a time not after the one before, or "
+            "a value that is not finite); the attitude is held over them",
+            stacklevel=3,
+        )
+    return res
+
+
+def _check_declination(declination) -> None:
+    if declination is None:
+        return
+    if isinstance(declination, bool) or not isinstance(declination, (int, float, np.number)):
+        raise UsageError(f"quadest.estimate: declination must be a number in rad, got {declination!r}")
+    if not abs(float(declination)) <= np.pi:
+        raise UsageError(
+            f"quadest.estimate: declination {float(declination):.4g} is not an angle in rad within ±pi "
+            "(degrees? multiply by pi/180)"
+        )
 
 
 def score(rec: Recording, est: FilterResult | ArrayLike, **options) -> dict:
@@ -117,10 +159,28 @@ def score(rec: Recording, est: FilterResult | ArrayLike, **options) -> dict:
     log's onboard attitude ``ref_q``): RMS and percentiles of roll, pitch, yaw and the total
     angle, after removing the constant rotations the recording's reader names (docs/metrics).
     ``options`` go to :func:`quadest.evaluation.runner.score` (``t_from``, ``nav``, ``body``)."""
+    if not isinstance(rec, Recording):
+        raise UsageError(f"quadest.score: the first argument is the Recording, got {type(rec).__name__}")
     if isinstance(est, FilterResult):
         if est.frame != "ned-frd":
             raise UsageError("quadest.score: the estimate is in ENU/FLU; a Recording is in NED/FRD")
+        if len(est.t) != len(rec) or not np.allclose(est.t, rec.t, equal_nan=True):
+            raise UsageError(
+                f"quadest.score: the estimate's {len(est.t)} times are not the recording's {len(rec)}: "
+                "score an estimate of this recording"
+            )
         if not options:
             return runner.score_result(rec, est)
         est = est.q
-    return runner.score(rec, np.asarray(est, dtype=np.float64), **options)
+    return runner.score(rec, _unit_quaternions(est, len(rec)), **options)
+
+
+def _unit_quaternions(q, n: int) -> np.ndarray:
+    q = np.asarray(q, dtype=np.float64)
+    if q.shape != (n, 4):
+        raise UsageError(f"quadest.score: the estimate must be quaternions of shape ({n}, 4), got {q.shape}")
+    norm = np.linalg.norm(q, axis=1)
+    ok = np.isfinite(norm)
+    if ok.any() and np.abs(norm[ok] - 1.0).max() > 1e-3:
+        raise UsageError("quadest.score: the estimate's quaternions are not unit quaternions ([w, x, y, z])")
+    return q

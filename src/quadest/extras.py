@@ -29,8 +29,10 @@ class MissingExtra(ImportError):
 
 
 def install_hint(package: str) -> str:
-    """``pip install 'quadest[EXTRA]'`` for the extra that brings ``package``."""
-    return f"pip install 'quadest[{EXTRAS[package.split('.')[0]]}]'"
+    """``pip install 'quadest[EXTRA]'`` for the extra that brings ``package`` (from a clone,
+    ``pip install '.[EXTRA]'``)."""
+    extra = EXTRAS[package.split(".")[0]]
+    return f"pip install 'quadest[{extra}]' (from a clone: pip install '.[{extra}]')"
 
 
 def need(module: str, purpose: str):

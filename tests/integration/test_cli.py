@@ -405,3 +405,13 @@ def test_a_cold_compile_is_said_at_a_terminal(monkeypatch):
         monkeypatch.setattr(_jit, "cold", lambda cold=cold: cold)
         cli_main.say_if_compiling(args)
         assert ("compiling its numerical code" in err.getvalue()) == said
+
+
+def test_a_span_beyond_the_recording_is_one_usage_error(tmp_path, capsys):
+    rec_path = tmp_path / "f.csv"
+    assert main(["simulate", "--scenario", "hover", "--duration", "3", "-o", str(rec_path)]) == 0
+    capsys.readouterr()
+    argv = ["report", str(rec_path), "--filters", "madgwick", "--from", "500", "--to", "600"]
+    code = main([*argv, "-o", str(tmp_path / "r.html")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "holds fewer than two samples" in err[0]

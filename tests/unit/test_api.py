@@ -70,6 +70,20 @@ def test_a_gyroscope_in_deg_s_at_ordinary_rates_is_named(flight):
         quadest.estimate(flight.gyr, flight.acc / 9.80665, t=flight.t)
 
 
+def test_without_a_magnetometer_the_rests_warn_of_deg_s():
+    """Six rests in six positions, no magnetometer: read as deg/s the gyroscope turns one rest's
+    gravity into the next's, read as rad/s it does not; a warning (the rests are weaker evidence
+    than the magnetometer's field), and none for the same data in rad/s."""
+    six = simulate("six-position", "bebop2", seed=2)
+    t, gyr = 2.0 * six.t, 0.5 * six.gyr  # turned half as fast: below 70 °/s, so no magnitude tells
+    assert np.degrees(np.abs(gyr)).max() < 70.0
+    with pytest.warns(UserWarning, match="only if it is read as deg/s"):
+        quadest.estimate(np.degrees(gyr), six.acc, t=t)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        quadest.estimate(gyr, six.acc, t=t)
+
+
 def test_a_z_up_frame_is_named_and_enu_flu_is_taken():
     rest = simulate("nominal", "bebop2", seed=1, duration=5.0)  # hover: level, gravity on −z
     flu = [vec_frd_to_flu(a) for a in (rest.gyr, rest.acc, rest.mag)]
@@ -101,7 +115,7 @@ def test_a_missing_extra_is_one_line(monkeypatch, tmp_path, capsys):
     assert main(["info", str(log)]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["quadest info: error: reading a PX4 ULog needs pyulog, in quadest's [logs] extra: "
-                   "pip install 'quadest[logs]'"]  # fmt: skip
+                   "pip install 'quadest[logs]' (from a clone: pip install '.[logs]')"]  # fmt: skip
     monkeypatch.setitem(sys.modules, "matplotlib", None)
     assert main(["simulate", "-o", str(tmp_path / "s.csv"), "--plot", str(tmp_path / "s.png")]) == 1
     assert "--plot needs matplotlib" in capsys.readouterr().err
@@ -128,3 +142,74 @@ def test_the_deg_s_check_on_real_recordings():
         assert not (abs(s - 1.0) < 4 * se and se < 0.25), f.name  # where it can tell, never rad/s
         told += bool(np.isfinite(se) and abs(s) + 4 * se < 0.25)
     assert told >= 0.8 * len(files), told
+
+
+def test_the_rests_check_on_real_recordings():
+    """No real recording in rad/s draws the rests' warning; where the rests tell, the same data in
+    deg/s fits them far better (BROAD, RepoIMU)."""
+    from quadest.data.checks import DEG_S_RATIO, rest_misfits
+
+    files = [f for pattern in REAL for f in sorted(DATA.glob(pattern))] + sorted(DATA.glob("dido/*.hdf5"))
+    if not files:
+        pytest.skip(f"no real recordings under {DATA} (set QUADEST_DATA; ../shared/data/README.md)")
+    told = 0
+    for f in files:
+        rec = quadest.read(f)
+        rad, deg = rest_misfits(rec.t, rec.gyr, rec.acc), rest_misfits(rec.t, np.degrees(rec.gyr), rec.acc)
+        if len(rad):
+            assert not rad[:, 1].sum() < DEG_S_RATIO * rad[:, 0].sum(), f.name
+            told += bool(deg[:, 1].sum() < DEG_S_RATIO * deg[:, 0].sum())
+    assert told >= 5, told
+
+
+def test_bad_values_are_one_clear_error_and_bad_samples_are_counted(flight, tmp_path):
+    """What a hostile user tried: bad samples skipped and counted by quadest's filters and the
+    peers alike (vqf once aborted the process on a NaN time); nothing usable, or a score of
+    something else, is an error; a value in the wrong unit is named."""
+    t, g, a, m = flight.t.copy(), flight.gyr.copy(), flight.acc.copy(), flight.mag.copy()
+    t[1000], g[1500], a[1700], m[200] = np.nan, np.nan, np.inf, np.inf
+    for method in ("robust", "vqf", "imufusion", "ahrs-madgwick"):
+        est = quadest.estimate(g, a, m, t=t, method=method)
+        assert np.isfinite(est.q).all() and est.skipped >= 3, method
+    with pytest.raises(ValueError, match="none of the .* samples could be used"):
+        quadest.estimate(g, a, t=t[::-1].copy())
+    with pytest.warns(UserWarning, match="skipped .* of .* samples"):
+        quadest.estimate(g, a, t=np.where(np.arange(len(t)) % 10 == 0, np.nan, t))
+    with pytest.raises(ValueError, match="exactly zero on every row"):
+        quadest.estimate(np.zeros((1000, 3)), np.zeros((1000, 3)), rate=200.0)
+    with pytest.raises(ValueError, match="is the time in ns"):
+        quadest.estimate(flight.gyr, flight.acc, t=flight.t * 1e9)
+    for bad in ({"declination": "0.1"}, {"declination": 10.0}, {"rate": True}):
+        with pytest.raises(UsageError):
+            quadest.estimate(flight.gyr, flight.acc, **{"rate": 200.0, **bad})
+    with pytest.raises(UsageError, match="carries its own frame"):
+        quadest.estimate(flight, frame="enu-flu")
+    est = quadest.estimate(flight, method="madgwick")
+    part = flight.select(slice(0, 1000))
+    with pytest.raises(UsageError, match="not the recording's"):
+        quadest.score(part, est)
+    for q in (est.q[:, :3], 2.0 * est.q):
+        with pytest.raises(UsageError, match="quadest.score"):
+            quadest.score(flight, q)
+    empty = tmp_path / "empty.ulg"
+    empty.write_bytes(b"")
+    with pytest.raises(ValueError, match="the file is empty"):
+        quadest.read(empty)
+
+
+def test_offline_vqf_with_a_magnetometer_slower_than_the_imu():
+    """The Bebop 2's magnetometer samples at a fifth of the IMU's rate: offline VQF is given the
+    held sample between them (zeros, which online VQF skips, turned its heading 91° away)."""
+    nominal = simulate("nominal", "bebop2", seed=1, duration=20.0)
+    assert np.isnan(nominal.mag[:, 0]).mean() > 0.7
+    for method in ("vqf", "vqf-offline"):
+        assert quadest.score(nominal, quadest.estimate(nominal, method=method))["rms_deg"]["yaw"] < 5.0, method
+
+
+def test_a_magnetometer_in_another_frame_is_not_called_deg_s():
+    """A negative scale (the magnetometer's axes flipped against the gyroscope's) is another
+    disagreement, not a gyroscope in deg/s: no deg/s error that would ruin a correct gyroscope."""
+    fig = simulate("figure-eight", "bebop2", seed=1, duration=20.0)
+    s, se = gyro_scale(fig.t, fig.gyr, fig.mag * [1.0, -1.0, -1.0])
+    assert s < 0.0 and s + 4 * se < 0.25
+    quadest.estimate(fig.gyr, fig.acc, fig.mag * [1.0, -1.0, -1.0], t=fig.t)  # no deg/s error

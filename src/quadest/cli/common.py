@@ -83,8 +83,9 @@ def cropped(rec, t_from: float | None, t_to: float | None):
         return rec
     t0 = float(rec.t[0])
     a, b = t0 + (t_from or 0.0), t0 + (t_to if t_to is not None else np.inf)
-    out = rec.between(a, b) if a < b else None
-    if out is None or len(out) < 2:
+    inside = (rec.t >= a) & (rec.t <= b)
+    out = rec.select(inside) if inside.sum() >= 2 else None
+    if out is None:
         raise CliError(
             f"--from/--to: the span {t_from or 0:g} to {t_to if t_to is not None else 'the end'} s holds fewer "
             f"than two samples of this {rec.duration:.2f} s recording"
@@ -239,7 +240,7 @@ def read(args, path):
 def write_report_for(rec, names, params, path, title, json_path=None, recovery=None, recovery_model="", rotors=None):
     """``quadest report`` and every ``--report PATH``: the HTML page for ``rec`` with the
     estimators ``names`` and a throw's ``recovery`` (docs/report.md)."""
-    need("bokeh", "the HTML report (--report)")
+    need("bokeh", "the HTML report")
     from quadest.plot.report import write_report  # bokeh: only when a report is written
 
     summ, att = report_data(rec, names, params, recovery)

@@ -191,7 +191,7 @@ def _rotor_speeds(path, explicit: bool):
 def _sweep_report(args):
     import pyarrow.parquet as pq
 
-    need("bokeh", "the HTML report (--report)")
+    need("bokeh", "the HTML report")
     from quadest.plot.report import write_sweep_report  # bokeh: only when a report is written
 
     summ = sweep_summary(pq.read_table(args.file))

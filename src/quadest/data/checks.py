@@ -6,7 +6,9 @@ away is kinematics: the magnetic field, fixed in the navigation frame and measur
 turns as ``dm/dt = −ω × m``, so the gyroscope's rates scaled by ``s`` must explain its turning
 with ``s ≈ 1``. ``s`` is fitted by least squares (with the magnetometer's constant offset, hard
 iron, beside it); a gyroscope in deg/s gives ``s ≈ π/180``. Without a magnetometer only the
-magnitudes are checked. A body frame that is z-up (FLU) reads ``+g`` on z at rest.
+magnitudes and, as a warning, the rests are checked: between two rests the gyroscope's
+rotation must turn the first rest's gravity into the second's. A body frame that is z-up (FLU)
+reads ``+g`` on z at rest.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from quadest.conventions import GRAVITY
 
@@ -74,15 +77,88 @@ def gyro_scale(t, gyr, mag) -> tuple[float, float]:
     return turn_scale(t, gyr, mag, offset=True)
 
 
+STILL_S = 0.25  # a rest: the accelerometer this long within STILL_SPREAD of its mean and ...
+STILL_SPREAD = 0.05 * GRAVITY
+STILL_NORM = 0.03 * GRAVITY  # ... its mean's norm this close to g
+TURN_MIN_DEG = 15.0  # only rests whose gravity directions differ by more count
+DEG_S_RATIO = 0.25  # deg/s warned of when its summed misfit is below this share of rad/s's
+
+
+def runs(mask, shortest: int = 1) -> list[tuple[int, int]]:
+    """The index ranges ``[start, end)`` where ``mask`` holds, each at least ``shortest`` long."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], np.asarray(mask).astype(int), [0]])))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True) if b - a >= shortest]
+
+
+def rests(t, acc) -> list[tuple[int, int]]:
+    """Stretches of at least :data:`STILL_S` in which the accelerometer holds still near g."""
+    if len(t) < 3:
+        return []
+    k = max(2, int(round(STILL_S / max(float(np.median(np.diff(t))), 1e-9))))
+    if len(acc) <= k:
+        return []
+    c1 = np.cumsum(np.vstack([np.zeros((1, 3)), acc]), axis=0)
+    c2 = np.cumsum(np.vstack([np.zeros((1, 3)), acc**2]), axis=0)
+    mean = (c1[k:] - c1[:-k]) / k
+    spread = np.sqrt(np.maximum((c2[k:] - c2[:-k]) / k - mean**2, 0.0)).max(axis=1)
+    still = np.zeros(len(t), bool)
+    near_g = np.abs(np.linalg.norm(mean, axis=1) - GRAVITY) < STILL_NORM
+    still[k // 2 : k // 2 + len(mean)] = (spread < STILL_SPREAD) & near_g
+    return runs(still, k)
+
+
+def _turned(gyr, dt, scale) -> Rotation:
+    """The body's rotation over the samples (the product of each sample's, in order)."""
+    r = Rotation.from_rotvec(scale * gyr * dt[:, None])
+    while len(r) > 1:
+        if len(r) % 2:
+            r = Rotation.concatenate([r, Rotation.identity()])
+        r = r[0::2] * r[1::2]
+    return r[0]
+
+
+def rest_misfits(t, gyr, acc) -> np.ndarray:
+    """Per pair of consecutive rests whose gravity directions differ by more than
+    :data:`TURN_MIN_DEG`: the angle (deg) between the second rest's gravity and the first's turned
+    by the gyroscope read as rad/s, and as deg/s."""
+    dt = np.diff(t, append=t[-1])
+    out = []
+    spans = rests(t, acc)
+    for (a0, b0), (a1, b1) in zip(spans[:-1], spans[1:]):
+        g0, g1 = (acc[a:b].mean(axis=0) / np.linalg.norm(acc[a:b].mean(axis=0)) for a, b in ((a0, b0), (a1, b1)))
+        if np.degrees(np.arccos(np.clip(g0 @ g1, -1.0, 1.0))) <= TURN_MIN_DEG:
+            continue
+        i, j = (a0 + b0) // 2, (a1 + b1) // 2
+        fits = [_turned(gyr[i:j], dt[i:j], s).inv().apply(g0) @ g1 for s in (1.0, np.pi / 180.0)]
+        out.append(np.degrees(np.arccos(np.clip(fits, -1.0, 1.0))))
+    return np.array(out).reshape(-1, 2)
+
+
+def warn_deg_s_from_rests(t, gyr, acc) -> None:
+    """Warn when the rests' gravity turns far better with the gyroscope read as deg/s."""
+    misfit = rest_misfits(t, gyr, acc)
+    if len(misfit) and misfit[:, 1].sum() < DEG_S_RATIO * misfit[:, 0].sum():
+        warnings.warn(
+            f"gyr: between {len(misfit) + 1} rests the gravity in the accelerometer turns as the gyroscope "
+            f"says only if it is read as deg/s ({misfit[:, 1].sum():.0f}° off in all, against "
+            f"{misfit[:, 0].sum():.0f}° as rad/s): is it in deg/s? {RAD_S_FIX}",
+            stacklevel=3,
+        )
+
+
 def check_gyro_scale(t, gyr, mag=None) -> None:
-    """Refuse a gyroscope whose rates are far faster than the turning it should explain."""
+    """Refuse a gyroscope whose rates are far faster than the turning it should explain (a small
+    positive scale: deg/s gives 0.0175; a negative one is another disagreement, not deg/s)."""
     s, se = gyro_scale(t, gyr, mag)
-    if np.isfinite(se) and -SCALE_BAND < s - 4 * se and s + 4 * se < SCALE_BAND:
+    if np.isfinite(se) and 0.0 < s and s + 4 * se < SCALE_BAND and -SCALE_BAND < s - 4 * se:
         raise ValueError(
             f"gyr: the gyroscope reads about {1 / max(abs(s), 1e-3):.0f} times the rotation that turns "
-            f"the magnetometer's field (scale {s:.4f} ± {se:.4f}; deg/s gives 0.0175): is it in deg/s? quadest takes "
-            "rad/s (multiply deg/s by pi/180)"
+            f"the magnetometer's field (scale {s:.4f} ± {se:.4f}; deg/s gives 0.0175): is it in deg/s "
+            f"(or are the magnetometer's axes or times not the IMU's)? {RAD_S_FIX}"
         )
+
+
+RAD_S_FIX = "quadest takes rad/s (multiply deg/s by pi/180; a CSV: --units gyr=deg/s)"
 
 
 def warn_z_up(gyr, acc) -> None:
@@ -98,6 +174,11 @@ def warn_z_up(gyr, acc) -> None:
         )
 
 
+def _shown(v: float) -> str:
+    """A value for a message: one decimal, or three digits when it is huge (a damaged file)."""
+    return f"{v:.1f}" if abs(v) < 1e6 else f"{v:.3g}"
+
+
 def _first_row(mask) -> int:
     return int(np.flatnonzero(mask)[0])
 
@@ -109,9 +190,8 @@ def check_magnitudes(t, gyr, acc) -> None:
     if big.any():
         i = _first_row(big)
         raise ValueError(
-            f"gyr: {np.abs(gyr[i]).max():.1f} at row {i} exceeds {GYR_LIMIT:.0f} rad/s, "
-            "more than any MEMS gyroscope measures: is the gyroscope in deg/s? "
-            "quadest takes rad/s (multiply deg/s by pi/180)"
+            f"gyr: {_shown(np.abs(gyr[i]).max())} at row {i} exceeds {GYR_LIMIT:.0f} rad/s, "
+            f"more than any MEMS gyroscope measures: is the gyroscope in deg/s? {RAD_S_FIX}"
         )
     with np.errstate(over="ignore"):  # a damaged file may hold 1e300: its norm is inf, refused below
         norm = np.linalg.norm(acc, axis=1)
@@ -119,7 +199,7 @@ def check_magnitudes(t, gyr, acc) -> None:
     if big.any():
         i = _first_row(big)
         raise ValueError(
-            f"acc: norm {norm[i]:.1f} at row {i} exceeds {ACC_LIMIT:.0f} m/s²: "
+            f"acc: norm {_shown(norm[i])} at row {i} exceeds {ACC_LIMIT:.0f} m/s²: "
             "is the accelerometer in mg or raw counts? quadest takes m/s²"
         )
     med, p95 = np.median(norm), np.percentile(norm, 95)
@@ -148,7 +228,7 @@ def check_magnitudes(t, gyr, acc) -> None:
     if len(t) >= 10:
         med_dt = float(np.median(np.diff(t)))
         if med_dt > 1.0:
-            unit = "µs" if med_dt > 200.0 else "ms"
+            unit = "ns" if med_dt > 1e5 else "µs" if med_dt > 200.0 else "ms"
             raise ValueError(
                 f"t: the median interval is {med_dt:g} s ({1 / med_dt:.3g} Hz), slower than any "
                 f"IMU: is the time in {unit}? quadest takes seconds"
@@ -156,8 +236,11 @@ def check_magnitudes(t, gyr, acc) -> None:
 
 
 def check_units(t, gyr, acc, mag=None) -> None:
-    """Every check of this module on finite samples: errors for unit mistakes, a warning for a
+    """Every check of this module on finite samples: errors for unit mistakes, warnings for a
+    gyroscope that looks like deg/s by its rests alone (without a magnetometer to tell) and for a
     z-up body frame."""
     check_magnitudes(t, gyr, acc)
     check_gyro_scale(t, gyr, mag)
+    if mag is None or not np.isfinite(gyro_scale(t, gyr, mag)[1]):
+        warn_deg_s_from_rests(t, gyr, acc)
     warn_z_up(gyr, acc)

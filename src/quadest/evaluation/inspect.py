@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from quadest.conventions import GRAVITY
+from quadest.data.checks import runs
 from quadest.data.recording import Recording
 from quadest.evaluation.metrics import euler_errors
 from quadest.evaluation.runner import estimate_all, first_mag_time, score
@@ -28,13 +29,7 @@ VIBRATION_MIN_SAMPLES = 5  # fewer samples in that window cannot tell vibration 
 
 def _runs(mask, t, min_s):
     """Intervals ``(start, end)`` (s) where ``mask`` holds for at least ``min_s``."""
-    out = []
-    m = np.concatenate([[False], np.asarray(mask, bool), [False]])
-    d = np.diff(m.astype(np.int8))
-    for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
-        if t[b - 1] - t[a] >= min_s:
-            out.append((float(t[a]), float(t[b - 1])))
-    return out
+    return [(float(t[a]), float(t[b - 1])) for a, b in runs(mask) if t[b - 1] - t[a] >= min_s]
 
 
 def _flat_top_share(x) -> float:

@@ -466,7 +466,7 @@ def sample_times(t, rate, gyr, who: str) -> np.ndarray:
         raise UsageError(f"{who}: give the sample times t (s) or the sample rate rate (Hz), one of them")
     if t is not None:
         return np.asarray(t, dtype=np.float64)
-    if not (isinstance(rate, (int, float, np.number)) and math.isfinite(rate) and rate > 0):
+    if isinstance(rate, bool) or not (isinstance(rate, (int, float, np.number)) and math.isfinite(rate) and rate > 0):
         raise UsageError(f"{who}: rate must be a positive number of samples per second, got {rate!r}")
     return np.arange(len(np.asarray(gyr))) / float(rate)
 

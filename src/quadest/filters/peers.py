@@ -145,15 +145,27 @@ class Peer(Estimator):
         if rec is not None:
             t, gyr, acc, mag = rec.t, rec.gyr, rec.acc, rec.mag
         t = sample_times(t, rate, gyr, self.name)
+        gyr, acc = np.asarray(gyr, float), np.asarray(acc, float)
         mag = np.full((len(t), 3), np.nan) if mag is None else np.asarray(mag, float)
-        has_mag = bool(np.isfinite(mag[:, 0]).any())
+        mag = np.where(np.isfinite(mag).all(axis=1, keepdims=True), mag, np.nan)  # a bad row: no sample
         self._require()
+        # the other packages take no unusable sample (vqf aborts the process on a zero interval):
+        # they run on the usable rows, the attitude is held over the others, which are counted
         dt = sample_intervals(t)
-        nominal = float(np.median(np.diff(t))) if len(t) > 1 else 0.01
+        good = np.isfinite(dt) & (dt > 0) & np.isfinite(gyr).all(axis=1) & np.isfinite(acc).all(axis=1)
+        q = np.tile([1.0, 0.0, 0.0, 0.0], (len(t), 1))
+        if good.sum() >= 2:
+            q[good] = self._usable_rows(t[good], gyr[good], acc[good], mag[good])
+        held = np.maximum.accumulate(np.where(good, np.arange(len(t)), 0))
+        return FilterResult(self.name, t, q[held], {}, self.params, skipped=int((~good).sum()))
+
+    def _usable_rows(self, t, gyr, acc, mag) -> np.ndarray:
+        """The peer's attitude on rows that are all usable (strictly increasing finite times)."""
+        dt = sample_intervals(t)
+        has_mag = bool(np.isfinite(mag[:, 0]).any())
         use = mag if self.params.use_mag and has_mag else None
-        q = np.asarray(self._batch(dt, nominal, np.asarray(gyr, float), np.asarray(acc, float), use), float)
-        q = self._to_geographic(q, has_mag)
-        return FilterResult(self.name, t, q, {}, self.params)
+        q = np.asarray(self._batch(dt, float(np.median(np.diff(t))), gyr, acc, use), float)
+        return self._to_geographic(q, has_mag)
 
 
 def held_mag(mag):
@@ -199,7 +211,9 @@ class VqfOffline(Peer):
     def _batch(self, dt, nominal, gyr, acc, mag):
         from vqf import offlineVQF
 
-        m = None if mag is None else _flu(np.nan_to_num(mag))
+        # unlike VQF's online update, its offline form does not take a zero vector as "no sample":
+        # a magnetometer slower than the IMU is held between its samples (heading 91° off otherwise)
+        m = None if mag is None else _flu(held_mag(mag))
         out = offlineVQF(_flu(gyr), _flu(acc), m, nominal)
         return quat_enu_flu_to_ned_frd(out["quat9D"] if m is not None else out["quat6D"])
 

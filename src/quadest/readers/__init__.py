@@ -78,6 +78,8 @@ def detect_format(path: str | Path) -> str:
         )
     ext = p.suffix.lower()
     head = _first_bytes(p)
+    if not head:
+        raise ReaderError(f"{path}: the file is empty")
     if head.startswith(b"ULog"):
         return "ulog"
     if ext in (".bin",) or head[:2] == b"\xa3\x95":

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from quadest.data.checks import runs
 from quadest.extras import need
 from quadest.readers.common import ReaderError
 from quadest.readers.logs import LOG_DAMAGE, _printed
@@ -61,12 +62,6 @@ class MotorLog:
 
 def _rate(t) -> float:
     return float(1.0 / np.median(np.diff(t))) if len(t) > 2 else 0.0
-
-
-def runs(mask, shortest: int = 1) -> list[tuple[int, int]]:
-    """The index ranges ``[start, end)`` where ``mask`` holds, each at least ``shortest`` long."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], np.asarray(mask).astype(int), [0]])))
-    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True) if b - a >= shortest]
 
 
 def logged_failure(log: MotorLog) -> tuple[float, int] | None:
