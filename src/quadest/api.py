@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
-from quadest.data.checks import check_units
+from quadest.data.checks import check_units, warn_tilt_disagreement
 from quadest.data.recording import Recording
 from quadest.errors import UsageError
 from quadest.evaluation import runner
@@ -98,7 +98,10 @@ def estimate(
     _check_declination(declination)
     if isinstance(gyr, Recording):
         others = {"acc": acc, "mag": mag, "rate": rate, "t": t, "frame": frame}
-        return _said_if_skipped(_from_recording(gyr, method, declination, others, params))
+        res = _said_if_skipped(_from_recording(gyr, method, declination, others, params))
+        if check:
+            warn_tilt_disagreement(res.name, res.q, gyr.acc)
+        return res
     if frame not in FRAMES:
         raise UsageError(f"quadest.estimate: frame must be one of {', '.join(FRAMES)}, got {frame!r}")
     if acc is None:
@@ -118,6 +121,8 @@ def estimate(
     runner.check_params(cls.name, params)
     res = cls(declination=0.0 if declination is None else declination, **params).run(t=t, gyr=gyr, acc=acc, mag=mag)
     res = _said_if_skipped(res)
+    if check:
+        warn_tilt_disagreement(res.name, res.q, acc)
     return replace(res, q=quat_ned_frd_to_enu_flu(res.q), frame=frame) if frame == "enu-flu" else res
 
 

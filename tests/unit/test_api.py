@@ -77,11 +77,29 @@ def test_without_a_magnetometer_the_rests_warn_of_deg_s():
     six = simulate("six-position", "bebop2", seed=2)
     t, gyr = 2.0 * six.t, 0.5 * six.gyr  # turned half as fast: below 70 °/s, so no magnitude tells
     assert np.degrees(np.abs(gyr)).max() < 70.0
-    with pytest.warns(UserWarning, match="only if it is read as deg/s"):
+    with pytest.warns(UserWarning) as said:
         quadest.estimate(np.degrees(gyr), six.acc, t=t)
+    said = [str(w.message) for w in said]
+    assert any("only if it is read as deg/s" in m for m in said)  # before the estimate
+    assert any("the estimate's tilt is" in m for m in said)  # and after it
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         quadest.estimate(gyr, six.acc, t=t)
+
+
+def test_a_hover_in_deg_s_is_caught_by_the_estimates_tilt():
+    """A hover barely turns the field and has no rests: no unit check can tell deg/s. The
+    estimate then tilts 86° from the gravity the accelerometer reads (rad/s: 3°): a warning."""
+    from quadest.data.checks import TILT_WARN_DEG, tilt_disagreement
+
+    hover = simulate("hover", "bebop2", seed=1, duration=30.0)
+    with pytest.warns(UserWarning, match="tilt is .* from the gravity"):
+        est = quadest.estimate(np.degrees(hover.gyr), hover.acc, hover.mag, t=hover.t)
+    assert tilt_disagreement(est.q, hover.acc) > 2 * TILT_WARN_DEG - 10
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        est = quadest.estimate(hover)
+    assert tilt_disagreement(est.q, hover.acc) < 5.0
 
 
 def test_a_z_up_frame_is_named_and_enu_flu_is_taken():
@@ -142,6 +160,18 @@ def test_the_deg_s_check_on_real_recordings():
         assert not (abs(s - 1.0) < 4 * se and se < 0.25), f.name  # where it can tell, never rad/s
         told += bool(np.isfinite(se) and abs(s) + 4 * se < 0.25)
     assert told >= 0.8 * len(files), told
+
+
+def test_the_tilt_check_on_real_recordings():
+    """robust's tilt stays within the warning's angle of the accelerometer's gravity on every real
+    recording (BROAD, DIDO, RepoIMU, the PX4 and ArduPilot logs): the check never fires there."""
+    from quadest.data.checks import TILT_WARN_DEG, tilt_disagreement
+
+    files = [f for pattern in REAL for f in sorted(DATA.glob(pattern))] + sorted(DATA.glob("dido/*.hdf5"))
+    if not files:
+        pytest.skip(f"no real recordings under {DATA} (set QUADEST_DATA; ../shared/data/README.md)")
+    worst = max(tilt_disagreement(quadest.estimate(rec).q, rec.acc) for rec in map(quadest.read, files))
+    assert worst < TILT_WARN_DEG / 2, worst
 
 
 def test_the_rests_check_on_real_recordings():

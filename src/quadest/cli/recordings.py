@@ -22,6 +22,7 @@ from quadest.cli.common import (
     write_report_for,
 )
 from quadest.data import format_summary, summarize, write_table
+from quadest.data.checks import warn_tilt_disagreement
 from quadest.evaluation.compare import parse_params
 from quadest.evaluation.diagnose import DiagnoseParams, diagnose_log, format_diagnosis
 from quadest.evaluation.inspect import events
@@ -94,6 +95,7 @@ def cmd_estimate(args):
     kw = {**cal_params.get(args.filter, {}), **params.get(args.filter, {})}
     decl = np.radians(args.declination_deg) if args.declination_deg is not None else None
     res = estimate(rec, args.filter, kw, declination=decl)
+    warn_tilt_disagreement(args.filter, res.q, rec.acc)
     q = res.q
     for line in filter_notes(res):
         say(line)

@@ -19,6 +19,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from quadest.conventions import GRAVITY
+from quadest.rotation import quat_conj, quat_rotate
 
 REST_RATE = 0.2  # rad/s: the gyroscope below this on every axis counts as rest
 MIN_REST_SAMPLES = 20
@@ -159,6 +160,36 @@ def check_gyro_scale(t, gyr, mag=None) -> None:
 
 
 RAD_S_FIX = "quadest takes rad/s (multiply deg/s by pi/180; a CSV: --units gyr=deg/s)"
+
+
+TILT_WARN_DEG = 45.0
+"""An estimate whose tilt is further than this (median) from the accelerometer's gravity, where
+it reads g alone, is warned of: on every simulated and real recording quadest has, a working
+estimate stays within 16° (a spinning vehicle after a rotor loss), a hover in deg/s 86°."""
+
+
+def tilt_disagreement(q, acc) -> float:
+    """The median angle (deg) between the estimate's "up" in the body and the accelerometer's
+    direction, over the rows where the accelerometer reads g within 5 % (where it reads gravity
+    alone, or a multirotor's thrust near the vertical); NaN with fewer than 50 such rows."""
+    norm = np.linalg.norm(acc, axis=1)
+    rows = np.isfinite(norm) & (np.abs(norm - GRAVITY) < 0.05 * GRAVITY) & np.isfinite(q).all(axis=1)
+    if rows.sum() < 50:
+        return float("nan")
+    up = quat_rotate(quat_conj(q[rows]), np.tile([0.0, 0.0, -1.0], (int(rows.sum()), 1)))
+    cos = np.sum(up * acc[rows] / norm[rows, None], axis=1)
+    return float(np.median(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))))
+
+
+def warn_tilt_disagreement(name: str, q, acc) -> None:
+    """Warn when an estimate's tilt and the accelerometer's gravity disagree (TILT_WARN_DEG)."""
+    angle = tilt_disagreement(q, acc)
+    if angle > TILT_WARN_DEG:
+        warnings.warn(
+            f"{name}: the estimate's tilt is {angle:.0f}° (median) from the gravity the accelerometer reads "
+            "where it reads g alone: a gyroscope in deg/s, axes in another frame, or a failed estimate?",
+            stacklevel=3,
+        )
 
 
 def warn_z_up(gyr, acc) -> None:
