@@ -147,9 +147,10 @@ def warn_deg_s_from_rests(t, gyr, acc) -> None:
         )
 
 
-def check_gyro_scale(t, gyr, mag=None) -> None:
+def check_gyro_scale(t, gyr, mag=None) -> bool:
     """Refuse a gyroscope whose rates are far faster than the turning it should explain (a small
-    positive scale: deg/s gives 0.0175; a negative one is another disagreement, not deg/s)."""
+    positive scale: deg/s gives 0.0175; a negative one is another disagreement, not deg/s).
+    Returns whether the magnetometer could tell at all."""
     s, se = gyro_scale(t, gyr, mag)
     if np.isfinite(se) and 0.0 < s and s + 4 * se < SCALE_BAND and -SCALE_BAND < s - 4 * se:
         raise ValueError(
@@ -157,6 +158,7 @@ def check_gyro_scale(t, gyr, mag=None) -> None:
             f"the magnetometer's field (scale {s:.4f} ± {se:.4f}; deg/s gives 0.0175): is it in deg/s "
             f"(or are the magnetometer's axes or times not the IMU's)? {RAD_S_FIX}"
         )
+    return bool(np.isfinite(se))
 
 
 RAD_S_FIX = "quadest takes rad/s (multiply deg/s by pi/180; a CSV: --units gyr=deg/s)"
@@ -271,7 +273,6 @@ def check_units(t, gyr, acc, mag=None) -> None:
     gyroscope that looks like deg/s by its rests alone (without a magnetometer to tell) and for a
     z-up body frame."""
     check_magnitudes(t, gyr, acc)
-    check_gyro_scale(t, gyr, mag)
-    if mag is None or not np.isfinite(gyro_scale(t, gyr, mag)[1]):
+    if not check_gyro_scale(t, gyr, mag):
         warn_deg_s_from_rests(t, gyr, acc)
     warn_z_up(gyr, acc)
