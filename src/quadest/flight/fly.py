@@ -45,13 +45,12 @@ from quadest.flight.common import (
 )
 from quadest.flight.detection import DETECTION_MODES, found_damaged
 from quadest.flight.loop import (
-    ESTIMATE_NAN,
     OK,
     STATUS,
     act_sample,
     closed_loop,
+    flown,
     flown_arrays,
-    no_estimator_args,
     sense_sample,
 )
 from quadest.flight.throw import ThrowParams, fly_throw
@@ -341,14 +340,14 @@ def _position_sensing(sm, params, rate, every, n, x0, rng, rotors):
 
 
 InLoop = namedtuple("InLoop", ["name", "args", "peer"])
-"""An estimator in the loop: its name, the compiled loop's estimator arguments, or a peer."""
+"""An estimator in the loop: its name, the compiled loop's estimator arguments (None: no estimator), or a peer."""
 
 
 def _in_loop(estimator, cfg, rate, estimator_params):
     """What the controller reads (a :data:`~quadest.flight.phases.NAV` name) and the estimator."""
     declination = math.radians(cfg.environment.declination_deg)
     if isinstance(estimator, str) and estimator == "truth":
-        return "truth", InLoop("truth", no_estimator_args(), None)
+        return "truth", InLoop("truth", None, None)
     if isinstance(estimator, Estimator):
         est = estimator
     elif ESTIMATORS[estimator].peer:
@@ -402,13 +401,13 @@ def _run(x, loop, est: InLoop):
     """Fly ``loop`` from ``x``: compiled with a compiled estimator, or sample by sample
     with a peer's streaming update. Returns ``(status, samples flown)``."""
     if est.peer is None:
-        return closed_loop(x, loop, *est.args)
+        return closed_loop(x, loop, est.args)
     sensing = loop.sensing
     for k in range(len(loop.record.phase)):
         sense_sample(k, x, loop)
         status = act_sample(k, x, loop, est.peer.update(sensing.gyr, sensing.acc, sensing.mag, dt=sensing.dt))
         if status != OK:
-            return status, (k if status == ESTIMATE_NAN else k + 1)
+            return status, flown(status, k)
     return OK, len(loop.record.phase)
 
 

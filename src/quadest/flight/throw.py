@@ -25,7 +25,7 @@ import numpy as np
 from quadest.control import SE3Params, hover_reference
 from quadest.flight import build
 from quadest.flight.common import SIM_RATE_HZ, Flight, FlightParams, angle_errors, barometer, sensors_for
-from quadest.flight.loop import OK, STATUS, closed_loop, flown_arrays, no_estimator_args
+from quadest.flight.loop import OK, STATUS, closed_loop, flown_arrays
 from quadest.flight.phases import HOLD_Z, PHASES
 from quadest.models import fit_aero
 from quadest.models.multirotor import MultirotorParams, derivatives, fly_open_loop
@@ -320,7 +320,7 @@ def fly_throw(
     )
     x = hand_x[0].copy()
     t0 = time.perf_counter()
-    status, flown = closed_loop(x, loop, *no_estimator_args())
+    status, flown = closed_loop(x, loop)
     loop_s = time.perf_counter() - t0
     out = flown_arrays(loop.record, flown)
     events = loop.record.events

@@ -9,7 +9,7 @@ import numpy as np
 from quadest.control import Failure, SE3Params
 from quadest.flight import build
 from quadest.flight.common import sensors_for
-from quadest.flight.loop import closed_loop, no_estimator_args
+from quadest.flight.loop import closed_loop
 from quadest.models.multirotor import MultirotorParams
 from quadest.sim import build_config
 
@@ -57,7 +57,7 @@ def fly_se3(
         rotors=vehicle.rotors,
         phase="flying",
     )
-    closed_loop(x, loop, *no_estimator_args())
+    closed_loop(x, loop)
     record = loop.record
     states = np.vstack([record.x[1:], x[None]])  # after each step
     return (states, record.cmd, record.eta) if return_eta else (states, record.cmd)
