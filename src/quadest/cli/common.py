@@ -60,9 +60,10 @@ def sim_config(preset, sets, toml=None, ideal: bool = False):
 def parse_seeds(text, option: str = "--seeds") -> Sequence[int]:
     """``1-5`` (a ``range``, never made into a list: its size is known at once) or ``1,2,3``; seeds
     are whole numbers 0 or more."""
-    a, dash, b = str(text).strip().partition("-")
+    text = str(text).strip()
+    a, dash, b = text.partition("-")
     try:
-        seeds = range(int(a), int(b) + 1) if dash else [int(v) for v in str(text).split(",")]
+        seeds = range(int(a), int(b) + 1) if dash and "," not in text else [int(v) for v in text.split(",")]
     except ValueError:
         raise CliError(
             f"{option} expects a range like 1-5 or a list like 1,2,3 of seeds 0 or more, got {text!r}"
