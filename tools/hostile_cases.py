@@ -105,7 +105,7 @@ def cases(d: Path):
             f.create_dataset(k, shape=(100_000_000, w), dtype="f8", chunks=(1000, w))
     logs = Path(__file__).resolve().parents[1] / "tests"
     sys.path.insert(0, str(logs))
-    from test_readers import write_dataflash, write_ulog  # byte-exact writers of both formats
+    from logwriters import write_dataflash, write_ulog  # byte-exact writers of both formats
 
     short = simulate("hover", "bebop2", seed=4, duration=2.0, overrides={"imu.rate_hz": 100.0, "mag.rate_hz": 100.0})
     ulg, df = d / "cut.ulg", d / "damaged.bin"
@@ -233,6 +233,101 @@ def cases(d: Path):
         lambda c, o, e: c == 1 and "not a results file" in e and not (d / "other.parquet.parts").exists(),
     )
     yield "an output with an unknown extension", ["estimate", h, "--filter", "madgwick", "-o", d / "e.txt"], one_line(1)
+    yield from cases_bounds(d)
+
+
+def cases_bounds(d: Path):
+    """Bounded work and interruptions: too many runs refused before anything runs, inputs that are
+    not files or are sparse refused unread, seeds below 0 a usage error, a damaged compiled cache
+    mended (downloads, Ctrl-C and the cache's damage need a server, a signal or a child process:
+    tests/integration/test_data_fetch.py and test_bounds.py)."""
+    import os
+
+    def refused(count):
+        return lambda c, o, e: (
+            c == 2 and f"makes {count} runs, more than --max-runs" in e and e.count("\n") == 1 and "Traceback" not in e
+        )
+
+    def one_line(code_wanted, said):
+        return lambda c, o, e: c == code_wanted and said in e and e.count("\n") == 1 and "Traceback" not in e
+
+    out = d / "bounds.parquet"
+    yield "sweep --seeds 0-100000000", ["sweep", "--seeds", "0-100000000", "-o", out], refused("100,000,001")
+    yield (
+        "a 3000x3000 grid",
+        ["sweep", "--seeds", "1", "--grid", "madgwick.beta_marg=lin:0:1:3000", "--grid",
+         "madgwick.beta_imu=lin:0:1:3000", "-o", out],
+        refused("9,000,000"),
+    )  # fmt: skip
+    yield (
+        "--grid log:1e-9:1:1000000 over 10 seeds",
+        ["sweep", "--seeds", "0-9", "--filters", "madgwick", "--grid", "madgwick.beta_marg=log:1e-9:1:1000000",
+         "-o", out],
+        refused("10,000,000"),
+    )  # fmt: skip
+    yield (
+        "--grid lin:0:1:1e12",
+        ["sweep", "--seeds", "1", "--grid", "madgwick.beta_marg=lin:0:1:1e12", "-o", out],
+        refused("1,000,000,000,000"),
+    )
+    yield (
+        "reproduce recovery --throws 10000000",
+        ["reproduce", "recovery", "--throws", "10000000"],
+        refused("10,000,000"),
+    )
+    yield "fly --seeds 0-2000000", ["fly", "--seeds", "0-2000000", "-o", d / "fl"], refused("2,000,001")
+    yield (
+        "simulate --seed -1",
+        ["simulate", "--seed", "-1", "-o", d / "x.csv"],
+        lambda c, o, e: c == 2 and "0 or more" in e,
+    )
+    yield "sweep --seeds 3,-2", ["sweep", "--seeds", "3,-2", "-o", out], one_line(2, "0 or more")
+    fifo = d / "fifo.csv"
+    os.mkfifo(fifo)
+    yield "a FIFO as input", ["info", fifo], one_line(1, "a FIFO (named pipe), not a file")
+    yield "a FIFO as --config", ["simulate", "--config", fifo, "-o", d / "x.csv"], one_line(1, "a FIFO")
+    yield (
+        "a device as input",
+        ["info", "/dev/zero", "--format", "csv", "--map", "t=t"],
+        one_line(1, "a character device"),
+    )
+    sparse = d / "sparse.csv"
+    with open(sparse, "wb") as f:
+        f.write(b"t,gx,gy,gz,ax,ay,az\n")
+        f.truncate(2 * 1024**3)
+    yield (
+        "a 2 GB sparse CSV",
+        ["info", sparse, "--format", "csv", "--map", "t=t", "--map", "gyr=gx,gy,gz", "--map", "acc=ax,ay,az"],
+        one_line(1, "a sparse file"),
+    )
+    yield "a damaged compiled cache", _damaged_cache_case, lambda c, o, e: c == 0 and e.count("was damaged") == 1
+
+
+def _damaged_cache_case():
+    """A compiled function's cache files cut short, in a child process with its own cache: the
+    second run says so once and still computes."""
+    import os
+    import subprocess
+
+    d = Path(tempfile.mkdtemp(prefix="quadest-cache-"))
+    try:
+        (d / "jitted.py").write_text(
+            "from quadest._jit import njit\n\n@njit(cache=True)\ndef f(x):\n    return x + 1.0\n"
+        )
+        code = f"import sys; sys.path.insert(0, {str(d)!r}); import jitted; print(jitted.f(1.0))"
+        env = {k: v for k, v in os.environ.items() if "NUMBA_CACHE_DIR" not in k}
+        env["XDG_CACHE_HOME"] = str(d / "cache")
+        env["PYTHONPATH"] = os.pathsep.join(sys.path)
+        subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, timeout=300, check=True)
+        for f in (d / "cache").rglob("*.nb[ic]"):
+            with open(f, "r+b") as fh:
+                fh.truncate(10)
+        r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+        ok = r.returncode == 0 and r.stdout.strip() == "2.0"
+        note = next((line for line in r.stderr.splitlines() if "damaged" in line), "")
+        return (0 if ok else 1), r.stdout, (note + "\n" if note else r.stderr)
+    finally:
+        shutil.rmtree(d, ignore_errors=True)
 
 
 def main_(argv=None) -> int:
@@ -246,7 +341,7 @@ def main_(argv=None) -> int:
     try:
         for name, argv_, ok in cases(d):
             try:
-                code, out, err = run(*argv_)
+                code, out, err = argv_() if callable(argv_) else run(*argv_)
                 good = bool(ok(code, out, err))
             except Exception:  # noqa: BLE001 (a case that crashes the harness is a failed case)
                 code, err, good = "crash", traceback.format_exc().splitlines()[-1], False

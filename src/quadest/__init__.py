@@ -13,22 +13,33 @@ forward-right-down, ZYX Euler angles, SI units. ``import quadest`` loads no comp
 names below that run estimators are loaded when first used.
 """
 
-from importlib.metadata import PackageNotFoundError
-from importlib.metadata import version as _version
-
-try:
-    __version__ = _version("quadest")
-except PackageNotFoundError:  # running from a source tree that is not installed
-    __version__ = "0.0.0+unknown"
-
-from quadest.data.recording import Recording, save_recording
-
 API = ("read", "estimate", "score")
 FILTER_NAMES = ("make_filter", "ESTIMATORS", "FilterResult", "Robust", "Afckf", "Qukf", "Ekf", "Madgwick", "Mahony")
 FILTER_NAMES += ("Valenti", "Roetenberg")
 
 
+RECORDING_NAMES = ("Recording", "save_recording")
+
+
+def _installed_version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("quadest")
+    except PackageNotFoundError:  # running from a source tree that is not installed
+        return "0.0.0+unknown"
+
+
 def __getattr__(name: str):
+    # nothing is imported with the package itself: the command line's first lines (its Ctrl-C
+    # guard) run before numpy is loaded
+    if name == "__version__":
+        globals()["__version__"] = _installed_version()
+        return globals()["__version__"]
+    if name in RECORDING_NAMES:
+        from quadest.data import recording
+
+        return getattr(recording, name)
     if name in API or name == "load_recording":  # load_recording: read's former name at the top level
         from quadest import api
 
@@ -45,7 +56,7 @@ def __getattr__(name: str):
 
 
 def __dir__():
-    return sorted([*globals(), *API, *FILTER_NAMES])
+    return sorted([*globals(), "__version__", *RECORDING_NAMES, *API, *FILTER_NAMES])
 
 
 __all__ = ["Recording", "save_recording", "__version__", *API, *FILTER_NAMES]

@@ -13,6 +13,9 @@ imported, never by ``import quadest`` alone. Housekeeping happens only where a c
 anyway: when the current folder is new, folders of older hashes beyond the few most recently
 used are removed. ``make clean-cache`` removes them all.
 
+A damaged cache entry (a cut ``.nbi`` or ``.nbc`` file, on which numba's unpickling fails at
+every call) is removed and compiled again, with one note (:func:`njit`'s loading guard).
+
 ``NUMBA_CACHE_DIR`` set by the user is respected as it is. The folder is
 ``$XDG_CACHE_HOME/quadest/numba/<hash>`` (``~/.cache`` without ``XDG_CACHE_HOME``), or under the
 temporary directory where that cannot be written.
@@ -20,10 +23,14 @@ temporary directory where that cannot be written.
 
 from __future__ import annotations
 
+import contextlib
+import functools
+import glob
 import hashlib
 import os
 import shutil
 import tempfile
+import warnings
 from pathlib import Path
 
 PACKAGE_DIR = Path(__file__).resolve().parent
@@ -117,6 +124,49 @@ def cold() -> bool:
 from numba import carray, cfunc, types  # noqa: E402  (after the cache folder is set)
 from numba import njit as _numba_njit  # noqa: E402
 
+MENDED: list[str] = []
+"""The cache files found damaged and removed in this process (their functions compiled again)."""
+
+
+def _remove_entry(cache_file) -> list[str]:
+    """A function's index and data files in numba's cache folder."""
+    folder, index = Path(cache_file._cache_path), Path(cache_file._index_path)
+    stem = index.name[: -len(".nbi")]
+    removed = []
+    for f in [index, *folder.glob(f"{glob.escape(stem)}.*.nbc")]:
+        with contextlib.suppress(OSError):
+            f.unlink()
+            removed.append(str(f))
+    return removed
+
+
+def _load_or_mend(cache, load, sig, target_context):
+    """numba's ``Cache.load_overload``, where a damaged entry (a cut or overwritten ``.nbi`` /
+    ``.nbc`` file: pickle fails on it, on every run) is removed, said once in one line, and
+    compiled again (numba then saves it anew) instead of failing every call."""
+    try:
+        return load(sig, target_context)
+    except Exception as exc:  # noqa: BLE001 (whatever unpickling a damaged file raises)
+        removed = _remove_entry(cache._cache_file)
+        if not MENDED:
+            warnings.warn(
+                f"the compiled-code cache in {Path(cache._cache_file._cache_path).parent} was damaged "
+                f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}); its damaged entries "
+                "are compiled again",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+        MENDED.extend(removed or [cache._cache_file._index_path])
+        return None
+
+
+def _mending(dispatcher):
+    """``dispatcher`` with its disk cache (if any) loading through :func:`_load_or_mend`."""
+    cache = getattr(dispatcher, "_cache", None)
+    if cache is not None and hasattr(cache, "_cache_file"):
+        cache.load_overload = functools.partial(_load_or_mend, cache, cache.load_overload)
+    return dispatcher
+
 
 def njit(*args, **options):
     """numba's ``njit`` with reference counting and ``fastmath`` stated, never inherited.
@@ -131,8 +181,9 @@ def njit(*args, **options):
     options.setdefault("_nrt", True)
     options.setdefault("fastmath", False)
     if args and callable(args[0]):
-        return _numba_njit(**options)(args[0])
-    return _numba_njit(*args, **options)
+        return _mending(_numba_njit(**options)(args[0]))
+    decorate = _numba_njit(*args, **options)
+    return lambda func: _mending(decorate(func))
 
 
 NO_ALLOCATION = {"_nrt": False}

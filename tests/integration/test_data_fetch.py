@@ -25,6 +25,7 @@ class Server:
 
     def __init__(self):
         self.files, self.cut, self.requests = {}, {}, []
+        self.behave = {}  # path -> a function of the handler that answers instead
         server = self
 
         class Handler(BaseHTTPRequestHandler):
@@ -33,6 +34,9 @@ class Server:
 
             def do_GET(self):
                 server.requests.append((self.path, self.headers.get("Range")))
+                if self.path in server.behave:
+                    server.behave[self.path](self)
+                    return
                 body = server.files.get(self.path)
                 if body is None:
                     self.send_error(404)
@@ -111,7 +115,8 @@ def test_a_checksum_that_differs_is_refused_and_nothing_is_kept(server, tmp_path
     with pytest.raises(ValueError, match="differs from the known"):
         C.fetch("toy", root=tmp_path, catalog=cat, trials=["02"], progress=False)
     assert not (tmp_path / "toy" / "02_fast_B.hdf5").exists()
-    left = [p for p in (tmp_path / "toy").iterdir() if p.name != "trials.json"] if (tmp_path / "toy").exists() else []
+    kept = ("trials.json", C.INCOMPLETE)  # the mark of a fetch that did not finish stays
+    left = [p for p in (tmp_path / "toy").iterdir() if p.name not in kept] if (tmp_path / "toy").exists() else []
     assert left == [] and not list((tmp_path / ".partial").glob("*"))
 
 
@@ -189,3 +194,104 @@ def test_the_catalog_pins_its_sources():
                 assert hashlib.sha256(local.read_bytes()).hexdigest() == f.sha256 and local.stat().st_size == f.size
                 checked += 1
     assert checked >= 17
+
+
+# -- answers that running again would not mend, and downloads held within bounds -----------------------
+def _status(code):
+    def answer(h):
+        h.send_error(code)
+
+    return answer
+
+
+def _redirect_to_itself(h):
+    h.send_response(302)
+    h.send_header("Location", h.path)
+    h.send_header("Content-Length", "0")
+    h.end_headers()
+
+
+@pytest.mark.parametrize(
+    "answer, said",
+    [
+        (_status(404), "not found on the server (HTTP 404)"),
+        (_status(500), "the server failed to answer (HTTP 500"),
+        (_redirect_to_itself, "redirects in a loop (HTTP 302)"),
+    ],
+)
+def test_an_http_error_is_named_not_called_a_break(server, tmp_path, answer, said):
+    cat = {"toy": _toy(server, FILES)}
+    server.behave["/repo/commit/02_fast_B.hdf5"] = answer
+    with pytest.raises(C.DownloadRefused, match=re.escape(said)) as e:
+        C.fetch("toy", root=tmp_path, catalog=cat, trials=["02"], progress=False)
+    assert "resume" not in str(e.value) and "broke off" not in str(e.value)
+
+
+def test_a_body_larger_than_the_catalogue_says_is_cut_and_refused(server, tmp_path):
+    """A server that sends 5 MB for a 200 kB file, with or without saying so beforehand: quadest
+    stops at the catalogue's size and keeps nothing."""
+    cat = {"toy": _toy(server, FILES)}
+    huge = b"x" * 5_000_000
+
+    def without_length(h):
+        h.send_response(200)
+        h.end_headers()
+        h.wfile.write(huge)
+        h.close_connection = True
+
+    for answer in (None, without_length):
+        if answer is None:
+            server.files["/repo/commit/02_fast_B.hdf5"] = huge  # states its Content-Length
+        else:
+            server.behave["/repo/commit/02_fast_B.hdf5"] = answer
+        with pytest.raises(C.DownloadRefused, match="more than the file's 200000 bytes"):
+            C.fetch("toy", root=tmp_path, catalog=cat, trials=["02"], progress=False)
+        assert not list((tmp_path / ".partial").glob("*.part"))
+        assert not (tmp_path / "toy" / "02_fast_B.hdf5").exists()
+
+
+def test_a_server_that_trickles_meets_an_overall_deadline(server, tmp_path, monkeypatch):
+    """A byte every 0.1 s never trips a per-read timeout; the file's overall deadline ends it,
+    and what arrived is kept for the next fetch."""
+    import time
+
+    cat = {"toy": _toy(server, FILES)}
+
+    def trickle(h):
+        h.send_response(200)
+        h.send_header("Content-Length", str(len(FILES["02_fast_B.hdf5"])))
+        h.end_headers()
+        try:
+            for b in FILES["02_fast_B.hdf5"][:100]:
+                h.wfile.write(bytes([b]))
+                h.wfile.flush()
+                time.sleep(0.1)
+        except OSError:
+            pass
+
+    server.behave["/repo/commit/02_fast_B.hdf5"] = trickle
+    monkeypatch.setattr(C, "DEADLINE_BASE_S", 1.0)
+    monkeypatch.setattr(C, "MIN_RATE", 1e12)  # the deadline: 1 s
+    t0 = time.monotonic()
+    with pytest.raises(C.DownloadRefused, match="took longer than its"):
+        C.fetch("toy", root=tmp_path, catalog=cat, trials=["02"], progress=False)
+    assert time.monotonic() - t0 < 3.0
+
+
+def test_data_path_after_a_fetch_that_did_not_finish(server, tmp_path, monkeypatch, capsys):
+    """A fetch killed (or broken off) after one file arrived leaves its mark: ``data path`` says
+    the dataset is not there and how to finish it, until a fetch completes."""
+    monkeypatch.setitem(C.DATASETS, "toy", _toy(server, FILES))
+    monkeypatch.setenv("QUADEST_DATA", str(tmp_path))
+    server.cut["/repo/commit/02_fast_B.hdf5"] = 1000
+    code, _, err = run(capsys, "data", "fetch", "toy")
+    assert code == 1 and "broke off" in err
+    assert (tmp_path / "toy" / "01_slow_A.hdf5").is_file()  # one file whole, the other not
+    code, text, _ = run(capsys, "data", "path", "toy")
+    assert code == 1 and "did not finish" in text and "quadest data fetch toy" in text
+    with pytest.raises(UsageError, match="did not finish"):
+        C.resolve_data("toy", root=tmp_path)
+    code, _, _ = run(capsys, "data", "fetch", "toy")
+    assert code == 0
+    code, text, _ = run(capsys, "data", "path", "toy")
+    assert code == 0 and text.strip() == str(tmp_path / "toy")

@@ -146,6 +146,7 @@ LAYERS = [  # the first four are the issue's layer 0, in the order they build on
 LAYER = {part: k for k, parts in enumerate(LAYERS) for part in parts}
 LAZY_ALLOWED = {
     ("cli", "plot"),  # matplotlib is loaded only when a command draws
+    ("", "data"),  # quadest.Recording: numpy is loaded when first used (the command line's Ctrl-C guard first)
     ("", "_jit"),  # quadest.NUMBA_CACHE_DIR: numba is loaded only when asked
     ("", "api"),  # quadest.read / estimate / score: loaded when first used
     ("", "filters"),  # quadest.make_filter and the estimators' classes: loaded when first used

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from quadest.data import files
-from quadest.errors import UsageError
+from quadest.errors import MAX_RUNS, UsageError, check_run_count
 from quadest.evaluation.inspect import report_data, report_json
 from quadest.extras import need
 from quadest.readers import FORMATS, read_recording
@@ -56,15 +57,38 @@ def sim_config(preset, sets, toml=None, ideal: bool = False):
         raise CliError(str(exc)) from None
 
 
-def parse_seeds(text) -> list[int]:
+def parse_seeds(text, option: str = "--seeds") -> Sequence[int]:
+    """``1-5`` (a ``range``, never made into a list: its size is known at once) or ``1,2,3``; seeds
+    are whole numbers 0 or more."""
+    text = str(text).strip()
     a, dash, b = text.partition("-")
     try:
-        seeds = list(range(int(a), int(b) + 1)) if dash else [int(v) for v in text.split(",")]
+        seeds = range(int(a), int(b) + 1) if dash and "," not in text else [int(v) for v in text.split(",")]
     except ValueError:
-        raise CliError(f"--seeds expects a range like 1-5 or a list like 1,2,3, got {text!r}") from None
-    if not seeds:
-        raise CliError("--seeds selects no seed")
+        raise CliError(
+            f"{option} expects a range like 1-5 or a list like 1,2,3 of seeds 0 or more, got {text!r}"
+        ) from None
+    if not len(seeds):
+        raise CliError(f"{option} {text} selects no seed")
+    if min(seeds) < 0:
+        raise CliError(f"{option}: seeds are 0 or more, got {min(seeds)}")
     return seeds
+
+
+def add_max_runs_arg(p):
+    """``--max-runs``: the same option, with the same default, on every command that runs many."""
+    p.add_argument(
+        "--max-runs",
+        type=positive,
+        default=MAX_RUNS,
+        metavar="N",
+        help=f"refuse, before anything runs, to start more than N runs (default: {MAX_RUNS:,})",
+    )
+
+
+def check_runs(args, count: int, what: str) -> int:
+    """Refuse more runs than ``--max-runs``, in one line with the count."""
+    return check_run_count(count, getattr(args, "max_runs", MAX_RUNS), what)
 
 
 # -- options -------------------------------------------------------------------------------------

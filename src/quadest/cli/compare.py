@@ -14,7 +14,10 @@ from quadest.cli.common import (
     add_calibration_arg,
     add_engine_args,
     add_input_args,
+    add_max_runs_arg,
     add_report_arg,
+    check_runs,
+    count,
     parse_seeds,
     positive,
     read,
@@ -110,6 +113,7 @@ def cmd_reproduce(args):
         return _reproduce_recovery(args)
     args.seeds = args.seeds or ("1-20" if args.in_loop else "1-5")
     seeds = parse_seeds(args.seeds)
+    check_runs(args, len(seeds), f"--seeds {args.seeds}")
     if (args.prescribed or args.ablations or args.in_loop) and args.paper == "qukf":
         raise CliError("--prescribed, --ablations and --in-loop are for reproduce afckf")
     if args.any_direction:
@@ -180,6 +184,7 @@ def _reproduce_in_loop(args):
 
 
 def _reproduce_recovery(args):
+    check_runs(args, args.throws, f"--throws {args.throws}")
     if args.ablations or args.in_loop:
         raise CliError("--ablations and --in-loop are for reproduce afckf")
     if args.any_direction and args.prescribed:
@@ -280,7 +285,8 @@ def _benchmark_sim(args):
 
 
 def _benchmark_detection(args):
-    seeds, nominal = parse_seeds(args.seeds), parse_seeds(args.nominal_seeds)
+    seeds, nominal = parse_seeds(args.seeds), parse_seeds(args.nominal_seeds, "--nominal-seeds")
+    check_runs(args, len(seeds) + len(nominal), f"--seeds {args.seeds} and --nominal-seeds {args.nominal_seeds}")
     say(
         f"the rotor-failure detector in the loop (bebop2): {len(seeds)} failures (a random rotor at a random "
         "time, complete or partial, from a hover, on a circle or on a figure eight) and "
@@ -300,8 +306,10 @@ def _benchmark_detection(args):
 
 
 def _benchmark_tradeoff(args):
-    train, test = parse_seeds(args.train_seeds), parse_seeds(args.seeds)
-    train_nominal, test_nominal = parse_seeds(args.train_nominal_seeds), parse_seeds(args.nominal_seeds)
+    train, test = parse_seeds(args.train_seeds, "--train-seeds"), parse_seeds(args.seeds)
+    train_nominal = parse_seeds(args.train_nominal_seeds, "--train-nominal-seeds")
+    test_nominal = parse_seeds(args.nominal_seeds, "--nominal-seeds")
+    check_runs(args, len(train) + len(test) + len(train_nominal) + len(test_nominal), "the seeds")
     say(
         "the 'lost' test's threshold against delay and false alarms: every case flown once with the "
         "SE(3) controller and the test unable to fire (the detector then changes nothing), each "
@@ -456,7 +464,7 @@ def _add_compare(sub):
         help="simulate this scenario (default: damaged-rotor)",
     )
     c.add_argument("--preset", choices=list(PRESETS), default="bebop2", help="with --scenario (default: bebop2)")
-    c.add_argument("--seed", type=int, default=1, help="with --scenario (default: 1)")
+    c.add_argument("--seed", type=count, default=1, help="with --scenario (default: 1)")
     c.add_argument("--duration", type=float, default=None, help="with --scenario: seconds")
     c.add_argument("--set", action="append", metavar="KEY=VALUE", help="with --scenario: simulator parameter")
     c.add_argument(
@@ -502,7 +510,8 @@ def _add_reproduce(sub):
     r.add_argument("paper", choices=["afckf", "qukf", "recovery"])
     r.add_argument("--seeds", default=None, help="afckf, qukf: seed range or list (default: 1-5; 1-20 with --in-loop)")
     r.add_argument("--throws", type=positive, default=100, help="recovery: number of throws (default: 100)")
-    r.add_argument("--seed", type=int, default=1, help="recovery: first seed (default: 1)")
+    r.add_argument("--seed", type=count, default=1, help="recovery: first seed (default: 1)")
+    add_max_runs_arg(r)
     r.add_argument(
         "--prescribed",
         action="store_true",
@@ -602,5 +611,6 @@ def _add_benchmark(sub):
         "--train-nominal-seeds", default="0-19", help="detection-tradeoff: the training nominal flights' seeds"
     )
     b.add_argument("--workers", type=int, default=0, help="detection: Dask workers (0: this process; default: 0)")
+    add_max_runs_arg(b)
     b.add_argument("--json", metavar="OUT", help="write the figures as JSON")
     b.set_defaults(func=cmd_benchmark)

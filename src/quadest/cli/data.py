@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from quadest.cli.common import say
-from quadest.readers.catalog import DATASETS, cache_dir, dataset, fetch, is_fetched
+from quadest.readers.catalog import DATASETS, cache_dir, dataset, fetch, is_fetched, is_present, not_present_reason
 
 
 def _size(n: int) -> str:
@@ -43,8 +43,8 @@ def cmd_data_fetch(args):
 def cmd_data_path(args):
     d = dataset(args.name)
     folder = cache_dir(args.dir) / d.name
-    if not is_fetched(d, args.dir) and not (folder.is_dir() and any(folder.iterdir())):
-        say(f"{folder} (not there yet: " + (f"quadest data fetch {d.name})" if d.fetchable else d.instructions + ")"))
+    if not is_present(d, args.dir):
+        say(f"{folder} (not there yet: {not_present_reason(d, args.dir)})")
         return 1
     say(str(folder))
     return 0

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from quadest.cli.common import CliError, parse_seeds, say, write_json
+from quadest.cli.common import CliError, add_max_runs_arg, check_runs, parse_seeds, say, write_json
 from quadest.control import Failure
 from quadest.data import save_recording, write_table
 from quadest.filters import ESTIMATORS, FILTERS, filter_name
@@ -143,6 +143,7 @@ def cmd_fly(args):
     seeds = parse_seeds(args.seeds)
     failure = parse_failure(args.failure)
     estimators = parse_estimators(args.estimator, args.scenario)
+    check_runs(args, len(seeds) * len(estimators), f"--seeds {args.seeds} x {len(estimators)} estimator(s)")
     out = Path(args.output)
     if out.exists() and not out.is_dir():
         raise CliError(f"{out}: -o names a folder for the runs' files, and this is a file")
@@ -238,6 +239,7 @@ def add_parsers(sub):
         "afterwards (default: madgwick; recovery for a throw)",
     )
     s.add_argument("--seeds", default="0", help="seeds: 0-4 or 0,3,7 (default: 0)")
+    add_max_runs_arg(s)
     s.add_argument(
         "--duration",
         type=float,

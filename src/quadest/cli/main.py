@@ -6,18 +6,37 @@ one library function and prints; the library does the work.
 
 from __future__ import annotations
 
-import argparse
+import os
+import signal
 import sys
-import traceback
-import warnings
-from pathlib import Path
 
-from quadest import __version__, _jit
-from quadest.cli import compare, data, fly, recordings, recovery, sim, sweep
-from quadest.cli.common import CliError
-from quadest.data.files import refuse_overwriting_inputs
-from quadest.errors import UsageError
-from quadest.extras import MissingExtra, need
+INTERRUPTED = 130
+"""The exit code after Ctrl-C (128 + SIGINT), whenever it comes."""
+
+
+def interrupted() -> None:
+    """Ctrl-C: one line, exit code 130, no traceback."""
+    try:
+        sys.stderr.write("quadest: interrupted\n")
+        sys.stderr.flush()
+    finally:
+        os._exit(INTERRUPTED)
+
+
+try:  # Ctrl-C while the command line loads (numpy, numba, ...: about a second) ends in one line too
+    import argparse
+    import traceback
+    import warnings
+    from pathlib import Path
+
+    from quadest import __version__, _jit
+    from quadest.cli import compare, data, fly, recordings, recovery, sim, sweep
+    from quadest.cli.common import CliError
+    from quadest.data.files import refuse_overwriting_inputs
+    from quadest.errors import UsageError
+    from quadest.extras import MissingExtra, need
+except KeyboardInterrupt:
+    interrupted()
 
 GROUPS = (sim, fly, recordings, compare, recovery, sweep, data)
 ORDER = (
@@ -122,8 +141,23 @@ def _one_line_note(message, category, filename, lineno, line=None):
 
 
 def main(argv=None):
+    """The command line; ``argv`` None: the program itself (``quadest``), whose Ctrl-C at any
+    moment, its end included, is one line and exit code 130."""
+    entry = argv is None
+    try:
+        return run_command(list(sys.argv[1:] if entry else argv))
+    except KeyboardInterrupt:  # while the parser is built, or an error is being said
+        if entry:
+            interrupted()
+        print("quadest: interrupted", file=sys.stderr)
+        return INTERRUPTED
+    finally:
+        if entry:  # from here to the process's end (Dask's and the interpreter's clean-up)
+            signal.signal(signal.SIGINT, lambda *_: interrupted())
+
+
+def run_command(argv: list) -> int:
     warnings.formatwarning = _one_line_note
-    argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
     argv = [a for a in argv if a != "--debug"]
     parser = build_parser()
@@ -139,8 +173,8 @@ def main(argv=None):
     except BrokenPipeError:  # output piped into a command that stopped reading (head)
         return 0
     except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
+        print("quadest: interrupted", file=sys.stderr)
+        return INTERRUPTED
     except Exception as exc:  # noqa: BLE001 (every error ends in one line; --debug shows the traceback)
         if debug:
             traceback.print_exc()

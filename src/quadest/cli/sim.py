@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 
-from quadest.cli.common import CliError, say, sim_config
+from quadest.cli.common import CliError, count, say, sim_config
 from quadest.data import save_recording
 from quadest.sim import PRESCRIBED_SCENARIOS, PRESETS, param_table, simulate
 
@@ -56,7 +56,7 @@ def add_parsers(sub):
     )
     s.add_argument("--scenario", choices=PRESCRIBED_SCENARIOS, default="hover", help="motion (default: hover)")
     s.add_argument("--preset", choices=list(PRESETS), default="bebop2", help="vehicle and sensors (default: bebop2)")
-    s.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    s.add_argument("--seed", type=count, default=0, help="random seed (default: 0)")
     s.add_argument("--duration", type=float, default=None, help="seconds (default: per scenario)")
     s.add_argument(
         "--set",

@@ -5,7 +5,17 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from quadest.cli.common import CliError, add_engine_args, parse_seeds, parse_sets, say, sim_config, write_json
+from quadest.cli.common import (
+    CliError,
+    add_engine_args,
+    add_max_runs_arg,
+    check_runs,
+    parse_seeds,
+    parse_sets,
+    say,
+    sim_config,
+    write_json,
+)
 from quadest.cli.fly import failure_record, parse_failure
 from quadest.filters import filter_name
 from quadest.flight import CONTROLLERS, DEFAULT_DURATION, FLIGHT_SCENARIOS
@@ -29,6 +39,8 @@ def _flown_sources(args):
     if args.data or args.set:
         raise CliError("--fly flies the vehicle: it takes neither --data nor --set")
     failures = [parse_failure(f) for f in args.failure] if args.failure else [None]
+    seeds = parse_seeds(args.seeds)
+    check_runs(args, len(seeds) * len(failures), f"--seeds {args.seeds} x {len(failures)} failure(s)")
     vehicle = vehicle_preset(args.vehicle)
     duration = args.duration or DEFAULT_DURATION[args.fly]
     for f in failures:  # refused before any run starts
@@ -36,7 +48,7 @@ def _flown_sources(args):
             f.check(vehicle, duration)
     return flown_sources(
         args.fly,
-        parse_seeds(args.seeds),
+        seeds,
         controller=args.controller,
         failures=[failure_record(f) for f in failures],
         duration=args.duration,
@@ -45,19 +57,23 @@ def _flown_sources(args):
     )
 
 
+def _sim_sources(args):
+    preset = args.preset or "bebop2"
+    sim_config(preset, args.set)  # refuse a wrong --set before any run starts
+    seeds = parse_seeds(args.seeds)
+    check_runs(args, len(seeds), f"--seeds {args.seeds}")  # before a source is made for each
+    return sim_sources(args.scenario, preset, seeds, args.duration, parse_sets(args.set), args.t_from)
+
+
 def _sweep_runs(args, filters):
-    grid = parse_grid(args.grid)
+    grid = parse_grid(args.grid, args.max_runs)
     if args.fly:
         sources = _flown_sources(args)
     elif args.data:
         sources = file_sources([resolve_data(d) for d in args.data], args.format)
     else:
-        preset = args.preset or "bebop2"
-        sim_config(preset, args.set)  # refuse a wrong --set before any run starts
-        sources = sim_sources(
-            args.scenario, preset, parse_seeds(args.seeds), args.duration, parse_sets(args.set), args.t_from
-        )
-    return build_runs(filters, grid, sources, args.align)
+        sources = _sim_sources(args)
+    return build_runs(filters, grid, sources, args.align, args.max_runs)
 
 
 def _announce(args, runs):
@@ -189,6 +205,7 @@ def _add_sweep_args(p):
         "an existing one is resumed",
     )
     p.add_argument("--retry-failed", action="store_true", help="run again the runs recorded as failed")
+    add_max_runs_arg(p)
     p.add_argument("--json", metavar="OUT", help="write the summary as JSON")
     add_engine_args(p)
 

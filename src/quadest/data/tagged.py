@@ -6,11 +6,14 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from quadest.data.inputs import check_regular
+
 
 def read_tagged_json(path, tag: str, what: str) -> dict:
     """The dict in ``path`` if it is readable JSON carrying ``"format": tag``; otherwise a
     ValueError naming the file and ``what`` was expected."""
     path = Path(path)
+    check_regular(path)
     try:
         d = json.loads(path.read_text())
     except (OSError, json.JSONDecodeError) as exc:

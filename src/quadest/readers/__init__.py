@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from quadest.data.inputs import check_input
 from quadest.data.recording import Recording, load_recording
 from quadest.extras import need
 from quadest.readers import asl, datasets, generic, logs, ros
@@ -125,7 +126,13 @@ def detect_format(path: str | Path) -> str:
 
 
 def read_recording(path: str | Path, format: str | None = None, **options) -> Recording:
-    """Read any supported file as a Recording (see the module docstring)."""
+    """Read any supported file as a Recording (see the module docstring). A FIFO, a device, a
+    sparse text file or a file larger than the memory available is refused before it is opened
+    (:func:`quadest.data.inputs.check_input`)."""
+    try:
+        check_input(path)
+    except ValueError as exc:
+        raise ReaderError(str(exc)) from None
     fmt = format or detect_format(path)
     if fmt not in READERS:
         raise ReaderError(f"unknown format {fmt!r}; formats: {', '.join(READERS)}")

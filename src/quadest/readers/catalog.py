@@ -12,7 +12,9 @@ stable address is listed with instructions instead of fetched.
 
 from __future__ import annotations
 
+import http.client
 import os
+import time
 import urllib.error
 import urllib.request
 from dataclasses import dataclass, field
@@ -241,9 +243,37 @@ def select_files(d: Dataset, trials=None) -> list[DataFile]:
     return chosen + [f for f in d.files if not f.path.endswith(".hdf5")]
 
 
+INCOMPLETE = ".fetch-incomplete"
+"""Written into a dataset's folder when a fetch starts and removed when it ends well: a fetch that
+was killed or failed leaves it, and the dataset is not called present."""
+
+
+def interrupted_fetch(d: Dataset, root=None) -> bool:
+    """Whether the last fetch of ``d`` did not finish (killed, broken off or refused)."""
+    return (cache_dir(root) / d.name / INCOMPLETE).exists()
+
+
 def is_fetched(d: Dataset, root=None, trials=None) -> bool:
     folder = cache_dir(root) / d.name
-    return d.fetchable and all((folder / f.path).is_file() for f in select_files(d, trials))
+    return (
+        d.fetchable
+        and not interrupted_fetch(d, root)
+        and all((folder / f.path).is_file() for f in select_files(d, trials))
+    )
+
+
+def is_present(d: Dataset, root=None) -> bool:
+    """Whether ``d``'s folder holds it: fetched whole, or put there by hand (any file), and no
+    fetch of it left unfinished."""
+    folder = cache_dir(root) / d.name
+    return not interrupted_fetch(d, root) and folder.is_dir() and any(folder.iterdir())
+
+
+def not_present_reason(d: Dataset, root=None) -> str:
+    """How to get ``d`` into the cache, in a few words."""
+    if interrupted_fetch(d, root):
+        return f"its last fetch did not finish: quadest data fetch {d.name} completes it"
+    return f"quadest data fetch {d.name}" if d.fetchable else d.instructions
 
 
 def fetch(name: str, *, root=None, trials=None, progress: bool = True, catalog=None) -> Path:
@@ -259,6 +289,8 @@ def fetch(name: str, *, root=None, trials=None, progress: bool = True, catalog=N
     partial = cache_dir(root) / ".partial"
     pooch = need("pooch", "quadest data fetch")
     pooch.get_logger().setLevel("WARNING")
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / INCOMPLETE).write_text("a fetch started and has not finished\n")
     for f in select_files(d, trials):
         target = folder / f.path
         try:
@@ -267,7 +299,7 @@ def fetch(name: str, *, root=None, trials=None, progress: bool = True, catalog=N
                 known_hash=f"sha256:{f.sha256}",
                 fname=target.name,
                 path=target.parent,
-                downloader=ResumingDownloader(partial, f, progress),
+                downloader=ResumingDownloader(partial, f, progress, d.source),
             )
         except ValueError as e:
             if "hash" not in str(e).lower():
@@ -276,7 +308,33 @@ def fetch(name: str, *, root=None, trials=None, progress: bool = True, catalog=N
                 f"{f.url}: its SHA-256 differs from the known {f.sha256[:12]}…: refused, nothing of it "
                 f"was kept (the source may have changed; the dataset's page: {d.source})"
             ) from None
+    (folder / INCOMPLETE).unlink()
     return folder
+
+
+DEADLINE_BASE_S = 120.0
+MIN_RATE = 20_000
+"""A file's download must end within ``DEADLINE_BASE_S + size / MIN_RATE`` seconds (BROAD's
+4 MB trials: 320 s); each read waits at most ``READ_TIMEOUT_S``."""
+READ_TIMEOUT_S = 60.0
+
+
+def http_refusal(url: str, e: urllib.error.HTTPError, page: str) -> str:
+    """What an HTTP error status means for a download, in one line (not a resumable break)."""
+    if 300 <= e.code < 400:
+        return f"{url}: the server redirects in a loop (HTTP {e.code}): the file has moved; see {page}"
+    if e.code in (404, 410):
+        return f"{url}: not found on the server (HTTP {e.code}): the file has moved or gone; see {page}"
+    if e.code in (401, 403):
+        return f"{url}: the server refuses access (HTTP {e.code}); see {page}"
+    if e.code == 429 or e.code >= 500:
+        return f"{url}: the server failed to answer (HTTP {e.code} {e.reason}): try again later"
+    return f"{url}: the server answered HTTP {e.code} {e.reason}; see {page}"
+
+
+class DownloadRefused(OSError):
+    """A download that running again would not mend: an HTTP error status, a body larger than the
+    catalogue's size, or one that takes longer than its deadline (resumable, said so)."""
 
 
 class ResumingDownloader:
@@ -284,8 +342,56 @@ class ResumingDownloader:
     broken-off download stopped (HTTP range request; a server that ignores the range starts it
     again), then hands the whole file to pooch, which checks its hash before moving it into place."""
 
-    def __init__(self, partial: Path, f: DataFile, progress: bool):
-        self.partial, self.f, self.progress = partial, f, progress
+    def __init__(self, partial: Path, f: DataFile, progress: bool, page: str = ""):
+        self.partial, self.f, self.progress, self.page = partial, f, progress, page
+        self.deadline = time.monotonic() + DEADLINE_BASE_S + f.size / MIN_RATE
+
+    def _remaining(self, url: str, have: int) -> float:
+        left = self.deadline - time.monotonic()
+        if left <= 0:
+            raise DownloadRefused(
+                f"{url}: the download took longer than its {DEADLINE_BASE_S + self.f.size / MIN_RATE:.0f} s "
+                f"(after {have} of {self.f.size} bytes; the server is too slow): run the same command again "
+                "to resume it"
+            )
+        return min(READ_TIMEOUT_S, left)
+
+    def _too_large(self, url: str, n: int, part: Path) -> DownloadRefused:
+        part.unlink(missing_ok=True)
+        return DownloadRefused(
+            f"{url}: the server sends more than the file's {self.f.size} bytes ({n} or more): refused, "
+            f"nothing of it was kept (the source may have changed; see {self.page})"
+        )
+
+    def _copy(self, r, url: str, part: Path, start: int) -> None:
+        """The body into ``part`` (appended from ``start``), never past the catalogue's size."""
+        length = r.headers.get("Content-Length")
+        if length is not None and length.isdigit() and start + int(length) > self.f.size:
+            raise self._too_large(url, start + int(length), part)
+        with (
+            open(part, "ab" if start else "wb") as out,
+            tqdm(
+                total=self.f.size,
+                initial=start,
+                unit="B",
+                unit_scale=True,
+                leave=False,
+                desc=Path(self.f.path).name,
+                disable=not self.progress,
+            ) as bar,
+        ):
+            have = start
+            while True:
+                chunk = r.read1(1 << 16)  # what has arrived: a slow server meets the deadline below
+                if not chunk:
+                    break
+                have += len(chunk)
+                if have > self.f.size:
+                    out.close()
+                    raise self._too_large(url, have, part)
+                out.write(chunk)
+                bar.update(len(chunk))
+                self._remaining(url, have)
 
     def __call__(self, url, output_file, pooch_obj, check_only=False):
         self.partial.mkdir(parents=True, exist_ok=True)
@@ -294,32 +400,26 @@ class ResumingDownloader:
         if start > self.f.size:  # not this file's beginning: start again
             part.unlink()
             start = 0
+        if start < self.f.size:
+            self._download(url, part, start)
+        # the whole file goes to pooch, which checks its hash: a wrong one is deleted, not resumed
+        os.replace(part, output_file)
+
+    def _download(self, url: str, part: Path, start: int) -> None:
         headers = {"User-Agent": "quadest"}
         if start:
             headers["Range"] = f"bytes={start}-"
         try:
-            with urllib.request.urlopen(urllib.request.Request(url, headers=headers), timeout=60) as r:
+            request = urllib.request.Request(url, headers=headers)
+            with urllib.request.urlopen(request, timeout=self._remaining(url, start)) as r:
                 if start and r.status != 206:  # the server sends the whole file
                     start = 0
-                with (
-                    open(part, "ab" if start else "wb") as out,
-                    tqdm(
-                        total=self.f.size,
-                        initial=start,
-                        unit="B",
-                        unit_scale=True,
-                        leave=False,
-                        desc=Path(self.f.path).name,
-                        disable=not self.progress,
-                    ) as bar,
-                ):
-                    while True:
-                        chunk = r.read(1 << 16)
-                        if not chunk:
-                            break
-                        out.write(chunk)
-                        bar.update(len(chunk))
-        except (urllib.error.URLError, OSError) as e:
+                self._copy(r, url, part, start)
+        except DownloadRefused:
+            raise
+        except urllib.error.HTTPError as e:
+            raise DownloadRefused(http_refusal(url, e, self.page)) from None
+        except (urllib.error.URLError, OSError, http.client.HTTPException) as e:
             have = part.stat().st_size if part.is_file() else 0
             raise ConnectionError(
                 f"{url}: the download broke off after {have} of {self.f.size} bytes ({e}); run "
@@ -331,8 +431,6 @@ class ResumingDownloader:
                 f"{url}: the download broke off after {have} of {self.f.size} bytes; run the same "
                 "command again to resume it"
             )
-        # the whole file goes to pooch, which checks its hash: a wrong one is deleted, not resumed
-        os.replace(part, output_file)
 
 
 def resolve_data(arg, root=None) -> Path:
@@ -350,9 +448,7 @@ def resolve_data(arg, root=None) -> Path:
         return c
     if name in DATASETS:
         d = DATASETS[name]
-        folder = cache_dir(root) / name
-        if folder.is_dir() and any(folder.iterdir()):
-            return folder
-        how = f"quadest data fetch {name}" if d.fetchable else d.instructions
-        raise UsageError(f"dataset {name!r} is not in {cache_dir(root)}: {how}")
+        if is_present(d, root):
+            return cache_dir(root) / name
+        raise UsageError(f"dataset {name!r} is not in {cache_dir(root)}: {not_present_reason(d, root)}")
     raise UsageError(f"--data {arg}: no such file or folder, and not a dataset ({', '.join(DATASETS)}, or all)")

@@ -22,6 +22,7 @@ else:  # Python 3.10
     import tomli as tomllib
 
 from quadest.conventions import GRAVITY
+from quadest.data.inputs import check_regular
 from quadest.records import param
 
 
@@ -534,6 +535,7 @@ def preset_config(name: str) -> SimConfig:
 def load_toml_overrides(path) -> dict:
     """Read ``[section] field = value`` tables from a TOML file."""
     path = Path(path)
+    check_regular(path)
     try:
         data = tomllib.loads(path.read_text())
     except (OSError, tomllib.TOMLDecodeError) as exc:

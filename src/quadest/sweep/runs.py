@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from quadest.control import Failure
-from quadest.errors import UsageError
+from quadest.errors import MAX_RUNS, UsageError, check_run_count
 from quadest.evaluation.runner import check_params, estimate, estimator_names, score
 from quadest.filters import filter_name
 from quadest.flight import fly, in_loop_estimators
@@ -107,34 +107,75 @@ def run_id(spec: dict) -> str:
 
 
 # -- grids ------------------------------------------------------------------------------------------
-def parse_values(text: str) -> list[float]:
-    """``0.1,0.2,0.5``; ``lin:A:B:N`` (N values from A to B); ``log:A:B:N`` (N log-spaced)."""
+GRID_HELP = "give a list (0.1,0.2) or lin:A:B:N or log:A:B:N"
+
+
+def _spaced(text: str) -> tuple[str, float, float, int]:
+    """``lin:A:B:N`` / ``log:A:B:N`` as its parts; N may be written 1e3 but must be whole."""
+    kind, a, b, n = text.split(":")
+    a, b, count = float(a), float(b), float(n)
+    if not (math.isfinite(a) and math.isfinite(b) and math.isfinite(count)) or count != int(count) or count < 1:
+        raise ValueError
+    if kind == "log" and (a <= 0 or b <= 0):
+        raise ValueError
+    return kind, a, b, int(count)
+
+
+def count_values(text: str) -> int:
+    """How many values ``text`` (a list, ``lin:A:B:N`` or ``log:A:B:N``) gives, from the text
+    alone: nothing is allocated."""
     text = text.strip()
     try:
         if text.startswith(("lin:", "log:")):
-            kind, a, b, n = text.split(":")
-            a, b, n = float(a), float(b), int(n)
-            if n < 1 or (kind == "log" and (a <= 0 or b <= 0)):
-                raise ValueError
+            return _spaced(text)[3]
+        return sum(1 for v in text.split(",") if v.strip())
+    except ValueError:
+        raise UsageError(f"grid values {text!r}: {GRID_HELP}") from None
+
+
+def parse_values(text: str, max_runs: int | None = MAX_RUNS) -> list[float]:
+    """``0.1,0.2,0.5``; ``lin:A:B:N`` (N values from A to B); ``log:A:B:N`` (N log-spaced); N
+    within ``max_runs``, checked before the values are made."""
+    text = text.strip()
+    check_run_count(count_values(text), max_runs, f"--grid {text}")
+    try:
+        if text.startswith(("lin:", "log:")):
+            kind, a, b, n = _spaced(text)
             vals = np.linspace(a, b, n) if kind == "lin" else np.geomspace(a, b, n)
             return [float(f"{v:.6g}") for v in vals]
-        return [float(v) for v in text.split(",") if v.strip()]
+        values = [float(v) for v in text.split(",") if v.strip()]
     except ValueError:
-        raise UsageError(f"grid values {text!r}: give a list (0.1,0.2) or lin:A:B:N or log:A:B:N") from None
+        raise UsageError(f"grid values {text!r}: {GRID_HELP}") from None
+    if not values:
+        raise UsageError(f"grid values {text!r}: {GRID_HELP}")
+    return values
 
 
-def parse_grid(items: Iterable[str] | None) -> dict:
+def parse_grid(items: Iterable[str] | None, max_runs: int | None = MAX_RUNS) -> dict:
     """``["madgwick.beta_marg=log:0.001:0.5:30", "mahony.k_p=0.5,1,2"]`` ->
-    ``{"madgwick": {"beta_marg": [...]}, "mahony": {"k_p": [...]}}``."""
+    ``{"madgwick": {"beta_marg": [...]}, "mahony": {"k_p": [...]}}``. Each filter's product of
+    value counts is checked against ``max_runs`` before its values are made."""
+    items = list(items or [])
+    counts: dict = {}
+    for item in items:
+        name, field, vals = _grid_item(item)
+        counts.setdefault(name, {})[field] = count_values(vals)
+    for name, fields in counts.items():
+        check_run_count(math.prod(fields.values()), max_runs, f"the grid of {name}")
     out: dict = {}
-    for item in items or []:
-        key, eq, vals = item.partition("=")
-        name, dot, field = key.strip().partition(".")
-        name = filter_name(name)
-        if not eq or not dot:
-            raise UsageError(f"--grid expects FILTER.PARAM=VALUES, got {item!r}")
-        out.setdefault(name, {})[field] = parse_values(vals)
+    for item in items:
+        name, field, vals = _grid_item(item)
+        out.setdefault(name, {})[field] = parse_values(vals, max_runs)
     return out
+
+
+def _grid_item(item: str) -> tuple[str, str, str]:
+    key, eq, vals = item.partition("=")
+    name, dot, field = key.strip().partition(".")
+    name = filter_name(name)
+    if not eq or not dot:
+        raise UsageError(f"--grid expects FILTER.PARAM=VALUES, got {item!r}")
+    return name, field, vals
 
 
 def param_sets(grid: dict) -> list[dict]:
@@ -143,6 +184,11 @@ def param_sets(grid: dict) -> list[dict]:
         return [{}]
     keys = sorted(grid)
     return [dict(zip(keys, combo)) for combo in itertools.product(*(grid[k] for k in keys))]
+
+
+def count_param_sets(grid: dict) -> int:
+    """``len(param_sets(grid))``, computed."""
+    return math.prod(len(v) for v in grid.values())
 
 
 def sim_sources(
@@ -227,9 +273,14 @@ def flown_names(filters, scenario: str) -> list[str]:
 
 
 def build_runs(
-    filters: str | Iterable[str], grid: dict, sources: Sequence[dict], align: str | None = None
+    filters: str | Iterable[str],
+    grid: dict,
+    sources: Sequence[dict],
+    align: str | None = None,
+    max_runs: int | None = MAX_RUNS,
 ) -> list[dict]:
-    """Every (filter, parameter set, source) as a run spec."""
+    """Every (filter, parameter set, source) as a run spec; their number is checked against
+    ``max_runs`` before any is made."""
     flown = [s for s in sources if s["kind"] == "flown"]
     if flown:
         names = flown_names(filters, flown[0]["scenario"])
@@ -240,6 +291,12 @@ def build_runs(
         raise UsageError(f"--grid names filter(s) {', '.join(unknown)} that the sweep does not run")
     for name, fields in grid.items():  # a misspelt parameter is refused before any run starts
         check_params(name, fields)
+    per_source = sum(count_param_sets(grid.get(name, {})) for name in names)
+    check_run_count(
+        per_source * len(sources),
+        max_runs,
+        f"{len(sources):,} flight(s) x {per_source:,} filter and parameter set(s)",
+    )
     # source-major order: the runs on one flight follow each other, so a worker's cache of
     # recent flights (simulated or read) serves them without simulating or reading again
     runs = []
