@@ -3,7 +3,6 @@ a calibration or an attitude out."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +20,7 @@ from quadest.cli.common import (
     write_json,
     write_report_for,
 )
-from quadest.data import format_summary, summarize, write_table
+from quadest.data import files, format_summary, summarize, write_table
 from quadest.data.checks import warn_tilt_disagreement
 from quadest.evaluation.compare import parse_params
 from quadest.evaluation.diagnose import DiagnoseParams, diagnose_log, format_diagnosis
@@ -40,7 +39,7 @@ def cmd_info(args):
     rec = read(args, args.file)
     s = summarize(rec)
     if args.json:
-        say(json.dumps(s, indent=2))
+        say(files.dumps_json(s))
     else:
         say(format_summary(s, str(args.file)))
     return 0
