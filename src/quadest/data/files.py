@@ -31,7 +31,7 @@ import stat
 import sys
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass
@@ -57,7 +57,7 @@ class OutputTarget:
 
 
 @contextmanager
-def replacing_read_only(force: bool = True):
+def replacing_read_only(force: bool = True) -> Iterator[None]:
     """Within the block, read-only outputs are replaced (the command line's ``--force``)."""
     token = _FORCE.set(force)
     try:
@@ -152,7 +152,7 @@ def _keep_mode(tmp: Path, file: Path) -> None:
 
 
 @contextmanager
-def atomic_output(path, *, suffix: str | None = None):
+def atomic_output(path, *, suffix: str | None = None) -> Iterator[Path]:
     """Yield a temporary path to write; on success it becomes ``path`` as :func:`output_target`
     says (renamed onto the file, or streamed), on any error it is removed and ``path`` is
     untouched. ``suffix`` (default: the target's) lets writers that choose a format by
@@ -238,7 +238,7 @@ def _still_named(fd: int, path: Path) -> bool:
 
 
 @contextmanager
-def exclusive_lock(path, *, on_wait: Callable[[str], None] | None = None):
+def exclusive_lock(path, *, on_wait: Callable[[str], None] | None = None) -> Iterator[None]:
     """Hold an advisory lock (``fcntl.flock``) on the file ``path`` for the block: another
     process asking for it waits until the block ends (``on_wait(holder_pid)`` is called once
     before waiting). The lock goes with the process, also when it is killed; the file is

@@ -18,7 +18,7 @@ import os
 import sys
 import time
 import uuid
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -105,7 +105,7 @@ class ResultStore:
         """Rows (or parts) found damaged by the last read: left out, their runs to be run again."""
 
     @contextmanager
-    def writing(self):
+    def writing(self) -> Iterator[ResultStore]:
         """Hold the results file's lock for the block: one sweep writes a results file at a time;
         another waits (saying so on stderr) until this one has folded its parts in."""
 
