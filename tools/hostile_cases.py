@@ -13,9 +13,14 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import os
 import shutil
+import socket
+import stat
 import sys
 import tempfile
+import threading
+import time
 import traceback
 from pathlib import Path
 
@@ -234,6 +239,7 @@ def cases(d: Path):
     )
     yield "an output with an unknown extension", ["estimate", h, "--filter", "madgwick", "-o", d / "e.txt"], one_line(1)
     yield from cases_bounds(d)
+    yield from cases_outputs(d)
 
 
 def cases_bounds(d: Path):
@@ -328,6 +334,141 @@ def _damaged_cache_case():
         return (0 if ok else 1), r.stdout, (note + "\n" if note else r.stderr)
     finally:
         shutil.rmtree(d, ignore_errors=True)
+
+
+def _strict_json(text: str):
+    def no_constant(name):
+        raise ValueError(f"not strict JSON: {name}")
+
+    return json.loads(text, parse_constant=no_constant)
+
+
+def _read_fifo(fifo: Path) -> dict:
+    """Start a reader of ``fifo``; ``got["data"]`` once the writer closes it."""
+    got: dict = {}
+    thread = threading.Thread(target=lambda: got.update(data=fifo.read_bytes()), daemon=True)
+    thread.start()
+    got["thread"] = thread
+    return got
+
+
+def _fifo_read(fifo: Path, got: dict) -> bytes | None:
+    got["thread"].join(20)
+    if got["thread"].is_alive():  # nothing was written: let the reader end
+        with contextlib.suppress(OSError):
+            os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+        return None
+    return got.get("data")
+
+
+def _sweep_metrics(path: Path) -> dict:
+    from quadest.sweep import ResultStore
+
+    t = ResultStore(path).read()
+    return {r["run_id"]: (r["status"], r["total_rmse_deg"]) for r in t.to_pylist()} if t is not None else {}
+
+
+def _holding_lock(lock: Path, seconds: float) -> None:
+    """Hold a results file's lock, as another sweep would, for ``seconds`` (returns once held)."""
+    from quadest.data.files import exclusive_lock
+
+    held = threading.Event()
+
+    def hold():
+        with exclusive_lock(lock):
+            held.set()
+            time.sleep(seconds)
+
+    threading.Thread(target=hold, daemon=True).start()
+    held.wait(10)
+
+
+def cases_outputs(d: Path):
+    """Output targets by kind, concurrent sweeps on one results file, damaged results, strict JSON
+    (docs/reliability.md, "Output targets and concurrent writers")."""
+    from quadest.data.files import output_target
+
+    h = d / "ot.csv"
+    save_recording(simulate("hover", "bebop2", seed=5, duration=2.0), h)
+    compare = ["compare", "--recording", h, "--filters", "madgwick", "--no-timing", "--json"]
+    (d / "real").mkdir()
+    target = d / "real" / "t.json"
+    target.write_text("old")
+    link = d / "link.json"
+    link.symlink_to(target)
+    yield (
+        "--json onto a symbolic link",
+        [*compare, link],
+        lambda c, o, e: c == 0 and link.is_symlink() and "rms_deg" in target.read_text(),
+    )
+    fifo = d / "fifo"
+    os.mkfifo(fifo)
+    got = _read_fifo(fifo)
+    yield (
+        "--json onto a FIFO",
+        [*compare, fifo],
+        lambda c, o, e: (
+            c == 0 and b"rms_deg" in (_fifo_read(fifo, got) or b"") and stat.S_ISFIFO(os.lstat(fifo).st_mode)
+        ),
+    )
+    null = "/dev/null" if output_target("/dev/null").stream else d / "guard"  # never rename over /dev/null
+    yield (
+        "--json /dev/null (a character device)",
+        [*compare, null],
+        lambda c, o, e: c == 0 and null == "/dev/null" and stat.S_ISCHR(os.stat("/dev/null").st_mode),
+    )
+    ro = d / "ro.csv"
+    ro.write_text("keep")
+    os.chmod(ro, 0o444)
+    yield (
+        "-o onto a read-only file",
+        ["simulate", "--duration", "1", "-o", ro],
+        lambda c, o, e: c == 2 and e.count("\n") == 1 and "--force" in e and ro.read_text() == "keep",
+    )
+    yield (
+        "-o onto a read-only file with --force",
+        ["simulate", "--duration", "1", "-o", ro, "--force"],
+        lambda c, o, e: c == 0 and ro.read_text().startswith("# quadest"),
+    )
+    yield (
+        "-o into a folder that does not exist",
+        ["simulate", "--duration", "1", "-o", d / "nope" / "x.csv"],
+        lambda c, o, e: c == 2 and "does not exist" in e and not (d / "nope").exists(),
+    )
+    sock = socket.socket(socket.AF_UNIX)
+    sock.bind(str(d / "sock"))
+    yield "--json onto a socket", [*compare, d / "sock"], lambda c, o, e: c == 2 and "socket" in e
+    one = d / "one.csv"
+    one.write_text("t,gyr_x,gyr_y,gyr_z,acc_x,acc_y,acc_z,mag_x,mag_y,mag_z\n0,0,0,0,0,0,-9.8,20,0,40\n")
+    yield "info --json on a one-row CSV", ["info", one, "--json"], lambda c, o, e: c == 0 and _strict_json(o)
+    sweep = ["sweep", "--filters", "madgwick,mahony", "--seeds", "1-2", "--duration", "2", "--workers", "0", "-o"]
+    clean = d / "clean.parquet"
+    run(*sweep, clean)
+    want = _sweep_metrics(clean)
+    flipped, part = d / "flipped.parquet", d / "part.parquet"
+    raw = bytearray(clean.read_bytes())
+    for k in np.random.default_rng(8).choice(len(raw), 8, replace=False):
+        raw[k] ^= 0xFF
+    flipped.write_bytes(bytes(raw))
+    yield (
+        "a sweep resumed on a results file with 8 flipped bytes",
+        [*sweep, flipped],
+        lambda c, o, e: c == 0 and _sweep_metrics(flipped) == want,
+    )
+    (d / "part.parquet.parts").mkdir()
+    (d / "part.parquet.parts" / "part-20260101T000000-4194305-deadbeef-00000.parquet").write_bytes(bytes(raw))
+    yield (
+        "a sweep resumed on a killed sweep's part with 8 flipped bytes",
+        [*sweep, part],
+        lambda c, o, e: c == 0 and _sweep_metrics(part) == want,
+    )
+    busy = d / "busy.parquet"
+    _holding_lock(d / "busy.parquet.lock", 1.5)
+    yield (
+        "a sweep on a results file another sweep is writing",
+        [*sweep, busy],
+        lambda c, o, e: c == 0 and "waiting for it to end" in e and _sweep_metrics(busy) == want,
+    )
 
 
 def main_(argv=None) -> int:

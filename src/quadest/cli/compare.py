@@ -243,6 +243,7 @@ def _reproduce_recovery_flown(args):
         from quadest.plot import plot_flight
 
         out = Path(args.plot_dir) / "recovery"
+        out.mkdir(parents=True, exist_ok=True)
         f = fly("throw", estimator="recovery", seed=args.seed, throw=ThrowParams(any_direction=args.any_direction))
         say(f"wrote {plot_flight(f, out / 'flown-throw.png', title=f'flown throw, seed {args.seed}')}")
     if args.json:

@@ -32,7 +32,7 @@ try:  # Ctrl-C while the command line loads (numpy, numba, ...: about a second) 
     from quadest import __version__, _jit
     from quadest.cli import compare, data, fly, recordings, recovery, sim, sweep
     from quadest.cli.common import CliError
-    from quadest.data.files import refuse_overwriting_inputs
+    from quadest.data.files import output_target, refuse_overwriting_inputs, replacing_read_only
     from quadest.errors import UsageError
     from quadest.extras import MissingExtra, need
 except KeyboardInterrupt:
@@ -72,6 +72,8 @@ def build_parser():
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     for group in GROUPS:
         group.add_parsers(sub)
+    for command in sub.choices.values():
+        add_force(command)
     # the listing in --help keeps its order whatever module declares a command
     sub._choices_actions.sort(key=lambda a: ORDER.index(a.dest))
     return p
@@ -80,6 +82,21 @@ def build_parser():
 # options that name files a command reads, and the options of files it writes
 INPUT_OPTIONS = ("file", "recording", "recordings", "data", "calibration", "aero", "config", "rotors")
 OUTPUT_OPTIONS = {"output": "-o", "out": "-o", "json": "--json", "plot": "--plot", "report": "--report"}
+FOLDER_OUTPUTS = {("fly", "output"), ("demo", "out")}
+"""Output options that name a folder (created if missing), not a file."""
+
+
+def writes_files(parser) -> bool:
+    """Whether a command has an option naming a file or folder it writes."""
+    return any(a.dest in (*OUTPUT_OPTIONS, "plot_dir") and a.nargs != 0 and a.option_strings for a in parser._actions)
+
+
+def add_force(parser) -> None:
+    """``--force``, the same on every command that writes files: replace read-only outputs."""
+    if writes_files(parser):
+        parser.add_argument(
+            "--force", action="store_true", help="replace an output file even if it is read-only (docs/reliability.md)"
+        )
 
 
 def _paths(value):
@@ -89,15 +106,21 @@ def _paths(value):
 
 
 def check_outputs(args) -> None:
-    """Refuse an output that names an input file: writing it would destroy the input."""
+    """Before any work: refuse an output that names an input file (writing it would destroy the
+    input), or that cannot be written as its kind says (data.files.output_target: a read-only
+    file without --force, a missing folder, a socket...)."""
     inputs = [p for name in INPUT_OPTIONS for p in _paths(getattr(args, name, None))]
     outputs = {
         opt: getattr(args, name)
         for name, opt in OUTPUT_OPTIONS.items()
         if isinstance(getattr(args, name, None), (str, Path))
     }
+    folders = {OUTPUT_OPTIONS[name] for command, name in FOLDER_OUTPUTS if command == args.command}
     try:
         refuse_overwriting_inputs(outputs, inputs)
+        for opt, path in outputs.items():
+            if opt not in folders:
+                output_target(path, force=getattr(args, "force", False))
     except ValueError as exc:
         raise UsageError(str(exc)) from None
 
@@ -169,7 +192,8 @@ def run_command(argv: list) -> int:
         check_outputs(args)
         check_extras(args)
         say_if_compiling(args)
-        return args.func(args)
+        with replacing_read_only(getattr(args, "force", False)):
+            return args.func(args)
     except BrokenPipeError:  # output piped into a command that stopped reading (head)
         return 0
     except KeyboardInterrupt:

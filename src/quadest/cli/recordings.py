@@ -3,7 +3,7 @@ a calibration or an attitude out."""
 
 from __future__ import annotations
 
-import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +21,7 @@ from quadest.cli.common import (
     write_json,
     write_report_for,
 )
-from quadest.data import format_summary, summarize, write_table
+from quadest.data import files, format_summary, summarize, write_table
 from quadest.data.checks import warn_tilt_disagreement
 from quadest.evaluation.compare import parse_params
 from quadest.evaluation.diagnose import DiagnoseParams, diagnose_log, format_diagnosis
@@ -33,6 +33,7 @@ from quadest.models.aero import AeroModel
 from quadest.recovery import recover
 from quadest.rotation import quat_to_euler
 from quadest.sim import aero_model_of
+from quadest.sweep.engine import ResultStore
 from quadest.sweep.summary import is_results, sweep_summary
 
 
@@ -40,7 +41,7 @@ def cmd_info(args):
     rec = read(args, args.file)
     s = summarize(rec)
     if args.json:
-        say(json.dumps(s, indent=2))
+        say(files.dumps_json(s))
     else:
         say(format_summary(s, str(args.file)))
     return 0
@@ -191,12 +192,20 @@ def _rotor_speeds(path, explicit: bool):
 
 
 def _sweep_report(args):
-    import pyarrow.parquet as pq
-
     need("bokeh", "the HTML report")
     from quadest.plot.report import write_sweep_report  # bokeh: only when a report is written
 
-    summ = sweep_summary(pq.read_table(args.file))
+    store = ResultStore(args.file)
+    table = store.read()
+    if store.damaged:
+        print(
+            f"quadest report: warning: {args.file}: {store.damaged} damaged row(s) left out (a sweep on it runs them "
+            "again)",
+            file=sys.stderr,
+        )
+    if table is None:
+        raise CliError(f"{args.file}: no results left to report")
+    summ = sweep_summary(table)
     out = write_sweep_report(summ, args.output, args.title or f"quadest sweep results: {Path(args.file).name}")
     if args.json:
         write_json(args.json, summ)

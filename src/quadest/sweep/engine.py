@@ -13,13 +13,17 @@ client receives each future's result once, and only the client writes.
 from __future__ import annotations
 
 import hashlib
+import json
 import os
+import sys
 import time
 import uuid
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from quadest.data.files import atomic_output, exclusive_lock, output_target
 from quadest.evaluation.parallel import execute
 from quadest.sweep.runs import empty_row, group_runs, row_types, run_group, run_id
 
@@ -28,62 +32,186 @@ if TYPE_CHECKING:
 
 
 # -- the result store ---------------------------------------------------------------------------------
+CHECKSUM = "checksum"
+"""The column holding each row's checksum (:func:`row_checksum`): a row that does not match it
+was damaged on disk, and its run is run again."""
+
+ROW_GROUP = 1000
+"""Rows per Parquet row group of a results file: damage that makes a group unreadable costs the
+runs of that group (run again), not the file."""
+
+
+def row_checksum(row: dict) -> str:
+    """A digest of every value of a row (but its checksum), as Arrow reads it back."""
+    values = [[k, row[k]] for k in sorted(row) if k != CHECKSUM]
+    return hashlib.blake2b(json.dumps(values, default=str).encode(), digest_size=8).hexdigest()
+
+
+def with_checksums(table: pa.Table) -> pa.Table:
+    """``table`` with a checksum for each row that has none (new rows; rows of older files)."""
+    import pyarrow as pa
+
+    rows = table.to_pylist()
+    sums = [r.get(CHECKSUM) or row_checksum(r) for r in rows]
+    if CHECKSUM in table.column_names:
+        table = table.drop_columns([CHECKSUM])
+    return table.append_column(CHECKSUM, pa.array(sums, pa.string()))
+
+
+def _has_parquet_magic(path: Path) -> bool:
+    """Whether a file begins or ends as Parquet does (``PAR1``): a Parquet file, if damaged."""
+    with open(path, "rb") as f:
+        head = f.read(4)
+        f.seek(max(0, path.stat().st_size - 4))
+        return b"PAR1" in (head, f.read(4))
+
+
+def _layout(table: pa.Table) -> frozenset:
+    return frozenset(table.column_names) - {CHECKSUM}
+
+
+def _writer_gone(part: Path) -> bool:
+    """Whether the process that was writing a part's temporary file (its pid is in the name) has
+    ended: then the file is a leftover of a killed sweep."""
+    try:
+        os.kill(int(part.name.split("-")[2]), 0)
+    except (IndexError, ValueError, ProcessLookupError):
+        return True
+    except PermissionError:  # another user's live process
+        return False
+    return False
+
+
 class ResultStore:
-    """One Parquet file of results, one row per run. While a sweep runs, rows go to part files
-    in ``<file>.parts/`` as they arrive; when it ends they are folded into the file and the
-    folder is removed. A sweep that was killed leaves its parts, and the next one reads them."""
+    """One Parquet file of results, one row per run, each row with its checksum. While a sweep
+    runs it holds the file's lock (:meth:`writing`; a second sweep on the same file waits), rows
+    go to part files in ``<file>.parts/`` (named by process) as they arrive, and when it ends the
+    parts are folded into the file and removed. A sweep that was killed leaves its parts, and the
+    next one reads them. A damaged row (its checksum does not match), row group or part is left
+    out, counted in :attr:`damaged`, and its run is run again."""
 
     def __init__(self, path: str | Path, flush_s: float = 2.0, flush_rows: int = 200):
         self.path = Path(path)
         if self.path.is_dir():
             raise ValueError(f"{path}: is a folder; give the results file to write (e.g. results.parquet)")
         self.parts = self.path.with_name(self.path.name + ".parts")
+        self.lock = self.path.with_name(self.path.name + ".lock")
         self.flush_s, self.flush_rows = flush_s, flush_rows
         self._buf: list[dict] = []
         self._last = time.monotonic()
-        self._session = uuid.uuid4().hex[:8]
+        self._session = f"{os.getpid()}-{uuid.uuid4().hex[:8]}"
         self._n = 0
+        self.damaged = 0
+        """Rows (or parts) found damaged by the last read: left out, their runs to be run again."""
+
+    @contextmanager
+    def writing(self) -> Iterator[ResultStore]:
+        """Hold the results file's lock for the block: one sweep writes a results file at a time;
+        another waits (saying so on stderr) until this one has folded its parts in."""
+
+        def say_waiting(pid):
+            print(
+                f"quadest: {self.path} is being written by another sweep (process {pid}); "
+                "waiting for it to end (Ctrl-C to stop)",
+                file=sys.stderr,
+                flush=True,
+            )
+
+        output_target(self.path)  # a results file that cannot be written is refused before the wait
+        with exclusive_lock(self.lock, on_wait=say_waiting):
+            yield self
+
+    def _files(self) -> list[Path]:
+        return ([self.path] if self.path.is_file() else []) + sorted(self.parts.glob("part-*.parquet"))
 
     def check_layout(self, row_types: dict) -> None:
-        """Refuse, before anything is written, a results file (or a killed sweep's parts) whose
-        columns are not a sweep's (another program's Parquet file, or an older layout): appending
-        to it would fail half-way and leave parts behind."""
-        import pyarrow as pa
+        """Before anything is written: refuse a results file whose columns are not a sweep's
+        (another program's Parquet file, or an older layout: appending to it would fail half-way
+        and leave parts behind). A results file damaged beyond reading (its footer, or a few of its
+        column names) is moved aside to ``<file>.damaged``, said on stderr, and its runs are run
+        again. A part with other columns is damaged, and left out when read."""
+        problem = self._layout_problem(row_types)
+        if problem is None:
+            return
+        damaged, what = problem
+        if not damaged:
+            raise ValueError(f"{self.path}: {what}; give another -o, or move it away")
+        aside = self.path.with_name(self.path.name + ".damaged")
+        n = 1
+        while aside.exists():
+            aside, n = self.path.with_name(f"{self.path.name}.damaged-{n}"), n + 1
+        os.replace(self.path, aside)
+        self.damaged += 1
+        print(
+            f"quadest: warning: {self.path}: {what}; moved to {aside.name}, and its runs are run again",
+            file=sys.stderr,
+            flush=True,
+        )
+
+    def _layout_problem(self, row_types: dict) -> tuple[bool, str] | None:
+        """``(damaged, what)`` when the results file cannot be appended to, else None."""
         import pyarrow.parquet as pq
 
-        files = ([self.path] if self.path.is_file() else []) + sorted(self.parts.glob("part-*.parquet"))
-        for p in files:
-            try:
-                schema = pq.read_schema(p)
-            except (pa.ArrowException, OSError) as exc:
-                if p == self.path:
-                    raise ValueError(f"{p}: not a readable results file ({exc}); give another -o") from None
-                continue
-            have = {f.name: str(f.type) for f in schema}
-            wrong = [f"{c} ({have.get(c, 'missing')}, not {t})" for c, t in row_types.items() if have.get(c) != t]
-            if wrong:
+        if not self.path.is_file():
+            return None
+        try:
+            schema = pq.read_schema(self.path)
+        except Exception as exc:  # noqa: BLE001 (whatever a damaged footer raises)
+            return _has_parquet_magic(self.path), f"not a readable results file ({str(exc).strip()[:80]})"
+        have = {f.name: str(f.type) for f in schema}
+        older = len(have) == len(row_types) and CHECKSUM not in have  # written before rows had checksums
+        want = row_types if older else {**row_types, CHECKSUM: "string"}
+        wrong = [f"{c} ({have.get(c, 'missing')}, not {t})" for c, t in want.items() if have.get(c) != t]
+        if not wrong:
+            return None
+        damaged = len(have) == len(want) and len(wrong) <= 2  # a sweep's file, a few names or types changed
+        what = "columns damaged" if damaged else "not a results file of this quadest's sweeps"
+        return damaged, f"{what} ({', '.join(wrong[:4])}{' ...' if len(wrong) > 4 else ''})"
+
+    def _verified(self, table: pa.Table) -> pa.Table:
+        """The rows whose checksum matches (all of a file written before checksums)."""
+        if CHECKSUM not in table.column_names:
+            return table
+        rows = table.to_pylist()
+        keep = [i for i, r in enumerate(rows) if r[CHECKSUM] == row_checksum(r)]
+        self.damaged += len(rows) - len(keep)
+        return table if len(keep) == len(rows) else table.take(keep)
+
+    def _read_file(self, p: Path) -> list:
+        """A file's verified row groups; a row group that cannot be read counts as damaged. A
+        results file whose footer cannot be read is refused; such a part is damaged."""
+        import pyarrow.parquet as pq
+
+        try:
+            f = pq.ParquetFile(p)
+            n = f.num_row_groups
+        except Exception as exc:  # noqa: BLE001 (whatever a damaged footer raises)
+            if p == self.path:
                 raise ValueError(
-                    f"{p}: not a results file of this quadest's sweeps (columns {', '.join(wrong[:4])}"
-                    f"{' ...' if len(wrong) > 4 else ''}); give another -o, or move it away"
-                )
-
-    def _tables(self):
-        import pyarrow as pa
-        import pyarrow.parquet as pq
-
-        files = ([self.path] if self.path.is_file() else []) + sorted(self.parts.glob("part-*.parquet"))
+                    f"{p}: not a readable results file ({exc}); give another -o, or move it away"
+                ) from None
+            self.damaged += 1
+            return []
         tables = []
-        for p in files:
+        for i in range(n):
             try:
-                tables.append(pq.read_table(p))
-            except (pa.ArrowException, OSError) as exc:
-                if p == self.path:
-                    raise ValueError(f"{p}: not a readable results file ({exc})") from None
-                continue  # a part cut by a crash: its runs are simply run again
+                tables.append(self._verified(f.read_row_group(i)))
+            except Exception:  # noqa: BLE001 (a damaged page: pyarrow raises several kinds)
+                self.damaged += max(1, f.metadata.row_group(i).num_rows)
+        return tables
+
+    def _tables(self, files=None):
+        self.damaged = 0
+        tables = [t for p in (self._files() if files is None else files) for t in self._read_file(p)]
+        layouts = [_layout(t) for t in tables]
+        if len(set(layouts)) > 1:  # a table of another layout than most (a damaged footer's names) is damaged
+            most = max(set(layouts), key=layouts.count)
+            self.damaged += sum(t.num_rows for t, lay in zip(tables, layouts) if lay != most)
+            tables = [t for t, lay in zip(tables, layouts) if lay == most]
         return tables
 
     def raw(self) -> pa.Table | None:
-        """Every row written, in order (None if none)."""
+        """Every undamaged row written, in order (None if none)."""
         import pyarrow as pa
 
         tables = self._tables()
@@ -111,43 +239,48 @@ class ResultStore:
             self.flush()
 
     def flush(self) -> None:
+        """Write the rows that came in as a new part file (``part-TIME-PID-RANDOM-N``: this
+        process's own), with their checksums; it appears whole or not at all."""
         import pyarrow as pa
         import pyarrow.parquet as pq
 
         self._last = time.monotonic()
         if not self._buf:
             return
-        self.parts.mkdir(parents=True, exist_ok=True)
-        table = pa.Table.from_pylist(self._buf)
+        self.parts.mkdir(exist_ok=True)
+        table = with_checksums(pa.Table.from_pylist(self._buf))
         name = self.parts / f"part-{time.strftime('%Y%m%dT%H%M%S')}-{self._session}-{self._n:05d}.parquet"
         tmp = name.with_suffix(".tmp")
         pq.write_table(table, tmp)
-        os.replace(tmp, name)  # a part appears whole or not at all
+        os.replace(tmp, name)
         self._n += 1
         self._buf = []
 
     def compact(self) -> None:
-        """Fold the parts into the results file (atomically) and remove them. A failed row that
-        a later row of the same run replaced (``--retry-failed``) is dropped; nothing else is."""
-        import shutil
-
+        """Fold the parts into the results file (atomically) and remove the parts read, and
+        nothing else (call it holding the lock, :meth:`writing`). A failed row that a later row
+        of the same run replaced (``--retry-failed``) is dropped, as are damaged rows."""
+        import pyarrow as pa
         import pyarrow.parquet as pq
 
         self.flush()
         if not self.parts.is_dir():
             return
-        t = self.raw()
-        if t is not None:
+        files = self._files()
+        tables = self._tables(files)
+        if tables:
+            t = pa.concat_tables(tables, promote_options="default")
             ids, status = t.column("run_id").to_pylist(), t.column("status").to_pylist()
             last = {rid: i for i, rid in enumerate(ids)}
             keep = [i for i, (rid, st) in enumerate(zip(ids, status)) if not (st == "failed" and last[rid] != i)]
-            if len(keep) != len(ids):
-                t = t.take(keep)
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            tmp = self.path.with_name(self.path.name + ".tmp")
-            pq.write_table(t, tmp)
-            os.replace(tmp, self.path)
-        shutil.rmtree(self.parts, ignore_errors=True)
+            t = with_checksums(t if len(keep) == len(ids) else t.take(keep))
+            with atomic_output(self.path) as tmp:
+                pq.write_table(t, tmp, row_group_size=ROW_GROUP)
+        for p in files + [t for t in self.parts.glob("part-*.tmp") if _writer_gone(t)]:
+            if p != self.path:
+                p.unlink(missing_ok=True)
+        with suppress(OSError):  # left when a part of another writer (or anything else) is in it
+            self.parts.rmdir()
 
 
 def run_sweep(
@@ -163,8 +296,22 @@ def run_sweep(
     Runs on the same flight go to one task (up to 32 runs), so each flight is simulated or
     read once; rows are still written one per run as the tasks finish."""
     store = ResultStore(out)
+    with store.writing():
+        return _run_locked(store, runs, workers, scheduler, retry_failed, progress)
+
+
+def _run_locked(store: ResultStore, runs, workers, scheduler, retry_failed: bool, progress: bool) -> dict:
+    """:func:`run_sweep` once it holds the results file's lock."""
     store.check_layout(row_types(runs))
     done_before = store.done_ids(retry_failed)
+    damaged = store.damaged  # rows or parts found damaged: their runs are not done, and run again
+    if damaged:
+        print(
+            f"quadest: warning: {store.path}: {damaged} damaged row(s) or part(s) found (checksum or format); "
+            "their runs are run again",
+            file=sys.stderr,
+            flush=True,
+        )
     todo = [r for r in runs if run_id(r) not in done_before]
     ids = [run_id(r) for r in todo]
     if len(set(ids)) != len(ids):  # the same run twice in one grid
@@ -214,4 +361,5 @@ def run_sweep(
         "ok": status.count("ok"),
         "failed": status.count("failed"),
         "executed_ok": new_ok[0],
+        "damaged": damaged,
     }
