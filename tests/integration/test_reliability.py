@@ -347,3 +347,132 @@ def test_a_bad_magnetometer_value_skips_only_the_magnetometer(name):
     streamed = np.array([f.update(gyr[k], acc[k], bad[k], dt=0.005) for k in range(n)])
     assert f.mag_skipped == len(rows) and f.skipped == 0
     np.testing.assert_allclose(streamed, res.q, rtol=0, atol=1e-12)  # as every batch and stream agree
+
+
+# -- damaged and mislabelled input ----------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def hover():
+    from quadest.sim import simulate
+
+    return simulate("hover", "bebop2", seed=1, duration=3.0)
+
+
+def _short_log():
+    from quadest.sim import simulate
+
+    return simulate("hover", "bebop2", seed=4, duration=2.0, overrides={"imu.rate_hz": 100.0, "mag.rate_hz": 100.0})
+
+
+def test_a_dataflash_log_cut_inside_a_message_is_read_with_a_warning(tmp_path):
+    from logwriters import write_dataflash
+
+    from quadest.readers import read_recording
+
+    whole = tmp_path / "whole.bin"
+    write_dataflash(whole, _short_log())
+    raw = whole.read_bytes()
+    assert "warnings" not in read_recording(whole).meta
+    cut = tmp_path / "cut.bin"
+    at = len(raw) // 2 + 5
+    at += 1 if at % 512 == 0 else 0
+    cut.write_bytes(raw[:at])
+    (warning,) = read_recording(cut).meta["warnings"]
+    assert "cut short inside a message" in warning and "t = " in warning
+    between = tmp_path / "between.bin"  # cut exactly after a message: cannot be told
+    between.write_bytes(raw[: raw.rfind(b"\xa3\x95", 0, at)])
+    assert "warnings" not in read_recording(between).meta
+
+
+def _parquet_with(path, hover, name, values):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from quadest.data import save_recording
+
+    save_recording(hover, path)
+    table = pq.read_table(path)
+    i = table.column_names.index(name)
+    table = table.set_column(i, name, pa.array(values))
+    pq.write_table(table.replace_schema_metadata(pq.read_table(path).schema.metadata), path)
+    return path
+
+
+@pytest.mark.parametrize(
+    "values, said",
+    [
+        (lambda n: np.ones(n, bool), "column gyr_x holds bool values, not numbers"),
+        (lambda n: ["0.1"] * n, "column gyr_x holds string values, not numbers"),
+        (lambda n: np.full(n, 2**62, np.int64), "column gyr_x holds the integer 4611686018427387904 at row 0"),
+    ],
+)
+def test_a_parquet_column_of_another_type_is_refused(tmp_path, hover, values, said):
+    from quadest.data import load_recording
+
+    path = _parquet_with(tmp_path / "r.parquet", hover, "gyr_x", values(len(hover)))
+    with pytest.raises(ValueError, match=said):
+        load_recording(path)
+
+
+def test_a_csv_column_of_words_is_refused(tmp_path, hover):
+    from quadest.data import load_recording, save_recording
+
+    path = save_recording(hover, tmp_path / "r.csv")
+    lines = path.read_text().splitlines(keepends=True)
+    head = next(i for i, line in enumerate(lines) if line.startswith("t,"))
+    for k in range(head + 1, len(lines) - 1):
+        cells = lines[k].split(",")
+        cells[1] = "true" if k % 2 else "false"
+        lines[k] = ",".join(cells)
+    path.write_text("".join(lines))
+    with pytest.raises(ValueError, match="column gyr_x holds bool values, not numbers"):
+        load_recording(path)
+
+
+@pytest.mark.parametrize("name, unit", [("gyr", "deg/s"), ("acc", "g")])
+def test_a_units_line_that_contradicts_si_is_refused(tmp_path, hover, name, unit):
+    from quadest.data import load_recording, save_recording
+
+    path = save_recording(hover, tmp_path / "r.csv")
+    text = path.read_text()
+    assert '"gyr": "rad/s"' in text
+    path.write_text(text.replace(f'"{name}": "{hover.meta["units"][name]}"', f'"{name}": "{unit}"'))
+    with pytest.raises(ValueError, match=rf"{name} is stated to be in '{unit}', but a recording holds"):
+        load_recording(path)
+    from quadest.data import Recording
+
+    with pytest.raises(ValueError, match="is stated to be in"):  # a Parquet file's metadata, or any
+        Recording(t=hover.t, gyr=hover.gyr, acc=hover.acc, meta={"units": {name: unit}})
+
+
+@pytest.mark.parametrize("edit", ["crlf", "blank line", "blank lines and spaces"])
+def test_a_csv_with_crlf_or_trailing_blank_lines_is_whole(tmp_path, hover, edit):
+    from quadest.data import load_recording, save_recording
+
+    path = save_recording(hover, tmp_path / "r.csv")
+    data = path.read_bytes()
+    data = {
+        "crlf": data.replace(b"\n", b"\r\n"),
+        "blank line": data + b"\n",
+        "blank lines and spaces": data + b"\r\n  \n\n",
+    }[edit]
+    path.write_bytes(data)
+    back = load_recording(path)
+    np.testing.assert_array_equal(back.t, hover.t)
+    np.testing.assert_array_equal(back.gyr, hover.gyr)
+    path.write_bytes(data[: data.rfind(b"# end")])  # and a file without its end line is still cut short
+    with pytest.raises(ValueError, match="cut short"):
+        load_recording(path)
+
+
+def test_a_hover_recorded_in_deg_s_is_warned_of(hover):
+    """A hover's rates are hundredths of a rad/s; in deg/s the same rates read a few units where
+    the accelerometer holds still: warned of (the magnetometer cannot tell over 3 s of hover)."""
+    from quadest.data import Recording
+
+    with pytest.warns(UserWarning, match="where the accelerometer holds still .* is it in deg/s"):
+        Recording(t=hover.t, gyr=np.degrees(hover.gyr), acc=hover.acc, mag=hover.mag, meta=hover.meta)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        Recording(t=hover.t, gyr=hover.gyr, acc=hover.acc, mag=hover.mag, meta=hover.meta)

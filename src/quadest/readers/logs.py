@@ -240,9 +240,45 @@ def _read_dataflash(path, *, instance: int = 0, imu: str = "logged"):
         meta["vibration"] = _vibration(np.array(vibe, float))
     if np.isfinite(params.get("COMPASS_DEC", np.nan)):  # radians, east positive; its last value
         meta.update(declination_rad=float(params["COMPASS_DEC"]), declination_source="the log's COMPASS_DEC")
+    if _dataflash_cut(path):
+        warnings.append(
+            f"the log is cut short inside a message: what could be read ends at t = {t[-1] - t[0]:.3f} s (a "
+            "log cut exactly between two messages, or on a 512-byte block as ArduPilot ends its own, cannot "
+            "be told from a complete one)"
+        )
     if warnings:
         meta["warnings"] = warnings
     return make_recording(path, "dataflash", t, imu[:, 1:4], imu[:, 4:7], magv, meta, **truth)
+
+
+DF_HEAD = b"\xa3\x95"
+DF_FMT = 128  # the FMT message's type: it defines every type's length (its own: 89 bytes)
+DF_BLOCK = 512
+
+
+def _dataflash_cut(path) -> bool:
+    """Whether a DataFlash log ends inside a message that does not end at a 512-byte block:
+    messages are ``A3 95 type`` and a body whose length the type's FMT message states. ArduPilot's
+    own writer ends its logs on a block boundary, often inside the last message, so such an
+    ending is taken as complete. Damaged bytes are stepped over to the next header (pymavlink does
+    the same, quadest counts them elsewhere); an undeclared type ends the walk (cannot tell)."""
+    data = open(path, "rb").read()
+    lengths, pos, n = {DF_FMT: 89}, 0, len(data)
+    while pos + 3 <= n:
+        if not data.startswith(DF_HEAD, pos):
+            pos = data.find(DF_HEAD, pos + 1)
+            if pos < 0:
+                return False
+            continue
+        size = lengths.get(data[pos + 2])
+        if size is None or size < 3:
+            return False
+        if pos + size > n:
+            break
+        if data[pos + 2] == DF_FMT:
+            lengths[data[pos + 3]] = data[pos + 4]
+        pos += size
+    return pos < n and n % DF_BLOCK != 0
 
 
 def _dataflash_reference(t, att, xkq) -> tuple[dict, str]:
@@ -346,9 +382,8 @@ def _printed():
 
 
 def _dataflash_damage(printed: list[str]) -> list[str]:
-    """What pymavlink skipped: it prints a "bad header" line per damaged byte. (A DataFlash log
-    has no end marker, and ArduPilot logs usually end inside a message, so a log cut short
-    cannot be told from a complete one.)"""
+    """What pymavlink skipped: it prints a "bad header" line per damaged byte (a log cut short is
+    found by :func:`_dataflash_cut`)."""
     bad = sum(1 for line in printed if line.startswith(("bad header", "Skipped", "Failed to parse")))
     if bad:
         return [
