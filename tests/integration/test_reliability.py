@@ -476,3 +476,51 @@ def test_a_hover_recorded_in_deg_s_is_warned_of(hover):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         Recording(t=hover.t, gyr=hover.gyr, acc=hover.acc, mag=hover.mag, meta=hover.meta)
+
+
+def _cli(*argv) -> tuple[int, str]:
+    import contextlib
+    import io
+
+    from quadest.cli.main import main
+
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        code = main([str(a) for a in argv])
+    return code, err.getvalue()
+
+
+@pytest.mark.parametrize("kind", ["ulog", "dataflash"])
+def test_reader_options_that_do_not_apply_are_refused(tmp_path, kind):
+    from logwriters import write_dataflash, write_ulog
+
+    from quadest.readers import read_recording
+
+    path = tmp_path / ("log.ulg" if kind == "ulog" else "log.bin")
+    (write_ulog if kind == "ulog" else write_dataflash)(path, _short_log())
+    code, err = _cli("info", path, "--units", "gyr=deg/s")
+    assert code == 2 and f"--units does not apply to a {kind} file" in err and err.count("\n") == 1, err
+    code, err = _cli("info", path, "--frame", "enu-flu")
+    assert code == 2 and "--frame does not apply" in err, err
+    with pytest.raises(ValueError, match=r"instance=5, but the log holds IMU instance\(s\) 0"):
+        read_recording(path, instance=5)
+    for bad in ("1", -1, 1.5, True):
+        with pytest.raises(ValueError, match="instance"):
+            read_recording(path, instance=bad)
+    assert len(read_recording(path, instance=np.int64(0)))
+
+
+def test_an_unreadable_file_says_permission_denied(tmp_path, hover):
+    import os
+
+    from quadest.data import save_recording
+
+    path = save_recording(hover, tmp_path / "r.csv")
+    os.chmod(path, 0)
+    try:
+        if os.access(path, os.R_OK):
+            pytest.skip("running as root: permissions do not stop reading")
+        code, err = _cli("info", path)
+        assert code == 1 and "Permission denied" in err and "not quadest's own" not in err, err
+    finally:
+        os.chmod(path, 0o644)

@@ -52,7 +52,7 @@ def parse_units(items) -> dict:
 
 
 def read_csv_mapped(
-    path, *, columns=None, units=None, frame: str = "ned-frd", quat_order: str = "wxyz", delimiter=None, **_
+    path, *, columns=None, units=None, frame: str = "ned-frd", quat_order: str = "wxyz", delimiter=None
 ):
     import pyarrow as pa
     import pyarrow.csv as pcsv
