@@ -22,6 +22,7 @@ import tempfile
 import threading
 import time
 import traceback
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -34,12 +35,20 @@ from quadest.sim import simulate
 
 def run(*argv) -> tuple[int, str, str]:
     out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), warnings.catch_warnings():
+        warnings.simplefilter("always")  # every warning on stderr, as in a process of its own (and under pytest) ...
+        for quiet in (DeprecationWarning, PendingDeprecationWarning, ResourceWarning):  # ... but these, as there
+            warnings.simplefilter("ignore", quiet)
+        warnings.showwarning = _on_stderr
         try:
             code = main([str(a) for a in argv])
         except SystemExit as exc:  # argparse's usage errors
             code = exc.code
     return code, out.getvalue(), err.getvalue()
+
+
+def _on_stderr(message, category, filename, lineno, file=None, line=None):
+    sys.stderr.write(warnings.formatwarning(message, category, filename, lineno, line))
 
 
 def _rows(path: Path):
@@ -240,6 +249,7 @@ def cases(d: Path):
     yield "an output with an unknown extension", ["estimate", h, "--filter", "madgwick", "-o", d / "e.txt"], one_line(1)
     yield from cases_bounds(d)
     yield from cases_outputs(d)
+    yield from cases_values(d)
 
 
 def cases_bounds(d: Path):
@@ -468,6 +478,128 @@ def cases_outputs(d: Path):
         "a sweep on a results file another sweep is writing",
         [*sweep, busy],
         lambda c, o, e: c == 0 and "waiting for it to end" in e and _sweep_metrics(busy) == want,
+    )
+
+
+def api(fn):
+    """A case through the Python API: ``fn()`` run as a command would be, its ValueError one line
+    with exit code 2 (1 for a data error), its warnings on stderr; ``fn`` may return stdout."""
+    from quadest.errors import UsageError
+
+    def call():
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always")
+            try:
+                out = fn() or ""
+            except ValueError as exc:
+                return (2 if isinstance(exc, UsageError) else 1), "", f"error: {exc}\n"
+        return 0, str(out), "".join(f"warning: {w.message}\n" for w in said)
+
+    return call
+
+
+def cases_values(d: Path):
+    """Values of any type, damaged and mislabelled input, reader options that do not apply
+    (docs/reliability.md, "Values and damaged input")."""
+    from quadest.filters import make_filter
+    from quadest.readers import read_recording
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from logwriters import write_dataflash, write_ulog
+
+    def refused(*words):
+        return lambda c, o, e: c == 2 and e.count("\n") == 1 and all(w in e for w in words)
+
+    for value in ("nan", np.float32("nan"), "-1", np.int64(-5), "1e300", True):
+        yield (
+            f"make_filter('mahony', k_p={value!r})",
+            api(lambda v=value: make_filter("mahony", k_p=v)),
+            refused("k_p must be", "[0, 1e3]"),
+        )
+    for q0 in ([0, 0, 0, 0], [np.nan, 1, 0, 0], [1, 0, 0]):
+        yield f"q0={q0}", api(lambda q=q0: make_filter("madgwick", q0=q)), refused("q0 must be a quaternion")
+
+    def huge_counter():
+        f = make_filter("mahony")
+        x = f.get_state()
+        x[7] = 1e308
+        f.set_state(x)
+
+    yield "set_state with 1e308 samples skipped", api(huge_counter), refused("not a state of this estimator")
+    yield (
+        "declination set to 'east'",
+        api(lambda: setattr(make_filter("madgwick"), "declination", "east")),
+        refused("declination must be a finite number"),
+    )
+    rec = simulate("hover", "bebop2", seed=1, duration=3.0)
+
+    def inf_time():
+        t = rec.t.copy()
+        t[500] = np.inf
+        res = make_filter("madgwick").run(t=t, gyr=rec.gyr, acc=rec.acc, mag=rec.mag)
+        return f"skipped {res.skipped} restarts {len(res.restarts)}"
+
+    yield "a time of inf in a batch run", api(inf_time), lambda c, o, e: c == 0 and o == "skipped 1 restarts 0"
+
+    def bad_mag():
+        mag, nan = rec.mag.copy(), rec.mag.copy()
+        mag[500], nan[500] = [np.inf, 0.0, 1e300], np.nan
+        res = make_filter("madgwick").run(t=rec.t, gyr=rec.gyr, acc=rec.acc, mag=mag)
+        ref = make_filter("madgwick").run(t=rec.t, gyr=rec.gyr, acc=rec.acc, mag=nan)
+        same = np.array_equal(res.q, ref.q)
+        return f"skipped {res.skipped} mag_skipped {res.mag_skipped} as without it {same}"
+
+    yield (
+        "an infinite magnetometer value",
+        api(bad_mag),
+        lambda c, o, e: c == 0 and o == "skipped 0 mag_skipped 1 as without it True",
+    )
+    short = simulate("hover", "bebop2", seed=4, duration=2.0, overrides={"imu.rate_hz": 100.0, "mag.rate_hz": 100.0})
+    df, cut, ulg = d / "v.bin", d / "v_cut.bin", d / "v.ulg"
+    write_dataflash(df, short)
+    write_ulog(ulg, short)
+    raw = df.read_bytes()
+    at = len(raw) // 2 + 5
+    cut.write_bytes(raw[: at + (at % 512 == 0)])  # not on a 512-byte block, where ArduPilot ends its own
+    yield (
+        "a DataFlash log cut inside a message",
+        ["info", cut],
+        lambda c, o, e: c == 0 and "warning:" in e and "cut short inside a message" in e,
+    )
+    yield "--units on a ULog", ["info", ulg, "--units", "gyr=deg/s"], refused("--units does not apply to a ulog")
+    yield "--units on a DataFlash log", ["info", df, "--units", "gyr=deg/s"], refused("--units does not apply")
+    yield (
+        "instance=5 on a log with one IMU",
+        api(lambda: read_recording(ulg, instance=5)),
+        refused("instance=5, but the log holds IMU instance(s) 0"),
+    )
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    pqf = save_recording(rec, d / "v.parquet")
+    table = pq.read_table(pqf)
+    meta = table.schema.metadata
+    table = table.set_column(1, "gyr_x", pa.array(np.ones(len(rec), bool))).replace_schema_metadata(meta)
+    pq.write_table(table, pqf)
+    yield "a Parquet gyr_x stored as bool", ["info", pqf], lambda c, o, e: c == 1 and "holds bool values" in e
+    csv = save_recording(rec, d / "v.csv")
+    text = csv.read_text()
+    units = d / "v_units.csv"
+    units.write_text(text.replace('"gyr": "rad/s"', '"gyr": "deg/s"').replace('"acc": "m/s^2"', '"acc": "g"'))
+    yield "a units line saying deg/s and g", ["info", units], lambda c, o, e: c == 1 and "is stated to be in" in e
+    crlf, blank = d / "v_crlf.csv", d / "v_blank.csv"
+    crlf.write_bytes(csv.read_bytes().replace(b"\n", b"\r\n"))
+    blank.write_bytes(csv.read_bytes() + b"\n")
+    yield "a quadest CSV with CRLF line ends", ["info", crlf], lambda c, o, e: c == 0 and "error" not in e
+    yield "a quadest CSV with a trailing blank line", ["info", blank], lambda c, o, e: c == 0 and "error" not in e
+    head, cols, A = _rows(csv)
+    B = A.copy()
+    B[:, [cols.index(c) for c in ("gyr_x", "gyr_y", "gyr_z")]] *= 180 / np.pi
+    degs = _write(d / "v_deg_s.csv", head, cols, B)
+    yield (
+        "a 3 s hover recorded in deg/s",
+        ["info", degs],
+        lambda c, o, e: "holds still" in e and "is it in deg/s" in e,
     )
 
 

@@ -43,21 +43,75 @@ def check_triples(record, owner: str, *names) -> None:
             raise ValueError(f"{owner}: {name} must be three non-negative numbers, got {getattr(record, name)!r}")
 
 
+def _declared(f) -> str:
+    """A field's declared type as written (``"float"``, ``"int | None"``), with or without
+    postponed annotations."""
+    return f.type if isinstance(f.type, str) else getattr(f.type, "__name__", str(f.type))
+
+
+def _got(v) -> str:
+    """A value for a message: strings said to be strings, a huge integer by its size."""
+    if isinstance(v, (str, bytes)):
+        return f"the string {v!r}"[:80]
+    shown = repr(v)
+    if len(shown) <= 40:
+        return shown
+    return f"a number of {len(shown)} digits" if isinstance(v, int) else shown[:40] + "..."
+
+
+def number(value, name: str, kind: str = "float", bounds: str | None = None):
+    """``value`` as a plain Python number of ``kind`` (``"float"``, ``"int"`` or ``"bool"``), or
+    :class:`UsageError` naming ``name`` and its ``bounds``. The one converter every parameter goes
+    through, whatever its type: Python and numpy numbers are taken; strings, bools for numbers,
+    NaN, infinities, numbers beyond a float (``10**400``), fractions for an ``int`` and anything
+    else are refused, and so is a value outside ``bounds`` (an interval, :func:`param`)."""
+    within = f" in {bounds}" if bounds else ""
+    if kind == "bool":
+        if isinstance(value, (bool, np.bool_)) or (_is_number(value) and value in (0, 1)):
+            return bool(value)
+        raise UsageError(f"{name} must be true or false (a bool), got {_got(value)}")
+    if not _is_number(value):
+        raise UsageError(f"{name} must be a finite number{within}, got {_got(value)}")
+    try:
+        v = float(value)
+    except OverflowError:
+        v = math.inf
+    if not math.isfinite(v):
+        raise UsageError(f"{name} must be a finite number{within}, got {_got(value)}")
+    if kind == "int":
+        if v != int(v):
+            raise UsageError(f"{name} must be a whole number{within}, got {_got(value)}")
+        v = int(value)
+    if bounds:
+        lo, hi, lo_open, hi_open = _interval(bounds)
+        if (v < lo or (lo_open and v == lo)) or (v > hi or (hi_open and v == hi)):
+            raise UsageError(f"{name} must be in {bounds}, got {_got(value)}")
+    return v
+
+
+def _is_number(value) -> bool:
+    """A real number (Python's or numpy's), not a bool."""
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+
+
+_NUMERIC = {"float": "float", "float | None": "float", "int": "int", "int | None": "int", "bool": "bool"}
+
+
 def check(record, owner: str = "") -> None:
-    """Raise :class:`UsageError` naming the parameter when a value is not a finite number or
-    lies outside its bounds."""
+    """Raise :class:`UsageError` naming the parameter and its bounds when a field declared a
+    number (``float``, ``int``, ``bool``) does not hold one (:func:`number`), and make every such
+    field a plain Python number (a ``numpy.float32`` becomes a ``float``, as JSON and the compiled
+    code take it). ``None`` is taken where the type allows it."""
     who = f"{owner}: " if owner else ""
     for f in fields(record):
+        declared = _declared(f)
+        kind = _NUMERIC.get(declared)
         v = getattr(record, f.name)
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
+        if kind is None or (v is None and declared.endswith("| None")):
             continue
-        if not math.isfinite(v):
-            raise UsageError(f"{who}{f.name} must be a finite number, got {v!r}")
-        b = f.metadata.get("bounds")
-        if b:
-            lo, hi, lo_open, hi_open = _interval(b)
-            if (v < lo or (lo_open and v == lo)) or (v > hi or (hi_open and v == hi)):
-                raise UsageError(f"{who}{f.name} must be in {b}, got {v!r}")
+        plain = number(v, f"{who}{f.name}", kind, f.metadata.get("bounds"))
+        if type(v) is not type(plain):
+            object.__setattr__(record, f.name, plain)
 
 
 def describe(record_cls) -> list[dict]:

@@ -28,6 +28,17 @@ def flight():
     return simulate("nominal", "bebop2", seed=11, duration=10.0, overrides={"imu.rate_hz": 200.0, "mag.rate_hz": 200.0})
 
 
+def _cli_error(argv) -> tuple[int, str]:
+    """The exit code and stderr of a command."""
+    import contextlib
+    import io
+
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        code = main(argv)
+    return code, err.getvalue()
+
+
 def _same(rec, ref, tol=1e-9, q_tol=1e-9, fields=("gyr", "acc")):
     """The same samples at the same intervals (a file's own time may start anywhere: it is kept)."""
     assert len(rec) == len(ref)
@@ -273,6 +284,16 @@ def test_rosbag_round_trip(tmp_path, flight, ros1):
     assert np.allclose(rec.t, 1000.0 + ref.t - ref.t[0], atol=2e-9)  # the bag's own time, kept
     assert np.allclose(rec.mag, ref.mag, atol=1e-9)
     assert angle_between(rec.true_q, ref.true_q).max() < 1e-6
+    msgs = tmp_path / "msg"
+    msgs.mkdir()
+    (msgs / "SensorCombined.msg").write_text("uint64 timestamp\n")
+    for argv, said in (
+        (["--imu", "fifo"], "--imu does not apply to a rosbag file"),
+        (["--msgs", str(msgs)], "--msgs gives px4_msgs definitions, but the bag has no px4_msgs topic"),
+        (["--units", "gyr=deg/s"], "--units does not apply to a rosbag file"),
+    ):
+        code, err = _cli_error(["info", str(path), *argv])
+        assert code == 2 and said in err and err.count("\n") == 1, err
     assert angle_between(rec.ref_q, ref.true_q).max() < 1e-6  # the Imu message's own orientation
     assert np.allclose(rec.true_pos, [0.0, 0.0, -1.0])
 

@@ -239,6 +239,12 @@ def read(args, path):
             }
         except ValueError as exc:  # --map and --units are options: a usage error
             raise CliError(str(exc)) from None
+    else:  # given for another format: passed on, so that its reader refuses them (never ignored)
+        if getattr(args, "units", None):
+            opts["units"] = args.units
+        for name, default in (("frame", "ned-frd"), ("quat_order", "wxyz")):
+            if getattr(args, name, default) != default:
+                opts[name] = getattr(args, name)
     for item in getattr(args, "topic", None) or []:
         kind, sep, topic = item.partition("=")
         if not sep or kind not in ("imu", "mag", "truth"):

@@ -147,10 +147,46 @@ def warn_deg_s_from_rests(t, gyr, acc) -> None:
         )
 
 
-def check_gyro_scale(t, gyr, mag=None) -> bool:
+STILL_RATE_WARN = 0.8
+"""rad/s: where the accelerometer holds still near g (:func:`rests`), the gyroscope's median rate
+about the axes across gravity, which would tilt the body, is at most 0.34 rad/s on every real
+recording quadest has (a quadrotor's figure eight; at rest and in a hover a few hundredths), and
+1.1 to 8 in a hover recorded in deg/s (57 times as much): above this it is warned of..."""
+STILL_SHARE = 0.25
+"""...when such stretches make at least this share of the recording (an aggressive flight's few
+still moments, yawing fast, do not count)."""
+
+
+def still_rate_across_gravity(t, gyr, acc) -> tuple[float, float]:
+    """``(median rate across gravity, share of the samples)`` over the rests: the gyroscope's
+    component perpendicular to the accelerometer's direction (a turn about gravity, a yaw, leaves
+    the accelerometer still; a turn across it would not); ``(nan, 0)`` without rests."""
+    spans = rests(t, acc)
+    if not spans:
+        return float("nan"), 0.0
+    idx = np.concatenate([np.arange(a, b) for a, b in spans])
+    up = acc[idx] / np.linalg.norm(acc[idx], axis=1, keepdims=True)
+    return float(np.median(np.linalg.norm(np.cross(gyr[idx], up), axis=1))), len(idx) / len(t)
+
+
+def warn_deg_s_from_still_rates(t, gyr, acc) -> None:
+    """Warn when the gyroscope turns fast where the accelerometer says the body holds still: a
+    hover or a rest in deg/s (:data:`STILL_RATE_WARN`)."""
+    rate, share = still_rate_across_gravity(t, gyr, acc)
+    if share >= STILL_SHARE and rate > STILL_RATE_WARN:
+        warnings.warn(
+            f"gyr: where the accelerometer holds still ({100 * share:.0f} % of the samples) the gyroscope "
+            f"reads {rate:.2f} (median, across gravity), as if the body tilted by {np.degrees(rate):.0f}°/s "
+            f"as rad/s, or {rate:.2f}°/s as deg/s: is it in deg/s? {RAD_S_FIX}",
+            stacklevel=3,
+        )
+
+
+def check_gyro_scale(t, gyr, mag=None) -> tuple[float, float]:
     """Refuse a gyroscope whose rates are far faster than the turning it should explain (a small
     positive scale: deg/s gives 0.0175; a negative one is another disagreement, not deg/s).
-    Returns whether the magnetometer could tell at all."""
+    Returns the fit ``(s, standard error)`` (:func:`gyro_scale`; an infinite error: the
+    magnetometer could not tell at all)."""
     s, se = gyro_scale(t, gyr, mag)
     if np.isfinite(se) and 0.0 < s and s + 4 * se < SCALE_BAND and -SCALE_BAND < s - 4 * se:
         raise ValueError(
@@ -158,7 +194,7 @@ def check_gyro_scale(t, gyr, mag=None) -> bool:
             f"the magnetometer's field (scale {s:.4f} ± {se:.4f}; deg/s gives 0.0175): is it in deg/s "
             f"(or are the magnetometer's axes or times not the IMU's)? {RAD_S_FIX}"
         )
-    return bool(np.isfinite(se))
+    return s, se
 
 
 RAD_S_FIX = "quadest takes rad/s (multiply deg/s by pi/180; a CSV: --units gyr=deg/s)"
@@ -270,9 +306,13 @@ def check_magnitudes(t, gyr, acc) -> None:
 
 def check_units(t, gyr, acc, mag=None) -> None:
     """Every check of this module on finite samples: errors for unit mistakes, warnings for a
-    gyroscope that looks like deg/s by its rests alone (without a magnetometer to tell) and for a
-    z-up body frame."""
+    gyroscope that looks like deg/s by its rests alone (without a magnetometer to tell: how the
+    rests' gravity turns, and how fast it reads where the accelerometer holds still) and for a z-up
+    body frame."""
     check_magnitudes(t, gyr, acc)
-    if not check_gyro_scale(t, gyr, mag):
+    s, se = check_gyro_scale(t, gyr, mag)
+    if not np.isfinite(se):
         warn_deg_s_from_rests(t, gyr, acc)
+    if not (np.isfinite(se) and abs(s - 1.0) + 4 * se < SCALE_BAND):  # unless the field confirms rad/s
+        warn_deg_s_from_still_rates(t, gyr, acc)
     warn_z_up(gyr, acc)

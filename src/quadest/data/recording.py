@@ -17,6 +17,7 @@ from __future__ import annotations
 import io
 import json
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -56,6 +57,52 @@ def columns_of(name: str) -> list[str]:
 
 def _first_row(mask) -> int:
     return int(np.flatnonzero(mask)[0])
+
+
+SI_UNITS = {"gyr": ("rad/s",), "acc": ("m/s^2", "m/s²", "m/s2")}
+"""What a Recording's ``meta['units']`` may say of the gyroscope and the accelerometer: the
+values are in these units, whatever a file's units line claims."""
+_TO_SI = {"gyr": "multiply deg/s by pi/180", "acc": "multiply g by 9.80665"}
+
+
+def _check_si(units: dict) -> None:
+    """Refuse units that contradict SI: a units line saying deg/s or g over values that would
+    be taken as rad/s and m/s² (never ignored)."""
+    for name, allowed in SI_UNITS.items():
+        if units.get(name) not in allowed:
+            raise ValueError(
+                f"units: {name} is stated to be in {units.get(name)!r}, but a recording holds {allowed[0]} and "
+                f"its values would be taken as such: convert them ({_TO_SI[name]}) and state {allowed[0]}, or "
+                "read the file as a CSV with its units (--format csv --map ... --units "
+                f"{name}={units.get(name)})"
+            )
+
+
+FLOAT_EXACT = 2**53
+"""Integers beyond this cannot be held exactly in a float64: no sensor value is that large."""
+
+
+def numeric_column(source, name: str, col, *, exact: bool = True) -> np.ndarray:
+    """A pyarrow column as float64: floats, integers (with ``exact``, none beyond
+    :data:`FLOAT_EXACT` in magnitude: a damaged or mislabelled value), or a column of nulls (NaN).
+    Anything else (bool, string, date, decimal ...) is refused in one line naming the column."""
+    import pyarrow as pa
+
+    kind = col.type
+    if pa.types.is_null(kind):
+        return np.full(len(col), np.nan)
+    if not (pa.types.is_floating(kind) or pa.types.is_integer(kind)):
+        raise ValueError(f"{source}: column {name} holds {kind} values, not numbers")
+    a = col.to_numpy(zero_copy_only=False)
+    if exact and pa.types.is_integer(kind) and a.dtype.kind in "iu" and len(a):
+        big = np.abs(a.astype(np.float64)) > FLOAT_EXACT
+        if big.any():
+            i = _first_row(big)
+            raise ValueError(
+                f"{source}: column {name} holds the integer {a[i]} at row {i}, beyond what a float holds "
+                "exactly (2^53): the file is damaged or the column is not a measurement"
+            )
+    return a.astype(np.float64)
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,6 +190,7 @@ class Recording:
         if not isinstance(meta["units"], dict):
             raise ValueError(f'meta: units must be a mapping like {{"mag": "uT"}}, got {meta["units"]!r}')
         meta["units"] = {"gyr": "rad/s", "acc": "m/s^2", "mag": "unknown", **meta["units"]}
+        _check_si(meta["units"])
         object.__setattr__(self, "meta", meta)
         if self.check_units:
             self._check_units()
@@ -337,7 +385,9 @@ def load_recording(path: str | Path, *, check_units: bool = True) -> Recording:
         rows = head.get("rows")
         if rows is not None and rows != table.num_rows:
             raise ValueError(f"{path}: holds {table.num_rows} rows but states {rows}: the file is damaged")
-        return _from_columns(table.column_names, lambda c: table.column(c).to_numpy(), meta, path, check_units)
+        return _from_columns(
+            table.column_names, lambda c: numeric_column(path, c, table.column(c)), meta, path, check_units
+        )
     import pyarrow.csv as pcsv
 
     data = path.read_bytes()
@@ -362,9 +412,10 @@ def load_recording(path: str | Path, *, check_units: bool = True) -> Recording:
     rows = meta.pop("rows", None)
     body = data[pos:]
     if tag is not None and tag not in LEGACY_TAGS:
-        # v2: the file must end with its end line; a file cut anywhere lacks it
+        # v2: the file must end with its end line (then at most blank lines, and any line ends:
+        # CRLF from an editor); a file cut anywhere lacks it
         end_at = body.rfind(b"\n" + END_MARK.encode())
-        if end_at < 0 or not body.endswith(b" rows\n"):
+        if end_at < 0 or not re.search(rb" rows\r?\n\s*\Z", body[end_at:]):
             raise ValueError(
                 f"{path}: the file is cut short (its end line is missing"
                 + (f"; it states {rows} rows)" if rows is not None else ")")
@@ -384,12 +435,4 @@ def load_recording(path: str | Path, *, check_units: bool = True) -> Recording:
         raise ValueError(f"{path}: column(s) {', '.join(dup)} appear more than once")
     table = table.rename_columns(names)
 
-    def get(c):
-        col = table.column(c)
-        if not pa.types.is_floating(col.type) and not pa.types.is_integer(col.type):
-            if pa.types.is_null(col.type):
-                return np.full(len(col), np.nan)
-            raise ValueError(f"{path}: column {c} is not numeric")
-        return col.to_numpy(zero_copy_only=False).astype(np.float64)
-
-    return _from_columns(names, get, meta, path, check_units)
+    return _from_columns(names, lambda c: numeric_column(path, c, table.column(c)), meta, path, check_units)

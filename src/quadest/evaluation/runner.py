@@ -69,6 +69,11 @@ def filter_notes(res: FilterResult) -> list[str]:
             f"{res.name}: skipped {res.skipped} unusable sample(s) (an interval that is not positive, "
             "or a value that is not finite or beyond any sensor); the attitude was held there"
         )
+    if res.mag_skipped:
+        out.append(
+            f"{res.name}: used {res.mag_skipped} sample(s) without their magnetometer value, which was not "
+            "finite or beyond any sensor"
+        )
     if res.restarts:
         times = ", ".join(f"{t:.3f}" for t in res.restarts[:5]) + (" ..." if len(res.restarts) > 5 else "")
         out.append(f"{res.name}: started again from the sensors after {len(res.restarts)} gap(s), at t = {times} s")

@@ -65,6 +65,7 @@ from quadest.filters.common import (
     Q_OUT,
     YAW_PENDING,
     admit,
+    admitted_mag,
     finite3,
     gravity_objective,
     layout,
@@ -417,6 +418,7 @@ def averaged_heading(x, p, psi, psi_dot):
 def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
+    mag = admitted_mag(x)  # NaN where its value was unusable (counted): the rest is used
     for i in range(7):
         diag[i] = 0.0
     pending = x[YAW_PENDING] != 0.0

@@ -40,8 +40,8 @@ from quadest._jit import cfunc, types
 from quadest.data.checks import GAP_FACTOR, GAP_MIN_S
 from quadest.errors import UsageError
 from quadest.extras import need
-from quadest.filters.common import BASE, DECL, INIT, Q_OUT, RESTARTS, SKIPPED, T_LAST
-from quadest.records import Params, check, field_offsets, pack, params_record  # noqa: F401 -- the filters take them from here
+from quadest.filters.common import BASE, DECL, INIT, MAG, MAG_SKIPPED, Q_OUT, RESTARTS, SKIPPED, T_LAST, YAW_PENDING
+from quadest.records import Params, check, field_offsets, number, pack, params_record  # noqa: F401 -- the filters take them from here
 from quadest.rotation import quat_mul, quat_to_euler
 from quadest.rotation.kernels import qmul
 
@@ -77,6 +77,9 @@ class FilterResult:
     """Samples skipped in this run (an unusable interval or value: docs/reliability.md)."""
     restarts: tuple = ()
     """Times (s) at which the estimator started again from the sensors after a gap."""
+    mag_skipped: int = 0
+    """Samples whose magnetometer value was unusable (not finite, or beyond any sensor): used
+    without it (docs/reliability.md); not in ``skipped``."""
 
     frame: str = "ned-frd"
     """The frames of ``q``: ``"ned-frd"`` (quadest's) or ``"enu-flu"`` (as the input was given)."""
@@ -99,6 +102,54 @@ class FilterResult:
         cols.update(zip(("roll", "pitch", "yaw"), self.euler.T))
         cols.update({k: v for k, v in self.diag.items() if k not in cols})
         return pd.DataFrame(cols, index=pd.Index(self.t, name="t"))
+
+
+def unit_quaternion(q, name: str) -> np.ndarray:
+    """``q`` (four finite numbers, not all zero) normalised, or :class:`UsageError` naming it."""
+    try:
+        a = np.asarray(q, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise UsageError(f"{name} must be a quaternion [w, x, y, z], got {q!r}") from None
+    if a.shape != (4,) or not np.isfinite(a).all():
+        raise UsageError(f"{name} must be a quaternion [w, x, y, z] of four finite numbers, got {q!r}")
+    norm = float(np.linalg.norm(a))
+    if not 1e-6 < norm < 1e150:
+        raise UsageError(f"{name} must be a quaternion [w, x, y, z] of norm about 1, got {q!r} (norm {norm:.3g})")
+    return a / norm
+
+
+COUNT_LIMIT = 2.0**53
+"""A state's counters are whole numbers from 0 to this (a float holds every whole number up to it)."""
+
+
+def checked_state(x, size: int, who: str) -> np.ndarray:
+    """A copy of ``x`` as a state of ``size`` values, refused (:class:`UsageError`) unless it can
+    be one: finite (the last time and the last magnetometer sample may be NaN: none yet), a unit attitude, the flags
+    0 or 1, the counters whole numbers from 0 to :data:`COUNT_LIMIT`, the declination's half-angle
+    cosine and sine on the unit circle."""
+    try:
+        x = np.array(x, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise UsageError(f"{who}: a state must be an array of {size} numbers") from None
+    if x.shape != (size,):
+        raise UsageError(f"{who}: state must have shape ({size},), got {x.shape}")
+    finite = np.isfinite(x)
+    finite[[T_LAST, MAG, MAG + 1, MAG + 2]] = ~np.isinf(x[[T_LAST, MAG, MAG + 1, MAG + 2]])  # NaN: none yet
+    if not finite.all():
+        raise UsageError(f"{who}: state value {int(np.flatnonzero(~finite)[0])} is not finite")
+    problems = {
+        "the attitude x[0:4] is not a unit quaternion": abs(np.linalg.norm(x[0:4]) - 1.0) > 1e-6,
+        "a flag (initialised, heading pending) is not 0 or 1": not set(x[[INIT, YAW_PENDING]]) <= {0.0, 1.0},
+        f"a counter (skipped, restarts, magnetometer skipped) is not a whole number in [0, {COUNT_LIMIT:.0f}]": any(
+            not (0.0 <= v <= COUNT_LIMIT and v == int(v)) for v in x[[SKIPPED, RESTARTS, MAG_SKIPPED]]
+        ),
+        "the declination's cosine and sine are not on the unit circle": abs(np.hypot(x[DECL], x[DECL + 1]) - 1.0)
+        > 1e-6,
+    }
+    for what, bad in problems.items():
+        if bad:
+            raise UsageError(f"{who}: not a state of this estimator: {what}")
+    return x
 
 
 def declination_quat(declination: float) -> np.ndarray:
@@ -154,22 +205,52 @@ class Estimator:
         max_gap_s: float | None = None,
         **overrides,
     ):
-        params = self._checked(params, declination, overrides)
+        self.params = self._checked(params, overrides)
         self._s = np.array([0.01, STREAM_GAP_S])  # streaming: the last interval, the longest (C reads both)
         self.max_gap_s = max_gap_s
-        self.params = params
-        values = params.values()
-        self._p = pack(values[f] for f in self.Record._fields)  # read by name in compiled code
-        self._c = pack(type(self).coefficients(replace(params, **values)))  # derived once, not every step
-        self.declination = float(declination)
+        self.declination = declination
         self._call_step = self._first_step
-        self._q0 = None if q0 is None else np.asarray(q0, float) / np.linalg.norm(q0)
+        self._q0 = None if q0 is None else unit_quaternion(q0, f"{self.name}: q0")
         self._diag = np.zeros(max(1, len(self.diag_names)))
         self.reset()
 
-    def _checked(self, params, declination, overrides) -> Params:
-        """The parameter record with ``overrides`` applied, checked, and the declination checked."""
+    @property
+    def params(self) -> Params:
+        """The parameter record; a new one (of the estimator's ``Params``) is checked and takes
+        effect from the next sample, the state kept."""
+        return self._params
+
+    @params.setter
+    def params(self, params: Params) -> None:
+        params = self._checked(params, {})
+        self._params = params
+        if self.Record is None:  # a peer: its package takes the record itself
+            return
+        values = params.values()
+        p = pack(values[f] for f in self.Record._fields)  # read by name in compiled code
+        c = pack(type(self).coefficients(replace(params, **values)))  # derived once, not every step
+        if hasattr(self, "_p"):  # written in place: the C call and compiled() hold these arrays
+            self._p[:], self._c[:] = p, c
+        else:
+            self._p, self._c = p, c
+
+    @property
+    def declination(self) -> float:
+        """The magnetic declination (rad, east positive) that turns the estimate to true north;
+        a new value is checked and applies at once."""
+        return self._declination
+
+    @declination.setter
+    def declination(self, value: float) -> None:
+        self._declination = number(value, f"{self.name}: declination")
+        if hasattr(self, "_x"):
+            self._set_declination(self._x)
+
+    def _checked(self, params, overrides) -> Params:
+        """The parameter record with ``overrides`` applied, checked."""
         params = params if params is not None else self.Params()
+        if not isinstance(params, self.Params):
+            raise UsageError(f"{self.name}: params must be a {self.Params.__name__}, got {type(params).__name__}")
         if overrides:
             names = {f.name for f in fields(params)}
             bad = sorted(set(overrides) - names)
@@ -179,8 +260,6 @@ class Estimator:
                 )
             params = replace(params, **overrides)
         check(params, self.name)
-        if not math.isfinite(declination):
-            raise UsageError(f"{self.name}: declination must be a finite angle in rad, got {float(declination)!r}")
         return params
 
     @classmethod
@@ -203,7 +282,7 @@ class Estimator:
     def reset(self, q0: ArrayLike | None = None) -> None:
         """Back to the initial state (attitude from ``q0`` or from the first samples)."""
         if q0 is not None:
-            self._q0 = np.asarray(q0, float) / np.linalg.norm(q0)
+            self._q0 = unit_quaternion(q0, f"{self.name}: q0")
         x = np.zeros(self.state_size)
         x[0] = 1.0
         x[T_LAST] = np.nan
@@ -230,6 +309,7 @@ class Estimator:
         self._init_state(x)
         self._set_declination(x)
         x[SKIPPED], x[RESTARTS], x[T_LAST] = self._x[SKIPPED], self._x[RESTARTS] + 1.0, self._x[T_LAST]
+        x[MAG_SKIPPED] = self._x[MAG_SKIPPED]
         self._x[:] = x
 
     @property
@@ -242,15 +322,20 @@ class Estimator:
         """How often the estimator started again from the sensors after a gap."""
         return int(self._x[RESTARTS])
 
+    @property
+    def mag_skipped(self) -> int:
+        """Samples used without their magnetometer value, which was unusable (not finite, or
+        beyond any sensor); these are not in :attr:`skipped`."""
+        return int(self._x[MAG_SKIPPED])
+
     def get_state(self) -> np.ndarray:
         """A copy of the whole state (attitude, flags and estimator-specific parts)."""
         return self._x.copy()
 
     def set_state(self, x: ArrayLike) -> None:
-        x = np.asarray(x, dtype=np.float64)
-        if x.shape != (self.state_size,):
-            raise ValueError(f"{self.name}: state must have shape ({self.state_size},), got {x.shape}")
-        self._x = x.copy()
+        """Continue from a state taken by :meth:`get_state` (of an estimator of this kind); one
+        that cannot be such a state is refused (:func:`checked_state`)."""
+        self._x = checked_state(x, self.state_size, self.name)
         self._qv = self._x[Q_OUT : Q_OUT + 4]
         self.__dict__.pop("update", None)  # the C call held the old state: made again at the next update
 
@@ -263,8 +348,8 @@ class Estimator:
 
     @max_gap_s.setter
     def max_gap_s(self, value):
-        if value is not None and not (math.isfinite(value) and value > 0):
-            raise UsageError(f"{self.name}: max_gap_s must be a positive number of seconds, got {value!r}")
+        if value is not None:
+            value = number(value, f"{self.name}: max_gap_s", bounds="(0, 1e9]")
         self._max_gap_s = value
         self._s[1] = value or STREAM_GAP_S
 
@@ -289,7 +374,7 @@ class Estimator:
         wrong memory reads in compiled code."""
         s = self._s
         if not 0.0 < dt <= s[1]:
-            if dt > 0.0:  # a gap: start again; the first sample after it spans a nominal interval
+            if 0.0 < dt < math.inf:  # a gap: start again; the first sample after it spans a nominal interval
                 self._restart()
                 dt = s[0]
             dt = float(dt)  # refuses what is not a number; NaN and ≤ 0 are skipped by the step
@@ -377,7 +462,7 @@ class Estimator:
         starts = np.flatnonzero(dt > gap)
         q = np.empty((n, 4))
         diag = np.zeros((n, max(1, len(self.diag_names))))
-        skipped0 = self._x[SKIPPED]
+        skipped0, mag_skipped0 = self._x[SKIPPED], self._x[MAG_SKIPPED]
         restarts = []
         bounds = [0, *[int(k) for k in starts if k > 0], n]
         if len(starts) and starts[0] == 0:  # resuming after a gap
@@ -401,6 +486,7 @@ class Estimator:
             self.params,
             int(self._x[SKIPPED] - skipped0),
             tuple(restarts),
+            mag_skipped=int(self._x[MAG_SKIPPED] - mag_skipped0),
         )
 
 
@@ -474,14 +560,16 @@ def sample_times(t, rate, gyr, who: str) -> np.ndarray:
 def sample_intervals(t) -> np.ndarray:
     """``dt[k] = t[k] − t[j]`` with ``t[j]`` the latest earlier time that was usable (finite, and
     later than every time before it); the first interval is the median of the usable ones (0 for
-    one sample). A NaN time or one that goes backwards gives an unusable interval (NaN or ≤ 0):
+    one sample). A non-finite time or one that goes backwards gives an unusable interval (NaN or ≤ 0):
     the filters skip that sample, and the next one is measured from the last good time."""
     t = np.asarray(t, dtype=np.float64)
     if len(t) < 2:
         return np.zeros(len(t))
     latest = np.maximum.accumulate(np.where(np.isfinite(t), t, -np.inf))
     prev = np.concatenate([[-np.inf], latest[:-1]])
-    dt = t - prev
-    nominal = _nominal_interval(np.diff(t))
+    with np.errstate(invalid="ignore"):  # inf − inf: NaN, as wanted
+        dt = t - prev
+        nominal = _nominal_interval(np.diff(t))
     dt[~np.isfinite(prev) & np.isfinite(t)] = nominal  # the first usable sample
+    dt[~np.isfinite(t)] = np.nan  # a NaN or infinite time: skipped and counted, never a gap
     return dt

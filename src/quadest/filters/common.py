@@ -16,11 +16,20 @@ from quadest._jit import njit
 from quadest.records import layout
 
 COMMON = layout(
-    ("q", 4), ("init", 1), ("yaw_pending", 1), ("t_last", 1), ("skipped", 1), ("restarts", 1), ("decl", 2), ("q_out", 4)
+    ("q", 4),
+    ("init", 1),
+    ("yaw_pending", 1),
+    ("t_last", 1),
+    ("skipped", 1),
+    ("restarts", 1),
+    ("mag_skipped", 1),
+    ("decl", 2),
+    ("q_out", 4),
+    ("mag", 3),
 )
 INIT, YAW_PENDING, T_LAST, BASE = COMMON.init, COMMON.yaw_pending, COMMON.t_last, COMMON.end
-SKIPPED, RESTARTS = COMMON.skipped, COMMON.restarts
-DECL, Q_OUT = COMMON.decl, COMMON.q_out
+SKIPPED, RESTARTS, MAG_SKIPPED = COMMON.skipped, COMMON.restarts, COMMON.mag_skipped
+DECL, Q_OUT, MAG = COMMON.decl, COMMON.q_out, COMMON.mag
 
 # Beyond these a value is not a measurement (docs/reliability.md): the sample is skipped.
 RATE_LIMIT = 1e3  # rad/s, gyroscope (MEMS gyroscopes end near 35 rad/s)
@@ -58,14 +67,27 @@ def admit(x, gyr, acc, mag, dt):
     """Whether a sample can be used; a sample that cannot is skipped and counted in
     ``x[SKIPPED]`` (the state is left as it was, so it never becomes NaN). Refused: an interval
     that is not a positive finite number up to ``DT_LIMIT``; a gyroscope or accelerometer value
-    that is not finite or beyond any sensor; a magnetometer value that is infinite or beyond any
-    sensor (a NaN magnetometer row means "no new sample" and is fine)."""
+    that is not finite or beyond any sensor. The magnetometer's value is put in ``x[MAG:MAG + 3]``
+    for the step to read (:func:`admitted_mag`): as it is, or, when it is not finite or beyond any
+    sensor, NaN ("no new sample": the rest of the sample is used) and counted in
+    ``x[MAG_SKIPPED]``. A NaN magnetometer row means "no new sample" and is not counted."""
     ok = dt > 0.0 and dt <= DT_LIMIT and within3(gyr, RATE_LIMIT) and within3(acc, ACC_LIMIT)
-    if ok and not (np.isnan(mag[0]) and np.isnan(mag[1]) and np.isnan(mag[2])):
-        ok = within3(mag, MAG_LIMIT)
     if not ok:
         x[SKIPPED] += 1.0
-    return ok
+        return False
+    none = np.isnan(mag[0]) and np.isnan(mag[1]) and np.isnan(mag[2])
+    if none or within3(mag, MAG_LIMIT):
+        x[MAG], x[MAG + 1], x[MAG + 2] = mag[0], mag[1], mag[2]
+    else:
+        x[MAG], x[MAG + 1], x[MAG + 2] = np.nan, np.nan, np.nan
+        x[MAG_SKIPPED] += 1.0
+    return True
+
+
+@njit(cache=True, inline="always")
+def admitted_mag(x):
+    """The magnetometer sample :func:`admit` let through (NaN where it had none or a bad one)."""
+    return x[MAG : MAG + 3]
 
 
 @njit(cache=True, inline="always")

@@ -18,7 +18,7 @@ import numpy as np
 
 from quadest._jit import carray, njit
 from quadest.filters.base import Estimator, params_record
-from quadest.filters.common import Q_OUT, admit, finite3, omega_matrix, prepare, publish
+from quadest.filters.common import Q_OUT, admit, admitted_mag, finite3, omega_matrix, prepare, publish
 from quadest.filters.linalg import inv_spd, mm, mm_t, mv
 from quadest.filters.quatmeas import measurement_quaternion
 from quadest.filters.qukf import PB, STATE, QukfParams, coefficients, noise
@@ -37,6 +37,7 @@ PARAM = Record = params_record(EkfParams)
 def ekf_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
+    mag = admitted_mag(x)  # NaN where its value was unusable (counted): the rest is used
     use_mag = p[PARAM.use_mag] != 0.0
     diag[0] = 0.0
     if not prepare(x, acc, mag, use_mag):

@@ -19,7 +19,7 @@ import numpy as np
 
 from quadest._jit import carray, njit
 from quadest.filters.base import Estimator, Params, coefficient_offsets, params_record
-from quadest.filters.common import BASE, Q_OUT, admit, finite3, gravity_objective, norm3, prepare, publish
+from quadest.filters.common import BASE, Q_OUT, admit, admitted_mag, finite3, gravity_objective, norm3, prepare, publish
 from quadest.records import param
 from quadest.rotation.kernels import normalize_s, qdot_s, rotate_s
 
@@ -62,6 +62,7 @@ def coefficients(params: MadgwickParams) -> Coefficients:
 def madgwick_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
+    mag = admitted_mag(x)  # NaN where its value was unusable (counted): the rest is used
     use_mag = p[PARAM.use_mag] != 0.0
     diag[0] = 0.0
     if not prepare(x, acc, mag, use_mag):

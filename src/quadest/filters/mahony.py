@@ -18,7 +18,7 @@ import numpy as np
 
 from quadest._jit import carray, njit
 from quadest.filters.base import Estimator, Params, params_record
-from quadest.filters.common import BASE, Q_OUT, admit, finite3, layout, norm3, prepare, publish
+from quadest.filters.common import BASE, Q_OUT, admit, admitted_mag, finite3, layout, norm3, prepare, publish
 from quadest.records import param
 from quadest.rotation.kernels import normalize_s, qdot_s, rotate_inv_s, rotate_s
 
@@ -50,6 +50,7 @@ PARAM = Record = params_record(MahonyParams)
 def mahony_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
+    mag = admitted_mag(x)  # NaN where its value was unusable (counted): the rest is used
     use_mag = p[PARAM.use_mag] != 0.0
     kp, ki = p[PARAM.k_p], p[PARAM.k_i]
     diag[0], diag[1], diag[2], diag[3] = x[BIAS], x[BIAS + 1], x[BIAS + 2], 0.0

@@ -68,8 +68,8 @@ class Peer(Estimator):
     def __init__(
         self, params: PeerParams | None = None, *, q0: ArrayLike | None = None, declination: float = 0.0, **overrides
     ):
-        self.params = self._checked(params, declination, overrides)
-        self.declination = float(declination)
+        self.params = self._checked(params, overrides)
+        self.declination = declination
         self.reset(q0)
 
     @classmethod
@@ -94,6 +94,10 @@ class Peer(Estimator):
 
     @property
     def restarts(self) -> int:
+        return 0
+
+    @property
+    def mag_skipped(self) -> int:
         return 0
 
     def get_state(self) -> NoReturn:

@@ -24,7 +24,7 @@ import numpy as np
 
 from quadest._jit import carray, njit
 from quadest.filters.base import Estimator, Params, coefficient_offsets, params_record
-from quadest.filters.common import BASE, Q_OUT, admit, finite3, layout, omega_matrix, prepare, publish
+from quadest.filters.common import BASE, Q_OUT, admit, admitted_mag, finite3, layout, omega_matrix, prepare, publish
 from quadest.filters.linalg import inv_spd_into
 from quadest.filters.quatmeas import measurement_quaternion
 from quadest.records import param
@@ -149,6 +149,7 @@ def _ut_cov(A, ma, B, mb, w0, wi, C):
 def qukf_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
+    mag = admitted_mag(x)  # NaN where its value was unusable (counted): the rest is used
     use_mag = p[PARAM.use_mag] != 0.0
     diag[0] = 0.0
     if not prepare(x, acc, mag, use_mag):

@@ -32,7 +32,7 @@ import numpy as np
 from quadest._jit import carray, njit
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, Params, coefficient_offsets, params_record
-from quadest.filters.common import BASE, Q_OUT, admit, finite3, layout, norm3, prepare, publish
+from quadest.filters.common import BASE, Q_OUT, admit, admitted_mag, finite3, layout, norm3, prepare, publish
 from quadest.filters.linalg import inv_spd, mm, mm_t, mv
 from quadest.records import param
 from quadest.rotation.kernels import FASTMATH, qexp, qexp_right, rot_matrix, skew
@@ -144,6 +144,7 @@ def _update(x, P, r, H, Rm, v_free, constrain):
 def roetenberg_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
+    mag = admitted_mag(x)  # NaN where its value was unusable (counted): the rest is used
     use_mag = p[PARAM.use_mag] != 0.0
     sg, sb, sd, tau, grav = (
         p[PARAM.gyro_noise],

@@ -27,7 +27,7 @@ import numpy as np
 from quadest._jit import carray, njit
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, Params, params_record
-from quadest.filters.common import BASE, Q_OUT, admit, finite3, layout, norm3, prepare, publish
+from quadest.filters.common import BASE, Q_OUT, admit, admitted_mag, finite3, layout, norm3, prepare, publish
 from quadest.records import param
 from quadest.rotation.kernels import normalize_s, qdot_s, rotate_s
 
@@ -107,6 +107,7 @@ def _conj_mul(d0, d1, d2, d3, q0, q1, q2, q3):
 def valenti_step(x, p, c, gyr, acc, mag, dt, diag):
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
+    mag = admitted_mag(x)  # NaN where its value was unusable (counted): the rest is used
     use_mag = p[PARAM.use_mag] != 0.0
     g_acc, g_mag, adaptive = p[PARAM.gain_acc], p[PARAM.gain_mag], p[PARAM.adaptive] != 0.0
     t1, t2, thr = p[PARAM.t1], p[PARAM.t2], p[PARAM.threshold]

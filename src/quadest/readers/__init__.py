@@ -22,18 +22,20 @@ Every failure is a :class:`ReaderError` (a ValueError) with one line naming the 
 
 from __future__ import annotations
 
+import inspect
 from pathlib import Path
 
 from quadest.data.inputs import check_input
 from quadest.data.recording import Recording, load_recording
+from quadest.errors import UsageError
 from quadest.extras import need
 from quadest.readers import asl, datasets, generic, logs, ros
 from quadest.readers.common import ReaderError
 
 
-def _read_broad(path, **options) -> Recording:
+def _read_broad(path) -> Recording:
     read = datasets.read_broad_mat if Path(path).suffix.lower() == ".mat" else datasets.read_broad_hdf5
-    return read(path, **options)
+    return read(path)
 
 
 READERS = {
@@ -54,11 +56,13 @@ FORMATS = tuple(READERS)
 
 
 def _first_bytes(p: Path, n=256) -> bytes:
+    """The file's first bytes; one that cannot be opened is refused with the system's reason
+    (permission denied is not "an empty file" nor "not quadest's own")."""
     try:
         with open(p, "rb") as f:
             return f.read(n)
-    except OSError:
-        return b""
+    except OSError as exc:
+        raise ReaderError(f"{p}: cannot be read ({exc.strerror or exc})") from None
 
 
 def detect_format(path: str | Path) -> str:
@@ -138,7 +142,33 @@ def read_recording(path: str | Path, format: str | None = None, **options) -> Re
         raise ReaderError(f"unknown format {fmt!r}; formats: {', '.join(READERS)}")
     if not Path(path).exists():
         raise ReaderError(f"{path}: no such file or folder")
+    refuse_options_that_do_not_apply(fmt, options, path)
     return READERS[fmt](path, **options)
+
+
+OPTION_FLAGS = {
+    "columns": "--map",
+    "units": "--units",
+    "frame": "--frame",
+    "quat_order": "--quat-order",
+    "imu": "--imu",
+    "msgs": "--msgs",
+    "imu_topic": "--topic imu=",
+    "mag_topic": "--topic mag=",
+    "truth_topic": "--topic truth=",
+}
+"""The command line's spelling of each reader option."""
+
+
+def refuse_options_that_do_not_apply(fmt: str, options: dict, path) -> None:
+    """Raise :class:`UsageError` naming the first option that the format's reader does not take
+    (never ignored: ``--units`` on a ULog would otherwise be silently without effect)."""
+    takes = [n for n, p in inspect.signature(READERS[fmt]).parameters.items() if p.kind is p.KEYWORD_ONLY]
+    for name in options:
+        if name not in takes:
+            flag = OPTION_FLAGS.get(name, name)
+            usable = ", ".join(OPTION_FLAGS.get(n, n) for n in takes) or "none"
+            raise UsageError(f"{path}: {flag} does not apply to a {fmt} file (its options: {usable}); leave it out")
 
 
 __all__ = ["FORMATS", "READERS", "ReaderError", "detect_format", "read_recording"]

@@ -64,7 +64,7 @@ def _on_imu(t, tg, v) -> np.ndarray:
     return vec_enu_to_ned(out)
 
 
-def read_asl(path, **_):
+def read_asl(path):
     """IMU and ground truth of an ASL folder; the body frame is the IMU's own axes (S), the
     z-up world becomes NED with its heading offset left to the alignment."""
     mav = asl_folder(path)

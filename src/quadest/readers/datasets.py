@@ -104,7 +104,7 @@ def _broad(path, d, rate, info=""):
     )
 
 
-def read_broad_hdf5(path, **_):
+def read_broad_hdf5(path):
     with _h5(path) as f:
         if "sampling_rate" not in f.attrs:
             raise ReaderError(f"{path}: not a BROAD file (no sampling_rate attribute)")
@@ -154,7 +154,7 @@ def _loadmat_isolated(path):
             return {k: z[k] for k in z.files}
 
 
-def read_broad_mat(path, **_):
+def read_broad_mat(path):
     d = _loadmat_isolated(path)
     if d is None:  # MATLAB v7.3 is HDF5
         return read_broad_hdf5(path)
@@ -164,7 +164,7 @@ def read_broad_mat(path, **_):
 
 
 # -- DIDO -------------------------------------------------------------------------------------------
-def read_dido(path, **_):
+def read_dido(path):
     with _h5(path) as f:
         _need(f, ("ts", "acc", "gyr", "gt_q"), path, "DIDO")
         d = {k: _h5_read(f, k, path) for k in f.keys()}
@@ -188,7 +188,7 @@ def read_dido(path, **_):
 
 
 # -- Blackbird (UZH-RPG preparation) -------------------------------------------------------------------
-def read_blackbird(path, *, calibrated: bool = False, **_):
+def read_blackbird(path, *, calibrated: bool = False):
     """``path``: the folder with data.hdf5 and stamped_groundtruth_imu.txt, or data.hdf5 itself.
     The IMU frame is kept as the body frame (it is the frame the Vicon pose is given for);
     the z-up world becomes NED."""
@@ -227,7 +227,7 @@ def read_blackbird(path, *, calibrated: bool = False, **_):
 
 
 # -- RepoIMU ----------------------------------------------------------------------------------------
-def read_repoimu(path, **_):
+def read_repoimu(path):
     """``;``-separated, two header rows: time, Vicon quaternion w x y z, accelerometer,
     gyroscope, magnetometer (normalised). All-zero quaternions mean no truth."""
     try:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from quadest.data.recording import numeric_column
 from quadest.readers.common import ReaderError, make_recording, unit_factor
 from quadest.rotation.frames import quat_enu_flu_to_ned_frd, vec_enu_to_ned, vec_flu_to_frd
 
@@ -51,7 +52,7 @@ def parse_units(items) -> dict:
 
 
 def read_csv_mapped(
-    path, *, columns=None, units=None, frame: str = "ned-frd", quat_order: str = "wxyz", delimiter=None, **_
+    path, *, columns=None, units=None, frame: str = "ned-frd", quat_order: str = "wxyz", delimiter=None
 ):
     import pyarrow as pa
     import pyarrow.csv as pcsv
@@ -80,10 +81,10 @@ def read_csv_mapped(
     def col(name):
         if name not in names:
             raise ReaderError(f"{path}: no column {name!r}; columns: {', '.join(names)}")
-        c = table.column(name)
-        if not (pa.types.is_floating(c.type) or pa.types.is_integer(c.type) or pa.types.is_null(c.type)):
-            raise ReaderError(f"{path}: column {name!r} is not numeric")
-        return c.to_numpy(zero_copy_only=False).astype(float)
+        try:  # a time may be a large integer (ns since 1970): only the measurements must be exact
+            return numeric_column(path, repr(name), table.column(name), exact=name != columns["t"])
+        except ValueError as exc:
+            raise ReaderError(str(exc)) from None
 
     def vec(key):
         return np.column_stack([col(c) for c in columns[key]]) if key in columns else None

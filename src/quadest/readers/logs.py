@@ -8,8 +8,10 @@ from contextlib import contextmanager
 
 import numpy as np
 
+from quadest.errors import UsageError
 from quadest.extras import need
 from quadest.readers.common import ReaderError, mag_on_imu_rows, make_recording, resample_quat
+from quadest.records import number
 from quadest.rotation import euler_to_quat
 
 # -- PX4 ----------------------------------------------------------------------------------------------
@@ -34,20 +36,34 @@ def _imu_source(imu, path) -> str:
     return imu
 
 
-def read_ulog(path, *, instance: int = 0, imu: str | None = None, **_):
+ULOG_IMU_TOPICS = ("sensor_combined", "sensor_gyro", "sensor_accel", "sensor_gyro_fifo", "sensor_accel_fifo")
+
+
+def _instance(instance) -> int:
+    return number(instance, "instance (the IMU's)", "int", "[0, 255]")
+
+
+def _refuse_missing_instance(path, instance: int, present) -> None:
+    """Refuse an IMU instance the log does not hold (never another one taken instead)."""
+    if present and instance not in present:
+        have = ", ".join(str(i) for i in sorted(present))
+        raise UsageError(f"{path}: instance={instance}, but the log holds IMU instance(s) {have}; choose one of them")
+
+
+def read_ulog(path, *, instance: int = 0, imu: str | None = None):
     """See :func:`_read_ulog`; a log whose topics lack the fields they should have is refused
     naming the file."""
-    imu = _imu_source(imu, path)
+    imu, instance = _imu_source(imu, path), _instance(instance)
     try:
         return _read_ulog(path, instance=instance, imu=imu)
     except LOG_DAMAGE as exc:
         raise ReaderError(f"{path}: the ULog is damaged or not from PX4 ({type(exc).__name__}: {exc})") from None
 
 
-def read_dataflash(path, *, instance: int = 0, imu: str | None = None, **_):
+def read_dataflash(path, *, instance: int = 0, imu: str | None = None):
     """See :func:`_read_dataflash`; a log whose messages lack the fields they should have is
     refused naming the file."""
-    imu = _imu_source(imu, path)
+    imu, instance = _imu_source(imu, path), _instance(instance)
     try:
         return _read_dataflash(path, instance=instance, imu=imu)
     except LOG_DAMAGE as exc:
@@ -107,6 +123,7 @@ def _read_ulog(path, *, instance: int = 0, imu: str = "logged"):
     for d in ulog.data_list:
         if d.multi_id == instance or d.name not in data:
             data[d.name] = d.data
+    _refuse_missing_instance(path, instance, {d.multi_id for d in ulog.data_list if d.name in ULOG_IMU_TOPICS})
     if imu == "fifo":
         t, gyr, acc = _ulog_fifo(data, path)
     elif "sensor_combined" in data:
@@ -187,7 +204,8 @@ def _ulog_cut(path) -> bool:
     without saying so."""
     import struct
 
-    data = open(path, "rb").read()
+    with open(path, "rb") as f:
+        data = f.read()
     pos, n = 16, len(data)
     while pos + 3 <= n:
         (size,) = struct.unpack_from("<H", data, pos)
@@ -203,7 +221,7 @@ def _read_dataflash(path, *, instance: int = 0, imu: str = "logged"):
     chosen."""
     DFReader = need("pymavlink.DFReader", "reading an ArduPilot DataFlash log")
     fifo = imu == "fifo"
-    imu, mag, att, xkq, vibe, params = [], [], [], [], [], {}
+    imu, mag, att, xkq, vibe, params, present = [], [], [], [], [], {}, set()
     batch = {"GYR": [], "ACC": []} if fifo else None
     with _printed() as said:  # pymavlink prints what it skips; quadest counts it and says it once
         try:
@@ -211,12 +229,13 @@ def _read_dataflash(path, *, instance: int = 0, imu: str = "logged"):
         except Exception as exc:  # pymavlink raises many kinds on bad files
             raise ReaderError(f"{path}: not a readable DataFlash log ({type(exc).__name__}: {exc})") from None
         try:
-            _read_dataflash_messages(log, instance, (imu, mag, att, xkq, vibe), params, batch)
+            _read_dataflash_messages(log, instance, (imu, mag, att, xkq, vibe), params, batch, present)
         except Exception as exc:
             raise ReaderError(
                 f"{path}: DataFlash log broken after {len(imu)} IMU messages ({type(exc).__name__}: {exc})"
             ) from None
     warnings = _dataflash_damage(said)
+    _refuse_missing_instance(path, instance, present)
     if fifo:
         imu = _dataflash_batch(batch, path)
     if not len(imu):
@@ -240,9 +259,46 @@ def _read_dataflash(path, *, instance: int = 0, imu: str = "logged"):
         meta["vibration"] = _vibration(np.array(vibe, float))
     if np.isfinite(params.get("COMPASS_DEC", np.nan)):  # radians, east positive; its last value
         meta.update(declination_rad=float(params["COMPASS_DEC"]), declination_source="the log's COMPASS_DEC")
+    if _dataflash_cut(path):
+        warnings.append(
+            f"the log is cut short inside a message: what could be read ends at t = {t[-1] - t[0]:.3f} s (a "
+            "log cut exactly between two messages, or on a 512-byte block as ArduPilot ends its own, cannot "
+            "be told from a complete one)"
+        )
     if warnings:
         meta["warnings"] = warnings
     return make_recording(path, "dataflash", t, imu[:, 1:4], imu[:, 4:7], magv, meta, **truth)
+
+
+DF_HEAD = b"\xa3\x95"
+DF_FMT = 128  # the FMT message's type: it defines every type's length (its own: 89 bytes)
+DF_BLOCK = 512
+
+
+def _dataflash_cut(path) -> bool:
+    """Whether a DataFlash log ends inside a message that does not end at a 512-byte block:
+    messages are ``A3 95 type`` and a body whose length the type's FMT message states. ArduPilot's
+    own writer ends its logs on a block boundary, often inside the last message, so such an
+    ending is taken as complete. Damaged bytes are stepped over to the next header (pymavlink does
+    the same, quadest counts them elsewhere); an undeclared type ends the walk (cannot tell)."""
+    with open(path, "rb") as f:
+        data = f.read()
+    lengths, pos, n = {DF_FMT: 89}, 0, len(data)
+    while pos + 3 <= n:
+        if not data.startswith(DF_HEAD, pos):
+            pos = data.find(DF_HEAD, pos + 1)
+            if pos < 0:
+                return False
+            continue
+        size = lengths.get(data[pos + 2])
+        if size is None or size < 3:
+            return False
+        if pos + size > n:
+            break
+        if data[pos + 2] == DF_FMT:
+            lengths[data[pos + 3]] = data[pos + 4]
+        pos += size
+    return pos < n and n % DF_BLOCK != 0
 
 
 def _dataflash_reference(t, att, xkq) -> tuple[dict, str]:
@@ -290,7 +346,9 @@ def _dataflash_batch(batch, path) -> np.ndarray:
     return np.column_stack([g, acc])
 
 
-def _read_dataflash_messages(log, instance, lists, params, batch=None):
+def _read_dataflash_messages(log, instance, lists, params, batch=None, present=None):
+    """Collect the messages quadest reads into ``lists`` (instance ``instance``), the parameters,
+    the batch sampler's (``batch``), and the IMU instances ``present``."""
     imu, mag, att, xkq, vibe = lists
     kinds = ["IMU", "MAG", "ATT", "XKQ", "PARM", "VIBE"] + (list(batch) if batch is not None else [])
     while True:
@@ -303,8 +361,11 @@ def _read_dataflash_messages(log, instance, lists, params, batch=None):
             if inst == instance:
                 axes = ("GyrX", "GyrY", "GyrZ") if kind == "GYR" else ("AccX", "AccY", "AccZ")
                 batch[kind].append((m.SampleUS, *(getattr(m, a) for a in axes)))
-        elif kind == "IMU" and inst == instance:
-            imu.append((m.TimeUS, m.GyrX, m.GyrY, m.GyrZ, m.AccX, m.AccY, m.AccZ))
+        elif kind == "IMU":
+            if present is not None:
+                present.add(inst)
+            if inst == instance:
+                imu.append((m.TimeUS, m.GyrX, m.GyrY, m.GyrZ, m.AccX, m.AccY, m.AccZ))
         elif kind == "MAG" and inst == instance:
             mag.append((m.TimeUS, m.MagX, m.MagY, m.MagZ))
         elif kind == "ATT":
@@ -346,9 +407,8 @@ def _printed():
 
 
 def _dataflash_damage(printed: list[str]) -> list[str]:
-    """What pymavlink skipped: it prints a "bad header" line per damaged byte. (A DataFlash log
-    has no end marker, and ArduPilot logs usually end inside a message, so a log cut short
-    cannot be told from a complete one.)"""
+    """What pymavlink skipped: it prints a "bad header" line per damaged byte (a log cut short is
+    found by :func:`_dataflash_cut`)."""
     bad = sum(1 for line in printed if line.startswith(("bad header", "Skipped", "Failed to parse")))
     if bad:
         return [

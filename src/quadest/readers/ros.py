@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from quadest.errors import UsageError
 from quadest.extras import need
 from quadest.readers.common import ReaderError, mag_on_imu_rows, make_recording, resample_quat
 from quadest.rotation.frames import quat_enu_flu_to_ned_frd, vec_enu_to_ned, vec_flu_to_frd
@@ -105,7 +106,7 @@ def _typestore(msgs):
     return store
 
 
-def read_rosbag(path, *, imu_topic=None, mag_topic=None, truth_topic=None, msgs=None, **_):
+def read_rosbag(path, *, imu_topic=None, mag_topic=None, truth_topic=None, msgs=None):
     AnyReader = need("rosbags.highlevel", "reading a ROS bag").AnyReader
     p = Path(path)
     try:
@@ -115,6 +116,9 @@ def read_rosbag(path, *, imu_topic=None, mag_topic=None, truth_topic=None, msgs=
         raise
     except Exception as exc:  # rosbags raises its own error types per format
         raise ReaderError(f"{path}: not a readable ROS bag ({type(exc).__name__}: {exc})") from None
+    if msgs is not None and not any(c.msgtype.startswith("px4_msgs/") for c in reader.connections):
+        reader.close()
+        raise UsageError(f"{path}: --msgs gives px4_msgs definitions, but the bag has no px4_msgs topic; leave it out")
     if not any(c.msgtype in IMU for c in reader.connections) and any(c.msgtype in PX4_IMU for c in reader.connections):
         with _closing(reader):
             return _read_px4_bag(reader, path, imu_topic, mag_topic, truth_topic)

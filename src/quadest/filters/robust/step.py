@@ -9,7 +9,7 @@ import numpy as np
 
 from quadest._jit import NO_ALLOCATION, carray, njit
 from quadest.filters.base import Estimator
-from quadest.filters.common import INIT, Q_OUT, admit, publish
+from quadest.filters.common import INIT, Q_OUT, admit, admitted_mag, publish
 from quadest.filters.robust.bias import rest_and_bias
 from quadest.filters.robust.clipping import detect_clipping, held_rates, hold_clipped, rates_from_field
 from quadest.filters.robust.heading import heading, latency_corrected
@@ -23,6 +23,7 @@ def robust_step(x, p, c, gyr, acc, mag, dt, diag):
     """One sample: clipping and the field's rates, the strapdown, rest and bias, tilt, heading."""
     if not admit(x, gyr, acc, mag, dt):  # skipped and counted; the state stays as it was
         return
+    mag = admitted_mag(x)  # NaN where its value was unusable (counted): the rest is used
     have_mag = (
         p[PARAM.use_mag] != 0.0
         and not (np.isnan(mag[0]) or np.isnan(mag[1]) or np.isnan(mag[2]))
