@@ -601,6 +601,31 @@ def cases_values(d: Path):
         ["info", degs],
         lambda c, o, e: "holds still" in e and "is it in deg/s" in e,
     )
+    yield from _names_and_rates(d)
+
+
+def _names_and_rates(d: Path):
+    """Any bytes in a file name; a BROAD file whose sampling_rate is a string."""
+    import h5py
+
+    odd = os.path.join(str(d), os.fsdecode(b"v\xff.parquet"))
+    yield "a Parquet output named by bytes that are not UTF-8", ["simulate", "--duration", "1", "-o", odd], _ok
+    yield "estimate from a file named by bytes that are not UTF-8", ["estimate", odd, "-o", odd + ".csv"], _ok
+    broad = d / "v_broad.hdf5"
+    with h5py.File(broad, "w") as f:
+        for k in ("imu_gyr", "imu_acc", "imu_mag", "opt_pos"):
+            f[k] = np.zeros((10, 3))
+        f["opt_quat"], f["movement"] = np.tile([1.0, 0, 0, 0], (10, 1)), np.zeros(10)
+        f.attrs["sampling_rate"] = "fast"
+    yield (
+        "a BROAD file whose sampling_rate is a string",
+        ["info", broad],
+        lambda c, o, e: c == 1 and "v_broad.hdf5: sampling_rate must be one positive number" in e,
+    )
+
+
+def _ok(c, o, e):
+    return c == 0 and "error" not in e
 
 
 def main_(argv=None) -> int:

@@ -524,3 +524,25 @@ def test_an_unreadable_file_says_permission_denied(tmp_path, hover):
         assert code == 1 and "Permission denied" in err and "not quadest's own" not in err, err
     finally:
         os.chmod(path, 0o644)
+
+
+def test_file_names_that_are_not_utf8_are_read_and_written(tmp_path):
+    """Any bytes in a file name: pyarrow opens only UTF-8 names, so quadest hands it open files;
+    the report shows the bytes UTF-8 cannot say as U+FFFD."""
+    import os
+
+    from quadest.cli.main import main
+
+    names = [
+        os.path.join(str(tmp_path), os.fsdecode(n))
+        for n in (b"h\xff.parquet", b"e\xfe.parquet", b"c\xfd.csv", b"r\xfc.html")
+    ]
+    rec, est, csv, html = names
+    assert main(["simulate", "--scenario", "hover", "--duration", "2", "-o", rec]) == 0
+    assert main(["estimate", rec, "--filter", "madgwick", "-o", est]) == 0
+    assert main(["simulate", "--scenario", "hover", "--duration", "2", "-o", csv]) == 0
+    assert main(["estimate", csv, "--filter", "madgwick", "-o", est]) == 0
+    assert main(["info", rec]) == 0
+    assert main(["report", rec, "-o", html]) == 0
+    assert "h\ufffd.parquet" in open(html, "rb").read().decode("utf-8")
+    assert sorted(os.listdir(os.fsencode(tmp_path))) == sorted(os.fsencode(os.path.basename(n)) for n in names)

@@ -687,3 +687,26 @@ def test_a_z_up_csv_read_as_frd_draws_one_note(tmp_path):
         assert done.returncode == 0, done.stderr
         notes = [line for line in done.stderr.splitlines() if "z-up" in line]
         assert len(notes) == noted and all(n.startswith("quadest: note: ") and "--frame enu-flu" in n for n in notes)
+
+
+@pytest.mark.parametrize("rate", ["200", b"fast", np.array([200.0, 100.0]), -5.0, np.nan])
+def test_a_broad_sampling_rate_that_is_not_one_positive_number_names_the_file(tmp_path, flight, rate):
+    import h5py
+
+    h5 = tmp_path / "01_test.hdf5"
+    write_broad(h5, flight)
+    with h5py.File(h5, "a") as f:
+        f.attrs["sampling_rate"] = rate
+    with pytest.raises(ReaderError, match=r"01_test\.hdf5: sampling_rate must be one positive number"):
+        read_recording(h5)
+
+
+def test_reference_times_out_of_order_are_left_out_not_an_interpolation_error():
+    """scipy's Slerp refuses times that do not increase ("Times must be in strictly increasing
+    order", no file named): rows whose time is not beyond every earlier one are left out."""
+    from quadest.readers.common import resample_quat
+
+    t_src = np.array([0.0, 5.0, 1.0, 2.0, np.nan, 6.0, 6.0, 7.0])
+    q = np.tile([1.0, 0.0, 0.0, 0.0], (len(t_src), 1))
+    out = resample_quat(t_src, q, np.array([0.5, 5.5, 6.5]), max_gap=10.0)
+    assert np.allclose(out, [1.0, 0.0, 0.0, 0.0])

@@ -182,7 +182,8 @@ def _rotor_speeds(path, explicit: bool):
         if explicit:
             raise CliError(f"--rotors {path}: no such file (quadest fly writes NAME-flight.parquet beside NAME.csv)")
         return None
-    table = pq.read_table(path)
+    with open(path, "rb") as fh:
+        table = pq.read_table(fh)
     cols = [c for c in table.column_names if c.startswith("rotor") and c.endswith("_speed")]
     if "t" not in table.column_names or not cols:
         if explicit:

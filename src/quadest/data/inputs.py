@@ -96,7 +96,8 @@ def _parquet_values(path) -> int | None:
     try:
         import pyarrow.parquet as pq
 
-        md = pq.ParquetFile(path).metadata
+        with open(path, "rb") as fh:
+            md = pq.ParquetFile(fh).metadata
         return md.num_rows * md.num_columns * 8
     except Exception:  # noqa: BLE001 (a damaged footer is the reader's to say)
         return None

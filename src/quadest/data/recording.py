@@ -309,8 +309,8 @@ def save_recording(rec: Recording, path: str | Path) -> Path:
         table = table.replace_schema_metadata(
             {b"quadest": json.dumps({"format": FORMAT_TAG, "meta": rec.meta, "rows": len(rec)}).encode()}
         )
-        with atomic_output(path) as tmp:
-            pq.write_table(table, tmp)
+        with atomic_output(path) as tmp, open(tmp, "wb") as fh:  # a file object: pyarrow takes only UTF-8 names
+            pq.write_table(table, fh)
         return path
     import pyarrow.csv as pcsv
 
@@ -371,7 +371,8 @@ def load_recording(path: str | Path, *, check_units: bool = True) -> Recording:
         import pyarrow.parquet as pq
 
         try:
-            table = pq.read_table(path)
+            with open(path, "rb") as fh:
+                table = pq.read_table(fh)
         except (pa.ArrowException, OSError) as exc:
             raise ValueError(f"{path}: not a readable Parquet file ({str(exc).strip().splitlines()[0]})") from None
         raw = (table.schema.metadata or {}).get(b"quadest")

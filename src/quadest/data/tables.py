@@ -25,5 +25,6 @@ def write_table(cols: dict, path: str | Path) -> Path:
                 fh.write((",".join(cols) + "\n").encode())
                 pcsv.write_csv(table, fh, pcsv.WriteOptions(include_header=False, quoting_style="none"))
         else:
-            pq.write_table(table, tmp)
+            with open(tmp, "wb") as fh:  # a file object: pyarrow takes only UTF-8 names
+                pq.write_table(table, fh)
     return path

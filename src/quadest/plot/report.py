@@ -319,8 +319,10 @@ def _spectrogram(rec, xr):
 
 
 def write_report(rec, summ: dict, att: dict, path, title: str) -> Path:
-    """Write the report to ``path`` atomically."""
-    return write_bytes(path, build_report(rec, summ, att, title).encode())
+    """Write the report to ``path`` atomically. A file name that is not UTF-8 (its bytes kept by
+    Python as surrogates) is shown with U+FFFD for the bytes UTF-8 cannot say."""
+    html = build_report(rec, summ, att, title).encode("utf-8", "surrogateescape")
+    return write_bytes(path, html.decode("utf-8", "replace").encode())
 
 
 def build_sweep_report(summ: dict, title: str) -> str:

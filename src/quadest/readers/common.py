@@ -51,6 +51,18 @@ def mag_on_imu_rows(t_imu, t_mag, mag):
     return out
 
 
+def _increasing(t, q):
+    """The rows whose time is finite and beyond every earlier row's (a strictly increasing time
+    for the interpolation: a repeated, backward or NaN time is left out)."""
+    ok = np.isfinite(t)
+    t, q = t[ok], q[ok]
+    if len(t) == 0:
+        return t, q
+    before = np.maximum.accumulate(np.concatenate([[-np.inf], t[:-1]]))
+    keep = t > before
+    return t[keep], q[keep]
+
+
 def resample_quat(t_src, q_src, t, max_gap: float = 0.1):
     """Quaternions at ``t`` by spherical interpolation of ``(t_src, q_src)``; NaN outside the
     source's time span and inside gaps longer than ``max_gap`` seconds."""
@@ -61,8 +73,7 @@ def resample_quat(t_src, q_src, t, max_gap: float = 0.1):
     with np.errstate(over="ignore", invalid="ignore"):  # damaged values: inf norms are not > 0.5 usable rows
         ok = np.isfinite(q_src).all(axis=1) & (np.linalg.norm(q_src, axis=1) > 0.5)
     t_src, q_src = t_src[ok], quat_normalize(q_src[ok])
-    keep = np.concatenate([[True], np.diff(t_src) > 0])
-    t_src, q_src = t_src[keep], q_src[keep]
+    t_src, q_src = _increasing(t_src, q_src)
     out = np.full((len(t), 4), np.nan)
     if len(t_src) < 2:
         return out

@@ -5,6 +5,7 @@ into the truth's navigation frame (it must average to +g up)."""
 
 from __future__ import annotations
 
+import math
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -109,7 +110,7 @@ def read_broad_hdf5(path):
         if "sampling_rate" not in f.attrs:
             raise ReaderError(f"{path}: not a BROAD file (no sampling_rate attribute)")
         d = {k: _h5_read(f, k, path) for k in f.keys()}
-        return _broad(path, d, float(f.attrs["sampling_rate"]), str(f.attrs.get("info", "")))
+        return _broad(path, d, _sampling_rate(path, f.attrs["sampling_rate"]), str(f.attrs.get("info", "")))
 
 
 _LOADMAT = """
@@ -160,7 +161,19 @@ def read_broad_mat(path):
         return read_broad_hdf5(path)
     if "sampling_rate" not in d:
         raise ReaderError(f"{path}: not a BROAD MAT file (no sampling_rate)")
-    return _broad(path, d, float(np.asarray(d["sampling_rate"]).ravel()[0]))
+    return _broad(path, d, _sampling_rate(path, d["sampling_rate"]))
+
+
+def _sampling_rate(path, value) -> float:
+    """A BROAD file's ``sampling_rate`` (Hz): one positive finite number, or an error naming the file."""
+    a = np.asarray(value).ravel()
+    try:
+        rate = float(a[0]) if a.size == 1 and a.dtype.kind in "iuf" else math.nan
+    except (TypeError, ValueError):
+        rate = math.nan
+    if not (math.isfinite(rate) and rate > 0):
+        raise ReaderError(f"{path}: sampling_rate must be one positive number (Hz), got {str(value)[:40]!r}")
+    return rate
 
 
 # -- DIDO -------------------------------------------------------------------------------------------

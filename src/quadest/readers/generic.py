@@ -69,7 +69,8 @@ def read_csv_mapped(
         raise ReaderError(f"unknown frame {frame!r}; ned-frd or enu-flu")
     parse = pcsv.ParseOptions(delimiter=delimiter) if delimiter else pcsv.ParseOptions()
     try:
-        table = pcsv.read_csv(path, parse_options=parse, read_options=pcsv.ReadOptions(skip_rows=0))
+        with open(path, "rb") as fh:  # a file object: pyarrow takes only UTF-8 names
+            table = pcsv.read_csv(fh, parse_options=parse, read_options=pcsv.ReadOptions(skip_rows=0))
     except (pa.ArrowException, OSError) as exc:
         raise ReaderError(f"{path}: malformed CSV ({str(exc).splitlines()[0]})") from None
     names = [c.strip() for c in table.column_names]
