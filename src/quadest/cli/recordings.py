@@ -22,7 +22,7 @@ from quadest.cli.common import (
     write_report_for,
 )
 from quadest.data import files, format_summary, summarize, write_table
-from quadest.data.checks import warn_tilt_disagreement
+from quadest.data.checks import BLOCK, warn_tilt_disagreement
 from quadest.evaluation.compare import parse_params
 from quadest.evaluation.diagnose import DiagnoseParams, diagnose_log, format_diagnosis
 from quadest.evaluation.inspect import events
@@ -86,6 +86,17 @@ def cmd_calibrate(args):
     return 0
 
 
+def attitude_columns(q) -> dict:
+    """``q_w ... q_z, roll, pitch, yaw`` as contiguous columns (a table takes them without a
+    copy), the Euler angles computed block by block (a long recording's rotation matrices are
+    never held at once)."""
+    cols = {f"q_{c}": np.ascontiguousarray(q[:, j]) for j, c in enumerate("wxyz")}
+    euler = np.empty((3, len(q)))
+    for s in range(0, len(q), BLOCK):
+        euler[:, s : s + BLOCK] = quat_to_euler(q[s : s + BLOCK]).T
+    return {**cols, "roll": euler[0], "pitch": euler[1], "yaw": euler[2]}
+
+
 def cmd_estimate(args):
     rec = read(args, args.file)
     rec, cal_params = apply_calibrations(rec, args.calibration)
@@ -97,20 +108,9 @@ def cmd_estimate(args):
     decl = np.radians(args.declination_deg) if args.declination_deg is not None else None
     res = estimate(rec, args.filter, kw, declination=decl)
     warn_tilt_disagreement(args.filter, res.q, rec.acc)
-    q = res.q
     for line in filter_notes(res):
         say(line)
-    e = quat_to_euler(q)
-    cols = {
-        "t": rec.t,
-        "q_w": q[:, 0],
-        "q_x": q[:, 1],
-        "q_y": q[:, 2],
-        "q_z": q[:, 3],
-        "roll": e[:, 0],
-        "pitch": e[:, 1],
-        "yaw": e[:, 2],
-    }
+    cols = {"t": rec.t, **attitude_columns(res.q)}
     if args.diagnostics:
         if not res.diag:
             raise CliError(f"--diagnostics: {args.filter} reports no per-sample diagnostics")

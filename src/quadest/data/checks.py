@@ -44,29 +44,70 @@ def _skew(w: np.ndarray) -> np.ndarray:
     )
 
 
+BLOCK = 1 << 16
+"""Rows per block where a check goes through a whole recording (its memory stays a few MB
+whatever the recording's length)."""
+
+
 def turn_scale(t, gyr, v, *, offset: bool) -> tuple[float, float]:
     """``(s, standard error)`` of the least-squares fit ``dv/dt = −s ω × (v − b)`` over the rows
     where ``v`` is finite (``b`` a constant offset, fitted when ``offset``), ω the gyroscope's
-    mean rate over each interval between such rows; ``(nan, inf)`` with too few rows."""
+    mean rate over each interval between such rows; ``(nan, inf)`` with too few rows. The
+    normal equations and the residuals are summed block by block."""
     rows = np.flatnonzero(np.isfinite(v).all(axis=1))
     if len(rows) < 50:
         return float("nan"), float("inf")
-    angle = np.vstack([np.zeros((1, 3)), np.cumsum(gyr[:-1] * np.diff(t)[:, None], axis=0)])
-    dt = np.diff(t[rows])
-    w = (angle[rows[1:]] - angle[rows[:-1]]) / dt[:, None]
-    dv = np.diff(v[rows], axis=0) / dt[:, None]
-    mid = 0.5 * (v[rows[1:]] + v[rows[:-1]])
+    angle = _angle_at(t, gyr, rows)
+    m = 4 if offset else 1
+    blocks = range(0, len(rows) - 1, BLOCK)
+    normal, aty, count = np.zeros((m, m)), np.zeros(m), 0
+    for s in blocks:
+        a, y = _turn_design(t, v, rows, angle, s, offset)
+        normal += a.T @ a
+        aty += a.T @ y
+        count += len(y)
+    if count <= m or np.linalg.cond(normal) > 1e12:
+        return float("nan"), float("inf")
+    x = np.linalg.solve(normal, aty)
+    rss = 0.0
+    for s in blocks:
+        a, y = _turn_design(t, v, rows, angle, s, offset)
+        r = y - a @ x
+        rss += float(r @ r)
+    cov = np.linalg.inv(normal) * rss / (count - m)
+    return float(x[0]), float(np.sqrt(cov[0, 0]))
+
+
+def _angle_at(t, gyr, rows) -> np.ndarray:
+    """The gyroscope's rate integrated from the first sample to each of ``rows`` (rad, per axis),
+    block by block."""
+    out = np.empty((len(rows), 3))
+    carry = np.zeros(3)
+    last = len(t) - 1
+    for s in range(0, max(last, 1), BLOCK):
+        e = min(s + BLOCK, last)
+        cum = np.empty((e - s + 1, 3))
+        cum[0] = carry
+        np.cumsum(gyr[s:e] * np.diff(t[s : e + 1])[:, None], axis=0, out=cum[1:])
+        cum[1:] += carry
+        lo, hi = np.searchsorted(rows, [s, e + 1 if e == last else e])
+        out[lo:hi] = cum[rows[lo:hi] - s]
+        carry = cum[-1]
+    return out
+
+
+def _turn_design(t, v, rows, angle, s, offset):
+    """The fit's design rows and observations for the intervals between ``rows[s : s + BLOCK + 1]``."""
+    r = rows[s : s + BLOCK + 1]
+    dt = np.diff(t[r])[:, None]
+    w = np.diff(angle[s : s + len(r)], axis=0) / dt
+    vr = v[r]
+    dv = np.diff(vr, axis=0) / dt
+    mid = 0.5 * (vr[1:] + vr[:-1])
     cols = [-np.cross(w, mid)[:, :, None]] + ([_skew(w)] if offset else [])  # ω × (s b): linear in s b
     a, y = np.concatenate(cols, axis=2).reshape(-1, 4 if offset else 1), dv.reshape(-1)
     keep = np.isfinite(y) & np.isfinite(a).all(axis=1)
-    a, y = a[keep], y[keep]
-    normal = a.T @ a
-    if len(y) <= a.shape[1] or np.linalg.cond(normal) > 1e12:
-        return float("nan"), float("inf")
-    x = np.linalg.solve(normal, a.T @ y)
-    r = y - a @ x
-    cov = np.linalg.inv(normal) * float(r @ r) / (len(y) - a.shape[1])
-    return float(x[0]), float(np.sqrt(cov[0, 0]))
+    return a[keep], y[keep]
 
 
 def gyro_scale(t, gyr, mag) -> tuple[float, float]:
@@ -98,14 +139,21 @@ def rests(t, acc) -> list[tuple[int, int]]:
     k = max(2, int(round(STILL_S / max(float(np.median(np.diff(t))), 1e-9))))
     if len(acc) <= k:
         return []
+    still = np.zeros(len(t), bool)
+    windows = len(acc) - k + 1  # a window of k samples starts at each of these
+    for s in range(0, windows, BLOCK):
+        e = min(s + BLOCK, windows)
+        still[k // 2 + s : k // 2 + e] = _still_windows(acc[s : e + k - 1], k)
+    return runs(still, k)
+
+
+def _still_windows(acc, k) -> np.ndarray:
+    """For each window of ``k`` samples of ``acc``: whether it holds still near g."""
     c1 = np.cumsum(np.vstack([np.zeros((1, 3)), acc]), axis=0)
     c2 = np.cumsum(np.vstack([np.zeros((1, 3)), acc**2]), axis=0)
     mean = (c1[k:] - c1[:-k]) / k
     spread = np.sqrt(np.maximum((c2[k:] - c2[:-k]) / k - mean**2, 0.0)).max(axis=1)
-    still = np.zeros(len(t), bool)
-    near_g = np.abs(np.linalg.norm(mean, axis=1) - GRAVITY) < STILL_NORM
-    still[k // 2 : k // 2 + len(mean)] = (spread < STILL_SPREAD) & near_g
-    return runs(still, k)
+    return (spread < STILL_SPREAD) & (np.abs(np.linalg.norm(mean, axis=1) - GRAVITY) < STILL_NORM)
 
 
 def _turned(gyr, dt, scale) -> Rotation:
@@ -165,8 +213,12 @@ def still_rate_across_gravity(t, gyr, acc) -> tuple[float, float]:
     if not spans:
         return float("nan"), 0.0
     idx = np.concatenate([np.arange(a, b) for a, b in spans])
-    up = acc[idx] / np.linalg.norm(acc[idx], axis=1, keepdims=True)
-    return float(np.median(np.linalg.norm(np.cross(gyr[idx], up), axis=1))), len(idx) / len(t)
+    rate = np.empty(len(idx))
+    for s in range(0, len(idx), BLOCK):
+        i = idx[s : s + BLOCK]
+        up = acc[i] / np.linalg.norm(acc[i], axis=1, keepdims=True)
+        rate[s : s + BLOCK] = np.linalg.norm(np.cross(gyr[i], up), axis=1)
+    return float(np.median(rate)), len(idx) / len(t)
 
 
 def warn_deg_s_from_still_rates(t, gyr, acc) -> None:
@@ -210,13 +262,17 @@ def tilt_disagreement(q, acc) -> float:
     """The median angle (deg) between the estimate's "up" in the body and the accelerometer's
     direction, over the rows where the accelerometer reads g within 5 % (where it reads gravity
     alone, or a multirotor's thrust near the vertical); NaN with fewer than 50 such rows."""
+    angles = np.concatenate([_tilt_angles(q[s : s + BLOCK], acc[s : s + BLOCK]) for s in range(0, len(acc), BLOCK)])
+    return float(np.median(angles)) if len(angles) >= 50 else float("nan")
+
+
+def _tilt_angles(q, acc) -> np.ndarray:
+    """:func:`tilt_disagreement`'s angles (deg) on the rows where the accelerometer reads g."""
     norm = np.linalg.norm(acc, axis=1)
     rows = np.isfinite(norm) & (np.abs(norm - GRAVITY) < 0.05 * GRAVITY) & np.isfinite(q).all(axis=1)
-    if rows.sum() < 50:
-        return float("nan")
     up = quat_rotate(quat_conj(q[rows]), np.tile([0.0, 0.0, -1.0], (int(rows.sum()), 1)))
     cos = np.sum(up * acc[rows] / norm[rows, None], axis=1)
-    return float(np.median(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))))
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 
 def warn_tilt_disagreement(name: str, q, acc) -> None:

@@ -102,7 +102,7 @@ def numeric_column(source, name: str, col, *, exact: bool = True) -> np.ndarray:
                 f"{source}: column {name} holds the integer {a[i]} at row {i}, beyond what a float holds "
                 "exactly (2^53): the file is damaged or the column is not a measurement"
             )
-    return a.astype(np.float64)
+    return a.astype(np.float64, copy=False)
 
 
 @dataclass(frozen=True, eq=False)
@@ -140,9 +140,11 @@ class Recording:
     ref_q: np.ndarray | None = None
     meta: dict = field(default_factory=dict)
     check_units: bool = field(default=True, repr=False)
+    _adopt: bool = field(default=False, repr=False, compare=False)  # a reader's own arrays: not copied
 
     def __post_init__(self):
-        t = self._array("t", self.t, ndim=1)
+        copy = not self._adopt
+        t = self._array("t", self.t, ndim=1, copy=copy)
         n = len(t)
         if n == 0:
             raise ValueError("t: a recording needs at least one sample")
@@ -157,24 +159,24 @@ class Recording:
             )
         object.__setattr__(self, "t", t)
         for name in ("gyr", "acc"):
-            a = self._array(name, getattr(self, name), width=3, n=n)
+            a = self._array(name, getattr(self, name), width=3, n=n, copy=copy)
             bad = ~np.isfinite(a).all(axis=1)
             if bad.any():
                 raise ValueError(f"{name}: non-finite value at row {_first_row(bad)}")
             object.__setattr__(self, name, a)
         mag = self.mag if self.mag is not None else np.full((n, 3), np.nan)
-        mag = self._array("mag", mag, width=3, n=n)
+        mag = self._array("mag", mag, width=3, n=n, copy=copy)
         self._check_nan_rows("mag", mag)
         object.__setattr__(self, "mag", mag)
         for name, (axes, _) in TRUTH_FIELDS.items():
             value = getattr(self, name)
             if value is None:
                 continue
-            a = self._array(name, value, width=len(axes), n=n)
+            a = self._array(name, value, width=len(axes), n=n, copy=copy)
             self._check_nan_rows(name, a)
             if name in ("true_q", "ref_q"):
                 with np.errstate(over="ignore"):  # a damaged file's 1e300 gives inf: refused below
-                    norm = np.linalg.norm(a, axis=1)
+                    norm = np.sqrt(np.einsum("ij,ij->i", a, a))  # no temporary of a's size
                 bad = np.isfinite(norm) & (np.abs(norm - 1.0) > 1e-6)
                 if bad.any():
                     i = _first_row(bad)
@@ -197,9 +199,9 @@ class Recording:
 
     # -- validation helpers -------------------------------------------------------------
     @staticmethod
-    def _array(name, value, ndim=2, width=None, n=None):
+    def _array(name, value, ndim=2, width=None, n=None, copy=True):
         try:
-            a = np.array(value, dtype=np.float64)
+            a = np.array(value, dtype=np.float64) if copy else np.asarray(value, dtype=np.float64)
         except (TypeError, ValueError):
             raise ValueError(f"{name}: not a numeric array") from None
         shape = "(N,)" if ndim == 1 else f"(N, {width})"
@@ -327,6 +329,15 @@ def save_recording(rec: Recording, path: str | Path) -> Path:
     return path
 
 
+def _stacked(get, cols, n) -> np.ndarray:
+    """The columns ``cols`` side by side, each read by ``get`` into its place (one column's
+    copy at a time: a long recording is never held twice)."""
+    out = np.empty((n, len(cols)))
+    for j, c in enumerate(cols):
+        out[:, j] = get(c)
+    return out
+
+
 def _from_columns(names, get, meta, source, check_units=True) -> Recording:
     names = list(names)
     base = ["t"] + [c for f in SENSOR_FIELDS for c in columns_of(f)]
@@ -336,14 +347,14 @@ def _from_columns(names, get, meta, source, check_units=True) -> Recording:
     known = set(base)
     kw = {"t": get("t")}
     for f in SENSOR_FIELDS:
-        kw[f] = np.column_stack([get(c) for c in columns_of(f)])
+        kw[f] = _stacked(get, columns_of(f), len(kw["t"]))
     for f in TRUTH_FIELDS:
         cols = columns_of(f)
         present = [c for c in cols if c in names]
         if present and len(present) != len(cols):
             raise ValueError(f"{source}: truth field {f} needs all of {', '.join(cols)}")
         if present:
-            kw[f] = np.column_stack([get(c) for c in cols])
+            kw[f] = _stacked(get, cols, len(kw["t"]))
             known.update(cols)
     extra = [c for c in names if c not in known]
     if extra:
@@ -352,9 +363,38 @@ def _from_columns(names, get, meta, source, check_units=True) -> Recording:
             "(the recording header is documented in docs/recordings.md)"
         )
     try:
-        return Recording(**kw, meta=meta, check_units=check_units)  # checked like any other file
+        return Recording(**kw, meta=meta, check_units=check_units, _adopt=True)  # checked like any other file
     except ValueError as exc:
         raise ValueError(f"{source}: {exc}") from None
+
+
+def _load_parquet(path, fh, pa, pq, check_units) -> Recording:
+    """A quadest Parquet recording read column by column from the open file ``fh``."""
+    try:
+        pf = pq.ParquetFile(fh)
+        names, rows_held = pf.schema_arrow.names, pf.metadata.num_rows
+        raw = (pf.schema_arrow.metadata or {}).get(b"quadest")
+    except (pa.ArrowException, OSError) as exc:
+        raise ValueError(f"{path}: not a readable Parquet file ({str(exc).strip().splitlines()[0]})") from None
+    try:
+        head = json.loads(raw) if raw else {}
+        meta = head.get("meta", {}) if isinstance(head, dict) else None
+    except (ValueError, UnicodeDecodeError):
+        meta = None
+    if not isinstance(meta, dict):
+        raise ValueError(f"{path}: the quadest metadata of this Parquet file is damaged")
+    rows = head.get("rows")
+    if rows is not None and rows != rows_held:
+        raise ValueError(f"{path}: holds {rows_held} rows but states {rows}: the file is damaged")
+
+    def column(name):
+        try:
+            col = pf.read(columns=[name]).column(0)
+        except (pa.ArrowException, OSError) as exc:
+            raise ValueError(f"{path}: not a readable Parquet file ({str(exc).strip().splitlines()[0]})") from None
+        return numeric_column(path, name, col)
+
+    return _from_columns(names, column, meta, path, check_units)
 
 
 def load_recording(path: str | Path, *, check_units: bool = True) -> Recording:
@@ -370,25 +410,8 @@ def load_recording(path: str | Path, *, check_units: bool = True) -> Recording:
     if kind == "parquet":
         import pyarrow.parquet as pq
 
-        try:
-            with open(path, "rb") as fh:
-                table = pq.read_table(fh)
-        except (pa.ArrowException, OSError) as exc:
-            raise ValueError(f"{path}: not a readable Parquet file ({str(exc).strip().splitlines()[0]})") from None
-        raw = (table.schema.metadata or {}).get(b"quadest")
-        try:
-            head = json.loads(raw) if raw else {}
-            meta = head.get("meta", {}) if isinstance(head, dict) else None
-        except (ValueError, UnicodeDecodeError):
-            meta = None
-        if not isinstance(meta, dict):
-            raise ValueError(f"{path}: the quadest metadata of this Parquet file is damaged")
-        rows = head.get("rows")
-        if rows is not None and rows != table.num_rows:
-            raise ValueError(f"{path}: holds {table.num_rows} rows but states {rows}: the file is damaged")
-        return _from_columns(
-            table.column_names, lambda c: numeric_column(path, c, table.column(c)), meta, path, check_units
-        )
+        with open(path, "rb") as fh:
+            return _load_parquet(path, fh, pa, pq, check_units)
     import pyarrow.csv as pcsv
 
     data = path.read_bytes()

@@ -39,10 +39,11 @@ def summarize(rec: Recording) -> dict:
         a = getattr(rec, name)
         ok = np.isfinite(a[:, 0])
         if ok.any():
+            v = a if ok.all() else a[ok]  # no copy of a long recording's array when every row is there
             out["ranges"][name] = {
-                "min": a[ok].min(axis=0).tolist(),
-                "max": a[ok].max(axis=0).tolist(),
-                "norm_mean": float(np.linalg.norm(a[ok], axis=1).mean()),
+                "min": v.min(axis=0).tolist(),
+                "max": v.max(axis=0).tolist(),
+                "norm_mean": float(np.sqrt(np.einsum("ij,ij->i", v, v)).mean()),
             }
     for key in ("source", "format", "dataset", "frames", "reference", "scenario", "preset", "seed"):
         if key in rec.meta:

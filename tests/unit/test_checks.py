@@ -1,0 +1,49 @@
+"""The unit checks go through a long recording block by block (data.checks.BLOCK): the same
+results whatever the block, so a 10⁷-row file is checked in a few MB beside its own arrays."""
+
+import numpy as np
+import pytest
+
+import quadest.data.checks as checks
+from quadest.cli.recordings import attitude_columns
+from quadest.rotation import quat_to_euler
+from quadest.sim import simulate
+
+
+@pytest.fixture(scope="module")
+def recs():
+    six = simulate("six-position", "bebop2", seed=3, duration=40.0)
+    flight = simulate("nominal", "bebop2", seed=3, duration=30.0)
+    mag = flight.mag.copy()
+    mag[::7] = np.nan  # rows without a magnetometer sample
+    return six, flight, mag
+
+
+def _all(recs):
+    six, flight, mag = recs
+    return (
+        checks.turn_scale(flight.t, flight.gyr, mag, offset=True),
+        checks.turn_scale(flight.t, flight.gyr, mag, offset=False),
+        checks.rests(six.t, six.acc),
+        checks.still_rate_across_gravity(six.t, six.gyr, six.acc),
+        checks.tilt_disagreement(flight.true_q, flight.acc),
+    )
+
+
+@pytest.mark.parametrize("block", [37, 1000])
+def test_the_checks_do_not_depend_on_the_block(recs, block, monkeypatch):
+    whole = _all(recs)
+    monkeypatch.setattr(checks, "BLOCK", block)
+    parts = _all(recs)
+    for a, b in zip(whole[:2], parts[:2], strict=True):  # sums in another order: rounding only
+        assert np.allclose(a, b, rtol=1e-12, atol=0)
+    assert parts[2] == whole[2] and len(whole[2]) == 5  # the six positions' rests, not one lost at an edge
+    assert parts[3] == whole[3] and parts[4] == whole[4]
+
+
+def test_the_attitude_columns_are_the_euler_angles_of_the_estimate(recs, monkeypatch):
+    q = recs[1].true_q
+    monkeypatch.setattr("quadest.cli.recordings.BLOCK", 333)
+    cols = attitude_columns(q)
+    assert np.array_equal(np.column_stack([cols["roll"], cols["pitch"], cols["yaw"]]), quat_to_euler(q))
+    assert all(c.flags.c_contiguous for c in cols.values())
