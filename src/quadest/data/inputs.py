@@ -3,7 +3,8 @@ a device, a socket) is refused before it is opened, and one too large for the me
 is refused with both figures before it is read.
 
 What reading a file needs is estimated from its size (``size × factor``, the factor per kind of
-file as measured on quadest's readers) or, for Parquet, from the row and column counts its footer
+file chosen, not measured per reader: the one file measured, a 10⁷-row Parquet recording, peaked
+at 1.7× its values in ``info`` and 2.2× in ``estimate``) or, for Parquet, from the row and column counts its footer
 states; what is available is the least of the memory the system says is available, a control
 group's limit and ``ulimit -v``.
 """

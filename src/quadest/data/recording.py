@@ -345,7 +345,7 @@ def _from_columns(names, get, meta, source, check_units=True) -> Recording:
     if missing:
         raise ValueError(f"{source}: missing column(s) {', '.join(missing)}")
     known = set(base)
-    kw = {"t": get("t")}
+    kw = {"t": np.array(get("t"), dtype=np.float64)}  # its own, writable (a column may be a view of pyarrow's)
     for f in SENSOR_FIELDS:
         kw[f] = _stacked(get, columns_of(f), len(kw["t"]))
     for f in TRUTH_FIELDS:
