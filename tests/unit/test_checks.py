@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import quadest.data.checks as checks
-from quadest.cli.recordings import attitude_columns
+from quadest.cli.recordings import attitude_blocks
 from quadest.rotation import quat_to_euler
 from quadest.sim import simulate
 
@@ -41,9 +41,11 @@ def test_the_checks_do_not_depend_on_the_block(recs, block, monkeypatch):
     assert parts[3] == whole[3] and parts[4] == whole[4]
 
 
-def test_the_attitude_columns_are_the_euler_angles_of_the_estimate(recs, monkeypatch):
-    q = recs[1].true_q
-    monkeypatch.setattr("quadest.cli.recordings.BLOCK", 333)
-    cols = attitude_columns(q)
-    assert np.array_equal(np.column_stack([cols["roll"], cols["pitch"], cols["yaw"]]), quat_to_euler(q))
-    assert all(c.flags.c_contiguous for c in cols.values())
+def test_the_attitude_columns_are_the_euler_angles_of_the_estimate(recs):
+    flight = recs[1]
+    blocks = list(attitude_blocks(flight.t, flight.true_q, {"extra": flight.gyr[:, 0]}, rows=333))
+    cols = {k: np.concatenate([b[k] for b in blocks]) for k in blocks[0]}
+    assert len(blocks) == -(-len(flight.t) // 333)
+    assert np.array_equal(np.column_stack([cols["roll"], cols["pitch"], cols["yaw"]]), quat_to_euler(flight.true_q))
+    assert np.array_equal(np.column_stack([cols[f"q_{c}"] for c in "wxyz"]), flight.true_q)
+    assert np.array_equal(cols["t"], flight.t) and np.array_equal(cols["extra"], flight.gyr[:, 0])

@@ -21,8 +21,8 @@ from quadest.cli.common import (
     write_json,
     write_report_for,
 )
-from quadest.data import files, format_summary, summarize, write_table
-from quadest.data.checks import BLOCK, warn_tilt_disagreement
+from quadest.data import files, format_summary, summarize, write_blocks
+from quadest.data.checks import warn_tilt_disagreement
 from quadest.evaluation.compare import parse_params
 from quadest.evaluation.diagnose import DiagnoseParams, diagnose_log, format_diagnosis
 from quadest.evaluation.inspect import events
@@ -86,19 +86,27 @@ def cmd_calibrate(args):
     return 0
 
 
-def attitude_columns(q) -> dict:
-    """``q_w ... q_z, roll, pitch, yaw`` as contiguous columns (a table takes them without a
-    copy), the Euler angles computed block by block (a long recording's rotation matrices are
-    never held at once)."""
-    cols = {f"q_{c}": np.ascontiguousarray(q[:, j]) for j, c in enumerate("wxyz")}
-    euler = np.empty((3, len(q)))
-    for s in range(0, len(q), BLOCK):
-        euler[:, s : s + BLOCK] = quat_to_euler(q[s : s + BLOCK]).T
-    return {**cols, "roll": euler[0], "pitch": euler[1], "yaw": euler[2]}
+WRITE_ROWS = 1 << 18
+"""Rows per block where an estimate is written (its output columns are never held whole)."""
+
+
+def attitude_blocks(t, q, extra: dict | None = None, rows: int = WRITE_ROWS):
+    """``t, q_w ... q_z, roll, pitch, yaw`` and ``extra``'s columns, block by block of ``rows``."""
+    for s in range(0, len(q), rows):
+        qb = q[s : s + rows]
+        euler = quat_to_euler(qb)
+        yield {
+            "t": t[s : s + rows],
+            **{f"q_{c}": np.ascontiguousarray(qb[:, j]) for j, c in enumerate("wxyz")},
+            **{name: np.ascontiguousarray(euler[:, j]) for j, name in enumerate(("roll", "pitch", "yaw"))},
+            **{k: v[s : s + rows] for k, v in (extra or {}).items()},
+        }
 
 
 def cmd_estimate(args):
     rec = read(args, args.file)
+    if not args.report:  # the truth is for the report alone: a long recording's is not held
+        rec = rec.sensors_only()
     rec, cal_params = apply_calibrations(rec, args.calibration)
     params = parse_params(args.param)
     other = sorted(set(params) - {args.filter})
@@ -110,12 +118,10 @@ def cmd_estimate(args):
     warn_tilt_disagreement(args.filter, res.q, rec.acc)
     for line in filter_notes(res):
         say(line)
-    cols = {"t": rec.t, **attitude_columns(res.q)}
-    if args.diagnostics:
-        if not res.diag:
-            raise CliError(f"--diagnostics: {args.filter} reports no per-sample diagnostics")
-        cols.update({f"diag_{k}": v for k, v in res.diag.items()})
-    write_table(cols, Path(args.output))
+    if args.diagnostics and not res.diag:
+        raise CliError(f"--diagnostics: {args.filter} reports no per-sample diagnostics")
+    diag = {f"diag_{k}": v for k, v in res.diag.items()} if args.diagnostics else {}
+    write_blocks(attitude_blocks(rec.t, res.q, diag), Path(args.output))
     extra = f", diag_{', diag_'.join(res.diag)}" if args.diagnostics else ""
     say(f"{args.filter}: {len(rec)} samples -> {args.output} (t, q_w, q_x, q_y, q_z, roll, pitch, yaw; rad{extra})")
     decl = np.degrees(rec.declination if decl is None else decl)

@@ -2,7 +2,7 @@
 
 from quadest.data.recording import TRUTH_FIELDS, Recording, load_recording, save_recording
 from quadest.data.summary import format_summary, summarize
-from quadest.data.tables import write_table
+from quadest.data.tables import write_blocks, write_table
 
 __all__ = [
     "TRUTH_FIELDS",
@@ -11,5 +11,6 @@ __all__ = [
     "save_recording",
     "summarize",
     "format_summary",
+    "write_blocks",
     "write_table",
 ]

@@ -49,6 +49,21 @@ BLOCK = 1 << 16
 whatever the recording's length)."""
 
 
+def row_norms(a: np.ndarray) -> np.ndarray:
+    """Each row's Euclidean norm, with no temporary the size of ``a`` (a damaged file's 1e300
+    gives inf)."""
+    with np.errstate(over="ignore"):
+        return np.sqrt(np.einsum("ij,ij->i", a, a))
+
+
+def row_abs_max(a: np.ndarray) -> np.ndarray:
+    """Each row's largest magnitude, block by block."""
+    out = np.empty(len(a))
+    for s in range(0, len(a), BLOCK):
+        out[s : s + BLOCK] = np.abs(a[s : s + BLOCK]).max(axis=1)
+    return out
+
+
 def turn_scale(t, gyr, v, *, offset: bool) -> tuple[float, float]:
     """``(s, standard error)`` of the least-squares fit ``dv/dt = −s ω × (v − b)`` over the rows
     where ``v`` is finite (``b`` a constant offset, fitted when ``offset``), ω the gyroscope's
@@ -57,12 +72,9 @@ def turn_scale(t, gyr, v, *, offset: bool) -> tuple[float, float]:
     rows = np.flatnonzero(np.isfinite(v).all(axis=1))
     if len(rows) < 50:
         return float("nan"), float("inf")
-    angle = _angle_at(t, gyr, rows)
     m = 4 if offset else 1
-    blocks = range(0, len(rows) - 1, BLOCK)
     normal, aty, count = np.zeros((m, m)), np.zeros(m), 0
-    for s in blocks:
-        a, y = _turn_design(t, v, rows, angle, s, offset)
+    for a, y in _turn_blocks(t, gyr, v, rows, offset):
         normal += a.T @ a
         aty += a.T @ y
         count += len(y)
@@ -70,37 +82,31 @@ def turn_scale(t, gyr, v, *, offset: bool) -> tuple[float, float]:
         return float("nan"), float("inf")
     x = np.linalg.solve(normal, aty)
     rss = 0.0
-    for s in blocks:
-        a, y = _turn_design(t, v, rows, angle, s, offset)
+    for a, y in _turn_blocks(t, gyr, v, rows, offset):
         r = y - a @ x
         rss += float(r @ r)
     cov = np.linalg.inv(normal) * rss / (count - m)
     return float(x[0]), float(np.sqrt(cov[0, 0]))
 
 
-def _angle_at(t, gyr, rows) -> np.ndarray:
-    """The gyroscope's rate integrated from the first sample to each of ``rows`` (rad, per axis),
-    block by block."""
-    out = np.empty((len(rows), 3))
-    carry = np.zeros(3)
-    last = len(t) - 1
-    for s in range(0, max(last, 1), BLOCK):
-        e = min(s + BLOCK, last)
-        cum = np.empty((e - s + 1, 3))
-        cum[0] = carry
-        np.cumsum(gyr[s:e] * np.diff(t[s : e + 1])[:, None], axis=0, out=cum[1:])
-        cum[1:] += carry
-        lo, hi = np.searchsorted(rows, [s, e + 1 if e == last else e])
-        out[lo:hi] = cum[rows[lo:hi] - s]
-        carry = cum[-1]
-    return out
+def _turn_blocks(t, gyr, v, rows, offset):
+    """:func:`turn_scale`'s design rows and observations, block by block of ``rows``."""
+    for s in range(0, len(rows) - 1, BLOCK):
+        yield _turn_design(t, gyr, v, rows[s : s + BLOCK + 1], offset)
 
 
-def _turn_design(t, v, rows, angle, s, offset):
-    """The fit's design rows and observations for the intervals between ``rows[s : s + BLOCK + 1]``."""
-    r = rows[s : s + BLOCK + 1]
+def _mean_rates(t, gyr, r) -> np.ndarray:
+    """The gyroscope's mean rate over each interval between the rows ``r`` (its integral from
+    ``r[0]`` taken at each row, differenced)."""
+    angle = np.zeros((r[-1] - r[0] + 1, 3))
+    np.cumsum(gyr[r[0] : r[-1]] * np.diff(t[r[0] : r[-1] + 1])[:, None], axis=0, out=angle[1:])
+    return np.diff(angle[r - r[0]], axis=0) / np.diff(t[r])[:, None]
+
+
+def _turn_design(t, gyr, v, r, offset):
+    """The fit's design rows and observations for the intervals between the rows ``r``."""
     dt = np.diff(t[r])[:, None]
-    w = np.diff(angle[s : s + len(r)], axis=0) / dt
+    w = _mean_rates(t, gyr, r)
     vr = v[r]
     dv = np.diff(vr, axis=0) / dt
     mid = 0.5 * (vr[1:] + vr[:-1])
@@ -128,7 +134,8 @@ DEG_S_RATIO = 0.25  # deg/s warned of when its summed misfit is below this share
 
 def runs(mask, shortest: int = 1) -> list[tuple[int, int]]:
     """The index ranges ``[start, end)`` where ``mask`` holds, each at least ``shortest`` long."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], np.asarray(mask).astype(int), [0]])))
+    held = np.concatenate([[False], np.asarray(mask, dtype=bool), [False]])
+    edges = np.flatnonzero(held[1:] != held[:-1])
     return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True) if b - a >= shortest]
 
 
@@ -136,7 +143,7 @@ def rests(t, acc) -> list[tuple[int, int]]:
     """Stretches of at least :data:`STILL_S` in which the accelerometer holds still near g."""
     if len(t) < 3:
         return []
-    k = max(2, int(round(STILL_S / max(float(np.median(np.diff(t))), 1e-9))))
+    k = max(2, int(round(STILL_S / max(median_interval(t), 1e-9))))
     if len(acc) <= k:
         return []
     still = np.zeros(len(t), bool)
@@ -170,7 +177,6 @@ def rest_misfits(t, gyr, acc) -> np.ndarray:
     """Per pair of consecutive rests whose gravity directions differ by more than
     :data:`TURN_MIN_DEG`: the angle (deg) between the second rest's gravity and the first's turned
     by the gyroscope read as rad/s, and as deg/s."""
-    dt = np.diff(t, append=t[-1])
     out = []
     spans = rests(t, acc)
     for (a0, b0), (a1, b1) in zip(spans[:-1], spans[1:]):
@@ -178,7 +184,7 @@ def rest_misfits(t, gyr, acc) -> np.ndarray:
         if np.degrees(np.arccos(np.clip(g0 @ g1, -1.0, 1.0))) <= TURN_MIN_DEG:
             continue
         i, j = (a0 + b0) // 2, (a1 + b1) // 2
-        fits = [_turned(gyr[i:j], dt[i:j], s).inv().apply(g0) @ g1 for s in (1.0, np.pi / 180.0)]
+        fits = [_turned(gyr[i:j], np.diff(t[i : j + 1]), s).inv().apply(g0) @ g1 for s in (1.0, np.pi / 180.0)]
         out.append(np.degrees(np.arccos(np.clip(fits, -1.0, 1.0))))
     return np.array(out).reshape(-1, 2)
 
@@ -212,13 +218,15 @@ def still_rate_across_gravity(t, gyr, acc) -> tuple[float, float]:
     spans = rests(t, acc)
     if not spans:
         return float("nan"), 0.0
-    idx = np.concatenate([np.arange(a, b) for a, b in spans])
-    rate = np.empty(len(idx))
-    for s in range(0, len(idx), BLOCK):
-        i = idx[s : s + BLOCK]
-        up = acc[i] / np.linalg.norm(acc[i], axis=1, keepdims=True)
-        rate[s : s + BLOCK] = np.linalg.norm(np.cross(gyr[i], up), axis=1)
-    return float(np.median(rate)), len(idx) / len(t)
+    rate = np.empty(sum(b - a for a, b in spans))
+    at = 0
+    for a, b in spans:
+        for s in range(a, b, BLOCK):
+            e = min(s + BLOCK, b)
+            up = acc[s:e] / row_norms(acc[s:e])[:, None]
+            rate[at : at + e - s] = row_norms(np.cross(gyr[s:e], up))
+            at += e - s
+    return float(np.median(rate, overwrite_input=True)), len(rate) / len(t)
 
 
 def warn_deg_s_from_still_rates(t, gyr, acc) -> None:
@@ -262,8 +270,12 @@ def tilt_disagreement(q, acc) -> float:
     """The median angle (deg) between the estimate's "up" in the body and the accelerometer's
     direction, over the rows where the accelerometer reads g within 5 % (where it reads gravity
     alone, or a multirotor's thrust near the vertical); NaN with fewer than 50 such rows."""
-    angles = np.concatenate([_tilt_angles(q[s : s + BLOCK], acc[s : s + BLOCK]) for s in range(0, len(acc), BLOCK)])
-    return float(np.median(angles)) if len(angles) >= 50 else float("nan")
+    angles, count = np.empty(len(acc)), 0
+    for s in range(0, len(acc), BLOCK):
+        block = _tilt_angles(q[s : s + BLOCK], acc[s : s + BLOCK])
+        angles[count : count + len(block)] = block
+        count += len(block)
+    return float(np.median(angles[:count], overwrite_input=True)) if count >= 50 else float("nan")
 
 
 def _tilt_angles(q, acc) -> np.ndarray:
@@ -289,9 +301,14 @@ def warn_tilt_disagreement(name: str, q, acc) -> None:
 def warn_z_up(gyr, acc) -> None:
     """Warn when, at rest, the accelerometer reads +g along z most of the time: an FRD body
     frame reads −g level, a z-up (FLU) one +g."""
-    norm = np.linalg.norm(acc, axis=1)
-    rest = (np.abs(gyr).max(axis=1) < REST_RATE) & (np.abs(norm - GRAVITY) < 0.1 * GRAVITY)
-    if rest.sum() >= MIN_REST_SAMPLES and np.mean(acc[rest, 2] > 0.8 * norm[rest]) > 0.5:
+    at_rest = z_up = 0
+    for s in range(0, len(acc), BLOCK):
+        a = acc[s : s + BLOCK]
+        norm = row_norms(a)
+        rest = (row_abs_max(gyr[s : s + BLOCK]) < REST_RATE) & (np.abs(norm - GRAVITY) < 0.1 * GRAVITY)
+        at_rest += int(rest.sum())
+        z_up += int((a[rest, 2] > 0.8 * norm[rest]).sum())
+    if at_rest >= MIN_REST_SAMPLES and z_up > 0.5 * at_rest:
         warnings.warn(
             "acc: at rest the accelerometer reads +g along z (up): the body frame looks z-up (FLU, "
             "ROS's); quadest takes forward-right-down: give frame='enu-flu' (--frame enu-flu)",
@@ -311,15 +328,13 @@ def _first_row(mask) -> int:
 def check_magnitudes(t, gyr, acc) -> None:
     """Refuse magnitudes that show a unit mistake: a gyroscope beyond any sensor, an
     accelerometer in g or mg or scaled, a time in ms or µs."""
-    big = np.abs(gyr).max(axis=1) > GYR_LIMIT
-    if big.any():
-        i = _first_row(big)
-        raise ValueError(
-            f"gyr: {_shown(np.abs(gyr[i]).max())} at row {i} exceeds {GYR_LIMIT:.0f} rad/s, "
-            f"more than any MEMS gyroscope measures: is the gyroscope in deg/s? {RAD_S_FIX}"
-        )
-    with np.errstate(over="ignore"):  # a damaged file may hold 1e300: its norm is inf, refused below
-        norm = np.linalg.norm(acc, axis=1)
+    _check_sensor_magnitudes(gyr, acc)
+    _check_time_unit(t)
+
+
+def _check_sensor_magnitudes(gyr, acc) -> None:
+    rest = _quiet_gyro(gyr)
+    norm = row_norms(acc)  # a damaged file's 1e300 gives inf: refused below
     big = norm > ACC_LIMIT
     if big.any():
         i = _first_row(big)
@@ -327,31 +342,53 @@ def check_magnitudes(t, gyr, acc) -> None:
             f"acc: norm {_shown(norm[i])} at row {i} exceeds {ACC_LIMIT:.0f} m/s²: "
             "is the accelerometer in mg or raw counts? quadest takes m/s²"
         )
-    med, p95 = np.median(norm), np.percentile(norm, 95)
-    if len(norm) >= 10 and 0.5 < med < 1.5 and p95 < 3.0:
-        raise ValueError(
-            f"acc: norms look like g, not m/s² (median {med:.3f}, row 0 reads "
-            f"{norm[0]:.3f}); quadest takes m/s² (multiply g by 9.80665)"
-        )
     # not rotating (gyroscope quiet), the accelerometer reads gravity (about 9.8 m/s²) or,
     # falling without rotation, less: never much more
-    rest = np.abs(gyr).max(axis=1) < REST_RATE
-    if rest.sum() >= MIN_REST_SAMPLES:
-        g_rest = float(np.median(norm[rest]))
-        if 500.0 < g_rest < 2000.0:  # 1 g = 1000 mg
-            raise ValueError(
-                f"acc: at rest the accelerometer reads {g_rest:.0f} (median norm): that is gravity "
-                "in mg (or cm/s²), not m/s²; quadest takes m/s² (multiply mg by 0.00980665)"
-            )
-        if g_rest > 2.0 * GRAVITY:
-            raise ValueError(
-                f"acc: at rest (gyroscope below {REST_RATE} rad/s, {int(rest.sum())} samples) the "
-                f"accelerometer reads {g_rest:.3g} (median norm), not gravity (9.81 m/s²): is "
-                "it in another unit (ft/s²?) or scaled? quadest takes m/s²"
-            )
-    # the time: an IMU samples faster than once a second
+    at_rest = int(rest.sum())
+    g_rest = float(np.median(norm[rest], overwrite_input=True)) if at_rest >= MIN_REST_SAMPLES else float("nan")
+    row0 = norm[0]
+    med, p95 = np.percentile(norm, [50, 95], overwrite_input=True)  # norm is reordered: not used after
+    if len(acc) >= 10 and 0.5 < med < 1.5 and p95 < 3.0:
+        raise ValueError(
+            f"acc: norms look like g, not m/s² (median {med:.3f}, row 0 reads "
+            f"{row0:.3f}); quadest takes m/s² (multiply g by 9.80665)"
+        )
+    if 500.0 < g_rest < 2000.0:  # 1 g = 1000 mg
+        raise ValueError(
+            f"acc: at rest the accelerometer reads {g_rest:.0f} (median norm): that is gravity "
+            "in mg (or cm/s²), not m/s²; quadest takes m/s² (multiply mg by 0.00980665)"
+        )
+    if g_rest > 2.0 * GRAVITY:
+        raise ValueError(
+            f"acc: at rest (gyroscope below {REST_RATE} rad/s, {at_rest} samples) the "
+            f"accelerometer reads {g_rest:.3g} (median norm), not gravity (9.81 m/s²): is "
+            "it in another unit (ft/s²?) or scaled? quadest takes m/s²"
+        )
+
+
+def _quiet_gyro(gyr) -> np.ndarray:
+    """Refuse a gyroscope beyond any sensor (deg/s); the rows where it reads below
+    :data:`REST_RATE`."""
+    gyr_max = row_abs_max(gyr)
+    big = gyr_max > GYR_LIMIT
+    if big.any():
+        i = _first_row(big)
+        raise ValueError(
+            f"gyr: {_shown(np.abs(gyr[i]).max())} at row {i} exceeds {GYR_LIMIT:.0f} rad/s, "
+            f"more than any MEMS gyroscope measures: is the gyroscope in deg/s? {RAD_S_FIX}"
+        )
+    return gyr_max < REST_RATE
+
+
+def median_interval(t) -> float:
+    """The median of ``t``'s intervals (one temporary of ``t``'s size, no second copy)."""
+    return float(np.median(np.diff(t), overwrite_input=True))
+
+
+def _check_time_unit(t) -> None:
+    """An IMU samples faster than once a second."""
     if len(t) >= 10:
-        med_dt = float(np.median(np.diff(t)))
+        med_dt = median_interval(t)
         if med_dt > 1.0:
             unit = "ns" if med_dt > 1e5 else "µs" if med_dt > 200.0 else "ms"
             raise ValueError(

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
-from quadest.data.checks import check_units
+from quadest.data.checks import BLOCK, check_units, row_norms
 from quadest.data.files import atomic_output
 
 FORMAT_TAG = "quadest recording v2"
@@ -105,6 +105,16 @@ def numeric_column(source, name: str, col, *, exact: bool = True) -> np.ndarray:
     return a.astype(np.float64, copy=False)
 
 
+def _check_unit_rows(name: str, q) -> None:
+    """Refuse a finite row of ``q`` that is not a unit quaternion (block by block)."""
+    for s in range(0, len(q), BLOCK):
+        norm = row_norms(q[s : s + BLOCK])  # a damaged file's 1e300 gives inf: refused elsewhere
+        bad = np.isfinite(norm) & (np.abs(norm - 1.0) > 1e-6)
+        if bad.any():
+            i = _first_row(bad)
+            raise ValueError(f"{name}: row {s + i} is not a unit quaternion (norm {norm[i]:.6g})")
+
+
 @dataclass(frozen=True, eq=False)
 class Recording:
     """IMU and magnetometer samples with optional ground truth, on quadest's conventions.
@@ -175,12 +185,7 @@ class Recording:
             a = self._array(name, value, width=len(axes), n=n, copy=copy)
             self._check_nan_rows(name, a)
             if name in ("true_q", "ref_q"):
-                with np.errstate(over="ignore"):  # a damaged file's 1e300 gives inf: refused below
-                    norm = np.sqrt(np.einsum("ij,ij->i", a, a))  # no temporary of a's size
-                bad = np.isfinite(norm) & (np.abs(norm - 1.0) > 1e-6)
-                if bad.any():
-                    i = _first_row(bad)
-                    raise ValueError(f"{name}: row {i} is not a unit quaternion (norm {norm[i]:.6g})")
+                _check_unit_rows(name, a)
             object.__setattr__(self, name, a)
         if not isinstance(self.meta, dict):
             raise ValueError("meta: must be a dict")
@@ -273,6 +278,11 @@ class Recording:
         """A new recording with the rows ``index`` (slice, boolean mask or integer array)."""
         kw = {k: getattr(self, k)[index] for k in ("t", "gyr", "acc", "mag", *self.truth)}
         return Recording(**kw, meta=self.meta, check_units=False)
+
+    def sensors_only(self) -> Recording:
+        """The same samples (not copied) without truth or onboard reference: what a command that
+        estimates needs, so that a long recording's truth is not held."""
+        return Recording(self.t, self.gyr, self.acc, self.mag, meta=self.meta, check_units=False, _adopt=True)
 
     def between(self, t0: float, t1: float) -> Recording:
         """Rows with ``t0 <= t <= t1``."""
@@ -388,6 +398,7 @@ def _load_parquet(path, fh, pa, pq, check_units) -> Recording:
         raise ValueError(f"{path}: holds {rows_held} rows but states {rows}: the file is damaged")
 
     def column(name):
+        pa.default_memory_pool().release_unused()  # the columns read before, copied out: returned to the system
         try:
             col = pf.read(columns=[name]).column(0)
         except (pa.ArrowException, OSError) as exc:

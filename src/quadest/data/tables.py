@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
 
 from quadest.data.files import atomic_output
@@ -10,6 +11,12 @@ from quadest.data.files import atomic_output
 def write_table(cols: dict, path: str | Path) -> Path:
     """``{name: 1-D array}`` to ``.csv`` (a plain header line, then the values) or ``.parquet``,
     atomically (:func:`quadest.data.files.atomic_output`)."""
+    return write_blocks([cols], path)
+
+
+def write_blocks(blocks: Iterable[dict], path: str | Path) -> Path:
+    """Consecutive blocks of rows, each ``{name: 1-D array}`` with the same names, written as
+    :func:`write_table` writes one: a long table is never held whole."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in (".csv", ".parquet", ".pq"):
@@ -18,13 +25,21 @@ def write_table(cols: dict, path: str | Path) -> Path:
     import pyarrow.csv as pcsv
     import pyarrow.parquet as pq
 
-    table = pa.table(cols)
-    with atomic_output(path) as tmp:
-        if suffix == ".csv":
-            with open(tmp, "wb") as fh:  # pyarrow quotes header names; write a plain header ourselves
-                fh.write((",".join(cols) + "\n").encode())
-                pcsv.write_csv(table, fh, pcsv.WriteOptions(include_header=False, quoting_style="none"))
-        else:
-            with open(tmp, "wb") as fh:  # a file object: pyarrow takes only UTF-8 names
-                pq.write_table(table, fh)
+    with atomic_output(path) as tmp, open(tmp, "wb") as fh:  # a file object: pyarrow takes only UTF-8 names
+        writer = None
+        for cols in blocks:
+            table = pa.table(cols)
+            if suffix == ".csv":
+                if writer is None:  # pyarrow quotes header names; write a plain header ourselves
+                    fh.write((",".join(cols) + "\n").encode())
+                    writer = pcsv.CSVWriter(
+                        fh, table.schema, write_options=pcsv.WriteOptions(include_header=False, quoting_style="none")
+                    )
+            elif writer is None:
+                writer = pq.ParquetWriter(fh, table.schema)
+            writer.write_table(table)
+            pa.default_memory_pool().release_unused()  # a block's buffers, written: returned to the system
+        if writer is None:
+            raise ValueError(f"{path}: no rows to write")
+        writer.close()
     return path
