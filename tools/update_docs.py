@@ -250,6 +250,24 @@ def results_recovery_flown() -> str:
             f"{pub['hovered_10s']}/{pub['throws']} hovered 10 s; {pub['recovered']}/{pub['throws']} with brief hovers",
         ],
         ["crashed", f"{cu['crashed']}/{cu['throws']}", f"{ca['crashed']}/{ca['throws']}", "1/32"],
+        [
+            "detected in the hand / handed over there",
+            f"{cu['detected_in_hand']} / {cu['handover_in_hand']}",
+            f"{ca['detected_in_hand']} / {ca['handover_in_hand']}",
+            "-",
+        ],
+        [
+            "height off the held height, last 5 s (m, median / p90)",
+            med(cu, "height_error_end_m", ".2f"),
+            med(ca, "height_error_end_m", ".2f"),
+            "-",
+        ],
+        [
+            "height held within 0.2 m",
+            f"{cu['height_within_0_2_m']}/{cu['throws']}",
+            f"{ca['height_within_0_2_m']}/{ca['throws']}",
+            "-",
+        ],
         ["fall (m, median / p90)", med(cu, "fall_m", ".2f"), med(ca, "fall_m", ".2f"), "-"],
     ]
     t = up["throw"]
@@ -257,7 +275,46 @@ def results_recovery_flown() -> str:
         _table(["", "thrown upward", "in any direction", "paper (real throws)"], rows)
         + f"\n\n{cu['throws']} flown throws each (seeds {up['seeds'][0]}-{up['seeds'][1]}), release up to "
         f"{t['speed_max']:g} m/s and {t['rate_max']:g} rad/s, hand up to {t['hand_acc_max']:g} m/s² "
-        "(`quadest reproduce recovery [--any-direction] --json ...`, docs/results/recovery-flown*.json)."
+        "(`quadest reproduce recovery [--any-direction] --ablations --json ...`, docs/results/recovery-flown*.json)."
+    )
+
+
+def results_recovery_ablations() -> str:
+    """docs/recovery.md: the flown throws without each addition to the paper's recovery."""
+    rows = []
+    for name, case in (("recovery-flown", "upward"), ("recovery-flown-any", "any direction")):
+        r = _load(name)
+        variants = {"all three": r["cases"][case], **r["ablations"]}
+        for label, c in variants.items():
+            g = c["gravity_error_deg"]
+            rows.append(
+                [
+                    case,
+                    label,
+                    f"{c['recovered']}/{c['throws']}",
+                    str(c["crashed"]),
+                    str(c["handover_in_hand"]),
+                    f"{g['median']:.1f} / {g['p90']:.1f}",
+                    f"{c['height_within_0_2_m']}/{c['throws']}",
+                    f"{c['fall_m']['median']:.2f} / {c['fall_m']['p90']:.2f}",
+                ]
+            )
+    return (
+        _table(
+            [
+                "thrown",
+                "recovery",
+                "recovered",
+                "crashed",
+                "handed over in the hand",
+                "gravity error at the handover (°, median / p90)",
+                "height held within 0.2 m",
+                "fall (m, median / p90)",
+            ],
+            rows,
+        )
+        + "\n\nThe same 100 throws (seeds 1-100) each row (`quadest reproduce recovery [--any-direction] --ablations "
+        "--json ...`, docs/results/recovery-flown*.json)."
     )
 
 
@@ -782,6 +839,7 @@ GENERATORS = {
     "results-afckf-prescribed": results_afckf_prescribed,
     "results-afckf-in-loop": results_afckf_in_loop,
     "results-recovery-flown": results_recovery_flown,
+    "results-recovery-ablations": results_recovery_ablations,
     "results-repoimu": results_repoimu,
     "results-split": results_split,
     "results-robust-targets": results_robust_targets,

@@ -318,7 +318,8 @@ def test_fly_refuses_bad_options_in_one_line(tmp_path, capsys, argv, match):
 
 def test_fly_a_throw_with_the_recovery_and_the_oracle(tmp_path, capsys):
     """quadest fly --scenario throw: the recovery and the truth oracle per seed, the throw table
-    (recovered, handover, gravity error), and the flight table's recovery state per sample."""
+    (recovered, handover, gravity error), and the flight table's recovery state per sample. 12 s:
+    the handover waits the dwell (0.5 s), so the 10 s hover of seed 0 starts 1.3 s after the release."""
     import json
 
     import pyarrow.parquet as pq
@@ -334,7 +335,7 @@ def test_fly_a_throw_with_the_recovery_and_the_oracle(tmp_path, capsys):
         "--seeds",
         "0",
         "--duration",
-        "11",
+        "12",
         "--no-plot",
         "-o",
         str(out),

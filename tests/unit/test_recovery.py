@@ -246,3 +246,91 @@ def test_a_throw_goes_through_every_state(ideal_throw):
         )
     )
     assert err.max() < 10.0
+
+
+# -- the nominal EKF with the height (after the handover) ------------------------------------------
+def test_nominal_ekf_height_row_against_finite_differences():
+    """The nominal EKF's transition (quadest.recovery.nominal): the bank's (v, δ) block and the
+    height row ż = ĝᵀ v + δ · (v × ĝ), both against finite differences of the exact prior; its
+    propagation of P is F P Fᵀ (no noise, no update)."""
+    from quadest.recovery.nominal import nominal_step
+
+    rng = np.random.default_rng(5)
+    v, w, dt = rng.normal(size=3) * 2, rng.normal(size=3) * 4, 1e-3
+    q_ref = quat_from_rotvec(rng.normal(size=3))
+
+    def prior(x):
+        q = quat_mul(q_ref, quat_from_rotvec([x[3], x[4], 0.0]))
+        z = x[5] + dt * quat_rotate(q, x[:3])[2]  # NED down: the body velocity in the navigation frame
+        return np.concatenate([_prior(x[:3], q_ref, x[3:5], w, dt), [z]])
+
+    x0 = np.concatenate([v, [0.0, 0.0, 1.5]])
+    fd = np.column_stack([(prior(x0 + h) - prior(x0 - h)) / 2e-6 for h in np.eye(6) * 1e-6])
+    P0 = np.diag([1.0, 2.0, 3.0, 0.1, 0.2, 0.5])
+    V, Q, P, Z = v.copy(), q_ref.copy(), P0.copy(), np.array([1.5])
+    prm = BankRecord(gravity=9.80665, mass=MODEL.mass_kg, acc_var=1.0, q_vel=0.0, q_att=0.0)
+    sample = (w, np.zeros(3), dt, False)
+    nominal_step(V, Q, P, Z, w.copy(), sample, prm, (MODEL.A, MODEL.B, MODEL.C), np.nan, 0.0)
+    # P = F P0 Fᵀ with F the finite differences (the first-order F is O((|ω|ΔT)²) off the exact map)
+    tol = 2 * (np.linalg.norm(w) * dt) ** 2 + 1e-9
+    np.testing.assert_allclose(P, fd @ P0 @ fd.T, atol=10 * tol)
+    assert Z[0] == pytest.approx(prior(x0)[5], abs=1e-12)
+
+
+def test_nominal_ekf_barometer_corrects_height_and_velocity():
+    """A barometer reading 1 m above the EKF's height pulls the height up and, through the
+    covariance the prior built between them, the vertical velocity up too; without a
+    barometer (variance 0 or no reading) nothing is fused."""
+    from quadest.recovery.nominal import barometer_update, nominal_step
+
+    q = np.array([1.0, 0.0, 0.0, 0.0])  # level: body z is down
+    P = np.diag([0.5, 0.5, 0.5, 0.01, 0.01, 0.04])
+    P[2, 5] = P[5, 2] = 0.1  # height and vertical velocity correlated (as after a prior)
+    v, z = np.zeros(3), np.array([-2.0])
+    barometer_update(v, q, P, z, 3.0, 0.09)  # 3 m up, the EKF says 2 m up
+    assert -3.0 < z[0] < -2.0 and v[2] < 0.0  # NED: higher and climbing
+    np.testing.assert_allclose(P, P.T, atol=1e-15)
+    assert np.all(np.linalg.eigvalsh(P) > 0) and P[5, 5] < 0.04
+    prm = BankRecord(gravity=9.80665, mass=MODEL.mass_kg, acc_var=1.0, q_vel=0.0, q_att=0.0)
+    sample = (np.zeros(3), np.zeros(3), 1e-3, False)
+    for baro, var in ((np.nan, 0.09), (3.0, 0.0)):
+        v1, z1 = np.zeros(3), np.array([-2.0])
+        model = (MODEL.A, MODEL.B, MODEL.C)
+        nominal_step(v1, q.copy(), np.eye(6) * 0.1, z1, np.zeros(3), sample, prm, model, baro, var)
+        assert z1[0] == pytest.approx(-2.0, abs=1e-6)
+
+
+# -- the logic: re-arm and dwell ------------------------------------------------------------------
+@pytest.mark.parametrize(
+    "kwargs",
+    [{"rearm_samples": -1}, {"rearm_samples": 1.5}, {"dwell_s": -0.1}, {"dwell_s": 11.0}, {"baro_std": -1.0}],
+)
+def test_recovery_parameters_out_of_bounds_are_refused(kwargs):
+    from quadest.errors import UsageError
+
+    with pytest.raises(UsageError, match=next(iter(kwargs))):
+        RecoveryParams(**kwargs)
+
+
+def test_a_spell_below_beta1_in_the_hand_is_rearmed(ideal_throw):
+    """A hand that takes ‖z_acc‖ below β1 for 100 ms while it still holds the vehicle, then back
+    to g: the detection there is re-armed and the throw is detected at its release; the
+    handover waits the dwell. With the paper's logic (no re-arm) the detection stays in the hand."""
+    from quadest.data.recording import Recording
+    from quadest.recovery.logic import detect_throw
+
+    k_rel = detect_throw(ideal_throw.acc, 7.0, 3)
+    acc = ideal_throw.acc.copy()
+    acc[200:300] = [0.0, 0.0, -3.0]  # the hand accelerating it downward at about g − 3 m/s²
+    kw = {k: getattr(ideal_throw, k) for k in ("t", "gyr", "mag", *ideal_throw.truth)}
+    rec = Recording(**kw, acc=acc, meta=ideal_throw.meta, check_units=False)
+    res = recover(rec, MODEL)
+    assert res.summary["detections"] == 2 and res.detect_index == k_rel
+    assert res.summary["t_first_detect_s"] == pytest.approx(rec.t[202])
+    assert rec.t[res.converge_index] - rec.t[k_rel] >= RecoveryParams().dwell_s - 1e-9
+    paper = recover(rec, MODEL, RecoveryParams(rearm_samples=0, dwell_s=0.0))
+    assert paper.detect_index == 202 and paper.summary["detections"] == 1
+    # with the re-arm the release's own detection starts a fresh bank: the same as the unmodified throw's
+    clean = recover(ideal_throw, MODEL)
+    assert clean.converge_index == res.converge_index
+    np.testing.assert_allclose(res.gravity_dir[res.converge_index], clean.gravity_dir[clean.converge_index], atol=1e-12)

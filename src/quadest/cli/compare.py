@@ -185,8 +185,10 @@ def _reproduce_in_loop(args):
 
 def _reproduce_recovery(args):
     check_runs(args, args.throws, f"--throws {args.throws}")
-    if args.ablations or args.in_loop:
-        raise CliError("--ablations and --in-loop are for reproduce afckf")
+    if args.in_loop:
+        raise CliError("--in-loop: the flown rotor loss in the loop; its runs are for reproduce afckf")
+    if args.ablations and args.prescribed:
+        raise CliError("--ablations of the recovery are for the flown throws: leave out --prescribed")
     if args.any_direction and args.prescribed:
         raise CliError("--any-direction is for the flown throws: leave out --prescribed")
     if not args.prescribed:
@@ -237,6 +239,7 @@ def _reproduce_recovery_flown(args):
         scheduler=args.scheduler,
         any_direction=args.any_direction,
         keep_runs=bool(args.json),
+        ablations=args.ablations,
     )
     say(flown.format_throws(result))
     if args.plot_dir:
@@ -524,7 +527,8 @@ def _add_reproduce(sub):
         action="store_true",
         help="afckf: also the ablation table on the flown rotor loss (each row one sensor change: gyro "
         "range and scale, magnetometer latency, motor interference, indoor field, lever arm, "
-        "vibration, a damaged propeller; docs/estimators.md)",
+        "vibration, a damaged propeller; docs/estimators.md); recovery: the same flown throws again "
+        "without the re-arm, without the dwell, without the barometer, and with none (docs/recovery.md)",
     )
     r.add_argument(
         "--any-direction",

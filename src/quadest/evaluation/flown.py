@@ -21,7 +21,7 @@ vehicle up, and in place (:func:`in_loop_seed`, :func:`in_loop_table`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
@@ -32,6 +32,7 @@ from quadest.evaluation.runner import estimate, score_result
 from quadest.flight import FlightParams, fly, fly_many, resample
 from quadest.flight.common import mean_present
 from quadest.records import check, describe, param
+from quadest.recovery import RecoveryParams
 from quadest.sim import build_config
 
 
@@ -350,9 +351,11 @@ detection with about 10° of gravity error (Fig. 1 and 2)."""
 
 def flown_throw(task) -> dict:
     """One flown throw recovered by the bank in the loop (a picklable task ``(seed, throw
-    params, duration)``): its summary."""
-    seed, throw, duration = task
-    return fly("throw", estimator="recovery", seed=seed, throw=throw, duration=duration).summary
+    params, duration, recovery params)``): its summary."""
+    seed, throw, duration, recovery = task
+    changed = {k: v for k, v in asdict(recovery).items() if v != getattr(RecoveryParams(), k)} if recovery else None
+    f = fly("throw", estimator="recovery", seed=seed, throw=throw, duration=duration, estimator_params=changed)
+    return f.summary
 
 
 def throw_stats(runs: list[dict]) -> dict:
@@ -380,6 +383,9 @@ def throw_stats(runs: list[dict]) -> dict:
                 "release_rate_rad_s",
                 "hand_acc_peak_m_s2",
                 "gravity_error_at_handover_deg",
+                "first_detected_s",
+                "detections",
+                "handover_in_hand",
                 "upright_s",
                 "lowest_point_m",
             )
@@ -393,12 +399,18 @@ def throw_stats(runs: list[dict]) -> dict:
         "converged": len(values("handover_s")),
         "recovered": sum(r["recovered"] for r in runs),
         "crashed": sum(r["status"] == "crashed" for r in runs),
+        "detected_in_hand": sum((r.get("first_detected_s") or 0.0) < 0.0 for r in runs),
+        "handover_in_hand": sum(bool(r.get("handover_in_hand")) for r in runs),
+        "height_within_0_2_m": sum(
+            (r.get("height_error_end_m") is not None and r["height_error_end_m"] <= 0.2) for r in runs
+        ),
         "convergence_s": stats(values("convergence_s")),
         "detection_delay_s": stats(values("detected_s")),
         "gravity_error_deg": stats(values("gravity_error_at_handover_deg")),
         "velocity_error_m_s": stats(values("velocity_error_at_handover_m_s")),
         "upright_s": stats(values("upright_s")),
         "fall_m": stats(values("lowest_point_m")),
+        "height_error_end_m": stats(values("height_error_end_m")),
         "release_speed_m_s": stats(values("release_speed_m_s")),
         "release_rate_rad_s": stats(values("release_rate_rad_s")),
         "hand_acc_peak_m_s2": stats(values("hand_acc_peak_m_s2")),
@@ -430,6 +442,10 @@ def format_throws(result: dict) -> str:
             f"(upright within 30°, then the height within 0.5 m for 10 s; paper: {paper['hovered_10s']} of "
             f"{paper['throws']} hovered 10 s, {paper['recovered']} of {paper['throws']} with the brief hovers)",
             f"  crashed                 {st['crashed']}/{n}; fall {f(st['fall_m'], '.2f')} m",
+            f"  detected in the hand    {st['detected_in_hand']}/{n}; handed over in the hand "
+            f"{st['handover_in_hand']}/{n}",
+            f"  height held             {f(st['height_error_end_m'], '.2f')} m off over the last "
+            f"5 s; within 0.2 m {st['height_within_0_2_m']}/{n}",
         ]
         for r in st["not_recovered"][:10]:
             lines.append(
@@ -437,4 +453,12 @@ def format_throws(result: dict) -> str:
                 f"{r['release_rate_rad_s']:.1f} rad/s; gravity error at handover "
                 + ("-" if r["gravity_error_at_handover_deg"] is None else f"{r['gravity_error_at_handover_deg']:.1f}°")
             )
+    for name, ab in result.get("ablations", {}).items():
+        g = ab["gravity_error_deg"]
+        lines.append(
+            f"{name}: recovered {ab['recovered']}/{ab['throws']}, crashed {ab['crashed']}, handed over in the hand "
+            f"{ab['handover_in_hand']}, gravity error "
+            + ("-" if g["median"] is None else f"{g['median']:.1f} / {g['p90']:.1f}° median / p90")
+            + f", height within 0.2 m {ab['height_within_0_2_m']}"
+        )
     return "\n".join(lines)

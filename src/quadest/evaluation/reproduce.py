@@ -15,7 +15,7 @@ QUKF, EKF and a complementary filter (the paper does not say which; quadest uses
 
 from __future__ import annotations
 
-from dataclasses import asdict
+from dataclasses import asdict, replace
 
 import numpy as np
 
@@ -28,7 +28,7 @@ from quadest.evaluation.speed import time_estimator
 from quadest.filters import make_filter
 from quadest.flight.throw import ThrowParams
 from quadest.models.aero import fit_aero
-from quadest.recovery.logic import recover
+from quadest.recovery.logic import RecoveryParams, recover
 from quadest.sim import aero_model, build_config, simulate
 
 # Published figures (degrees; AFCKF Table V in seconds per step).
@@ -504,6 +504,15 @@ def reproduce_recovery(
     return out
 
 
+RECOVERY_ABLATIONS = {
+    "without the re-arm": {"rearm_samples": 0},
+    "without the dwell": {"dwell_s": 0.0},
+    "without the barometer": {"baro_std": 0.0},
+    "the paper's logic, no barometer": {"rearm_samples": 0, "dwell_s": 0.0, "baro_std": 0.0},
+}
+"""The flown throws' ablations: each row one addition to the paper's recovery left out."""
+
+
 def reproduce_recovery_flown(
     throws: int = 100,
     seed: int = 1,
@@ -513,25 +522,37 @@ def reproduce_recovery_flown(
     any_direction: bool = False,
     keep_runs: bool = False,
     duration: float = 14.0,
+    ablations: bool = False,
 ) -> dict:
     """The recovery paper's experiment flown: ``throws`` throws of the
     rotor-level vehicle (seeds ``seed``..), thrown upward (or in any direction), recovered by the
     bank of EKFs with the aerodynamic model fitted on separate flown throws, then flown to a
-    hover (:mod:`quadest.flight.throw`)."""
+    hover (:mod:`quadest.flight.throw`); with ``ablations`` the same throws again for each row of
+    :data:`RECOVERY_ABLATIONS`."""
     throw = ThrowParams(any_direction=any_direction)
     seeds = list(range(seed, seed + throws))
-    runs = _map(flown.flown_throw, [(s, throw, duration) for s in seeds], progress, "flown throws", workers, scheduler)
+    variants = {"": RecoveryParams()}
+    if ablations:
+        variants.update({name: replace(RecoveryParams(), **change) for name, change in RECOVERY_ABLATIONS.items()})
+    stats = {}
+    for name, rp in variants.items():
+        tasks = [(s, throw, duration, rp) for s in seeds]
+        runs = _map(flown.flown_throw, tasks, progress, f"flown throws {name}".strip(), workers, scheduler)
+        stats[name] = flown.throw_stats(runs)
+        if keep_runs and not name:
+            stats[name]["runs"] = runs
     case = "any direction" if any_direction else "upward"
     out = {
         "mode": "flown",
         "seeds": [seeds[0], seeds[-1]],
         "throw": asdict(throw),
+        "recovery": asdict(RecoveryParams()),
         "duration_s": duration,
         "published": flown.RECOVERY_PAPER,
-        "cases": {case: flown.throw_stats(runs)},
+        "cases": {case: stats.pop("")},
     }
-    if keep_runs:
-        out["cases"][case]["runs"] = runs
+    if ablations:
+        out["ablations"] = {name: {k: v for k, v in st.items() if k != "not_recovered"} for name, st in stats.items()}
     return out
 
 

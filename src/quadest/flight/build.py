@@ -51,10 +51,12 @@ def plant(vehicle, *, h, substeps, ground_z, failure=None, rate=1.0, hand=None, 
     )
 
 
-def sensing(sm, *, dt, rotors, position0, every=1, delay=0, noise=None, n=1, on=True):
+def sensing(sm, *, dt, rotors, position0, every=1, delay=0, noise=None, n=1, on=True, baro=None):
     """The :data:`~quadest.flight.loop.Sensing` of the sensor model ``sm`` at ``dt``, and a
     position sensor every ``every`` samples, ``delay`` samples late, with ``noise`` (one row per
-    reading; none: noise-free), its history starting at ``position0``."""
+    reading; none: noise-free), its history starting at ``position0``; the barometer's
+    ``(lag coefficients, noise)`` per sample (:func:`~quadest.flight.common.barometer_draws`;
+    none: no barometer)."""
     n_read = (n - 1) // every + 1
     vib = np.zeros(2 * rotors + 1)  # quadest.sim.sensors.vibration_state
     vib[rotors:] = np.nan
@@ -71,6 +73,10 @@ def sensing(sm, *, dt, rotors, position0, every=1, delay=0, noise=None, n=1, on=
         noise=np.zeros((n_read, 3)) if noise is None else np.ascontiguousarray(noise, dtype=float),
         hist=np.tile(np.asarray(position0, float), (delay + 1, 1)),
         reading=np.array(position0, float),
+        baro_a=np.zeros(0) if baro is None else np.ascontiguousarray(baro[0], dtype=float),
+        baro_noise=np.zeros(0) if baro is None else np.ascontiguousarray(baro[1], dtype=float),
+        baro_lag=np.full(1, -float(position0[2])),
+        baro=np.full(1, np.nan),
     )
 
 
@@ -138,16 +144,21 @@ def bank(model=None, rp: RecoveryParams | None = None, *, mass=1.0, t_throw=0.0)
         Qr=Qr,
         Pb=Pb,
         Lb=Lb,
+        Qr0=Qr.copy(),
+        Pb0=Pb.copy(),
         prob=np.empty(H),
         gd=np.empty((H, 3)),
         V1=np.zeros((1, 3)),
         Q1=np.zeros((1, 4)),
-        P1=np.zeros((1, 5, 5)),
-        L1=np.zeros(1),
+        P1=np.zeros((1, 6, 6)),
+        Z1=np.zeros(1),
         w_prev=np.zeros(3),  # the gyro before the first sample: at rest in the hand
         beta1=rp.beta1,
         detect_samples=rp.detect_samples,
         beta2=rp.beta2,
+        rearm_samples=rp.rearm_samples,
+        dwell_s=rp.dwell_s,
+        baro_var=rp.baro_std**2,
         t_throw=t_throw,
     )
 

@@ -61,7 +61,7 @@ class FlightParams:
     baro_rate_hz: float = param(
         50.0,
         "Hz",
-        "barometer rate (recorded in the flight table, not read by the loop)",
+        "barometer rate (sampled in the loop; a throw's nominal EKF reads it)",
         "chosen: an MS5611-class sensor",
         bounds="(0, 1000]",
     )
@@ -180,23 +180,19 @@ def position_gain(p: FlightParams, imu_rate_hz: float) -> np.ndarray:
     return gains
 
 
-def barometer(t, states, p: FlightParams, seed: int) -> np.ndarray:
-    """Barometric altitude (m, up) at ``p.baro_rate_hz`` (NaN between samples): the true height
-    through a first-order lag of ``baro_tau_s`` plus white noise; its own generator."""
-    alt = -np.asarray(states)[:, 2]
+def barometer_draws(t, p: FlightParams, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """The barometer the loop samples (:func:`quadest.flight.loop.sense`) at the times ``t``:
+    per sample the first-order lag's coefficient ``exp(−Δt/baro_tau_s)`` (1 at the first
+    sample) and the white noise of a reading at ``p.baro_rate_hz`` (NaN between readings),
+    from its own generator. The loop reads the true height through the lag plus that noise."""
+    t = np.asarray(t, float)
     out = np.full(len(t), np.nan)
-    if len(t) == 0:
-        return out
-    dt = np.diff(t, prepend=t[0])
+    dt = np.diff(t, prepend=t[0]) if len(t) else np.zeros(0)
     a = np.exp(-dt / p.baro_tau_s) if p.baro_tau_s > 0 else np.zeros(len(t))
-    lag = np.empty(len(t))
-    lag[0] = alt[0]
-    for k in range(1, len(t)):
-        lag[k] = a[k] * lag[k - 1] + (1.0 - a[k]) * alt[k]
-    rows = np.flatnonzero(np.diff(np.floor((t - t[0]) * p.baro_rate_hz + 1e-9), prepend=-1.0) > 0)
+    rows = np.flatnonzero(np.diff(np.floor((t - t[0]) * p.baro_rate_hz + 1e-9), prepend=-1.0) > 0) if len(t) else []
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 16]))
-    out[rows] = lag[rows] + rng.normal(0.0, p.baro_noise_m, len(rows))
-    return out
+    out[rows] = rng.normal(0.0, p.baro_noise_m, len(rows))
+    return a, out
 
 
 def sensors_for(cfg, n: int, seed: int, vehicle):

@@ -12,7 +12,7 @@ import math
 import time
 from collections import namedtuple
 from collections.abc import Callable, Iterable
-from dataclasses import asdict, replace
+from dataclasses import asdict, fields, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -37,7 +37,7 @@ from quadest.flight.common import (
     Flight,
     FlightParams,
     angle_errors,
-    barometer,
+    barometer_draws,
     mean_present,
     position_gain,
     rms,
@@ -55,6 +55,7 @@ from quadest.flight.loop import (
 )
 from quadest.flight.throw import ThrowParams, fly_throw
 from quadest.models.multirotor import MultirotorParams, vehicle_preset
+from quadest.recovery import RecoveryParams
 from quadest.rotation import euler_to_quat, quat_rotate
 from quadest.sim import build_config
 from quadest.sim.flown import flown_recording
@@ -136,8 +137,8 @@ def fly(
     The sensors are the ``preset``'s (or ``config``'s), the position sensor and what the loop
     assumes ``params``'; ``vehicle`` a :class:`MultirotorParams` or a preset name
     (:data:`~quadest.models.VEHICLE_PRESETS`, default ``recovery``); ``estimator_params`` the
-    named estimator's parameters (``{"beta_marg": 0.05}``); ``throw`` a throw's parameters
-    (:class:`~quadest.flight.throw.ThrowParams`; its duration counts from the release).
+    named estimator's parameters (``{"beta_marg": 0.05}``; a throw's recovery: RecoveryParams'
+    fields); ``throw`` a throw's (:class:`~quadest.flight.throw.ThrowParams`; duration from the release).
     ``detection``: how the fault-tolerant controller learns of a rotor loss: ``oracle`` (told
     ``params.detect_delay_s`` after it, the lost rotor's command zeroed from the failure on),
     ``rotor-speeds`` or ``commands`` (found by the detector of :mod:`quadest.detect` with a model
@@ -157,7 +158,7 @@ def fly(
         meta.update(controller="se3 after recovery", estimator=estimator)
         return fly_throw(
             estimator=estimator, duration=duration, seed=seed, cfg=cfg, vehicle=vehicle, params=params, se3=se3,
-            throw=throw, meta=meta,
+            throw=throw, recovery=_recovery_params(estimator_params), meta=meta,
         )  # fmt: skip
     n = int(round(duration * rate))
     t = np.arange(n) / rate
@@ -178,7 +179,7 @@ def fly(
             rate=rate,
             zero_failed=oracle,
         ),  # fmt: skip
-        sensing=_position_sensing(sm, params, rate, every, n, x0, rng_mocap, vehicle.rotors),
+        sensing=_position_sensing(sm, params, rate, every, n, x0, rng_mocap, vehicle.rotors, seed),
         nav=build.navigation(nav, x0, position_gain(params, rate)),
         bank=build.bank(),
         control=build.control(
@@ -204,7 +205,7 @@ def fly(
     meta.update(controller=controller, estimator=est.name, position_sensor=params.position_sensor)
     if failure is not None:
         meta["failure"] = asdict(failure)  # imbalance in kg m
-    flight = _flight(out, t[:flown], vehicle, cfg, seed, failure, meta, processes, params, loop_s)
+    flight = _flight(out, t[:flown], vehicle, cfg, seed, failure, meta, processes, loop_s)
     flight.summary = summarize(
         flight,
         scenario=scenario,
@@ -323,8 +324,17 @@ def _rates(cfg, params, preset):
     return rate, int(round(substeps)), int(round(every))
 
 
-def _position_sensing(sm, params, rate, every, n, x0, rng, rotors):
-    """The loop's sensing with the position sensor ``params`` names (its noise from ``rng``)."""
+def _recovery_params(values: dict | None) -> RecoveryParams:
+    """A throw's recovery parameters from ``estimator_params`` (names of :class:`RecoveryParams`)."""
+    unknown = sorted(set(values or {}) - {f.name for f in fields(RecoveryParams)})
+    if unknown:
+        raise UsageError(f"unknown recovery parameter(s) {', '.join(unknown)}; see quadest.recovery.RecoveryParams")
+    return RecoveryParams(**(values or {}))
+
+
+def _position_sensing(sm, params, rate, every, n, x0, rng, rotors, seed):
+    """The loop's sensing with the position sensor ``params`` names (its noise from ``rng``)
+    and the barometer (its noise from the ``seed``'s own generator)."""
     _, noise, latency, _ = params.position()
     n_read = (n - 1) // every + 1
     return build.sensing(
@@ -336,6 +346,7 @@ def _position_sensing(sm, params, rate, every, n, x0, rng, rotors):
         delay=int(round(latency * rate)),
         noise=rng.normal(0.0, 1.0, (n_read, 3)) * noise,
         n=n,
+        baro=barometer_draws(np.arange(n) / rate, params, seed),
     )
 
 
@@ -411,7 +422,7 @@ def _run(x, loop, est: InLoop):
     return OK, len(loop.record.phase)
 
 
-def _flight(out, t, vehicle, cfg, seed, failure, meta, processes, params, loop_s) -> Flight:
+def _flight(out, t, vehicle, cfg, seed, failure, meta, processes, loop_s) -> Flight:
     """The :class:`Flight` of the loop's record ``out`` (its recording sampled as every
     simulation samples, with the loop's readings)."""
     imbalance = np.zeros((len(t), vehicle.rotors))
@@ -438,7 +449,7 @@ def _flight(out, t, vehicle, cfg, seed, failure, meta, processes, params, loop_s
         out["q"],
         out["pv"],
         timing={"loop_s": loop_s},
-        baro=barometer(rec.t, out["x"], params, seed),
+        baro=out["baro"],
         derivs=out["dx"],
         thrusts=out["thrust"],
         eta=out["eta"],

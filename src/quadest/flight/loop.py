@@ -74,7 +74,9 @@ Plant = compiled_record(
 Sensing = compiled_record(
     "Sensing",
     "The sensor model and its readings; the position sensor (every, delay in samples, its "
-    "noise per reading, the true positions it has yet to report, its latest reading).",
+    "noise per reading, the true positions it has yet to report, its latest reading); the "
+    "barometer (per sample its lag's coefficient and the noise of a reading, NaN between "
+    "readings; its lagged height and latest reading, m up).",
     sm="any",
     on="b1",
     dt="f8",
@@ -87,6 +89,10 @@ Sensing = compiled_record(
     noise="f8[:, :]",
     hist="f8[:, :]",
     reading="f8[:]",
+    baro_a="f8[:]",
+    baro_noise="f8[:]",
+    baro_lag="f8[:]",
+    baro="f8[:]",
 )
 
 Navigation = compiled_record(
@@ -105,8 +111,9 @@ Navigation = compiled_record(
 Record = compiled_record(
     "Record",
     "What the loop records per sample: true state, its derivative, rotor thrusts, "
-    "efficiencies and commands, the readings, what the controller read, the phase, a "
-    "recovery's spherical variance and gravity direction, and its events (detection, handover).",
+    "efficiencies and commands, the readings (the barometer's NaN between readings), what the "
+    "controller read, the phase, a recovery's spherical variance and gravity direction, and its "
+    "events (detection, handover, detections, first detection).",
     x="f8[:, :]",
     dx="f8[:, :]",
     thrust="f8[:, :]",
@@ -115,6 +122,7 @@ Record = compiled_record(
     gyr="f8[:, :]",
     acc="f8[:, :]",
     mag="f8[:, :]",
+    baro="f8[:]",
     q="f8[:, :]",
     pv="f8[:, :]",
     phase="i8[:]",
@@ -146,7 +154,9 @@ def record_arrays(n: int, rotors: int) -> dict:
     nx = 13 + rotors
     shapes = dict(x=nx, dx=nx, thrust=rotors, eta=rotors, cmd=rotors, gyr=3, acc=3, mag=3, q=4, pv=6, gdir=3)
     out = {k: np.full((n, m), np.nan) for k, m in shapes.items()}
-    out.update(phase=np.zeros(n, np.int64), sg=np.full(n, np.nan), events=np.full(2, -1, np.int64))
+    out.update(
+        baro=np.full(n, np.nan), phase=np.zeros(n, np.int64), sg=np.full(n, np.nan), events=np.full(4, -1, np.int64)
+    )
     return out
 
 
@@ -200,6 +210,20 @@ def sense(k, x, loop):
         m = k // sensing.every
         for j in range(3):
             sensing.reading[j] = sensing.hist[sensing.delay, j] + sensing.noise[m, j]
+    if k < sensing.baro_a.shape[0]:
+        sample_baro(k, -x[2], sensing)
+
+
+@njit(cache=True, inline="always")
+def sample_baro(k, alt, sensing):
+    """The barometer at sample ``k`` from the true height ``alt`` (m up): its first-order lag
+    ``h ← a h + (1 − a) alt`` (from ``alt`` at the first sample), read with the noise drawn for
+    the sample (NaN: no reading, the latest is kept)."""
+    a = sensing.baro_a[k]
+    lag = sensing.baro_lag
+    lag[0] = alt if k == 0 else a * lag[0] + (1.0 - a) * alt
+    if np.isfinite(sensing.baro_noise[k]):
+        sensing.baro[0] = lag[0] + sensing.baro_noise[k]
 
 
 @njit(cache=True, inline="always")
@@ -293,6 +317,8 @@ def record_and_fly(k, x, loop):
     copy_into(record.gyr[k], sensing.gyr)
     copy_into(record.acc[k], sensing.acc)
     copy_into(record.mag[k], sensing.mag)
+    if k < sensing.baro_noise.shape[0] and np.isfinite(sensing.baro_noise[k]):
+        record.baro[k] = sensing.baro[0]
     record.phase[k] = loop.state[PHASE]
     if k < plant.hand_dx.shape[0]:
         status = ended(x, plant)

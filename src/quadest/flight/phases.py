@@ -7,9 +7,12 @@ recovery's phases:
 1. ``waiting``: the throw is detected once ``‖z_acc‖ < β1`` has held for ``detect_samples``
    samples (eq 37); the rotors keep their constant speed (section III);
 2. ``converging``: the bank of EKFs (:mod:`quadest.recovery.bank`) runs from the detection until
-   the spherical variance ``S_g < β2`` (eqs 38-39);
+   the spherical variance ``S_g < β2`` (eqs 38-39) and ``dwell_s`` has passed; ``rearm_samples``
+   samples with ``‖z_acc‖ ≥ β1`` (a hand still accelerating the vehicle) return to waiting
+   with the bank restarted (:mod:`quadest.recovery.logic`, the same functions as over a recording);
 3. ``nominal``: the most likely hypothesis's mean and covariance start one EKF of the bank's
-   kind (section V-B) and the recovery controller (:mod:`quadest.control.upright`) takes over,
+   kind with the height added (section V-B, :mod:`quadest.recovery.nominal`), corrected by the
+   barometer; the recovery controller (:mod:`quadest.control.upright`) takes over,
    reading that EKF's attitude and velocity and the position sensor's height; the EKF's
    accelerometer update waits while the attitude control error exceeds ``β3``. The bank's
    model was learnt at the throw's constant rotor speed, so its constant force (the last
@@ -26,6 +29,8 @@ from quadest._jit import copy_into, njit
 from quadest.control.registry import command
 from quadest.records import compiled_record
 from quadest.recovery.bank import bank_step, summarize
+from quadest.recovery.logic import count_samples, handover_due, restart_bank
+from quadest.recovery.nominal import nominal_step
 from quadest.rotation.kernels import rot_matrix
 
 WAITING, CONVERGING, NOMINAL, FLYING, FAULT = 0, 1, 2, 3, 4
@@ -47,9 +52,11 @@ YAW, HOLD_Z = 0, 1  # what a recovery holds (Loop.held)
 Bank = compiled_record(
     "Bank",
     "A throw's recovery: the bank's parameters, aerodynamic model (A, B, C; Cn its nominal "
-    "copy), hypotheses (velocity, attitude, covariance, log likelihood), their probabilities "
-    "and gravity directions, the nominal EKF (V1, Q1, P1, L1), the previous gyro reading, the "
-    "thresholds of eqs 37-39 and the thrust of the throw's constant rotor speed.",
+    "copy), hypotheses (velocity, attitude, covariance, log likelihood) and their start "
+    "(attitude, covariance), their probabilities and gravity directions, the nominal EKF (V1, "
+    "Q1, P1 6x6, Z1 its height), the previous gyro reading, the thresholds of eqs 37-39, the "
+    "re-arm and dwell of the logic, the barometer variance the nominal EKF assumes (0: not "
+    "read) and the thrust of the throw's constant rotor speed.",
     prm="any",
     A="f8[:, :]",
     B="f8[:, :]",
@@ -59,16 +66,21 @@ Bank = compiled_record(
     Qr="f8[:, :]",
     Pb="f8[:, :, :]",
     Lb="f8[:]",
+    Qr0="f8[:, :]",
+    Pb0="f8[:, :, :]",
     prob="f8[:]",
     gd="f8[:, :]",
     V1="f8[:, :]",
     Q1="f8[:, :]",
     P1="f8[:, :, :]",
-    L1="f8[:]",
+    Z1="f8[:]",
     w_prev="f8[:]",
     beta1="f8",
     detect_samples="i8",
     beta2="f8",
+    rearm_samples="i8",
+    dwell_s="f8",
+    baro_var="f8",
     t_throw="f8",
 )
 
@@ -94,14 +106,18 @@ def hold(k, yaw, z, loop):
 @njit(cache=True)
 def wait_for_throw(k, x, loop):
     """``waiting``: count the samples below β1 (eq 37); at the detection start converging (with
-    the truth: hand over at once, holding the true yaw and height)."""
-    bank, sensing = loop.bank, loop.sensing
-    acc, gyr = sensing.acc, sensing.gyr
-    below = np.sqrt(acc[0] ** 2 + acc[1] ** 2 + acc[2] ** 2) < bank.beta1
-    loop.state[BELOW] = loop.state[BELOW] + 1 if below else 0
+    the truth: hand over at once, holding the true yaw and height). Events: the latest
+    detection, the detections so far, the first."""
+    bank, sensing, events = loop.bank, loop.sensing, loop.record.events
+    gyr = sensing.gyr
+    loop.state[BELOW] = count_samples(loop.state[BELOW], sensing.acc, bank.beta1, True)
     if loop.state[BELOW] >= bank.detect_samples:
         loop.state[PHASE] = CONVERGING
-        loop.record.events[0] = k
+        loop.state[BELOW] = 0  # from now on: the samples at or above β1 (the re-arm)
+        events[0] = k
+        events[2] = max(events[2], 0) + 1
+        if events[3] < 0:
+            events[3] = k
         if loop.nav.kind != NAV_BANK:
             hold(k, quat_yaw(x[6:10]), x[2], loop)
     else:
@@ -109,9 +125,30 @@ def wait_for_throw(k, x, loop):
 
 
 @njit(cache=True)
+def rearmed(loop):
+    """``converging``: ``rearm_samples`` samples at or above β1 (the hand still accelerates the
+    vehicle) return to waiting with the bank restarted; returns whether they did."""
+    bank, sensing = loop.bank, loop.sensing
+    if bank.rearm_samples <= 0:
+        return False
+    loop.state[BELOW] = count_samples(loop.state[BELOW], sensing.acc, bank.beta1, False)
+    if loop.state[BELOW] < bank.rearm_samples:
+        return False
+    loop.state[PHASE] = WAITING
+    loop.state[BELOW] = 0
+    restart_bank(bank.Vb, bank.Qr, bank.Pb, bank.Lb, bank.Qr0, bank.Pb0)
+    gyr = sensing.gyr
+    bank.w_prev[0], bank.w_prev[1], bank.w_prev[2] = gyr[0], gyr[1], gyr[2]
+    return True
+
+
+@njit(cache=True)
 def converge(k, loop):
-    """``converging``: one step of the bank (eqs 38-39); below β2 its most likely hypothesis
-    starts the nominal EKF and the controller holds the measured height."""
+    """``converging``: one step of the bank (eqs 38-39) unless re-armed; below β2, once the dwell
+    has passed, its most likely hypothesis starts the nominal EKF (the height from the latest
+    barometer reading) and the controller holds the measured height."""
+    if rearmed(loop):
+        return
     bank, sensing, record = loop.bank, loop.sensing, loop.record
     bank_step(
         bank.Vb,
@@ -132,20 +169,26 @@ def converge(k, loop):
     record.sg[k] = sg
     copy_into(record.gdir[k], bank.gd[best])
     copy_into(record.q[k], bank.Qr[best])
-    if sg < bank.beta2:
+    if handover_due(sg, bank.beta2, (k - record.events[0]) * sensing.dt, bank.dwell_s):
         bank.V1[0] = bank.Vb[best]
         bank.Q1[0] = bank.Qr[best]
-        bank.P1[0] = bank.Pb[best]
-        bank.L1[0] = 0.0
+        P1 = bank.P1[0]
+        for r in range(P1.shape[0]):
+            for c in range(P1.shape[1]):
+                P1[r, c] = bank.Pb[best, r, c] if r < 5 and c < 5 else 0.0
+        P1[5, 5] = bank.baro_var
+        bank.Z1[0] = -sensing.baro[0] if np.isfinite(sensing.baro[0]) else sensing.reading[2]
         hold(k, quat_yaw(bank.Q1[0]), sensing.reading[2], loop)
         loop.state[GATE] = 0
 
 
 @njit(cache=True)
-def nominal_estimate(x, loop):
+def nominal_estimate(k, x, loop):
     """``nominal``: the state the recovery controller reads: the truth, or the nominal EKF's
-    attitude and velocity with the thrust of the measured rotor speeds, the gyro's rate and the
-    position sensor's height (no horizontal position: velocity and height hold)."""
+    attitude and velocity (:func:`quadest.recovery.nominal.nominal_step`, the barometer's
+    reading of sample ``k`` fused when there is one) with the thrust of the measured rotor
+    speeds, the gyro's rate and the position sensor's height (no horizontal position: velocity
+    and height hold)."""
     bank, sensing, xh = loop.bank, loop.sensing, loop.nav.xh
     if loop.nav.kind != NAV_BANK:
         for j in range(13):
@@ -155,20 +198,19 @@ def nominal_estimate(x, loop):
     for i in range(loop.plant.vehicle.rotor_pos.shape[0]):
         t_est += loop.control.gains.k_f * x[13 + i] * x[13 + i]
     bank.Cn[2, 9] = bank.C[2, 9] - (t_est - bank.t_throw)
-    bank_step(
-        bank.V1,
-        bank.Q1,
-        bank.P1,
-        bank.L1,
+    noise = sensing.baro_noise
+    baro = sensing.baro[0] if k < noise.shape[0] and np.isfinite(noise[k]) else np.nan
+    nominal_step(
+        bank.V1[0],
+        bank.Q1[0],
+        bank.P1[0],
+        bank.Z1,
         bank.w_prev,
-        sensing.gyr,
-        sensing.acc,
-        sensing.dt,
+        (sensing.gyr, sensing.acc, sensing.dt, loop.state[GATE] != 0),
         bank.prm,
-        bank.A,
-        bank.B,
-        bank.Cn,
-        loop.state[GATE] != 0,
+        (bank.A, bank.B, bank.Cn),
+        baro,
+        bank.baro_var,
     )
     rot = rot_matrix(bank.Q1[0])
     for j in range(3):
@@ -188,7 +230,7 @@ def recovery_phase(k, x, loop):
     if loop.state[PHASE] == CONVERGING:
         converge(k, loop)
     elif loop.state[PHASE] == NOMINAL:
-        nominal_estimate(x, loop)
+        nominal_estimate(k, x, loop)
         xh, control = loop.nav.xh, loop.control
         copy_into(loop.record.q[k], xh[6:10])
         gate = command(control.by_phase[NOMINAL], k, xh, control, loop.plant.vehicle, loop.sensing.dt)

@@ -7,7 +7,8 @@ constant, predefined speed" while the aerodynamic model is learnt and during rec
 hand's throw that ends in the release (:func:`hand_motion`). The loop then goes through the
 recovery's phases (:mod:`quadest.flight.phases`: waiting, converging, nominal) and the recovery
 controller (:mod:`quadest.control.upright`) takes over. (The paper's nominal estimator has a
-near-hover model and a barometer; ours holds the thrust the measured rotor speeds give.)
+near-hover model and a barometer; ours holds the thrust the measured rotor speeds give and reads
+the loop's barometer, :mod:`quadest.recovery.nominal`.)
 
 The bank's aerodynamic model is the estimator's: fitted (eq 14, :func:`quadest.models.fit_aero`)
 from throws this simulator flies open loop at the constant rotor speed
@@ -24,7 +25,7 @@ import numpy as np
 
 from quadest.control import SE3Params, hover_reference
 from quadest.flight import build
-from quadest.flight.common import SIM_RATE_HZ, Flight, FlightParams, angle_errors, barometer, sensors_for
+from quadest.flight.common import SIM_RATE_HZ, Flight, FlightParams, angle_errors, barometer_draws, sensors_for
 from quadest.flight.loop import OK, STATUS, closed_loop, flown_arrays
 from quadest.flight.phases import HOLD_Z, PHASES
 from quadest.models import fit_aero
@@ -35,6 +36,7 @@ from quadest.rotation import quat_conj, quat_from_rotvec, quat_mul, quat_rotate
 from quadest.sim.flown import flown_recording
 
 MODES = PHASES[:3]  # a throw's phases (waiting, converging, nominal)
+HEIGHT_HELD_S = 5.0  # s: the height held is measured over a flight's last seconds (chosen: half the 10 s hover)
 
 
 @dataclass(frozen=True)
@@ -299,6 +301,7 @@ def fly_throw(
             delay=int(round(pos_latency * rate)),
             noise=rng_mocap.normal(0.0, 1.0, ((n - 1) // every + 1, 3)) * pos_noise,
             n=n,
+            baro=barometer_draws(t, params, seed),
         ),
         nav=build.navigation("true-state" if estimator == "truth" else "bank", hand_x[0]),
         detection=build.detection(),
@@ -348,7 +351,7 @@ def fly_throw(
         out["q"],
         out["pv"],
         timing={"loop_s": loop_s},
-        baro=barometer(rec.t, out["x"], params, seed),
+        baro=out["baro"],
         modes=out["phase"],
         derivs=out["dx"],
         thrusts=out["thrust"],
@@ -392,6 +395,8 @@ def summarize_throw(flight, out, events, status, duration, throw, estimator, see
         "release_speed_m_s": float(np.linalg.norm(x[r, 3:6])),
         "release_rate_rad_s": float(np.linalg.norm(x[r, 10:13])),
         "detected_s": float(t[k_det] - t_rel) if k_det >= 0 else None,
+        "first_detected_s": float(t[events[3]] - t_rel) if events[3] >= 0 else None,
+        "detections": int(max(events[2], 0)),
         "handover_s": float(t[k_conv] - t_rel) if k_conv >= 0 else None,
         "convergence_s": float(t[k_conv] - t[k_det]) if k_conv >= 0 and k_det >= 0 else None,
     }
@@ -417,6 +422,9 @@ def summarize_throw(flight, out, events, status, duration, throw, estimator, see
             total, tilt_err = angle_errors(x[ok, 6:10], out["q"][ok])
             s["tilt_error_after_handover_rms_deg"] = float(np.sqrt(np.mean(tilt_err**2)))
     s["held_height_m"] = None if not np.isfinite(hold_z) else float(-hold_z)
+    s["handover_in_hand"] = bool(k_conv >= 0 and k_conv < r)
+    last = t >= t[-1] - HEIGHT_HELD_S
+    s["height_error_end_m"] = float(np.abs(x[last, 2] - hold_z).max()) if np.isfinite(hold_z) and status == OK else None
     s["final_tilt_deg"] = float(tilt[-1])
     s["final_speed_m_s"] = float(np.linalg.norm(x[-1, 3:6]))
     s["recovered"] = bool(s["hover_from_s"] is not None)

@@ -3,10 +3,21 @@ estimate has converged, then hand over to a nominal estimator.
 
 States: ``waiting`` (until ``‖z_acc‖ < β1``, eq 37, holds for ``detect_samples`` consecutive
 samples) → ``converging`` (the bank runs from the detection; the transition is reported as
-``thrown``) → ``nominal`` (once ``S_g < β2``, eqs 38-39: the most likely hypothesis's mean and
-covariance, eq 35, initialise one EKF of the same kind, which continues with attitude and
-velocity kept). The paper's detection is per sample; requiring a few consecutive samples
-(default 3, i.e. 3 ms at 1 kHz) keeps a single vibration spike from starting a recovery.
+``thrown``) → ``nominal`` (once ``S_g < β2``, eqs 38-39, and at least ``dwell_s`` after the
+detection: the most likely hypothesis's mean and covariance, eq 35, initialise one EKF of the
+same kind, which continues with attitude and velocity kept). The paper's detection is per
+sample; requiring a few consecutive samples (default 3, i.e. 3 ms at 1 kHz) keeps a single
+vibration spike from starting a recovery.
+
+Two additions to the paper's logic, for a throw detected while the hand still holds the
+vehicle (a hand that accelerates it downward faster than ``g − β1`` takes ‖z_acc‖ below β1;
+before the release its acceleration falls again): while converging, ``rearm_samples``
+consecutive samples with ``‖z_acc‖ ≥ β1`` return the logic to ``waiting`` and the bank starts
+afresh at the next detection (a free-falling vehicle reads its aerodynamic force alone, well
+below β1); and the handover waits ``dwell_s`` after the detection, so that a detection in the
+hand is re-armed before the bank it started is handed over. Both apply in the loop
+(:mod:`quadest.flight.phases`) and over a recording (:func:`recover`) through the same compiled
+functions (:func:`count_samples`, :func:`handover_due`, :func:`restart_bank`).
 """
 
 from __future__ import annotations
@@ -20,7 +31,7 @@ from numpy.typing import ArrayLike
 from quadest._jit import njit
 from quadest.conventions import GRAVITY
 from quadest.models.aero import AeroModel
-from quadest.records import describe, param
+from quadest.records import check, describe, param
 from quadest.recovery.bank import BankRecord, bank_step, gravity_body, summarize
 from quadest.recovery.sphere import spread_points
 from quadest.rotation import quat_conj, quat_rotate
@@ -30,6 +41,7 @@ if TYPE_CHECKING:
     from quadest.data.recording import Recording
 
 _P = param
+REARM_SAMPLES, DWELL_S, BARO_STD = 3, 0.5, 0.3  # defaults (RecoveryParams' fields say why)
 
 
 @dataclass(frozen=True)
@@ -42,6 +54,31 @@ class RecoveryParams:
         "samples",
         "consecutive samples below β1 to detect a throw",
         "chosen: 3 ms at 1 kHz keeps one vibration spike from starting a recovery",
+    )
+    rearm_samples: int = _P(
+        REARM_SAMPLES,
+        "samples",
+        "while converging, consecutive samples with ‖z_acc‖ ≥ β1 that return the logic to waiting "
+        "(the bank restarts at the next detection); 0: never (the paper's logic)",
+        "chosen: as detect_samples; a hand still accelerating the vehicle reads ‖z_acc‖ ≥ β1 for "
+        "tens of ms before the release, the free flight after it never (flown throws 101-150)",
+        bounds="[0, 1e6]",
+    )
+    dwell_s: float = _P(
+        DWELL_S,
+        "s",
+        "shortest time from the (latest) detection to the handover; 0: at once when S_g < β2 (the paper's)",
+        "chosen on flown throws 101-150, not the reported 1-100: no handover in the hand and the "
+        "gravity error at the handover within 5° median, 10° p90 there, for more fall (docs/recovery.md)",
+        bounds="[0, 10]",
+    )
+    baro_std: float = _P(
+        BARO_STD,
+        "m",
+        "barometer noise std the nominal EKF assumes (its height state, corrected by each reading, "
+        "corrects its velocity); 0: the barometer is not read",
+        "chosen: the sensor's 0.1 m noise and what its 50 ms lag makes of a few m/s of climb",
+        bounds="[0, 100]",
     )
     sigma_v0: float = _P(3.0, "m/s", "initial velocity std per axis (eq 20)", "chosen: the speeds of a hand throw")
     sigma_delta0: float = _P(
@@ -63,6 +100,9 @@ class RecoveryParams:
         1e-4, "rad²/s", "error-rotation process noise intensity (gyro noise)", "chosen: a MEMS gyro's white noise"
     )
     gravity: float = _P(GRAVITY, "m/s²", "gravity", "standard gravity")
+
+    def __post_init__(self):
+        check(self, "recovery")
 
     def bank_record(self, mass: float) -> BankRecord:
         """What the compiled bank reads, by name."""
@@ -97,6 +137,90 @@ def initial_bank(p: RecoveryParams, dirs):
     H = len(dirs)
     P0 = np.diag([p.sigma_v0**2] * 3 + [p.sigma_delta0**2] * 2)
     return (np.zeros((H, 3)), np.array([shortest_arc(d) for d in dirs]), np.repeat(P0[None], H, axis=0), np.zeros(H))
+
+
+@njit(cache=True)
+def count_samples(count, acc, beta1, below):
+    """``count + 1`` when ``‖acc‖ < β1`` is ``below``, else 0: the consecutive samples below β1
+    (the detection, eq 37) or at or above it (the re-arm)."""
+    is_below = np.sqrt(acc[0] ** 2 + acc[1] ** 2 + acc[2] ** 2) < beta1
+    return count + 1 if is_below == below else 0
+
+
+@njit(cache=True)
+def handover_due(sg, beta2, elapsed_s, dwell_s):
+    """The handover: ``S_g < β2`` (eq 38) and at least ``dwell_s`` since the detection."""
+    return sg < beta2 and elapsed_s >= dwell_s - 1e-9
+
+
+@njit(cache=True)
+def restart_bank(V, Qr, P, L, Qr0, P0):
+    """The bank back to its start (eq 20): every hypothesis at rest, at its reference attitude
+    ``Qr0`` with the covariance ``P0``, equal likelihoods."""
+    for i in range(V.shape[0]):
+        L[i] = 0.0
+        for j in range(3):
+            V[i, j] = 0.0
+        for j in range(4):
+            Qr[i, j] = Qr0[i, j]
+        for r in range(P.shape[1]):
+            for c in range(P.shape[2]):
+                P[i, r, c] = P0[i, r, c]
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def run_logic(bank, start, data, prm, model, logic, out, record_all):
+    """The recovery logic over the recording ``(t, gyr, acc)`` (module doc): waiting, the bank
+    ``(V, Qr, P, L, w_prev)`` from each detection, back to waiting on a re-arm (the bank back to
+    ``start`` ``(Qr0, P0)``), until the handover. ``logic``: ``(β1, detect_samples,
+    rearm_samples, β2, dwell_s)``; ``model`` ``(A, B, C)``; per sample of the bank into ``out``
+    ``(best, S_g, probabilities, gravity directions, velocity)`` (every hypothesis's with
+    ``record_all``, else the best one's). Returns ``(latest detection, handover, detections,
+    first detection)`` (−1: none)."""
+    V, Qr, P, L, w_prev = bank
+    Qr0, P0 = start
+    t, gyr, acc = data
+    A, B, C = model
+    beta1, detect_samples, rearm_samples, beta2, dwell_s = logic
+    best_out, sg_out, prob_out, gd_out, v_out = out
+    n = V.shape[0]
+    prob = np.empty(n)
+    gd = np.empty((n, 3))
+    converging = False
+    count, k_det, detections, first = 0, -1, 0, -1
+    for k in range(len(t)):
+        if not converging:
+            count = count_samples(count, acc[k], beta1, True)
+            if count < detect_samples:
+                w_prev[0], w_prev[1], w_prev[2] = gyr[k, 0], gyr[k, 1], gyr[k, 2]
+                continue
+            converging, count, k_det, detections = True, 0, k, detections + 1
+            first = k if first < 0 else first
+        elif rearm_samples > 0:
+            count = count_samples(count, acc[k], beta1, False)
+            if count >= rearm_samples:
+                converging, count = False, 0
+                restart_bank(V, Qr, P, L, Qr0, P0)
+                w_prev[0], w_prev[1], w_prev[2] = gyr[k, 0], gyr[k, 1], gyr[k, 2]
+                continue
+        dt = t[k] - t[k - 1] if k > 0 else t[1] - t[0]
+        bank_step(V, Qr, P, L, w_prev, gyr[k], acc[k], dt, prm, A, B, C)
+        best, sg = summarize(Qr, L, prm.gravity, prob, gd)
+        best_out[k] = best
+        sg_out[k] = sg
+        for j in range(3):
+            v_out[k, j] = V[best, j]
+        if record_all:
+            for i in range(n):
+                prob_out[k, i] = prob[i]
+                for j in range(3):
+                    gd_out[k, i, j] = gd[i, j]
+        else:
+            for j in range(3):
+                gd_out[k, 0, j] = gd[best, j]
+        if handover_due(sg, beta2, t[k] - t[k_det], dwell_s):
+            return k_det, k, detections, first
+    return k_det, -1, detections, first
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -212,24 +336,28 @@ def recover(
     prob = np.full((n, H), np.nan) if record_all else np.empty((1, 1))
     gd_all = np.full((n, H, 3), np.nan) if record_all else np.full((n, 1, 3), np.nan)
     events = [("waiting", float(t[0]))]
-    k_det = detect_throw(acc, p.beta1, p.detect_samples)
-    k_conv = None
     prm = p.bank_record(model.mass_kg)
-    if k_det is not None and n > 1:
-        events.append(("thrown", float(t[k_det])))
-        events.append(("converging", float(t[k_det])))
-        V, Qr, P, L = initial_bank(p, spread_points(H) if dirs is None else dirs)
-        w_prev = gyr[k_det - 1].copy() if k_det > 0 else gyr[k_det].copy()
-        kc = run_bank(
+    V, Qr, P, L = initial_bank(p, spread_points(H) if dirs is None else dirs)
+    w_prev = gyr[0].copy()
+    k_det, kc, detections, first = (
+        run_logic(
             (V, Qr, P, L, w_prev),
+            (Qr.copy(), P.copy()),
             (t, gyr, acc),
-            k_det,
             prm,
             (model.A, model.B, model.C),
-            p.beta2,
+            (float(p.beta1), int(p.detect_samples), int(p.rearm_samples), float(p.beta2), float(p.dwell_s)),
             (best, s_g, prob, gd_all, vel),
             record_all,
         )
+        if n > 1
+        else (-1, -1, 0, -1)
+    )
+    k_det = int(k_det) if k_det >= 0 else None
+    k_conv = None
+    if k_det is not None:
+        events.append(("thrown", float(t[k_det])))
+        events.append(("converging", float(t[k_det])))
         if record_all:
             idx = np.arange(n)[best >= 0]
             gdir[idx] = gd_all[idx, best[idx]]
@@ -270,6 +398,9 @@ def recover(
         hypothesis_dirs=gd_all if record_all else None,
     )
     res.summary = _summarize(res, rec, t_release, p)
+    res.summary["detections"] = int(detections)
+    if first >= 0:
+        res.summary["t_first_detect_s"] = float(t[first])
     return res
 
 
