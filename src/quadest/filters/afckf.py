@@ -57,12 +57,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadest._jit import carray, njit
+from quadest._jit import njit
 from quadest.conventions import GRAVITY
 from quadest.filters.base import Estimator, Params, coefficient_offsets, params_record
 from quadest.filters.common import (
     BASE,
-    Q_OUT,
     YAW_PENDING,
     admit,
     admitted_mag,
@@ -74,6 +73,7 @@ from quadest.filters.common import (
     prepare,
     publish,
     q_to_euler,
+    run_and_stream,
     wrap_angle,
 )
 from quadest.filters.linalg import inv_spd_into
@@ -462,30 +462,7 @@ def afckf_step(x, p, c, gyr, acc, mag, dt, diag):
     publish(x)
 
 
-@njit(cache=True)
-def afckf_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
-    """Batch: the same step over every sample, in compiled code."""
-    for k in range(len(dt)):
-        afckf_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
-        q_out[k] = x[Q_OUT : Q_OUT + 4]  # published: in the geographic frame
-
-
-def afckf_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
-    """Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address)."""
-    try:
-        afckf_step(
-            carray(x, nx),
-            carray(p, n_p),
-            carray(c, nc),
-            carray(gyr, 3),
-            carray(acc, 3),
-            carray(mag, 3),
-            dt,
-            carray(diag, nd),
-        )
-    except Exception:  # noqa: BLE001 -- a C callback cannot raise: the C call does, from the status
-        return 1
-    return 0
+afckf_run, afckf_stream = run_and_stream(afckf_step)
 
 
 class Afckf(Estimator):

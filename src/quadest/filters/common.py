@@ -10,9 +10,11 @@ further arithmetic in Python). Each estimator's own
 state follows from ``x[BASE]``, declared once with :func:`layout`.
 """
 
+from pathlib import Path
+
 import numpy as np
 
-from quadest._jit import njit
+from quadest._jit import carray, njit
 from quadest.records import layout
 
 COMMON = layout(
@@ -208,3 +210,45 @@ def omega_matrix(w, dt):
     F[2, 0], F[2, 1], F[2, 3] = h * w[1], -h * w[2], h * w[0]
     F[3, 0], F[3, 1], F[3, 2] = h * w[2], h * w[1], -h * w[0]
     return F
+
+
+# The batch run and the streaming call of an estimator's step: one template for every estimator.
+# numba cannot cache a closure, so each estimator's pair is compiled from this source, under this
+# file's name and at these lines (a compile error points here), with the step as a global.
+_RUN_AND_STREAM = """\
+@njit(cache=True, fastmath=fastmath)
+def NAME_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
+    '''Batch: the same step over every sample, in compiled code.'''
+    for k in range(len(dt)):
+        step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
+        q_out[k] = x[Q_OUT : Q_OUT + 4]  # published: in the geographic frame
+
+
+def NAME_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
+    '''Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address).'''
+    try:
+        step(carray(x, nx), carray(p, n_p), carray(c, nc), carray(gyr, 3), carray(acc, 3), carray(mag, 3), dt,
+             carray(diag, nd))
+    except Exception:  # a C callback cannot raise: the C call does, from the status
+        return 1
+    return 0
+"""
+_TEMPLATE_LINE = Path(__file__).read_text(encoding="utf-8").splitlines().index('_RUN_AND_STREAM = """\\') + 1
+
+
+def run_and_stream(step, fastmath: bool = False) -> tuple:
+    """``(run, stream)`` of the compiled ``step`` (named ``<name>_step``): ``<name>_run``, the
+    batch run over every sample (``Estimator.batch``), and ``<name>_stream``, the streaming call
+    (``Estimator.stream``, compiled as a C callback by ``base.stream_address``)."""
+    name = step.__name__.removesuffix("_step")
+    source = "\n" * _TEMPLATE_LINE + _RUN_AND_STREAM.replace("NAME", name)
+    namespace = {
+        "__name__": __name__,
+        "njit": njit,
+        "carray": carray,
+        "Q_OUT": Q_OUT,
+        "step": step,
+        "fastmath": fastmath,
+    }
+    exec(compile(source, __file__, "exec"), namespace)  # noqa: S102 -- our own template, see above
+    return namespace[f"{name}_run"], namespace[f"{name}_stream"]

@@ -16,9 +16,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadest._jit import carray, njit
+from quadest._jit import njit
 from quadest.filters.base import Estimator, Params, params_record
-from quadest.filters.common import BASE, Q_OUT, admit, admitted_mag, finite3, layout, norm3, prepare, publish
+from quadest.filters.common import (
+    BASE,
+    admit,
+    admitted_mag,
+    finite3,
+    layout,
+    norm3,
+    prepare,
+    publish,
+    run_and_stream,
+)
 from quadest.records import param
 from quadest.rotation.kernels import normalize_s, qdot_s, rotate_inv_s, rotate_s
 
@@ -96,30 +106,7 @@ def mahony_step(x, p, c, gyr, acc, mag, dt, diag):
     publish(x)
 
 
-@njit(cache=True)
-def mahony_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
-    """Batch: the same step over every sample, in compiled code."""
-    for k in range(len(dt)):
-        mahony_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
-        q_out[k] = x[Q_OUT : Q_OUT + 4]  # published: in the geographic frame
-
-
-def mahony_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
-    """Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address)."""
-    try:
-        mahony_step(
-            carray(x, nx),
-            carray(p, n_p),
-            carray(c, nc),
-            carray(gyr, 3),
-            carray(acc, 3),
-            carray(mag, 3),
-            dt,
-            carray(diag, nd),
-        )
-    except Exception:  # noqa: BLE001 -- a C callback cannot raise: the C call does, from the status
-        return 1
-    return 0
+mahony_run, mahony_stream = run_and_stream(mahony_step)
 
 
 class Mahony(Estimator):

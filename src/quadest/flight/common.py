@@ -12,6 +12,7 @@ from quadest.data.recording import Recording
 from quadest.records import check, check_triples, describe, param
 from quadest.rotation import quat_conj, quat_mul, quat_rotate
 from quadest.sim import sensors
+from quadest.sim.flown import flown_recording
 from quadest.sim.sensors import sensor_model
 from quadest.sim.simulator import draw_processes
 
@@ -226,3 +227,38 @@ def mean_present(values):
 
 def rms(v):
     return float(np.sqrt(np.mean(np.square(v)))) if len(v) else None
+
+
+def flight_of(out: dict, t, vehicle, *, cfg, seed, meta, processes, loop_s, imbalance, modes=None) -> Flight:
+    """The :class:`Flight` of a closed loop's record ``out`` (``flight.loop.flown_arrays``) at the
+    IMU instants ``t``: its recording sampled as every simulation samples, with the loop's
+    readings; ``imbalance`` each propeller's per sample, ``modes`` a throw's phase per sample."""
+    rec = flown_recording(
+        t,
+        out["x"],
+        out["dx"],
+        out["thrust"],
+        vehicle,
+        cfg=cfg,
+        seed=seed,
+        eta=out["eta"],
+        imbalance=imbalance,
+        meta=meta,
+        readings=(out["gyr"], out["acc"], out["mag"]),
+        processes=processes,
+    )
+    return Flight(
+        rec,
+        out["x"],
+        out["cmd"],
+        out["q"],
+        out["pv"],
+        timing={"loop_s": loop_s},
+        baro=out["baro"],
+        modes=modes,
+        derivs=out["dx"],
+        thrusts=out["thrust"],
+        eta=out["eta"],
+        imbalance=imbalance,
+        vehicle=vehicle,
+    )

@@ -38,6 +38,7 @@ from quadest.flight.common import (
     FlightParams,
     angle_errors,
     barometer_draws,
+    flight_of,
     mean_present,
     position_gain,
     rms,
@@ -428,33 +429,8 @@ def _flight(out, t, vehicle, cfg, seed, failure, meta, processes, loop_s) -> Fli
     imbalance = np.zeros((len(t), vehicle.rotors))
     if failure is not None:
         imbalance[int(round(failure.time_s * cfg.imu.rate_hz)) :, failure.rotor] = failure.imbalance
-    rec = flown_recording(
-        t,
-        out["x"],
-        out["dx"],
-        out["thrust"],
-        vehicle,
-        cfg=cfg,
-        seed=seed,
-        eta=out["eta"],
-        imbalance=imbalance,
-        meta=meta,
-        readings=(out["gyr"], out["acc"], out["mag"]),
-        processes=processes,
-    )
-    return Flight(
-        rec,
-        out["x"],
-        out["cmd"],
-        out["q"],
-        out["pv"],
-        timing={"loop_s": loop_s},
-        baro=out["baro"],
-        derivs=out["dx"],
-        thrusts=out["thrust"],
-        eta=out["eta"],
-        imbalance=imbalance,
-        vehicle=vehicle,
+    return flight_of(
+        out, t, vehicle, cfg=cfg, seed=seed, meta=meta, processes=processes, loop_s=loop_s, imbalance=imbalance
     )
 
 

@@ -25,7 +25,15 @@ import numpy as np
 
 from quadest.control import SE3Params, hover_reference
 from quadest.flight import build
-from quadest.flight.common import SIM_RATE_HZ, Flight, FlightParams, angle_errors, barometer_draws, sensors_for
+from quadest.flight.common import (
+    SIM_RATE_HZ,
+    Flight,
+    FlightParams,
+    angle_errors,
+    barometer_draws,
+    flight_of,
+    sensors_for,
+)
 from quadest.flight.loop import OK, STATUS, closed_loop, flown_arrays
 from quadest.flight.phases import HOLD_Z, PHASES
 from quadest.models import fit_aero
@@ -327,37 +335,24 @@ def fly_throw(
     loop_s = time.perf_counter() - t0
     out = flown_arrays(loop.record, flown)
     events = loop.record.events
-    rec = flown_recording(
+    meta = {
+        **meta,
+        "aero_model_fitted": model.info.get("residual_rms_mps2"),
+        "release_s": float(n_hand / rate),
+        "hand_acc_peak_m_s2": float(2 * np.linalg.norm(x_rel[3:6]) * rate / n_hand),
+    }
+    imbalance = np.zeros((flown, vehicle.rotors))
+    flight = flight_of(
+        out,
         t[:flown],
-        out["x"],
-        out["dx"],
-        out["thrust"],
         vehicle,
         cfg=cfg,
         seed=seed,
-        meta={
-            **meta,
-            "aero_model_fitted": model.info.get("residual_rms_mps2"),
-            "release_s": float(n_hand / rate),
-            "hand_acc_peak_m_s2": float(2 * np.linalg.norm(x_rel[3:6]) * rate / n_hand),
-        },
-        readings=(out["gyr"], out["acc"], out["mag"]),
+        meta=meta,
         processes=processes,
-    )
-    flight = Flight(
-        rec,
-        out["x"],
-        out["cmd"],
-        out["q"],
-        out["pv"],
-        timing={"loop_s": loop_s},
-        baro=out["baro"],
+        loop_s=loop_s,
+        imbalance=imbalance,
         modes=out["phase"],
-        derivs=out["dx"],
-        thrusts=out["thrust"],
-        eta=out["eta"],
-        imbalance=np.zeros((flown, vehicle.rotors)),
-        vehicle=vehicle,
     )
     flight.summary = summarize_throw(
         flight, out, events, status, duration, throw, estimator, seed, n_hand, float(loop.held[HOLD_Z])

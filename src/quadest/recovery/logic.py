@@ -180,12 +180,9 @@ def run_logic(bank, start, data, prm, model, logic, out, record_all):
     V, Qr, P, L, w_prev = bank
     Qr0, P0 = start
     t, gyr, acc = data
-    A, B, C = model
     beta1, detect_samples, rearm_samples, beta2, dwell_s = logic
-    best_out, sg_out, prob_out, gd_out, v_out = out
-    n = V.shape[0]
-    prob = np.empty(n)
-    gd = np.empty((n, 3))
+    prob = np.empty(V.shape[0])
+    gd = np.empty((V.shape[0], 3))
     converging = False
     count, k_det, detections, first = 0, -1, 0, -1
     for k in range(len(t)):
@@ -203,21 +200,7 @@ def run_logic(bank, start, data, prm, model, logic, out, record_all):
                 restart_bank(V, Qr, P, L, Qr0, P0)
                 w_prev[0], w_prev[1], w_prev[2] = gyr[k, 0], gyr[k, 1], gyr[k, 2]
                 continue
-        dt = t[k] - t[k - 1] if k > 0 else t[1] - t[0]
-        bank_step(V, Qr, P, L, w_prev, gyr[k], acc[k], dt, prm, A, B, C)
-        best, sg = summarize(Qr, L, prm.gravity, prob, gd)
-        best_out[k] = best
-        sg_out[k] = sg
-        for j in range(3):
-            v_out[k, j] = V[best, j]
-        if record_all:
-            for i in range(n):
-                prob_out[k, i] = prob[i]
-                for j in range(3):
-                    gd_out[k, i, j] = gd[i, j]
-        else:
-            for j in range(3):
-                gd_out[k, 0, j] = gd[best, j]
+        sg = bank_sample(bank, data, k, prm, model, out, record_all, prob, gd)
         if handover_due(sg, beta2, t[k] - t[k_det], dwell_s):
             return k_det, k, detections, first
     return k_det, -1, detections, first
@@ -229,32 +212,39 @@ def run_bank(bank, data, k0, prm, model, beta2, out, record_all):
     until S_g < β2 (returns that index) or the end (returns −1), with the aerodynamic ``model``
     ``(A, B, C)``; per sample into ``out`` ``(best, S_g, probabilities, gravity directions,
     velocity)`` (every hypothesis's with ``record_all``, else the best one's)."""
+    n = bank[0].shape[0]
+    prob = np.empty(n)
+    gd = np.empty((n, 3))
+    for k in range(k0, len(data[0])):
+        if bank_sample(bank, data, k, prm, model, out, record_all, prob, gd) < beta2:
+            return k
+    return -1
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def bank_sample(bank, data, k, prm, model, out, record_all, prob, gd):
+    """One sample ``k`` of the bank (eqs 20-36) recorded into ``out`` (:func:`run_bank`);
+    returns S_g. ``prob`` and ``gd`` are its work arrays."""
     V, Qr, P, L, w_prev = bank
     t, gyr, acc = data
     A, B, C = model
     best_out, sg_out, prob_out, gd_out, v_out = out
-    n = V.shape[0]
-    prob = np.empty(n)
-    gd = np.empty((n, 3))
-    for k in range(k0, len(t)):
-        dt = t[k] - t[k - 1] if k > 0 else t[1] - t[0]
-        bank_step(V, Qr, P, L, w_prev, gyr[k], acc[k], dt, prm, A, B, C)
-        best, sg = summarize(Qr, L, prm.gravity, prob, gd)
-        best_out[k] = best
-        sg_out[k] = sg
-        for j in range(3):
-            v_out[k, j] = V[best, j]
-        if record_all:
-            for i in range(n):
-                prob_out[k, i] = prob[i]
-                for j in range(3):
-                    gd_out[k, i, j] = gd[i, j]
-        else:
+    dt = t[k] - t[k - 1] if k > 0 else t[1] - t[0]
+    bank_step(V, Qr, P, L, w_prev, gyr[k], acc[k], dt, prm, A, B, C)
+    best, sg = summarize(Qr, L, prm.gravity, prob, gd)
+    best_out[k] = best
+    sg_out[k] = sg
+    for j in range(3):
+        v_out[k, j] = V[best, j]
+    if record_all:
+        for i in range(V.shape[0]):
+            prob_out[k, i] = prob[i]
             for j in range(3):
-                gd_out[k, 0, j] = gd[best, j]
-        if sg < beta2:
-            return k
-    return -1
+                gd_out[k, i, j] = gd[i, j]
+    else:
+        for j in range(3):
+            gd_out[k, 0, j] = gd[best, j]
+    return sg
 
 
 @njit(cache=True, fastmath=FASTMATH)

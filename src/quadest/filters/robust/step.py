@@ -7,9 +7,9 @@ import math
 
 import numpy as np
 
-from quadest._jit import NO_ALLOCATION, carray, njit
+from quadest._jit import NO_ALLOCATION, njit
 from quadest.filters.base import Estimator
-from quadest.filters.common import INIT, Q_OUT, admit, admitted_mag, publish
+from quadest.filters.common import INIT, admit, admitted_mag, publish, run_and_stream
 from quadest.filters.robust.bias import rest_and_bias
 from quadest.filters.robust.clipping import detect_clipping, held_rates, hold_clipped, rates_from_field
 from quadest.filters.robust.heading import heading, latency_corrected
@@ -67,30 +67,7 @@ def robust_step(x, p, c, gyr, acc, mag, dt, diag):
     publish(x)
 
 
-@njit(cache=True, fastmath=FASTMATH)
-def robust_run(x, p, c, dt, gyr, acc, mag, q_out, diag_out):
-    """Batch: the same step over every sample, in compiled code."""
-    for k in range(len(dt)):
-        robust_step(x, p, c, gyr[k], acc[k], mag[k], dt[k], diag_out[k])
-        q_out[k] = x[Q_OUT : Q_OUT + 4]  # published: in the geographic frame
-
-
-def robust_stream(x, nx, p, n_p, c, nc, gyr, acc, mag, dt, diag, nd):
-    """Streaming: the same step on the raw buffers of the C call; 1 if it raised (base.stream_address)."""
-    try:
-        robust_step(
-            carray(x, nx),
-            carray(p, n_p),
-            carray(c, nc),
-            carray(gyr, 3),
-            carray(acc, 3),
-            carray(mag, 3),
-            dt,
-            carray(diag, nd),
-        )
-    except Exception:  # noqa: BLE001 -- a C callback cannot raise: the C call does, from the status
-        return 1
-    return 0
+robust_run, robust_stream = run_and_stream(robust_step, fastmath=FASTMATH)
 
 
 class Robust(Estimator):
