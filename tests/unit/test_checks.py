@@ -49,3 +49,34 @@ def test_the_attitude_columns_are_the_euler_angles_of_the_estimate(recs):
     assert np.array_equal(np.column_stack([cols["roll"], cols["pitch"], cols["yaw"]]), quat_to_euler(flight.true_q))
     assert np.array_equal(np.column_stack([cols[f"q_{c}"] for c in "wxyz"]), flight.true_q)
     assert np.array_equal(cols["t"], flight.t) and np.array_equal(cols["extra"], flight.gyr[:, 0])
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".parquet"])
+def test_a_table_written_in_blocks_is_the_table_written_whole(tmp_path, suffix):
+    import pyarrow.csv as pcsv
+    import pyarrow.parquet as pq
+
+    from quadest.data import write_blocks, write_table
+
+    rng = np.random.default_rng(1)
+    cols = {"t": np.arange(1000) / 100.0, "a": rng.normal(size=1000), "b": rng.normal(size=1000)}
+    blocks = ({k: v[s : s + 333] for k, v in cols.items()} for s in range(0, 1000, 333))
+    whole, parts = tmp_path / f"whole{suffix}", tmp_path / f"parts{suffix}"
+    write_table(cols, whole)
+    write_blocks(blocks, parts)
+    read = pq.read_table if suffix == ".parquet" else pcsv.read_csv
+    assert read(parts).equals(read(whole)) and read(parts).num_rows == 1000
+    if suffix == ".csv":
+        assert parts.read_text().splitlines()[0] == "t,a,b" and parts.read_bytes() == whole.read_bytes()
+    with pytest.raises(ValueError, match="no rows"):
+        write_blocks(iter(()), tmp_path / f"empty{suffix}")
+    assert not (tmp_path / f"empty{suffix}").exists()
+
+
+def test_sensors_only_keeps_the_samples_and_drops_the_truth(recs):
+    flight = recs[1]
+    sensors = flight.sensors_only()
+    assert sensors.truth == [] and flight.truth  # the original keeps its truth
+    for name in ("t", "gyr", "acc", "mag"):
+        assert getattr(sensors, name) is getattr(flight, name)  # not copied
+    assert sensors.meta == flight.meta
