@@ -4,10 +4,11 @@ the simulator's parameters are all declared with :func:`param`."""
 
 from __future__ import annotations
 
+import json
 import math
 import sys
 from collections import namedtuple
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
@@ -117,6 +118,57 @@ def check(record, owner: str = "") -> None:
 def describe(record_cls) -> list[dict]:
     """``[{name, default, unit, doc, source}]`` of a parameter record's fields, in order."""
     return [{"name": f.name, "default": f.default, **f.metadata} for f in fields(record_cls)]
+
+
+def parse_text(text: str):
+    """A value written on the command line: a number, ``true``/``false``, a list (``[0, 0, 0.01]``,
+    nested lists for matrices; lists become tuples), ``inf`` or ``none``; anything else is the
+    text itself (a word such as ``gnss``)."""
+    word = text.strip()
+    if word.lower() in ("inf", "+inf", "infinity"):
+        return math.inf
+    if word.lower() in ("none", "null"):
+        return None
+    try:
+        value = json.loads(word.replace("(", "[").replace(")", "]"))
+    except json.JSONDecodeError:
+        return word
+    return _as_tuples(value)
+
+
+def _as_tuples(value):
+    return tuple(_as_tuples(v) for v in value) if isinstance(value, list) else value
+
+
+def with_fields(record, texts: dict, owner: str, source: str = "--set"):
+    """``record`` with the fields named in ``texts`` (``{"mass_kg": "0.6"}``) set to the values
+    written there (:func:`parse_text`), checked as the record checks itself (its bounds). A
+    :class:`UsageError` names ``source``, the field and what to do: an unknown field lists the
+    record's fields, a list given for a number or a number for a list is refused."""
+    names = [f.name for f in fields(record)]
+    changes = {}
+    for name, text in texts.items():
+        if name not in names:
+            raise UsageError(f"{source}: {owner} has no parameter {name!r}; it has: {', '.join(names)}")
+        changes[name] = _typed(f"{source} {owner}.{name}", getattr(record, name), parse_text(text))
+    try:
+        return replace(record, **changes)
+    except (ValueError, TypeError) as exc:
+        raise UsageError(f"{source}: {exc}") from None
+
+
+def _typed(key: str, current, value):
+    """``value`` where the field holds ``current``: a list for a list, a word for a word (numbers
+    are checked by the record; a field that is None takes any)."""
+    if current is None:
+        return value
+    if isinstance(current, tuple) and not isinstance(value, tuple):
+        raise UsageError(f"{key}: expected a list such as [1, 2, 3], got {value!r}")
+    if isinstance(current, str) and not isinstance(value, str):
+        raise UsageError(f"{key}: expected a word, got {value!r}")
+    if not isinstance(current, (tuple, str)) and isinstance(value, tuple):
+        raise UsageError(f"{key}: expected a single value, got the list {value!r}")
+    return value
 
 
 _KINDS = {"f8": float, "i8": int, "b1": bool}

@@ -309,11 +309,49 @@ def test_fly_writes_runs_that_every_command_reads(tmp_path, capsys):
         (["--failure", "0@1:0.9:5"], "imbalance must be between"),
         (["--seeds", "a-b"], "--seeds expects"),
         (["--preset", "lowcost-20hz"], "position sensor"),
+        (["--set", "gyro.nope=1"], "--set: gyro has no parameter 'nope'"),
+        (["--set", "gyro.range=-1"], "--set: gyro.range must not be negative"),
+        (["--set", "vehicle.mass_kg=0"], "--set: vehicle: mass_kg must be in (0, 1e3]"),
+        (["--set", "vehicle.inertia=3"], "--set vehicle.inertia: expected a list"),
+        (["--set", "se3.k_R=fast"], "--set: se3: k_R must be a finite number"),
+        (["--set", "hover.spin=1"], "--set hover.spin: fly takes"),
+        (["--set", "throw.speed_max=3"], "--set throw.*"),
+        (["--controller", "se3", "--set", "ftc.rho=0.5"], "--set ftc.*"),
+        (["--set", "gyro.range"], "--set expects key=value"),
     ],
 )
 def test_fly_refuses_bad_options_in_one_line(tmp_path, capsys, argv, match):
     code, _, err = run(capsys, "fly", "--estimator", "truth", "--duration", "3", "-o", str(tmp_path / "f"), *argv)
     assert code == 2 and match in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_fly_set_reaches_the_sensors_the_vehicle_and_the_controller(tmp_path, capsys, monkeypatch):
+    """quadest fly --set: the gyroscope's range clips the recorded rates of a rotor loss (the
+    settled spin is above 8.73 rad/s), the vehicle's mass sets the hover the flight starts from,
+    the controller's gain reaches fly(); the recording's meta and the summary keep what was set."""
+    from dataclasses import replace
+
+    import pyarrow.parquet as pq
+
+    import quadest.cli.fly as cli_fly
+    from quadest.models.multirotor import vehicle_preset
+
+    flown = []
+    real_fly = cli_fly.fly
+    monkeypatch.setattr(cli_fly, "fly", lambda *a, **kw: flown.append(kw) or real_fly(*a, **kw))
+    sets = {"gyro.range": "8.73", "vehicle.mass_kg": "0.55", "se3.k_R": "2", "ftc.rho": "0.6"}
+    argv = [a for k, v in sets.items() for a in ("--set", f"{k}={v}")]
+    out = tmp_path / "fly"
+    code, text, _ = run(capsys, "fly", "--estimator", "truth", "--duration", "4", "--no-plot", "-o", str(out), *argv)
+    assert code == 0, text
+    assert flown[0]["se3"].k_R == 2.0 and flown[0]["ftc"].rho == 0.6 and flown[0]["vehicle"].mass_kg == 0.55
+    run0 = json.loads((out / "summary.json").read_text())["runs"][0]
+    assert run0["set"] == sets
+    rec = load_recording(run0["files"]["recording"])
+    assert rec.meta["set"] == sets and rec.meta["vehicle"] == "recovery" and rec.meta["config"]["gyro"]["range"] == 8.73
+    assert np.abs(rec.true_gyr).max() > 10.0 and np.abs(rec.gyr).max() == pytest.approx(8.73)
+    hover = replace(vehicle_preset("recovery"), mass_kg=0.55).hover_speed()
+    assert pq.read_table(run0["files"]["flight"]).column("rotor0_speed")[0].as_py() == pytest.approx(hover)
 
 
 def test_fly_a_throw_with_the_recovery_and_the_oracle(tmp_path, capsys):

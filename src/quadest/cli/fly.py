@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from quadest.cli.common import CliError, add_max_runs_arg, check_runs, parse_seeds, say, write_json
-from quadest.control import Failure
+from quadest.cli.common import CliError, add_max_runs_arg, check_runs, parse_seeds, parse_sets, say, write_json
+from quadest.control import Failure, FtcParams, SE3Params
 from quadest.data import save_recording, write_table
 from quadest.filters import ESTIMATORS, FILTERS, filter_name
 from quadest.flight import (
@@ -18,8 +18,12 @@ from quadest.flight import (
     in_loop_estimators,
 )
 from quadest.flight.detection import DETECTION_MODES
+from quadest.flight.fly import DEFAULT_PRESET
+from quadest.flight.throw import ThrowParams
 from quadest.models import VEHICLE_PRESETS
-from quadest.sim import PRESETS
+from quadest.models.multirotor import vehicle_preset
+from quadest.records import with_fields
+from quadest.sim import PRESETS, build_config
 
 FAILURE_FORMAT = (
     "ROTOR@TIME[:EFFICIENCY[:IMBALANCE]] (for example 0@2, 1@3:0.6, or 2@1:0.9:5e-6 for a "
@@ -73,6 +77,82 @@ def flight_table(flight) -> dict:
     if flight.modes is not None:
         cols["recovery_mode"] = flight.modes
     return cols
+
+
+SENSOR_SECTIONS = ("environment", "imu", "gyro", "acc", "mag")
+"""The simulator's sections a flight samples its sensors with (``--set gyro.range=8.73``)."""
+RECORD_PREFIXES = ("vehicle", "flight", "se3", "ftc", "throw")
+"""``--set PREFIX.FIELD``: the flown vehicle (MultirotorParams), the flight (FlightParams), the
+nominal and fault-tolerant controllers (SE3Params, FtcParams) and a throw (ThrowParams)."""
+SET_HELP = (
+    "override a parameter, e.g. --set gyro.range=8.73 --set acc.lever_arm=[0,0,0.01] --set vehicle.mass_kg=0.6 "
+    "(repeatable): the sensors' environment.*, imu.*, gyro.*, acc.*, mag.* (as quadest simulate --set; "
+    "quadest simulate --list-params lists them), the flown vehicle's vehicle.* (after --vehicle), the "
+    "flight's flight.* (after --position-sensor), the controllers' se3.* and ftc.*, a throw's throw.* "
+    "(docs/vehicle.md lists the fields)"
+)
+
+
+def grouped_sets(sets: dict) -> dict[str, dict]:
+    """``--set`` overrides by what they change: ``"sensors"`` (``{"gyro.range": "8.73"}``) and
+    one group per record prefix (``"vehicle": {"mass_kg": "0.6"}``). Any other key is refused,
+    naming the keys fly takes."""
+    groups = {}
+    for key, text in sets.items():
+        prefix, _, name = key.partition(".")
+        if prefix in SENSOR_SECTIONS and name:
+            groups.setdefault("sensors", {})[key] = text
+        elif prefix in RECORD_PREFIXES and name:
+            groups.setdefault(prefix, {})[name] = text
+        else:
+            keys = ", ".join(f"{p}.*" for p in SENSOR_SECTIONS + RECORD_PREFIXES)
+            raise CliError(f"--set {key}: fly takes {keys} (quadest fly --help)")
+    return groups
+
+
+def _check_sets_fly(groups: dict, scenario: str, controller: str | None) -> None:
+    """Refuse settings of what this flight does not fly (never ignored)."""
+    if "throw" in groups and scenario != "throw":
+        raise CliError("--set throw.*: a throw's parameters are for --scenario throw")
+    flies_ftc = scenario != "throw" and (controller or ("ftc" if scenario == "rotor-loss" else "se3")) == "ftc"
+    if "ftc" in groups and not flies_ftc:
+        raise CliError("--set ftc.*: this flight does not fly the fault-tolerant controller (--controller ftc does)")
+
+
+def _sensor_config(preset: str, texts: dict):
+    """The preset's sensors with ``--set``'s overrides, checked as simulate checks them."""
+    try:
+        return build_config(preset).with_overrides(texts).validate()
+    except ValueError as exc:
+        msg = str(exc)
+        raise CliError(msg if msg.startswith("--set") else f"--set: {msg}") from None
+
+
+def fly_settings(args, sets: dict) -> dict:
+    """The flight's records from the options, then ``--set`` (fly's keyword arguments): the
+    sensors, the vehicle, the flight, the controllers' and a throw's parameters."""
+    groups = grouped_sets(sets)
+    _check_sets_fly(groups, args.scenario, args.controller)
+    flight = FlightParams(position_sensor=args.position_sensor)
+    out = {"params": with_fields(flight, groups.get("flight", {}), "flight"), "vehicle": args.vehicle}
+    if "sensors" in groups:
+        preset = args.preset or DEFAULT_PRESET.get(args.scenario, "bebop2")
+        out["config"] = _sensor_config(preset, groups["sensors"])
+    if "vehicle" in groups:
+        out["vehicle"] = with_fields(vehicle_preset(args.vehicle), groups["vehicle"], "vehicle")
+    for prefix, record in (("se3", SE3Params), ("ftc", FtcParams), ("throw", ThrowParams)):
+        if prefix in groups:
+            out[prefix] = with_fields(record(), groups[prefix], prefix)
+    return out
+
+
+def _noted(flight, vehicle: str, sets: dict):
+    """``flight`` with what ``--set`` changed in its recording's meta and its summary (``set``,
+    as given; meta ``vehicle`` names the preset they changed), so that the run can be flown again."""
+    if sets:
+        flight.recording.meta.update(vehicle=vehicle, set=dict(sets))
+        flight.summary["set"] = dict(sets)
+    return flight
 
 
 def _fmt(v, unit="", digits=2):
@@ -143,6 +223,8 @@ def cmd_fly(args):
     seeds = parse_seeds(args.seeds)
     failure = parse_failure(args.failure)
     estimators = parse_estimators(args.estimator, args.scenario)
+    sets = parse_sets(args.set)
+    settings = fly_settings(args, sets)
     check_runs(args, len(seeds) * len(estimators), f"--seeds {args.seeds} x {len(estimators)} estimator(s)")
     out = Path(args.output)
     if out.exists() and not out.is_dir():
@@ -158,20 +240,23 @@ def cmd_fly(args):
         duration=args.duration,
         preset=args.preset,
         failure=failure,
-        vehicle=args.vehicle,
-        params=FlightParams(position_sensor=args.position_sensor),
         detection=args.detection,
+        **settings,
     )
     runs = []
     if len(estimators) == 1:
         for seed in seeds:
-            flight = fly(args.scenario, estimator=estimators[0], seed=seed, **kwargs)
+            flight = _noted(fly(args.scenario, estimator=estimators[0], seed=seed, **kwargs), args.vehicle, sets)
             _report(flight, out, not args.no_plot)
             runs.append(flight.summary)
         table = campaign_table(runs)
     else:
         runs = fly_many(
-            args.scenario, estimators, seeds, on_flight=lambda f: _report(f, out, not args.no_plot), **kwargs
+            args.scenario,
+            estimators,
+            seeds,
+            on_flight=lambda f: _report(_noted(f, args.vehicle, sets), out, not args.no_plot),
+            **kwargs,
         )
         table = campaign_table(runs)
     if args.scenario == "throw":
@@ -277,9 +362,10 @@ def add_parsers(sub):
         "lost rotor's command zeroed from the failure on), rotor-speeds or commands (found by the "
         "detector from the measured rotor speeds or from the commands; docs/detection.md) (default: oracle)",
     )
+    s.add_argument("--set", action="append", metavar="KEY=VALUE", help=SET_HELP)
     s.add_argument("-o", "--output", required=True, metavar="DIR", help="folder for the runs' files")
     s.add_argument("--no-plot", action="store_true", help="skip the figures")
     s.set_defaults(func=cmd_fly)
 
 
-__all__ = ["add_parsers", "cmd_fly", "failure_record", "flight_table", "parse_failure"]
+__all__ = ["add_parsers", "cmd_fly", "failure_record", "flight_table", "fly_settings", "grouped_sets", "parse_failure"]
