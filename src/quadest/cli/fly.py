@@ -88,8 +88,9 @@ SET_HELP = (
     "override a parameter, e.g. --set gyro.range=8.73 --set acc.lever_arm=[0,0,0.01] --set vehicle.mass_kg=0.6 "
     "(repeatable): the sensors' environment.*, imu.*, gyro.*, acc.*, mag.* (as quadest simulate --set; "
     "quadest simulate --list-params lists them), the flown vehicle's vehicle.* (after --vehicle), the "
-    "flight's flight.* (after --position-sensor), the controllers' se3.* and ftc.*, a throw's throw.* "
-    "(docs/vehicle.md lists the fields)"
+    "flight's flight.* (after --position-sensor), the controllers' se3.* (k_p, k_v, k_R, k_w) and ftc.*, "
+    "a throw's throw.* (docs/vehicle.md lists the fields); each checked against its bounds, kept in the "
+    "recording's meta and the summary"
 )
 
 
@@ -232,8 +233,9 @@ def cmd_fly(args):
     out.mkdir(parents=True, exist_ok=True)
     say(
         f"flying {args.scenario} ({args.vehicle} vehicle, {args.preset or 'default'} sensors) with the "
-        f"{args.controller or 'default'} controller and {', '.join(estimators)} in the loop, seeds {args.seeds} "
-        "(the first flight with each estimator compiles the loop: some seconds)"
+        f"{args.controller or 'default'} controller and {', '.join(estimators)} in the loop, seeds {args.seeds}"
+        + "".join(f", --set {k}={v}" for k, v in sets.items())
+        + " (the first flight with each estimator compiles the loop: some seconds)"
     )
     kwargs = dict(
         controller=args.controller,
