@@ -552,6 +552,26 @@ def results_speed() -> str:
     )
 
 
+def results_speed_paired() -> str:
+    """Each quadest filter against VQF, and robust against every peer: the paired ratios."""
+    speed = _load("speed")
+
+    def cell(r):
+        return "-" if r is None else f"{r['median']:.3g} ({r['p10']:.3g}-{r['p90']:.3g})"
+
+    rows = [
+        [key, cell(r["batch"]), cell(r["stream"])]
+        for key, r in speed["paired"].items()
+        if key.endswith("/vqf") or key.startswith("robust/")
+    ]
+    pairs = next(iter(speed["paired"].values()))["batch"]["pairs"]
+    return (
+        _table(["filter / peer", "batch time ratio", "streaming time ratio"], rows)
+        + f"\n\nMedian (10th-90th percentile) of {pairs} interleaved pairs on {speed['pair_samples']} samples;"
+        " below 1 the quadest filter is faster (docs/results/speed.json)."
+    )
+
+
 AFCKF_NAMES = ["madgwick", "valenti", "roetenberg", "afckf"]
 
 
@@ -816,6 +836,7 @@ def results_robust_targets() -> str:
 
 
 GENERATORS = {
+    "results-speed-paired": results_speed_paired,
     "simulator-params": simulator_params,
     "estimator-params": estimator_params,
     "recovery-params": recovery_params,

@@ -171,6 +171,27 @@ def test_benchmark_speed_json(tmp_path, capsys):
         assert 0 < v["batch_us"] < 1e4 and 0 < v["stream_us"] < 1e4
     assert 0 < res["recovery_bank_40_us"] < 1e5
     assert 0 < res["detector_us"] < 1e3
+    pair = res["paired"]["madgwick/vqf"]  # the filter against the peer, timed in interleaved pairs
+    assert set(res["paired"]) == {"madgwick/vqf"} and res["pair_samples"] == 2001
+    for r in (pair["batch"], pair["stream"]):
+        assert r["pairs"] == 10 and 0 < r["min"] <= r["p10"] <= r["median"] <= r["p90"] <= r["max"] < 1e3
+
+
+def test_paired_ratio_alternates_the_order_and_takes_the_median():
+    from quadest.evaluation.speed import paired_ratio
+
+    calls, load = [], iter([1.0, 1.0, 3.0, 3.0, 1.0, 1.0, 1.0, 1.0])  # a load that comes and goes
+
+    def timer(name, base):
+        def once():
+            calls.append(name)
+            return base * next(load)
+
+        return once
+
+    r = paired_ratio(timer("a", 2.0), timer("b", 1.0), pairs=4)
+    assert calls == ["a", "b", "b", "a", "a", "b", "b", "a"]
+    assert r["median"] == r["min"] == r["max"] == 2.0 and r["pairs"] == 4  # each pair saw the same load
 
 
 # -- the real data --------------------------------------------------------------------------------------------

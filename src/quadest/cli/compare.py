@@ -29,7 +29,7 @@ from quadest.cli.common import (
 from quadest.evaluation import benchmark, detection, diagnose, flown, reproduce
 from quadest.evaluation.compare import compare, format_tables, parse_params
 from quadest.evaluation.runner import estimator_names, filter_notes
-from quadest.evaluation.speed import benchmark_speed
+from quadest.evaluation.speed import benchmark_speed, format_paired
 from quadest.filters import FILTERS, PEERS
 from quadest.filters.base import STREAM_C
 from quadest.flight import fly
@@ -382,6 +382,8 @@ def cmd_benchmark(args):
         res = benchmark_speed(
             names, args.duration, on_result=lambda n, r: say(f"{n:<15}{r['batch_us']:>10.3f}{r['stream_us']:>12.2f}")
         )
+        for line in format_paired(res["paired"], res["pair_samples"]):
+            say(line)
         say(f"{'recovery bank of 40 EKFs':<27}{res['recovery_bank_40_us']:>8.2f} µs per IMU sample (whole bank, batch)")
         say(f"{'rotor-failure detector':<27}{res['detector_us']:>8.2f} µs per IMU sample (batch, rotor speeds)")
     else:
@@ -565,7 +567,9 @@ def _add_benchmark(sub):
         "DIDO and Blackbird flights under --data (6-axis; heading offset removed). "
         "repoimu: roll/pitch/yaw and total RMS on the RepoIMU T-stick and pendulum "
         "trials under --data (9-axis; the IMU-to-Vicon body rotation and heading removed). "
-        "speed: microseconds per sample of every filter, batch and streaming. "
+        "speed: microseconds per sample of every filter, batch and streaming, and each quadest "
+        "filter's time against VQF's, offline VQF's and imufusion's, timed in interleaved pairs (the median "
+        "ratio and its spread). "
         "sim: the flying vehicle's closed loop (rotor loss, fault-tolerant "
         "controller, --filters names the estimator in the loop, default afckf) "
         "and the SE(3) circle flown by quadest and RotorPy (when installed). "

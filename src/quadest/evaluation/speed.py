@@ -75,6 +75,124 @@ def _peer_speed(name, rec) -> dict:
     return {"batch_us": us, "stream_us": stream}
 
 
+PAIRED_PEERS = ("vqf", "vqf-offline", "imufusion")
+"""The peers timed in pairs: those whose package runs compiled code. ahrs's filters are Python
+loops, 10-400 times slower than any quadest filter: pairs would add minutes and nothing their
+absolute figures do not show."""
+PAIRS = 10
+"""Pairs of runs behind each paired ratio (:func:`paired_ratio`)."""
+PAIR_SAMPLES = 10000
+"""Samples of the recording a paired batch run covers (the Python-loop peers take seconds on
+more), and per-sample calls a paired streaming run makes."""
+
+
+def paired_ratio(time_a, time_b, pairs: int = PAIRS) -> dict:
+    """``time_a() / time_b()`` over ``pairs`` pairs run interleaved, the order alternating (A B,
+    B A, ...) so that neither always runs first: on a shared machine both see the same load.
+    Returns the median ratio and its spread (10th / 90th percentiles, min, max)."""
+    ratios = []
+    for i in range(pairs):
+        if i % 2 == 0:
+            a, b = time_a(), time_b()
+        else:
+            b, a = time_b(), time_a()
+        ratios.append(a / b)
+    r = np.asarray(ratios)
+    p10, p90 = np.percentile(r, [10, 90])
+    return {
+        "median": float(np.median(r)),
+        "p10": float(p10),
+        "p90": float(p90),
+        "min": float(r.min()),
+        "max": float(r.max()),
+        "pairs": pairs,
+    }
+
+
+def _batch_seconds(name, rec):
+    """A timer of one batch run of the estimator ``name`` over ``rec`` (warmed up once)."""
+    make_filter(name).run(rec)
+
+    def once():
+        f = make_filter(name)
+        t0 = time.perf_counter()
+        f.run(rec)
+        return time.perf_counter() - t0
+
+    return once
+
+
+def _stream_seconds(name, rec):
+    """A timer of ``update`` called from Python on every row of ``rec``: quadest's filters
+    through :meth:`Estimator.update`, VQF through its own ``update`` (FLU rows converted
+    beforehand, the magnetometer where it has a sample: the package's call, no wrapper)."""
+    dt = float(np.median(np.diff(rec.t)))
+    if name == "vqf":
+        from vqf import VQF
+
+        g, a, m = (np.ascontiguousarray(vec_frd_to_flu(v)) for v in (rec.gyr, rec.acc, rec.mag))
+        rows = [(gk, ak, mk if np.isfinite(mk[0]) else None) for gk, ak, mk in zip(g, a, m)]
+
+        def once():
+            f = VQF(dt)
+            t0 = time.perf_counter()
+            for gk, ak, mk in rows:
+                if mk is None:
+                    f.update(gk, ak)
+                else:
+                    f.update(gk, ak, mk)
+            return time.perf_counter() - t0
+
+        return once
+    rows = list(zip(rec.gyr, rec.acc, rec.mag))
+
+    def once():
+        f = make_filter(name, declination=0.035)
+        f.update(*rows[0], dt=dt)  # the first call: the C extension takes over from here
+        t0 = time.perf_counter()
+        for g, a, m in rows:
+            f.update(g, a, m, dt=dt)
+        return time.perf_counter() - t0
+
+    return once
+
+
+def paired_speeds(names, rec, pairs: int = PAIRS) -> dict:
+    """Each quadest filter in ``names`` against each peer of :data:`PAIRED_PEERS` in ``names``, timed in interleaved
+    pairs on the same :data:`PAIR_SAMPLES` samples: ``{"filter/peer": {"batch": ratio,
+    "stream": ratio or None}}`` (:func:`paired_ratio`; below 1 the filter is faster). Streaming
+    is paired with VQF, the one peer whose package has a per-sample call in compiled code."""
+    part = rec.select(slice(0, min(len(rec), PAIR_SAMPLES)))
+    ours = [n for n in names if not estimator_class(n).peer]
+    peers = [n for n in names if n in PAIRED_PEERS]
+    out = {}
+    for a in ours:
+        for b in peers:
+            batch = paired_ratio(_batch_seconds(a, part), _batch_seconds(b, part), pairs)
+            stream = paired_ratio(_stream_seconds(a, part), _stream_seconds(b, part), pairs) if b == "vqf" else None
+            out[f"{a}/{b}"] = {"batch": batch, "stream": stream}
+    return out
+
+
+def format_paired(paired: dict, samples: int) -> list[str]:
+    """:func:`paired_speeds` as lines: each pair's median ratio and its 10-90 % spread."""
+    if not paired:
+        return []
+    pairs = next(iter(paired.values()))["batch"]["pairs"]
+    out = [
+        f"paired, filter time / peer time, interleaved over {pairs} pairs on {samples} samples "
+        "(median [10th-90th percentile]; below 1 the filter is faster):",
+        f"{'filter/peer':<24}{'batch':>24}{'streaming':>24}",
+    ]
+    for key, r in paired.items():
+        cells = [
+            "-" if v is None else f"{v['median']:.3g} [{v['p10']:.3g}-{v['p90']:.3g}]"
+            for v in (r["batch"], r["stream"])
+        ]
+        out.append(f"{key:<24}{cells[0]:>24}{cells[1]:>24}")
+    return out
+
+
 def time_detector(duration: float = 60.0, repeat: int = 3) -> float:
     """µs per sample of the rotor-failure detector's batch run (rotor speeds given) on a flown
     bebop2 circle, best of ``repeat`` after a warm-up."""
@@ -127,10 +245,11 @@ def time_bank(n_hypotheses: int = 40, duration: float = 20.0, seed: int = 1) -> 
     return 1e6 * min(once() for _ in range(3)) / (n - 1)
 
 
-def benchmark_speed(names, duration: float = 60.0, on_result=None) -> dict:
+def benchmark_speed(names, duration: float = 60.0, on_result=None, pairs: int = PAIRS) -> dict:
     """µs per sample of each estimator on ``duration`` s of a simulated damaged-rotor flight
-    (bebop2, seed 1): batch (best of 3 after a warm-up) and streaming; and the recovery bank
-    of 40 EKFs. ``on_result(name, figures)`` is called as each estimator finishes."""
+    (bebop2, seed 1): batch (best of 3 after a warm-up) and streaming; each quadest filter's
+    time against each peer's, in interleaved pairs (:func:`paired_speeds`); and the recovery
+    bank of 40 EKFs. ``on_result(name, figures)`` is called as each estimator finishes."""
     rec = simulate("damaged-rotor", "bebop2", seed=1, duration=duration)
     out = {}
     for name in names:
@@ -144,6 +263,8 @@ def benchmark_speed(names, duration: float = 60.0, on_result=None) -> dict:
     return {
         "samples": len(rec),
         "filters": out,
+        "paired": paired_speeds(names, rec, pairs),
+        "pair_samples": min(len(rec), PAIR_SAMPLES),
         "recovery_bank_40_us": time_bank(40),
         "detector_us": time_detector(duration),
         "streaming_in_c": STREAM_C,

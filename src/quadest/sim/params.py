@@ -23,7 +23,7 @@ else:  # Python 3.10
 
 from quadest.conventions import GRAVITY
 from quadest.data.inputs import check_regular
-from quadest.records import param
+from quadest.records import param, parse_text
 
 
 @dataclass(frozen=True)
@@ -386,16 +386,9 @@ def _jsonable(x):
 def _coerce(key, current, value):
     """Parse a string from the command line and check the type against the current value."""
     if isinstance(value, str):
-        text = value.strip()
-        if text.lower() in ("inf", "+inf", "infinity"):
-            value = math.inf
-        elif text.lower() in ("none", "null"):
-            value = None
-        else:
-            try:
-                value = json.loads(text.replace("(", "[").replace(")", "]"))
-            except json.JSONDecodeError:
-                raise ValueError(f"{key}: cannot read {value!r} as a number or list") from None
+        text, value = value, parse_text(value)
+        if isinstance(value, str):
+            raise ValueError(f"{key}: cannot read {text!r} as a number or list")
     if isinstance(value, list):
         value = _tuples(value)
     if value is None:
