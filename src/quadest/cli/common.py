@@ -49,12 +49,16 @@ def sim_config(preset, sets, toml=None, ideal: bool = False):
     then ``--set`` overrides (errors there are usage errors)."""
     cfg = build_config(preset, None, toml, ideal)
     overrides = parse_sets(sets)
-    if not overrides:
-        return cfg
+    return with_sets(cfg, overrides) if overrides else cfg
+
+
+def with_sets(cfg, overrides: dict):
+    """``cfg`` with ``--set``'s ``{"gyro.range": "8.73"}`` applied and checked; a bad key or
+    value is a usage error naming ``--set``."""
     try:
         return cfg.with_overrides(overrides).validate()
     except ValueError as exc:
-        raise CliError(str(exc)) from None
+        raise CliError(str(exc) if str(exc).startswith("--set") else f"--set: {exc}") from None
 
 
 def parse_seeds(text, option: str = "--seeds") -> Sequence[int]:

@@ -4,7 +4,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from quadest.cli.common import CliError, add_max_runs_arg, check_runs, parse_seeds, parse_sets, say, write_json
+from quadest.cli.common import (
+    CliError,
+    add_max_runs_arg,
+    check_runs,
+    parse_seeds,
+    parse_sets,
+    say,
+    with_sets,
+    write_json,
+)
 from quadest.control import Failure, FtcParams, SE3Params
 from quadest.data import save_recording, write_table
 from quadest.filters import ESTIMATORS, FILTERS, filter_name
@@ -122,11 +131,7 @@ def _check_sets_fly(groups: dict, scenario: str, controller: str | None) -> None
 
 def _sensor_config(preset: str, texts: dict):
     """The preset's sensors with ``--set``'s overrides, checked as simulate checks them."""
-    try:
-        return build_config(preset).with_overrides(texts).validate()
-    except ValueError as exc:
-        msg = str(exc)
-        raise CliError(msg if msg.startswith("--set") else f"--set: {msg}") from None
+    return with_sets(build_config(preset), texts)
 
 
 def fly_settings(args, sets: dict) -> dict:
