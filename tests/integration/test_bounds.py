@@ -294,3 +294,53 @@ def test_a_damaged_compiled_cache_is_rebuilt_once_with_a_note(tmp_path):
     assert len(notes) == 1 and "compiled again" in notes[0], err
     assert "damaged" not in once()
     assert all(f.stat().st_size > 10 for f in (tmp_path / "cache").rglob("*.nbi"))
+
+
+PEAK_PROBE = (
+    "import resource, sys\nfrom quadest.cli.main import main\nrc = main(sys.argv[1:])\n"
+    "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr)\nsys.exit(rc)\n"
+)
+
+
+def _report_peak_kb(path, out) -> int:
+    r = subprocess.run(
+        [sys.executable, "-c", PEAK_PROBE, "report", str(path), "-o", str(out)],
+        capture_output=True,
+        text=True,
+        env=_env(),
+        timeout=600,
+    )
+    assert r.returncode == 0, r.stderr
+    return int(r.stderr.strip().splitlines()[-1])
+
+
+def test_a_report_holds_the_recording_and_little_more(tmp_path):
+    """`quadest report`'s memory grows with the recording's rows by about what the recording
+    itself holds (112 bytes a row with its truth), not by its estimates and errors at every
+    sample (they are run, summed and decimated in blocks): from 2·10⁵ to 2·10⁶ rows at most
+    2.5 times the recording's own growth (before, about 7 times; docs/reliability.md has the
+    10⁷-row figures)."""
+    import numpy as np
+
+    from quadest.data import Recording, save_recording
+
+    def recording(n):
+        rng = np.random.default_rng(0)
+        path = tmp_path / f"r{n}.parquet"
+        save_recording(
+            Recording(
+                t=np.arange(n) / 500.0,
+                gyr=rng.normal(0, 0.01, (n, 3)),
+                acc=np.array([0.0, 0.0, -9.80665]) + rng.normal(0, 0.05, (n, 3)),
+                mag=np.array([20.0, 0.0, 40.0]) + rng.normal(0, 0.5, (n, 3)),
+                true_q=np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)),
+            ),
+            path,
+        )
+        return path
+
+    small, large = recording(200_000), recording(2_000_000)
+    _report_peak_kb(small, tmp_path / "warm.html")  # the estimators compiled (or loaded) once
+    grown = 1024 * (_report_peak_kb(large, tmp_path / "large.html") - _report_peak_kb(small, tmp_path / "small.html"))
+    held = 1_800_000 * 8 * (1 + 3 + 3 + 3 + 4)
+    assert grown <= 2.5 * held, f"{grown / 1e6:.0f} MB for {held / 1e6:.0f} MB more of recording"

@@ -510,20 +510,32 @@ def test_reader_options_that_do_not_apply_are_refused(tmp_path, kind):
     assert len(read_recording(path, instance=np.int64(0)))
 
 
-def test_an_unreadable_file_says_permission_denied(tmp_path, hover):
+def test_an_unreadable_file_says_permission_denied(tmp_path, hover, monkeypatch):
+    """A file its user may not read: "Permission denied", not "not quadest's own". Root, whom
+    permissions do not stop (this machine's CI), gets the system's refusal imitated: the file's
+    ``open`` raises the PermissionError a user gets."""
+    import builtins
+    import errno
     import os
 
     from quadest.data import save_recording
 
     path = save_recording(hover, tmp_path / "r.csv")
     os.chmod(path, 0)
+    if os.access(path, os.R_OK):  # root
+        real_open = builtins.open
+
+        def refusing_open(file, *args, **kwargs):
+            if isinstance(file, (str, os.PathLike)) and os.fspath(file) == str(path):
+                raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(path))
+            return real_open(file, *args, **kwargs)
+
+        monkeypatch.setattr(builtins, "open", refusing_open)
     try:
-        if os.access(path, os.R_OK):
-            pytest.skip("running as root: permissions do not stop reading")
         code, err = _cli("info", path)
-        assert code == 1 and "Permission denied" in err and "not quadest's own" not in err, err
     finally:
         os.chmod(path, 0o644)
+    assert code == 1 and "Permission denied" in err and "not quadest's own" not in err, err
 
 
 def test_file_names_that_are_not_utf8_are_read_and_written(tmp_path):

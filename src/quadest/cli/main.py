@@ -7,7 +7,6 @@ one library function and prints; the library does the work.
 from __future__ import annotations
 
 import os
-import signal
 import sys
 
 INTERRUPTED = 130
@@ -25,6 +24,7 @@ def interrupted() -> None:
 
 try:  # Ctrl-C while the command line loads (numpy, numba, ...: about a second) ends in one line too
     import argparse
+    import signal
     import traceback
     import warnings
     from pathlib import Path
@@ -33,6 +33,7 @@ try:  # Ctrl-C while the command line loads (numpy, numba, ...: about a second) 
     from quadest.cli import compare, data, fly, recordings, recovery, sim, sweep
     from quadest.cli.common import CliError
     from quadest.data.files import output_target, refuse_overwriting_inputs, replacing_read_only
+    from quadest.data.tables import use_system_allocator
     from quadest.errors import UsageError
     from quadest.extras import MissingExtra, need
 except KeyboardInterrupt:
@@ -192,6 +193,7 @@ def run_command(argv: list) -> int:
         check_outputs(args)
         check_extras(args)
         say_if_compiling(args)
+        use_system_allocator()
         with replacing_read_only(getattr(args, "force", False)):
             return args.func(args)
     except BrokenPipeError:  # output piped into a command that stopped reading (head)

@@ -37,30 +37,73 @@ def error_angles(q_est: ArrayLike, q_true: ArrayLike) -> dict:
     return {"total": total, "heading": heading, "inclination": inclination}
 
 
-def _rms(x):
-    return float(np.sqrt(np.mean(np.square(x)))) if len(x) else float("nan")
+SUM_ROWS = 1 << 18
+"""Rows per block where errors are summed: a long recording's errors are never held whole (a
+recording up to this length gives the figures of one pass, bit for bit)."""
+
+
+class ErrorSums:
+    """The sums behind :func:`summarize_errors`, fed block by block: per axis the count, mean and
+    squared deviations (combined as Chan et al. combine variances), the sum of squares and of
+    absolute values; the squares of total, heading and inclination errors."""
+
+    def __init__(self):
+        self.blocks = []  # (n, mean, var, sum of squares, sum of |e|) per block, per axis
+        self.angle_squares = {"total": 0.0, "heading": 0.0, "inclination": 0.0}
+
+    def add(self, q_est: ArrayLike, q_true: ArrayLike, mask: ArrayLike | None = None) -> None:
+        """Add the rows of ``mask`` (all when None) where both quaternions are finite."""
+        q_est, q_true = np.asarray(q_est, float), np.asarray(q_true, float)
+        ok = np.isfinite(q_true).all(axis=1) & np.isfinite(q_est).all(axis=1)
+        if mask is not None:
+            ok &= np.asarray(mask, bool)
+        if not ok.any():
+            return
+        e = np.degrees(euler_errors(q_est[ok], q_true[ok]))
+        self.blocks.append((int(ok.sum()), [_axis_sums(e[:, i]) for i in range(3)]))
+        for k, v in error_angles(q_est[ok], q_true[ok]).items():
+            self.angle_squares[k] += float(np.sum(np.square(np.degrees(v))))
+
+    def summary(self) -> dict:
+        """What :func:`summarize_errors` returns."""
+        n = sum(b[0] for b in self.blocks)
+        if not n:
+            raise ValueError("no samples with truth to evaluate")
+        axes = [self._axis([(b[0], *b[1][i]) for b in self.blocks], n) for i in range(3)]
+        return {
+            "samples": n,
+            "rms_deg": {a: float(np.sqrt(axes[i][1] / n)) for i, a in enumerate(AXES)},
+            "var_deg2": {a: axes[i][0] for i, a in enumerate(AXES)},
+            "mae_deg": {a: float(axes[i][2] / n) for i, a in enumerate(AXES)},
+            **{f"{k}_rmse_deg": float(np.sqrt(v / n)) for k, v in self.angle_squares.items()},
+        }
+
+    @staticmethod
+    def _axis(blocks, n) -> tuple[float, float, float]:
+        """One axis's variance, sum of squares and sum of magnitudes over its blocks."""
+        if len(blocks) == 1:
+            _, _, var, sq, ab = blocks[0]
+            return float(var), float(sq), float(ab)
+        mean = sum(b * m for b, m, *_ in blocks) / n
+        m2 = sum(b * v + b * (m - mean) ** 2 for b, m, v, *_ in blocks)
+        return float(m2 / n), float(sum(b[3] for b in blocks)), float(sum(b[4] for b in blocks))
+
+
+def _axis_sums(e) -> tuple:
+    """One axis's mean, variance, sum of squares and sum of magnitudes."""
+    return np.mean(e), np.var(e), np.sum(np.square(e)), np.sum(np.abs(e))
 
 
 def summarize_errors(q_est: ArrayLike, q_true: ArrayLike, mask: ArrayLike | None = None) -> dict:
     """RMS, variance and mean absolute value of the per-axis errors (degrees, degrees²) and the
-    RMS of total, heading and inclination errors, over the rows in ``mask`` with truth."""
+    RMS of total, heading and inclination errors, over the rows in ``mask`` with truth (summed
+    by blocks of :data:`SUM_ROWS`: :class:`ErrorSums`)."""
     q_est, q_true = np.asarray(q_est, float), np.asarray(q_true, float)
-    ok = np.isfinite(q_true).all(axis=1) & np.isfinite(q_est).all(axis=1)
-    if mask is not None:
-        ok &= np.asarray(mask, bool)
-    if not ok.any():
-        raise ValueError("no samples with truth to evaluate")
-    e = np.degrees(euler_errors(q_est[ok], q_true[ok]))
-    ang = {k: np.degrees(v) for k, v in error_angles(q_est[ok], q_true[ok]).items()}
-    return {
-        "samples": int(ok.sum()),
-        "rms_deg": {a: _rms(e[:, i]) for i, a in enumerate(AXES)},
-        "var_deg2": {a: float(np.var(e[:, i])) for i, a in enumerate(AXES)},
-        "mae_deg": {a: float(np.mean(np.abs(e[:, i]))) for i, a in enumerate(AXES)},
-        "total_rmse_deg": _rms(ang["total"]),
-        "heading_rmse_deg": _rms(ang["heading"]),
-        "inclination_rmse_deg": _rms(ang["inclination"]),
-    }
+    mask = None if mask is None else np.asarray(mask, bool)
+    sums = ErrorSums()
+    for a in range(0, max(len(q_est), 1), SUM_ROWS):
+        sums.add(q_est[a : a + SUM_ROWS], q_true[a : a + SUM_ROWS], None if mask is None else mask[a : a + SUM_ROWS])
+    return sums.summary()
 
 
 def nees(q_est, q_true, var_tilt, var_heading, mask=None) -> float:

@@ -18,7 +18,7 @@ import numpy as np
 from quadest.data.recording import Recording
 from quadest.errors import UsageError
 from quadest.evaluation.align import Alignment, fit_alignment
-from quadest.evaluation.metrics import nees, summarize_errors
+from quadest.evaluation.metrics import SUM_ROWS, nees, summarize_errors
 from quadest.filters import ESTIMATORS, FILTERS, FilterResult, available_peers, estimator_class, filter_name
 
 
@@ -59,6 +59,28 @@ def estimate(
     check_params(cls.name, params)
     decl = rec.declination if declination is None else declination
     return cls(declination=decl, **params).run(rec)
+
+
+ESTIMATE_ROWS = SUM_ROWS
+"""Rows per piece where :func:`estimate_pieces` runs a quadest filter on a long recording (the
+blocks its errors are summed by)."""
+
+
+def estimate_pieces(rec: Recording, name: str, params: dict | None = None, rows: int | None = None):
+    """:func:`estimate` piece by piece: ``(first row, FilterResult of the piece)``, a quadest
+    filter resuming from its state at each piece (a recording up to ``rows`` long is one piece:
+    :func:`estimate` itself; default :data:`ESTIMATE_ROWS`); a peer runs whole. Its outputs are
+    never held whole."""
+    cls, params, rows = estimator_class(name), params or {}, rows or ESTIMATE_ROWS
+    if cls.peer or len(rec) <= rows:
+        yield 0, estimate(rec, name, params)
+        return
+    check_params(cls.name, params)
+    est = cls(declination=rec.declination, **params)
+    for a in range(0, len(rec), rows):
+        b = a + rows
+        mag = None if rec.mag is None else rec.mag[a:b]
+        yield a, est.run(t=rec.t[a:b], gyr=rec.gyr[a:b], acc=rec.acc[a:b], mag=mag)
 
 
 def filter_notes(res: FilterResult) -> list[str]:
@@ -114,8 +136,10 @@ def evaluation_mask(rec: Recording, t_from: float | None = None) -> np.ndarray:
 
 def first_mag_time(rec: Recording) -> float:
     """The time of the first magnetometer sample (the first sample's time without one)."""
-    rows = np.flatnonzero(np.isfinite(rec.mag[:, 0])) if rec.has_mag else []
-    return float(rec.t[rows[0]]) if len(rows) else float(rec.t[0])
+    if rec.mag is None:
+        return float(rec.t[0])
+    finite = np.isfinite(rec.mag[:, 0])
+    return float(rec.t[int(np.argmax(finite))]) if finite.any() else float(rec.t[0])
 
 
 def alignment_of(rec: Recording, nav: str | None = None, body: bool | None = None) -> tuple[str, bool]:

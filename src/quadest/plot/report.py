@@ -20,29 +20,11 @@ from bokeh.resources import INLINE
 from scipy.signal import spectrogram
 
 from quadest import __version__
+from quadest.data.checks import median_interval, row_norms
 from quadest.data.files import write_bytes
+from quadest.evaluation.inspect import decimate
 
-MAX_POINTS = 4000  # per drawn line (chosen: smooth to pan in a browser; the extremes are kept)
 AXES = ("roll", "pitch", "yaw")
-
-
-def decimate(t, y, max_points: int = MAX_POINTS):
-    """At most about ``max_points`` points of ``(t, y)`` for display: per bucket its first,
-    smallest and largest sample (a spike survives), in time order."""
-    t, y = np.asarray(t, float), np.asarray(y, float)
-    n = len(t)
-    if n <= max_points:
-        return t, y
-    size = int(np.ceil(3 * n / max_points))
-    keep = []
-    for a in range(0, n, size):
-        seg = y[a : a + size]
-        idx = {a}
-        if np.isfinite(seg).any():
-            idx |= {a + int(np.nanargmin(seg)), a + int(np.nanargmax(seg))}
-        keep += sorted(idx)
-    keep = np.asarray(keep)
-    return t[keep], y[keep]
 
 
 def _figure(title, x_range, y_label, name, height=230):
@@ -63,10 +45,11 @@ def _figure(title, x_range, y_label, name, height=230):
 
 
 def _lines(f, t, series: dict, dashed=(), colours: dict | None = None):
-    """One line per series, coloured by ``colours[label]`` (one colour per estimator across a
-    page) or in order; the legend beside the plot, not over the data."""
+    """One line per series (samples at ``t``, or display points ``(t, y)`` already decimated),
+    coloured by ``colours[label]`` (one colour per estimator across a page) or in order; the
+    legend beside the plot, not over the data."""
     for i, (label, y) in enumerate(series.items()):
-        tt, yy = decimate(t, y)
+        tt, yy = y if isinstance(y, tuple) else decimate(t, y)
         f.line(
             tt,
             yy,
@@ -183,7 +166,7 @@ def report_layout(rec, summ: dict, att: dict, title: str):
     )
     for i, a in enumerate(AXES):
         f = _figure(f"{a} [deg]", xr, "deg", f"attitude-{a}")
-        _lines(f, t, {k: v[:, i] for k, v in euler.items()}, dashed=(truth_label,), colours=colours)
+        _lines(f, t, {k: v[i] for k, v in euler.items()}, dashed=(truth_label,), colours=colours)
         parts.append(f)
     if att["scores"]:
         label = "truth" if truth == "true_q" else "the autopilot's estimate (not an independent truth)"
@@ -208,7 +191,7 @@ def report_layout(rec, summ: dict, att: dict, title: str):
         )
         for i, a in enumerate(AXES):
             f = _figure(f"{a} error [deg]", xr, "deg", f"error-{a}")
-            _lines(f, t, {k: v[:, i] for k, v in att["error_deg"].items()}, colours=colours)
+            _lines(f, t, {k: v[i] for k, v in att["error_deg"].items()}, colours=colours)
             parts.append(f)
     parts += _failure_sections(rec, att, xr)
     parts.append(Div(text=STYLE + "<h2>Sensors</h2>"))
@@ -218,13 +201,12 @@ def report_layout(rec, summ: dict, att: dict, title: str):
         parts.append(f)
     if att.get("mag") is not None:
         norm, dip = att["mag"]
-        rows = np.isfinite(norm)
         for label, y, unit, nm in (
             ("magnetometer norm", norm, rec.meta.get("units", {}).get("mag", ""), "mag-norm"),
             ("magnetic dip below the horizontal", dip, "deg", "mag-dip"),
         ):
             f = _figure(f"{label} [{unit}]", xr, unit, nm, height=200)
-            _lines(f, t[rows], {label: y[rows]})
+            _lines(f, t, {label: y})
             parts.append(f)
     if att.get("rotors") is not None:
         tr, speeds = att["rotors"]
@@ -292,17 +274,14 @@ def _failure_sections(rec, att, xr) -> list:
     return out
 
 
+SPECTROGRAM_COLUMNS = 800  # at most about this many columns drawn (chosen)
+
+
 def _spectrogram(rec, xr):
     """The accelerometer norm's spectrogram (vibration, the spin's frequency), in dB."""
     t = rec.t
-    fs = 1.0 / float(np.median(np.diff(t)))
-    x = np.linalg.norm(rec.acc, axis=1)
-    x = np.nan_to_num(x - np.nanmean(x))
-    nper = int(min(256, max(16, len(x) // 8)))
-    fr, tt, S = spectrogram(x, fs=fs, nperseg=nper, noverlap=nper // 2)
-    S = 10 * np.log10(S + 1e-12)
-    step = max(1, S.shape[1] // 800)  # at most about 800 columns drawn
-    S = S[:, ::step]
+    fs = 1.0 / median_interval(t)
+    S = 10 * np.log10(_spectrogram_columns(row_norms(rec.acc), fs) + 1e-12)
     f = _figure("accelerometer norm: spectrogram [dB]", xr, "frequency [Hz]", "spectrogram", height=260)
     f.image(
         image=[S],
@@ -316,6 +295,20 @@ def _spectrogram(rec, xr):
     )
     f.y_range = Range1d(0.0, fs / 2)
     return f
+
+
+def _spectrogram_columns(x, fs: float) -> np.ndarray:
+    """The power spectral density of the segments drawn (half-overlapping, of at most 256
+    samples; every ``step``-th of them, at most about :data:`SPECTROGRAM_COLUMNS`), computed on
+    those segments alone: ``(frequencies, columns)``. ``x`` is overwritten."""
+    x -= np.nanmean(x)
+    x = np.nan_to_num(x, copy=False)
+    nper = int(min(256, max(16, len(x) // 8)))
+    hop = nper - nper // 2
+    segments = (len(x) - nper // 2) // hop
+    step = max(1, segments // SPECTROGRAM_COLUMNS)
+    drawn = np.stack([x[j * hop : j * hop + nper] for j in range(0, segments, step)])
+    return spectrogram(drawn, fs=fs, nperseg=nper, noverlap=0, axis=-1)[2][:, :, 0].T
 
 
 def write_report(rec, summ: dict, att: dict, path, title: str) -> Path:
