@@ -544,7 +544,8 @@ def results_speed() -> str:
             if target is None
             else (f"{target:g}" + ("" if v["batch_us"] <= target else f" (missed by {v['batch_us'] - target:.2f})"))
         )
-        rows.append([n, f"{v['batch_us']:.2f}", met, f"{v['stream_us']:.2f}"])
+        stream = "-" if v["stream_us"] is None else f"{v['stream_us']:.2f}"
+        rows.append([n, f"{v['batch_us']:.2f}", met, stream])
     rows.append(["recovery bank, 40 EKFs", f"{speed['recovery_bank_40_us']:.1f}", "20", "-"])
     return (
         _table(["filter", "batch", "batch target", "streaming"], rows)
