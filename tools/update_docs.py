@@ -31,12 +31,17 @@ def simulator_params() -> str:
 def estimator_params() -> str:
     from quadest.filters import FILTERS
 
-    out = []
+    out, seen = [], {}
     for name, cls in FILTERS.items():
-        out.append(
-            f"**`{name}`**\n\n| parameter | default | unit | bounds | meaning | source |\n|---|---|---|---|---|---|"
-        )
-        for d in cls.Params.describe():
+        base = next((seen[b] for b in cls.Params.__mro__[1:] if b in seen), None)
+        known = {d["name"] for d in base[1].describe()} if base else set()
+        if len(known) == len(cls.Params.describe()):  # the same parameters under another name: all shown
+            base, known = None, set()
+        seen[cls.Params] = (name, cls.Params)
+        also = f" (and every parameter of `{base[0]}`)" if base else ""
+        out.append(f"**`{name}`**{also}\n\n| parameter | default | unit | bounds | meaning | source |")
+        out.append("|---|---|---|---|---|---|")
+        for d in (d for d in cls.Params.describe() if d["name"] not in known):
             out.append(
                 f"| `{d['name']}` | {json.dumps(d['default'], default=float)} | {d['unit']} | "
                 f"{d.get('bounds', '-')} | {d['doc']} | {d['source']} |"

@@ -10,6 +10,7 @@ heading is the fused passes'."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING, NoReturn
 
 import numpy as np
@@ -20,9 +21,9 @@ from quadest.data.checks import GAP_FACTOR, GAP_MIN_S
 from quadest.errors import UsageError
 from quadest.filters.base import FilterResult, _nominal_interval, sample_intervals, sample_times
 from quadest.filters.common import finite3
-from quadest.filters.robust.params import UNKNOWN_HEADING_VAR
+from quadest.filters.robust.params import UNKNOWN_HEADING_VAR, RobustParams
 from quadest.filters.robust.step import Robust
-from quadest.rotation import quat_conj, quat_mul
+from quadest.records import param
 from quadest.rotation.kernels import FASTMATH, normalize_s, qmul_s, rotate_s
 
 if TYPE_CHECKING:
@@ -63,37 +64,85 @@ def _exp_s(a, b, c):
     return math.cos(0.5 * th), a * s, b * s, c * s
 
 
-@njit(cache=True, fastmath=FASTMATH)
-def fuse_passes(qf, vtf, vhf, qb, vtb, vhb, q_out, vt_out, vh_out):
-    """Eq O1, per sample: ``e = Log(q_b ⊗ q_f⁻¹)`` (navigation frame), ``q = Exp(W e) ⊗ q_f`` with
-    ``W = diag(w_t, w_t, w_h)``, ``w = P_f / (P_f + P_b)``, and the fused variance
-    ``P = P_f P_b / (P_f + P_b)``, for the tilt (about north and east) and the heading (down)."""
-    for k in range(len(qf)):
-        fw, fx, fy, fz = qf[k, 0], qf[k, 1], qf[k, 2], qf[k, 3]
-        rw, rx, ry, rz = qmul_s(qb[k, 0], qb[k, 1], qb[k, 2], qb[k, 3], fw, -fx, -fy, -fz)
-        e0, e1, e2 = _log_s(rw, rx, ry, rz)
-        st, sh = vtf[k] + vtb[k], vhf[k] + vhb[k]
-        wt = vtf[k] / st if st > 0.0 else 0.5
-        wh = vhf[k] / sh if sh > 0.0 else 0.5
-        dw, dx, dy, dz = _exp_s(wt * e0, wt * e1, wh * e2)
-        q_out[k, 0], q_out[k, 1], q_out[k, 2], q_out[k, 3] = qmul_s(dw, dx, dy, dz, fw, fx, fy, fz)
-        vt_out[k] = vtf[k] * vtb[k] / st if st > 0.0 else 0.0
-        vh_out[k] = vhf[k] * vhb[k] / sh if sh > 0.0 else 0.0
+def _pass_columns(res: FilterResult) -> np.ndarray:
+    """A pass's diagnostics as one array, in robust's order (the batch run's own diagnostics array when
+    its columns are views of it in robust's order: no copy)."""
+    whole = res.diag[Robust.diag_names[0]].base
+    if whole is not None and whole.shape == (len(res.t), len(Robust.diag_names)):
+        return whole
+    return np.column_stack([res.diag[c] for c in Robust.diag_names])
+
+
+_COL = {name: i for i, name in enumerate(Robust.diag_names)}
+VT, VH, CLIP, BIAS, VBIAS = (
+    _COL["var_tilt"],
+    _COL["var_heading"],
+    _COL["clipped_axes"],
+    _COL["bias_x"],
+    _COL["var_bias_x"],
+)
+"""The columns of a pass's diagnostics the fusion reads (bias and its variance: x, y, z from there)."""
+
+
+@njit(cache=True, inline="always")
+def _share(pf, pb):
+    """``P_f / (P_f + P_b)``: the backward pass's weight (a half where both are zero)."""
+    return pf / (pf + pb) if pf + pb > 0.0 else 0.5
+
+
+@njit(cache=True, inline="always")
+def _fuse_attitude(qf, qb, wt, wh):
+    """Eq O1: ``Exp(W Log(q_b ⊗ q_f⁻¹)) ⊗ q_f``, ``W = diag(w_t, w_t, w_h)`` in the navigation frame."""
+    fw, fx, fy, fz = qf
+    rw, rx, ry, rz = qmul_s(qb[0], qb[1], qb[2], qb[3], fw, -fx, -fy, -fz)
+    e0, e1, e2 = _log_s(rw, rx, ry, rz)
+    dw, dx, dy, dz = _exp_s(wt * e0, wt * e1, wh * e2)
+    return qmul_s(dw, dx, dy, dz, fw, fx, fy, fz)
+
+
+@njit(cache=True, inline="always")
+def _rate_between(q0, q1, h):
+    """The body rate taking ``q0`` to ``q1`` in ``h`` seconds: ``Log(q0⁻¹ ⊗ q1) / h``."""
+    rw, rx, ry, rz = qmul_s(q0[0], -q0[1], -q0[2], -q0[3], q1[0], q1[1], q1[2], q1[3])
+    e0, e1, e2 = _log_s(rw, rx, ry, rz)
+    return e0 / h, e1 / h, e2 / h
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def strapdown_forces(dt, gyr, acc, bias, q_ib, f_i):
-    """The strapdown ``q_Ib`` with the smoothed bias (item 1) and the specific force in I,
-    ``f_I = R(q_Ib) f``, for every sample; an unusable sample (its interval or a value not
-    finite) holds both."""
+def fuse_and_strapdown(qf, df, qb, db, yaw, dt, gyr, acc, gap, q_out, d_out, q_ib, f_i):
+    """Per sample (``df``, ``db``: the passes' diagnostics, robust's; the backward pass in its
+    own, reversed order, its heading turned by ``yaw``): eq O1, the attitudes fused, and the
+    fused variances ``P = P_f P_b / (P_f + P_b)`` (tilt and heading); eq O2, the biases fused
+    by theirs (the reversed gyro's bias negated); ``d_out`` = bias x/y/z, var_tilt,
+    var_heading, weight_tilt, weight_heading. Then the strapdown ``q_Ib`` with the smoothed bias
+    (from the identity again after a gap longer than ``gap``; a clipped sample's rate from the
+    fused attitude, whose passes took it from the field, eq R4) and ``f_I = R(q_Ib) f``; an
+    unusable sample holds both."""
+    n = len(dt)
+    cz, sz = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
     gw, gx, gy, gz = 1.0, 0.0, 0.0, 0.0
     a0, a1, a2 = 0.0, 0.0, 0.0
-    for k in range(len(dt)):
+    for k in range(n):
+        j = n - 1 - k
+        qbk = qmul_s(cz, 0.0, 0.0, sz, qb[j, 0], qb[j, 1], qb[j, 2], qb[j, 3])
+        wt, wh = _share(df[k, VT], db[j, VT]), _share(df[k, VH], db[j, VH])
+        q_out[k, 0], q_out[k, 1], q_out[k, 2], q_out[k, 3] = _fuse_attitude(
+            (qf[k, 0], qf[k, 1], qf[k, 2], qf[k, 3]), qbk, wt, wh
+        )
+        for i in range(3):
+            w = _share(df[k, VBIAS + i], db[j, VBIAS + i])
+            d_out[k, i] = (1.0 - w) * df[k, BIAS + i] - w * db[j, BIAS + i]
+        d_out[k, 3], d_out[k, 4] = (1.0 - wt) * df[k, VT], (1.0 - wh) * df[k, VH]  # = P_f P_b / (P_f + P_b)
+        d_out[k, 5], d_out[k, 6] = wt, wh
         usable = dt[k] > 0.0 and finite3(gyr[k]) and finite3(acc[k])
         if usable:
             a0, a1, a2 = acc[k, 0], acc[k, 1], acc[k, 2]
-        if k > 0 and usable:
-            u0, u1, u2 = gyr[k, 0] - bias[k, 0], gyr[k, 1] - bias[k, 1], gyr[k, 2] - bias[k, 2]
+        if dt[k] > gap:
+            gw, gx, gy, gz = 1.0, 0.0, 0.0, 0.0
+        elif k > 0 and usable:
+            u0, u1, u2 = gyr[k, 0] - d_out[k, 0], gyr[k, 1] - d_out[k, 1], gyr[k, 2] - d_out[k, 2]
+            if df[k, CLIP] > 0.0 or db[j, CLIP] > 0.0:
+                u0, u1, u2 = _rate_between(q_out[k - 1], q_out[k], dt[k])
             dw, dx, dy, dz = _exp_s(u0 * dt[k], u1 * dt[k], u2 * dt[k])
             aw, ax, ay, az = qmul_s(gw, gx, gy, gz, dw, dx, dy, dz)
             gw, gx, gy, gz = normalize_s(aw, ax, ay, az)
@@ -102,35 +151,44 @@ def strapdown_forces(dt, gyr, acc, bias, q_ib, f_i):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def zero_phase_lowpass(x, dt, tau, out):
-    """Each column of ``x`` low-passed forward and then backward by robust's Butterworth
+def zero_phase_lowpass(x, h, tau, out):
+    """Each of the three columns of ``x`` low-passed forward and then backward by robust's Butterworth
     (cut-off ``√2/(2π τ)``): no delay, the magnitude squared; each direction starts in steady
-    state at the mean of its first ``τ`` of input."""
+    state at the mean of its first ``τ`` of input (``h``: the sampling interval)."""
     n = len(x)
-    h = np.median(dt[1:]) if n > 1 else 1.0
     fc = math.sqrt(2.0) / (2.0 * math.pi * tau)
     kk = math.tan(math.pi * min(fc * h, 0.49))
     nrm = 1.0 / (1.0 + math.sqrt(2.0) * kk + kk * kk)
     b0, a1, a2 = kk * kk * nrm, 2.0 * (kk * kk - 1.0) * nrm, (1.0 - math.sqrt(2.0) * kk + kk * kk) * nrm
     m = max(1, min(n, int(tau / h)))
-    for j in range(x.shape[1]):
-        for direction in range(2):
-            src = x[:, j] if direction == 0 else out[:, j]
-            order = range(n) if direction == 0 else range(n - 1, -1, -1)
-            y0 = src[:m].mean() if direction == 0 else src[n - m :].mean()
-            s1, s2 = y0 - b0 * y0, b0 * y0 - a2 * y0
-            for k in order:
-                v = src[k]
-                y = b0 * v + s1
-                s1 = 2.0 * b0 * v - a1 * y + s2
-                s2 = b0 * v - a2 * y
-                out[k, j] = y
+    s1, s2 = np.empty(3), np.empty(3)
+    for j in range(3):  # forward, from steady state at the mean of the first τ
+        y0 = x[:m, j].mean()
+        s1[j], s2[j] = y0 - b0 * y0, b0 * y0 - a2 * y0
+    for k in range(n):
+        for j in range(3):
+            v = x[k, j]
+            y = b0 * v + s1[j]
+            s1[j] = 2.0 * b0 * v - a1 * y + s2[j]
+            s2[j] = b0 * v - a2 * y
+            out[k, j] = y
+    for j in range(3):  # backward over the forward output, from the mean of its last τ
+        y0 = out[n - m :, j].mean()
+        s1[j], s2[j] = y0 - b0 * y0, b0 * y0 - a2 * y0
+    for k in range(n - 1, -1, -1):
+        for j in range(3):
+            v = out[k, j]
+            y = b0 * v + s1[j]
+            s1[j] = 2.0 * b0 * v - a1 * y + s2[j]
+            s2[j] = b0 * v - a2 * y
+            out[k, j] = y
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def inclination(q_ib, y, q_eb):
-    """Eq R1 with the zero-phase low-passed force ``y``: ``q_EI ← q_c ⊗ q_EI`` at every sample,
-    and ``q_Eb = q_EI ⊗ q_Ib``."""
+def tilt_without_delay(q_ib, y, q_h, out):
+    """Eq O3: eq R1 with the zero-phase low-passed force ``y`` (``q_EI ← q_c ⊗ q_EI`` at every
+    sample, ``q_Eb = q_EI ⊗ q_Ib``), and ``Rz(δ) ⊗ q_Eb`` with ``δ`` the twist about down of
+    ``q_h ⊗ q_Eb⁻¹``: the tilt made here, the heading of ``q_h``."""
     iw, ix, iy, iz = 1.0, 0.0, 0.0, 0.0
     for k in range(len(y)):
         v0, v1, v2 = rotate_s(iw, ix, iy, iz, -y[k, 0], -y[k, 1], -y[k, 2])
@@ -140,23 +198,11 @@ def inclination(q_ib, y, q_eb):
             cx, cy = (0.5 * v1 / vn / cw, -0.5 * v0 / vn / cw) if cw > 1e-6 else (1.0, 0.0)
             aw, ax, ay, az = qmul_s(cw, cx, cy, 0.0, iw, ix, iy, iz)
             iw, ix, iy, iz = normalize_s(aw, ax, ay, az)
-        q_eb[k, 0], q_eb[k, 1], q_eb[k, 2], q_eb[k, 3] = qmul_s(
-            iw, ix, iy, iz, q_ib[k, 0], q_ib[k, 1], q_ib[k, 2], q_ib[k, 3]
-        )
-
-
-@njit(cache=True, fastmath=FASTMATH)
-def with_heading_of(q_eb, q_h, out):
-    """``Rz(δ) ⊗ q_Eb`` with ``δ`` the rotation about down that takes ``q_Eb``'s heading onto
-    ``q_h``'s (the twist about down of ``q_h ⊗ q_Eb⁻¹``): the tilt of the one, the heading of
-    the other."""
-    for k in range(len(q_eb)):
-        ew, ex, ey, ez = q_eb[k, 0], q_eb[k, 1], q_eb[k, 2], q_eb[k, 3]
+        ew, ex, ey, ez = qmul_s(iw, ix, iy, iz, q_ib[k, 0], q_ib[k, 1], q_ib[k, 2], q_ib[k, 3])
         rw, rx, ry, rz = qmul_s(q_h[k, 0], q_h[k, 1], q_h[k, 2], q_h[k, 3], ew, -ex, -ey, -ez)
-        d = 2.0 * math.atan2(rz, rw)
-        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = qmul_s(
-            math.cos(0.5 * d), 0.0, 0.0, math.sin(0.5 * d), ew, ex, ey, ez
-        )
+        tn = math.sqrt(rw * rw + rz * rz)  # the twist about down: [r_w, 0, 0, r_z] / its norm
+        tw, tz = (rw / tn, rz / tn) if tn > 0.0 else (1.0, 0.0)
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = qmul_s(tw, 0.0, 0.0, tz, ew, ex, ey, ez)
 
 
 def heading_offset(qf, qb) -> float:
@@ -170,15 +216,17 @@ def heading_offset(qf, qb) -> float:
     return float(np.arctan2(np.sin(ang[ok]).sum(), np.cos(ang[ok]).sum())) if ok.any() else 0.0
 
 
-def turned(q, yaw: float) -> np.ndarray:
-    """``Rz(yaw) ⊗ q`` for each row."""
-    c, s = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
-    out = np.empty_like(q)
-    out[:, 0] = c * q[:, 0] - s * q[:, 3]
-    out[:, 1] = c * q[:, 1] - s * q[:, 2]
-    out[:, 2] = c * q[:, 2] + s * q[:, 1]
-    out[:, 3] = c * q[:, 3] + s * q[:, 0]
-    return out
+@dataclass(frozen=True)
+class RobustOfflineParams(RobustParams):
+    """robust's parameters (both passes run robust with them), and the offline stage's."""
+
+    zero_phase_tilt: bool = param(
+        True,
+        "-",
+        "make the tilt again from the specific force low-passed forward and backward (eq O3); "
+        "off: the fused passes' tilt",
+        "quadest: the fused passes' tilt keeps each pass's low-pass delay (docs/estimators.md, robust-offline)",
+    )
 
 
 class RobustOffline(Robust):
@@ -188,6 +236,7 @@ class RobustOffline(Robust):
     robust's), and ``weight_tilt`` / ``weight_heading``, the backward pass's share."""
 
     name = "robust-offline"
+    Params = RobustOfflineParams
     streaming = False
     acausal = True
     stream = None
@@ -203,7 +252,9 @@ class RobustOffline(Robust):
         raise UsageError(f"{self.name} is acausal: it cannot fly in the loop (robust can)")
 
     def _pass(self) -> Robust:
-        return Robust(self.params, declination=self.declination, max_gap_s=self.max_gap_s)
+        own = {f.name for f in fields(RobustOfflineParams)} - {f.name for f in fields(RobustParams)}
+        values = {k: v for k, v in self.params.values().items() if k not in own}
+        return Robust(RobustParams(**values), declination=self.declination, max_gap_s=self.max_gap_s)
 
     def run(
         self,
@@ -229,77 +280,40 @@ class RobustOffline(Robust):
     ) -> tuple[FilterResult, FilterResult]:
         """The forward pass and the backward one: ``robust`` on the recording and on
         :func:`reversed_recording` (its rows in the reversed order)."""
-        fwd = self._pass()
-        if self._q0 is not None:
-            fwd.reset(self._q0)
+        one = self._pass()  # built and checked once: the backward pass first, then from the start again
         tr, gr, ar, mr = reversed_recording(t, gyr, acc, mag)
-        return fwd.run(t=t, gyr=gyr, acc=acc, mag=mag), self._pass().run(t=tr, gyr=gr, acc=ar, mag=mr)
+        b = one.run(t=tr, gyr=gr, acc=ar, mag=mr)
+        one.reset(self._q0)
+        return one.run(t=t, gyr=gyr, acc=acc, mag=mag), b
 
     def _fused(self, t, gyr, acc, f: FilterResult, b: FilterResult) -> FilterResult:
         """The forward pass ``f`` and the backward pass ``b`` (in its own reversed order) fused
         (eqs O1, O2), the tilt made again without delay (eq O3)."""
         n = len(t)
-        qb = np.ascontiguousarray(b.q[::-1])
-        vtb, vhb = (np.ascontiguousarray(b.diag[k][::-1]) for k in ("var_tilt", "var_heading"))
-        vtf, vhf = f.diag["var_tilt"], f.diag["var_heading"]
-        if n and ((vhf >= UNKNOWN_HEADING_VAR) & (vhb >= UNKNOWN_HEADING_VAR)).all():
-            qb = turned(qb, heading_offset(f.q, qb))  # neither knows north: the backward heading is its own
-        q, vt, vh = np.empty((n, 4)), np.empty(n), np.empty(n)
-        fuse_passes(np.ascontiguousarray(f.q), vtf, vhf, qb, vtb, vhb, q, vt, vh)
-        bias = np.empty((n, 3))
-        for i, a in enumerate("xyz"):
-            pf, pb = f.diag[f"var_bias_{a}"], b.diag[f"var_bias_{a}"][::-1]
-            w = _share(pf, pb)
-            bias[:, i] = (1 - w) * f.diag[f"bias_{a}"] - w * b.diag[f"bias_{a}"][::-1]  # the reversed gyro's is negated
-        clipped = (f.diag["clipped_axes"] > 0) | (b.diag["clipped_axes"][::-1] > 0)
-        gyr = rates_where_clipped(t, np.array(gyr, dtype=np.float64), q, bias, clipped)
-        q = self._without_delay(t, gyr, np.ascontiguousarray(acc, dtype=np.float64), bias, q)
-        diag = dict(zip(self.diag_names, (*bias.T, vt, vh, _share(vtf, vtb), _share(vhf, vhb))))
+        df, db = _pass_columns(f), _pass_columns(b)
+        yaw = 0.0
+        if n and (df[:, VH] >= UNKNOWN_HEADING_VAR).all() and (db[:, VH] >= UNKNOWN_HEADING_VAR).all():
+            yaw = heading_offset(f.q, b.q[::-1])  # neither knows north: the backward heading is its own
+        dt = sample_intervals(t)
+        h = _nominal_interval(dt) or 1.0
+        gap = self.max_gap_s or max(GAP_FACTOR * h, GAP_MIN_S)
+        q, d = np.empty((n, 4)), np.empty((n, len(self.diag_names)))
+        q_ib, f_i = np.empty((n, 4)), np.empty((n, 3))
+        gyr, acc = (np.ascontiguousarray(v, dtype=np.float64) for v in (gyr, acc))
+        fuse_and_strapdown(np.ascontiguousarray(f.q), df, b.q, db, yaw, dt, gyr, acc, gap, q, d, q_ib, f_i)
+        if self.params.zero_phase_tilt:
+            bounds = [0, *np.flatnonzero(dt > gap).tolist(), n]
+            y = np.empty((n, 3))
+            for a, z in zip(bounds[:-1], bounds[1:]):  # each stretch between gaps
+                zero_phase_lowpass(f_i[a:z], h, self.params.tau_acc, y[a:z])
+                tilt_without_delay(q_ib[a:z], y[a:z], q[a:z], q[a:z])
         return FilterResult(
             self.name,
             np.asarray(t, dtype=np.float64),
             q,
-            diag,
+            {name: d[:, i] for i, name in enumerate(self.diag_names)},
             self.params,
             f.skipped,
             f.restarts,
             mag_skipped=f.mag_skipped,
         )
-
-    def _without_delay(self, t, gyr, acc, bias, q_fused) -> np.ndarray:
-        """Eq O3 over each stretch between gaps: the tilt of the strapdown corrected by the
-        zero-phase low-pass, the heading of ``q_fused``."""
-        dt = sample_intervals(t)
-        gap = self.max_gap_s or max(GAP_FACTOR * _nominal_interval(dt), GAP_MIN_S)
-        bounds = [0, *np.flatnonzero(dt > gap).tolist(), len(t)]
-        q = np.array(q_fused)
-        for a, b in zip(bounds[:-1], bounds[1:]):
-            if b - a < 2:
-                continue
-            n = b - a
-            q_ib, f_i, y, q_eb = np.empty((n, 4)), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 4))
-            strapdown_forces(dt[a:b], gyr[a:b], acc[a:b], bias[a:b], q_ib, f_i)
-            zero_phase_lowpass(f_i, dt[a:b], self.params.tau_acc, y)
-            inclination(q_ib, y, q_eb)
-            with_heading_of(q_eb, np.ascontiguousarray(q_fused[a:b]), q[a:b])
-        return q
-
-
-def _share(pf, pb) -> np.ndarray:
-    """``P_f / (P_f + P_b)``: the backward pass's weight (a half where both are zero)."""
-    return np.divide(pf, pf + pb, out=np.full(len(pf), 0.5), where=pf + pb > 0)
-
-
-def rates_where_clipped(t, gyr, q, bias, clipped) -> np.ndarray:
-    """The gyro with each clipped row replaced by the fused attitude's rate plus the bias (the
-    passes take a clipped axis's rate from the field, eq R4): ``Log(q_{k−1}⁻¹ ⊗ q_k) / Δt``."""
-    rows = np.flatnonzero(clipped[1:]) + 1
-    if len(rows):
-        d = quat_mul(quat_conj(q[rows - 1]), q[rows])
-        d *= np.where(d[:, :1] < 0, -1.0, 1.0)
-        s = np.linalg.norm(d[:, 1:], axis=1, keepdims=True)
-        ang = 2.0 * np.arctan2(s, d[:, :1])
-        rv = np.where(s > 1e-12, d[:, 1:] * ang / np.maximum(s, 1e-300), 2.0 * d[:, 1:])
-        h = np.diff(t)[rows - 1][:, None]
-        gyr[rows] = np.where(h > 0, rv / np.where(h > 0, h, 1.0) + bias[rows], gyr[rows])
-    return np.ascontiguousarray(gyr)
