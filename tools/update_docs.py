@@ -495,7 +495,7 @@ def results_overview() -> str:
             + [
                 _rpy(flights["mean"][n]) if n in flights["mean"] else "-",
                 f"{sp['batch_us']:.2f}" if sp else "-",
-                f"{sp['stream_us']:.2f}" if sp else "-",
+                f"{sp['stream_us']:.2f}" if sp and sp["stream_us"] is not None else "-",
             ]
         )
     return _table(header, rows)
@@ -559,7 +559,8 @@ def results_speed() -> str:
 
 
 def results_speed_paired() -> str:
-    """Each quadest filter against VQF, and robust against every peer: the paired ratios."""
+    """Each quadest filter against VQF, robust against every peer, robust-offline against robust
+    and offline VQF: the paired ratios."""
     speed = _load("speed")
 
     def cell(r):
@@ -568,7 +569,9 @@ def results_speed_paired() -> str:
     rows = [
         [key, cell(r["batch"]), cell(r["stream"])]
         for key, r in speed["paired"].items()
-        if key.endswith("/vqf") or key.startswith("robust/")
+        if key.endswith("/vqf")
+        or key.startswith("robust/")
+        or key in ("robust-offline/robust", "robust-offline/vqf-offline")
     ]
     pairs = next(iter(speed["paired"].values()))["batch"]["pairs"]
     return (
