@@ -44,22 +44,29 @@ def reversed_recording(t, gyr, acc, mag) -> tuple:
 
 @njit(cache=True, inline="always")
 def _log_s(w, x, y, z):
-    """The rotation vector of a unit quaternion (the shorter way round)."""
+    """The rotation vector of a unit quaternion (the shorter way round); below 3° by the series
+    of ``atan`` (to 1e-12)."""
     if w < 0.0:
         w, x, y, z = -w, -x, -y, -z
     s = math.sqrt(x * x + y * y + z * z)
-    if s < 1e-12:
-        return 2.0 * x, 2.0 * y, 2.0 * z
-    a = 2.0 * math.atan2(s, w) / s
+    if s < 0.025 * w:
+        u2 = s * s / (w * w)
+        a = 2.0 / w * (1.0 - u2 / 3.0 + u2 * u2 / 5.0)  # 2 atan(s/w) / s
+    else:
+        a = 2.0 * math.atan2(s, w) / s
     return a * x, a * y, a * z
 
 
 @njit(cache=True, inline="always")
 def _exp_s(a, b, c):
-    """The unit quaternion of a rotation vector."""
-    th = math.sqrt(a * a + b * b + c * c)
-    if th < 1e-12:
-        return 1.0, 0.5 * a, 0.5 * b, 0.5 * c
+    """The unit quaternion of a rotation vector; below 0.05 rad by the series of ``cos`` and
+    ``sin`` (to 1e-12: a step of the strapdown, a fused correction)."""
+    th2 = a * a + b * b + c * c
+    if th2 < 0.0025:
+        x2 = 0.25 * th2
+        s = 0.5 * (1.0 - x2 / 6.0 + x2 * x2 / 120.0)  # sin(θ/2) / θ
+        return 1.0 - x2 / 2.0 + x2 * x2 / 24.0, a * s, b * s, c * s
+    th = math.sqrt(th2)
     s = math.sin(0.5 * th) / th
     return math.cos(0.5 * th), a * s, b * s, c * s
 
@@ -252,9 +259,17 @@ class RobustOffline(Robust):
         raise UsageError(f"{self.name} is acausal: it cannot fly in the loop (robust can)")
 
     def _pass(self) -> Robust:
-        own = {f.name for f in fields(RobustOfflineParams)} - {f.name for f in fields(RobustParams)}
-        values = {k: v for k, v in self.params.values().items() if k not in own}
-        return Robust(RobustParams(**values), declination=self.declination, max_gap_s=self.max_gap_s)
+        """The robust that runs both passes, with this estimator's parameters, declination and
+        gap; built and checked once per parameter record, started afresh (without ``q0``)."""
+        one = self.__dict__.get("_one")
+        if one is None or self.__dict__.get("_one_for") is not self.params:
+            own = {f.name for f in fields(RobustOfflineParams)} - {f.name for f in fields(RobustParams)}
+            values = {k: v for k, v in self.params.values().items() if k not in own}
+            one = self._one = Robust(RobustParams(**values))
+            self._one_for = self.params
+        one.declination, one.max_gap_s = self.declination, self.max_gap_s
+        one.reset()
+        return one
 
     def run(
         self,
@@ -280,10 +295,15 @@ class RobustOffline(Robust):
     ) -> tuple[FilterResult, FilterResult]:
         """The forward pass and the backward one: ``robust`` on the recording and on
         :func:`reversed_recording` (its rows in the reversed order)."""
-        one = self._pass()  # built and checked once: the backward pass first, then from the start again
+        one = self._pass()  # the backward pass first, then from the start again (from q0 if given)
         tr, gr, ar, mr = reversed_recording(t, gyr, acc, mag)
         b = one.run(t=tr, gyr=gr, acc=ar, mag=mr)
-        one.reset(self._q0)
+        if self._q0 is not None:
+            one.reset(self._q0)
+            f = one.run(t=t, gyr=gyr, acc=acc, mag=mag)
+            self._one = None  # it keeps q0: the next backward pass must not start from it
+            return f, b
+        one.reset()
         return one.run(t=t, gyr=gyr, acc=acc, mag=mag), b
 
     def _fused(self, t, gyr, acc, f: FilterResult, b: FilterResult) -> FilterResult:
