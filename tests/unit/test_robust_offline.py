@@ -145,3 +145,22 @@ def test_estimate_offline_writes_robust_offline_and_refuses_a_causal_filter(tmp_
     err = capsys.readouterr().err.strip()
     assert "--offline" in err and "madgwick" in err and "\n" not in err
     assert not (tmp_path / "x.csv").exists()
+
+
+def test_quaternion_exponential_and_logarithm_are_exact_across_their_series_bound():
+    """The fusion's and the strapdown's ``Exp`` and ``Log`` switch to their series below 0.05 rad
+    and 3°: equal to scipy's rotation vectors within 1e-11 on both sides of the bound."""
+    from numba import njit
+    from scipy.spatial.transform import Rotation
+
+    from quadest.filters.robust import offline
+
+    exp_s, log_s = njit(lambda a, b, c: offline._exp_s(a, b, c)), njit(lambda w, x, y, z: offline._log_s(w, x, y, z))
+    rng = np.random.default_rng(2)
+    for th in np.geomspace(1e-9, 1.0, 300):
+        v = rng.standard_normal(3)
+        v *= th / np.linalg.norm(v)
+        q = np.array(exp_s(*v))
+        ref = Rotation.from_rotvec(v).as_quat()[[3, 0, 1, 2]]
+        np.testing.assert_allclose(q, ref, rtol=0, atol=1e-11)
+        np.testing.assert_allclose(log_s(*ref), v, rtol=0, atol=1e-11)
