@@ -117,8 +117,9 @@ def test_streaming_is_refused_in_one_line():
     with pytest.raises(ValueError, match="acausal") as e:
         f.update(np.zeros(3), np.array([0.0, 0.0, -9.81]), dt=0.01)
     assert "\n" not in str(e.value)
-    with pytest.raises(ValueError, match="acausal"):
-        f.compiled()
+    for call in (f.compiled, f.get_state, lambda: f.set_state(np.zeros(3))):
+        with pytest.raises(ValueError, match="acausal"):
+            call()
 
 
 def test_estimate_offline_writes_robust_offline_and_refuses_a_causal_filter(tmp_path, capsys):

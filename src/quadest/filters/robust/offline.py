@@ -258,6 +258,12 @@ class RobustOffline(Robust):
     def compiled(self) -> NoReturn:
         raise UsageError(f"{self.name} is acausal: it cannot fly in the loop (robust can)")
 
+    def get_state(self) -> NoReturn:
+        raise UsageError(f"{self.name} is acausal: it keeps no state between runs (run() takes the whole recording)")
+
+    def set_state(self, x: ArrayLike) -> NoReturn:
+        self.get_state()
+
     def _pass(self) -> Robust:
         """The robust that runs both passes, with this estimator's parameters, declination and
         gap; built and checked once per parameter record, started afresh (without ``q0``)."""
@@ -324,7 +330,7 @@ class RobustOffline(Robust):
         if self.params.zero_phase_tilt:
             bounds = [0, *np.flatnonzero(dt > gap).tolist(), n]
             y = np.empty((n, 3))
-            for a, z in zip(bounds[:-1], bounds[1:]):  # each stretch between gaps
+            for a, z in ((a, z) for a, z in zip(bounds[:-1], bounds[1:]) if z > a):  # each stretch between gaps
                 zero_phase_lowpass(f_i[a:z], h, self.params.tau_acc, y[a:z])
                 tilt_without_delay(q_ib[a:z], y[a:z], q[a:z], q[a:z])
         return FilterResult(
