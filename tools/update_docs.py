@@ -31,12 +31,17 @@ def simulator_params() -> str:
 def estimator_params() -> str:
     from quadest.filters import FILTERS
 
-    out = []
+    out, seen = [], {}
     for name, cls in FILTERS.items():
-        out.append(
-            f"**`{name}`**\n\n| parameter | default | unit | bounds | meaning | source |\n|---|---|---|---|---|---|"
-        )
-        for d in cls.Params.describe():
+        base = next((seen[b] for b in cls.Params.__mro__[1:] if b in seen), None)
+        known = {d["name"] for d in base[1].describe()} if base else set()
+        if len(known) == len(cls.Params.describe()):  # the same parameters under another name: all shown
+            base, known = None, set()
+        seen[cls.Params] = (name, cls.Params)
+        also = f" (and every parameter of `{base[0]}`)" if base else ""
+        out.append(f"**`{name}`**{also}\n\n| parameter | default | unit | bounds | meaning | source |")
+        out.append("|---|---|---|---|---|---|")
+        for d in (d for d in cls.Params.describe() if d["name"] not in known):
             out.append(
                 f"| `{d['name']}` | {json.dumps(d['default'], default=float)} | {d['unit']} | "
                 f"{d.get('bounds', '-')} | {d['doc']} | {d['source']} |"
@@ -490,7 +495,7 @@ def results_overview() -> str:
             + [
                 _rpy(flights["mean"][n]) if n in flights["mean"] else "-",
                 f"{sp['batch_us']:.2f}" if sp else "-",
-                f"{sp['stream_us']:.2f}" if sp else "-",
+                f"{sp['stream_us']:.2f}" if sp and sp["stream_us"] is not None else "-",
             ]
         )
     return _table(header, rows)
@@ -544,7 +549,8 @@ def results_speed() -> str:
             if target is None
             else (f"{target:g}" + ("" if v["batch_us"] <= target else f" (missed by {v['batch_us'] - target:.2f})"))
         )
-        rows.append([n, f"{v['batch_us']:.2f}", met, f"{v['stream_us']:.2f}"])
+        stream = "-" if v["stream_us"] is None else f"{v['stream_us']:.2f}"
+        rows.append([n, f"{v['batch_us']:.2f}", met, stream])
     rows.append(["recovery bank, 40 EKFs", f"{speed['recovery_bank_40_us']:.1f}", "20", "-"])
     return (
         _table(["filter", "batch", "batch target", "streaming"], rows)
@@ -553,7 +559,8 @@ def results_speed() -> str:
 
 
 def results_speed_paired() -> str:
-    """Each quadest filter against VQF, and robust against every peer: the paired ratios."""
+    """Each quadest filter against VQF, robust against every peer, robust-offline against robust
+    and offline VQF: the paired ratios."""
     speed = _load("speed")
 
     def cell(r):
@@ -562,7 +569,9 @@ def results_speed_paired() -> str:
     rows = [
         [key, cell(r["batch"]), cell(r["stream"])]
         for key, r in speed["paired"].items()
-        if key.endswith("/vqf") or key.startswith("robust/")
+        if key.endswith("/vqf")
+        or key.startswith("robust/")
+        or key in ("robust-offline/robust", "robust-offline/vqf-offline")
     ]
     pairs = next(iter(speed["paired"].values()))["batch"]["pairs"]
     return (

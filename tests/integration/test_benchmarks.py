@@ -286,3 +286,34 @@ def test_estimate_with_a_peer(tmp_path, marg):
     # a parameter for a filter that is not run is refused, not silently ignored
     assert main(["estimate", str(src), "--filter", "vqf", "--param", "madgwick.beta_marg=1", "-o", str(out)]) == 2
     assert main(["estimate", str(src), "--filter", "vqf", "--param", "vqf.x=1", "-o", str(out)]) == 2
+
+
+def test_benchmark_speed_times_an_acausal_estimator_in_batch_only(tmp_path, capsys):
+    """robust-offline has no streaming call: its streaming figure is none (printed ``-``), and it is
+    timed against robust in interleaved pairs."""
+    out = tmp_path / "s.json"
+    args = ["benchmark", "speed", "--duration", "4", "--filters", "robust,robust-offline", "--json", str(out)]
+    assert main(args) == 0
+    res = json.loads(out.read_text())
+    assert res["filters"]["robust-offline"]["stream_us"] is None and res["filters"]["robust"]["stream_us"] > 0
+    pair = res["paired"]["robust-offline/robust"]
+    assert pair["stream"] is None and 1.0 < pair["batch"]["median"] < 100.0  # two passes: more than one
+    assert "robust-offline" in capsys.readouterr().out
+
+
+@needs_data
+def test_real_offline_estimates_against_vqf_offline():
+    """robust-offline against VQF's offline form in one run, as docs/estimators.md reports it: the
+    12 shared BROAD trials (all, undisturbed, disturbed) and the shared flights' mean roll, pitch and
+    heading. A figure, not a tolerance: these are the targets (in-sample for its design)."""
+    from quadest.evaluation.benchmark import benchmark_broad, benchmark_flights
+
+    pytest.importorskip("vqf")
+    names = ["robust-offline", "vqf-offline"]
+    broad = benchmark_broad(DATA / "broad", names)["groups"]
+    for g in ("all_trials", "undisturbed", "disturbed"):
+        ours, theirs = (broad[g][n]["total_rmse_deg"] for n in names)
+        assert ours <= theirs, (g, ours, theirs)
+    mean = benchmark_flights(DATA, names)["mean"]
+    for a in ("roll", "pitch", "yaw"):
+        assert mean["robust-offline"][a] <= mean["vqf-offline"][a], (a, mean)

@@ -48,6 +48,11 @@ def _recording_from_args(args):
     return rec, f"simulated {args.scenario} / {args.preset} / seed {args.seed}"
 
 
+def _us(v) -> str:
+    """A streaming time, ``-`` for an estimator that does not stream (acausal)."""
+    return "-" if v is None else f"{v:.2f}"
+
+
 def cmd_compare(args):
     names = estimator_names(args.filters)
     params = parse_params(args.param)
@@ -380,7 +385,7 @@ def cmd_benchmark(args):
         )
         say(f"{'filter':<15}{'batch':>10}{'streaming':>12}")
         res = benchmark_speed(
-            names, args.duration, on_result=lambda n, r: say(f"{n:<15}{r['batch_us']:>10.3f}{r['stream_us']:>12.2f}")
+            names, args.duration, on_result=lambda n, r: say(f"{n:<15}{r['batch_us']:>10.3f}{_us(r['stream_us']):>12}")
         )
         for line in format_paired(res["paired"], res["pair_samples"]):
             say(line)
@@ -567,8 +572,9 @@ def _add_benchmark(sub):
         "DIDO and Blackbird flights under --data (6-axis; heading offset removed). "
         "repoimu: roll/pitch/yaw and total RMS on the RepoIMU T-stick and pendulum "
         "trials under --data (9-axis; the IMU-to-Vicon body rotation and heading removed). "
-        "speed: microseconds per sample of every filter, batch and streaming, and each quadest "
-        "filter's time against VQF's, offline VQF's and imufusion's, timed in interleaved pairs (the median "
+        "speed: microseconds per sample of every filter, batch and streaming (an acausal one, "
+        "robust-offline, batch only), and each quadest filter's time against VQF's, offline VQF's and "
+        "imufusion's (robust-offline's also against robust's), timed in interleaved pairs (the median "
         "ratio and its spread). "
         "sim: the flying vehicle's closed loop (rotor loss, fault-tolerant "
         "controller, --filters names the estimator in the loop, default afckf) "

@@ -103,7 +103,20 @@ def attitude_blocks(t, q, extra: dict | None = None, rows: int = WRITE_ROWS):
         }
 
 
+def estimate_filter(args) -> str:
+    """The estimator ``quadest estimate`` runs: ``--filter``, else robust (robust-offline with
+    ``--offline``); with ``--offline`` it must be acausal."""
+    if not args.offline:
+        return args.filter or "robust"
+    name = args.filter or "robust-offline"
+    if not ESTIMATORS[name].acausal:
+        offline = ", ".join(n for n, c in ESTIMATORS.items() if c.acausal)
+        raise CliError(f"--offline: {name} is a causal estimator; offline ones: {offline} (or leave out --filter)")
+    return name
+
+
 def cmd_estimate(args):
+    args.filter = estimate_filter(args)
     rec = read(args, args.file)
     if not args.report:  # the truth is for the report alone: a long recording's is not held
         rec = rec.sensors_only()
@@ -344,11 +357,18 @@ def add_parsers(sub):
     es.add_argument("file", type=Path, help="recording: any supported format (docs/readers.md)")
     es.add_argument(
         "--filter",
-        default="robust",
+        default=None,
         type=filter_name,
         choices=list(ESTIMATORS),
         help="estimator: quadest's, or a peer with quadest[peers] installed (default: robust, "
-        "quadest's own; docs/estimators.md)",
+        "quadest's own, or robust-offline with --offline; docs/estimators.md)",
+    )
+    es.add_argument(
+        "--offline",
+        action="store_true",
+        help="an acausal estimate for a log analysed after the fact: each sample's attitude from the whole "
+        "recording, before and after it (robust-offline, or the offline estimator --filter names: "
+        "robust-offline, vqf-offline)",
     )
     es.add_argument("-o", "--output", required=True, metavar="OUT", help=".csv or .parquet")
     es.add_argument("--param", action="append", metavar="FILTER.NAME=VALUE", help="estimator parameter")

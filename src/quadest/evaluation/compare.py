@@ -75,6 +75,11 @@ def compare(
     return report, results
 
 
+def _cell(v, w) -> str:
+    """A figure in a column ``w`` wide, ``-`` for none (an acausal estimator does not stream)."""
+    return f"{'-':>{w}}" if v is None else f"{v:>{w}.2f}"
+
+
 def format_tables(
     report: dict,
     metrics=(("rms_deg", "RMS error [deg]"), ("var_deg2", "variance [deg²]"), ("mae_deg", "mean absolute error [deg]")),
@@ -93,6 +98,6 @@ def format_tables(
         lines.append("execution time [µs/sample]")
         lines.append(f"{'batch':<8}" + "".join(f"{report['filters'][n]['us_per_sample']:>{w}.3f}" for n in names))
         lines.append(
-            f"{'stream':<8}" + "".join(f"{report['filters'][n]['us_per_sample_streaming']:>{w}.2f}" for n in names)
+            f"{'stream':<8}" + "".join(_cell(report["filters"][n]["us_per_sample_streaming"], w) for n in names)
         )
     return "\n".join(lines).rstrip()

@@ -18,11 +18,14 @@ from quadest.filters.madgwick import Madgwick
 from quadest.filters.mahony import Mahony
 from quadest.filters.peers import PEER_CLASSES, Peer
 from quadest.filters.qukf import Qukf
-from quadest.filters.robust import Robust
+from quadest.filters.robust import Robust, RobustOffline
 from quadest.filters.roetenberg import Roetenberg
 from quadest.filters.valenti import Valenti
 
-ESTIMATORS = {cls.name: cls for cls in (Robust, Afckf, Qukf, Ekf, Madgwick, Mahony, Valenti, Roetenberg, *PEER_CLASSES)}
+ESTIMATORS = {
+    cls.name: cls
+    for cls in (Robust, RobustOffline, Afckf, Qukf, Ekf, Madgwick, Mahony, Valenti, Roetenberg, *PEER_CLASSES)
+}
 FILTERS = {name: cls for name, cls in ESTIMATORS.items() if not cls.peer}
 """quadest's own estimators (compiled)."""
 PEERS = {name: cls for name, cls in ESTIMATORS.items() if cls.peer}
@@ -83,6 +86,7 @@ __all__ = [
     "Mahony",
     "Qukf",
     "Robust",
+    "RobustOffline",
     "Roetenberg",
     "Valenti",
 ]

@@ -187,6 +187,9 @@ class Estimator:
     """True for another package's estimator run through quadest (:mod:`quadest.filters.peers`)."""
     streaming = True
     """Whether it has a per-sample :meth:`update` (so it can fly in the closed loop)."""
+    acausal = False
+    """True for an offline estimator: each estimate uses the whole recording, later samples too
+    (``quadest estimate --offline``)."""
     Params = Params
     Record = None
     coefficients = staticmethod(no_coefficients)

@@ -210,7 +210,7 @@ class Vqf(Peer):
 class VqfOffline(Peer):
     """VQF's offline form (forward and backward over the whole recording)."""
 
-    name, package = "vqf-offline", "vqf"
+    name, package, acausal = "vqf-offline", "vqf", True
 
     def _batch(self, dt, nominal, gyr, acc, mag):
         from vqf import offlineVQF

@@ -17,11 +17,23 @@ are in docs/estimators.md (robust). One module per phase of the step:
   the bias in motion, the tilt's variance (items 1, 2, 7, 10, 11; R1, R3, R3c, R6, R8);
 - :mod:`~quadest.filters.robust.heading`: heading, disturbance, spin, latency (items 3, 5, 8, 9;
   R2, R5, R6, R7);
-- :mod:`~quadest.filters.robust.step`: the step joining them, the batch and stream loops, the class.
+- :mod:`~quadest.filters.robust.step`: the step joining them, the batch and stream loops, the class;
+- :mod:`~quadest.filters.robust.offline`: ``robust-offline``, the forward and the time-reversed
+  pass fused (acausal, batch only).
 """
 
 from quadest.filters.robust.clipping import mag_rate_terms
+from quadest.filters.robust.offline import RobustOffline
 from quadest.filters.robust.params import STATE, UNKNOWN_HEADING_VAR, RobustParams
 from quadest.filters.robust.step import Robust, robust_run, robust_step
 
-__all__ = ["UNKNOWN_HEADING_VAR", "Robust", "RobustParams", "STATE", "mag_rate_terms", "robust_run", "robust_step"]
+__all__ = [
+    "UNKNOWN_HEADING_VAR",
+    "Robust",
+    "RobustOffline",
+    "RobustParams",
+    "STATE",
+    "mag_rate_terms",
+    "robust_run",
+    "robust_step",
+]

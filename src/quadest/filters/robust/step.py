@@ -64,6 +64,7 @@ def robust_step(x, p, c, gyr, acc, mag, dt, diag):
     diag[6] = x[STATE.Pt]
     diag[7] = x[STATE.Ph]
     diag[8] = mupd
+    diag[9], diag[10], diag[11] = x[STATE.Pb], x[STATE.Pb + 4], x[STATE.Pb + 8]
     publish(x)
 
 
@@ -73,8 +74,8 @@ robust_run, robust_stream = run_and_stream(robust_step, fastmath=FASTMATH)
 class Robust(Estimator):
     """quadest's own estimator. Diagnostics: ``rest`` (1 at rest), ``mag_disturbed``,
     ``clipped_axes``, the bias ``bias_x/y/z`` (rad/s), the reported error variances ``var_tilt``
-    (about north and about east, each) and ``var_heading`` (about down), rad², and
-    ``mag_update``."""
+    (about north and about east, each) and ``var_heading`` (about down), rad², ``mag_update``,
+    and the bias's variances ``var_bias_x/y/z`` ((rad/s)²)."""
 
     name = "robust"
     Params = RobustParams
@@ -91,6 +92,9 @@ class Robust(Estimator):
         "var_tilt",
         "var_heading",
         "mag_update",
+        "var_bias_x",
+        "var_bias_y",
+        "var_bias_z",
     )
     step = staticmethod(robust_step)
     batch = staticmethod(robust_run)
