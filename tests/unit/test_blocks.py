@@ -120,3 +120,10 @@ def test_the_report_in_small_blocks_shows_what_one_pass_shows(spin, monkeypatch,
     blocks = _flat(report_data(rec, names))
     _assert_close(whole, blocks)
     assert bool(whole[1]["scores"]) == truth
+
+
+def test_an_acausal_estimator_runs_whole(spin):
+    """robust-offline's estimate at each sample uses the whole recording: never cut in pieces."""
+    pieces = list(estimate_pieces(spin, "robust-offline", rows=997))
+    assert len(pieces) == 1
+    np.testing.assert_array_equal(pieces[0][1].q, estimate(spin, "robust-offline").q)

@@ -69,10 +69,11 @@ blocks its errors are summed by)."""
 def estimate_pieces(rec: Recording, name: str, params: dict | None = None, rows: int | None = None):
     """:func:`estimate` piece by piece: ``(first row, FilterResult of the piece)``, a quadest
     filter resuming from its state at each piece (a recording up to ``rows`` long is one piece:
-    :func:`estimate` itself; default :data:`ESTIMATE_ROWS`); a peer runs whole. Its outputs are
-    never held whole."""
+    :func:`estimate` itself; default :data:`ESTIMATE_ROWS`); a peer and an acausal estimator
+    (each estimate uses the whole recording) run whole. A causal filter's outputs are never held
+    whole."""
     cls, params, rows = estimator_class(name), params or {}, rows or ESTIMATE_ROWS
-    if cls.peer or len(rec) <= rows:
+    if cls.peer or cls.acausal or len(rec) <= rows:
         yield 0, estimate(rec, name, params)
         return
     check_params(cls.name, params)
