@@ -122,9 +122,10 @@ COUNT_LIMIT = 2.0**53
 """A state's counters are whole numbers from 0 to this (a float holds every whole number up to it)."""
 
 
-def checked_state(x, size: int, who: str) -> np.ndarray:
+def checked_state(x, size: int, who: str, none_yet: tuple = ()) -> np.ndarray:
     """A copy of ``x`` as a state of ``size`` values, refused (:class:`UsageError`) unless it can
-    be one: finite (the last time and the last magnetometer sample may be NaN: none yet), a unit attitude, the flags
+    be one: finite (the last time, the last magnetometer sample and the estimator's own
+    ``none_yet`` slots may be NaN: none yet), a unit attitude, the flags
     0 or 1, the counters whole numbers from 0 to :data:`COUNT_LIMIT`, the declination's half-angle
     cosine and sine on the unit circle."""
     try:
@@ -134,7 +135,8 @@ def checked_state(x, size: int, who: str) -> np.ndarray:
     if x.shape != (size,):
         raise UsageError(f"{who}: state must have shape ({size},), got {x.shape}")
     finite = np.isfinite(x)
-    finite[[T_LAST, MAG, MAG + 1, MAG + 2]] = ~np.isinf(x[[T_LAST, MAG, MAG + 1, MAG + 2]])  # NaN: none yet
+    nan_ok = [T_LAST, MAG, MAG + 1, MAG + 2, *none_yet]
+    finite[nan_ok] = ~np.isinf(x[nan_ok])  # NaN: none yet
     if not finite.all():
         raise UsageError(f"{who}: state value {int(np.flatnonzero(~finite)[0])} is not finite")
     problems = {
@@ -187,6 +189,8 @@ class Estimator:
     """True for another package's estimator run through quadest (:mod:`quadest.filters.peers`)."""
     streaming = True
     """Whether it has a per-sample :meth:`update` (so it can fly in the closed loop)."""
+    none_yet: tuple = ()
+    """Slots of its own state that hold NaN until a sample fills them (a state may have them so)."""
     acausal = False
     """True for an offline estimator: each estimate uses the whole recording, later samples too
     (``quadest estimate --offline``)."""
@@ -338,7 +342,7 @@ class Estimator:
     def set_state(self, x: ArrayLike) -> None:
         """Continue from a state taken by :meth:`get_state` (of an estimator of this kind); one
         that cannot be such a state is refused (:func:`checked_state`)."""
-        self._x = checked_state(x, self.state_size, self.name)
+        self._x = checked_state(x, self.state_size, self.name, self.none_yet)
         self._qv = self._x[Q_OUT : Q_OUT + 4]
         self.__dict__.pop("update", None)  # the C call held the old state: made again at the next update
 

@@ -82,6 +82,7 @@ class Robust(Estimator):
     Record = Record
     coefficients = staticmethod(coefficients)
     state_size = STATE.end
+    none_yet = (STATE.mprev, STATE.mprev + 1, STATE.mprev + 2)  # the last magnetometer sample: none before the first
     diag_names = (
         "rest",
         "mag_disturbed",
