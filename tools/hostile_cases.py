@@ -256,7 +256,8 @@ def cases_bounds(d: Path):
     """Bounded work and interruptions: too many runs refused before anything runs, inputs that are
     not files or are sparse refused unread, seeds below 0 a usage error, a damaged compiled cache
     mended (downloads, Ctrl-C and the cache's damage need a server, a signal or a child process:
-    tests/integration/test_data_fetch.py and test_bounds.py)."""
+    tests/integration/test_data_fetch.py and test_bounds.py; a killed local Dask worker and the
+    report's memory on a long recording take a minute each: test_sweep.py and test_bounds.py)."""
     import os
 
     def refused(count):

@@ -410,3 +410,24 @@ def test_flown_runs_sweep_resume_and_tune(tmp_path, capsys):
         ["sweep", "--fly", "rotor-loss", "--failure", "9@1", "--filters", "madgwick", "-o", str(tmp_path / "x.parquet")]
     )
     assert code == 2 and "rotor 9 does not exist" in capsys.readouterr().err
+
+
+def test_a_local_worker_killed_leaves_no_leaked_semaphore_warning(tmp_path):
+    """`quadest sweep --workers 2` with one worker process killed (kill -9) mid-sweep: every run
+    is in the results, and multiprocessing's resource tracker, which removes the dead worker's
+    semaphore, does not print its "leaked semaphore" warning (docs/reliability.md)."""
+    out = tmp_path / "r"
+    cmd = [str(BIN / "quadest"), "sweep", "--filters", "madgwick,mahony", "--scenario", "hover"]
+    cmd += ["--seeds", "1-60", "--duration", "30", "-o", str(out), "--workers", "2"]
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 180
+    while time.time() < deadline and not _parts(out) and p.poll() is None:
+        time.sleep(0.1)
+    workers = subprocess.run(["pgrep", "-P", str(p.pid), "-f", "spawn_main"], capture_output=True, text=True)
+    pids = [int(w) for w in workers.stdout.split()]
+    assert pids and p.poll() is None, "no worker process to kill, or the sweep already ended"
+    os.kill(pids[-1], signal.SIGKILL)
+    _, err = p.communicate(timeout=600)
+    assert p.returncode == 0, err
+    assert "leaked semaphore" not in err and "resource_tracker" not in err, err
+    assert len(set(_raw_ids(out))) == 120

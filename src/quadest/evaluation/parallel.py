@@ -5,6 +5,7 @@ seeds, so results do not depend on where they run."""
 from __future__ import annotations
 
 import os
+import sys
 import time
 from collections.abc import Callable, Iterable, Sequence
 from contextlib import contextmanager
@@ -47,6 +48,19 @@ def _connect(scheduler: str, timeout_s: float):
     return box["client"]
 
 
+TRACKER_NOTE = "ignore:resource_tracker:UserWarning"
+"""The warning option that keeps multiprocessing's resource tracker from saying "There appear to
+be 1 leaked semaphore objects to clean up at shutdown" after a worker was killed: it removes the
+semaphore all the same (nothing is left behind), and the sweep has run the worker's runs again."""
+
+
+def _quiet_resource_tracker() -> None:
+    """Give the resource tracker :data:`TRACKER_NOTE`: it is started, with this process's ``-W``
+    options, when the first worker process is spawned."""
+    if TRACKER_NOTE not in sys.warnoptions:
+        sys.warnoptions.append(TRACKER_NOTE)
+
+
 @contextmanager
 def dask_client(workers: int | None = None, scheduler: str | None = None, timeout_s: float = 20.0):
     """A client on ``scheduler`` (tcp://host:port; the handshake must finish within
@@ -67,6 +81,7 @@ def dask_client(workers: int | None = None, scheduler: str | None = None, timeou
     dask = need("dask", "a Dask cluster (workers or a scheduler)")
 
     n = workers or os.cpu_count() or 1
+    _quiet_resource_tracker()
     # Dask's nanny sets MALLOC_TRIM_THRESHOLD_=65536 in its workers, which switches off glibc's
     # adaptive mmap threshold: every array above 128 KiB is then mapped and unmapped anew, and
     # the simulator and filters ran 1.9x slower per run than in this process (measured). The
