@@ -181,7 +181,7 @@ def fly(
             zero_failed=oracle,
         ),  # fmt: skip
         sensing=_position_sensing(sm, params, rate, every, n, x0, rng_mocap, vehicle.rotors, seed),
-        nav=build.navigation(nav, x0, position_gain(params, rate)),
+        nav=build.navigation(nav, x0, position_gain(params, rate), _clip_rate(params, vehicle, cfg, seed, n)),
         bank=build.bank(),
         control=build.control(
             dict(REGISTRY[controller].phases),
@@ -397,6 +397,15 @@ def _detection(mode, detector, vehicle, params, seed, n):
         raise UsageError(f"unknown detection {mode!r}; detection: {', '.join(DETECTION_MODES)}")
     if mode == "oracle":
         return build.detection()
+    model, rng_speed = _detector_model(vehicle, params, seed)
+    noise = rng_speed.standard_normal((n, vehicle.rotors)) * params.speed_noise
+    return build.detection(mode, vehicle=model, params=detector, n=n, noise=noise)
+
+
+def _detector_model(vehicle, params, seed):
+    """The detector's model of the vehicle (the flight's, each of mass, inertia and thrust
+    coefficient off by a factor within ``params.detector_model_error`` drawn per flight) and
+    the generator of its rotor speed readings' noise, both from the flight's seed."""
     rng_model, rng_speed = (np.random.default_rng(s) for s in np.random.SeedSequence([int(seed), 29]).spawn(2))
     e = params.detector_model_error
     model = replace(
@@ -405,8 +414,27 @@ def _detection(mode, detector, vehicle, params, seed, n):
         inertia=tuple(np.asarray(vehicle.inertia) * (1 + rng_model.uniform(-e, e, 3))),
         k_f=vehicle.k_f * (1 + rng_model.uniform(-e, e)),
     )
-    noise = rng_speed.standard_normal((n, vehicle.rotors)) * params.speed_noise
-    return build.detection(mode, vehicle=model, params=detector, n=n, noise=noise)
+    return model, rng_speed
+
+
+def _clip_rate(params, vehicle, cfg, seed, n):
+    """The rate of a clipped gyroscope axis (:mod:`quadest.flight.rate`) with the detector's
+    model of the vehicle (:func:`_detector_model`) and the gyroscope's range (the sensor's
+    configuration, as an autopilot knows it); its rotor speed readings' noise from a generator
+    of its own."""
+    model, _ = _detector_model(vehicle, params, seed)
+    noise = None
+    if params.clip_rate == "rotor-speeds":
+        rng = np.random.default_rng(np.random.SeedSequence([int(seed), 31]))
+        noise = rng.standard_normal((n, vehicle.rotors)) * params.speed_noise
+    return build.clip_rate(
+        params.clip_rate,
+        vehicle=model,
+        gyro_range=float(cfg.gyro.range),
+        n=n,
+        noise=noise,
+        to_estimator=params.clip_rate_estimator,
+    )
 
 
 def _run(x, loop, est: InLoop):
@@ -417,7 +445,7 @@ def _run(x, loop, est: InLoop):
     sensing = loop.sensing
     for k in range(len(loop.record.phase)):
         sense_sample(k, x, loop)
-        status = act_sample(k, x, loop, est.peer.update(sensing.gyr, sensing.acc, sensing.mag, dt=sensing.dt))
+        status = act_sample(k, x, loop, est.peer.update(loop.nav.clip.gyr, sensing.acc, sensing.mag, dt=sensing.dt))
         if status != OK:
             return status, flown(status, k)
     return OK, len(loop.record.phase)
