@@ -394,6 +394,8 @@ def test_fly_a_throw_with_the_recovery_and_the_oracle(tmp_path, capsys):
         (["reproduce", "afckf", "--prescribed", "--ablations"], "leave out --prescribed"),
         (["reproduce", "afckf", "--any-direction"], "--any-direction is for reproduce recovery"),
         (["reproduce", "recovery", "--in-loop"], "are for reproduce afckf"),
+        (["reproduce", "afckf", "--clipping"], "add --in-loop"),
+        (["reproduce", "recovery", "--clipping"], "add --in-loop"),
         (["reproduce", "recovery", "--prescribed", "--any-direction"], "leave out --prescribed"),
     ],
 )

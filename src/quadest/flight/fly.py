@@ -28,7 +28,7 @@ from quadest.control import (
 from quadest.control.ftc import relaxed_hover
 from quadest.control.registry import CONTROLLERS as REGISTRY
 from quadest.data.recording import Recording
-from quadest.detect import DetectorParams
+from quadest.detect import DetectorParams, RatePredictorParams
 from quadest.errors import UsageError
 from quadest.filters import ESTIMATORS, Estimator, filter_name, make_filter
 from quadest.flight import build
@@ -196,8 +196,7 @@ def fly(
         rotors=vehicle.rotors,
         phase="flying",
     )
-    x = x0.copy()
-    t0 = time.perf_counter()
+    x, t0 = x0.copy(), time.perf_counter()
     status, flown = _run(x, loop, est)
     loop_s = time.perf_counter() - t0
     if flown == 0:
@@ -220,6 +219,7 @@ def fly(
         ftc=ftc,
         vehicle=vehicle,
         ref=(loop.control.p_d, loop.control.yaw_d),
+        gyro_range=float(cfg.gyro.range),
     )
     if detection != "oracle":
         _add_detection(flight, loop.detection, detection, failure, flown)
@@ -501,9 +501,23 @@ def resample(
 
 
 def summarize(
-    flight: Flight, *, scenario, status, duration, failure, controller, estimator, seed, params, ftc, vehicle, ref
+    flight: Flight,
+    *,
+    scenario,
+    status,
+    duration,
+    failure,
+    controller,
+    estimator,
+    seed,
+    params,
+    ftc,
+    vehicle,
+    ref,
+    gyro_range=np.inf,
 ) -> dict:
-    """The summary of one run (module doc)."""
+    """The summary of one run (module doc); with a gyroscope of ``gyro_range`` that clipped,
+    :func:`clipping_summary`'s too."""
     rec, x = flight.recording, flight.states
     t = rec.t
     p_d, _ = ref
@@ -555,7 +569,27 @@ def summarize(
             "tilt_deg": hover.tilt_deg,
             "thrusts_n": [float(v) for v in hover.thrusts],
         }
+    s.update(clipping_summary(flight, gyro_range, failure))
     return s
+
+
+def clipping_summary(flight: Flight, gyro_range: float, failure: Failure | None) -> dict:
+    """With a gyroscope that clipped (from the failure on, if any): the share of samples with an
+    axis clipped and, per axis, the RMS error of the rate the controller read against the true
+    rate on that axis's clipped samples (None for an axis that never clipped). Empty otherwise."""
+    if not np.isfinite(gyro_range) or flight.rate_est is None:
+        return {}
+    t = flight.recording.t
+    after = t >= (failure.time_s if failure is not None else 0.0)
+    margin = RatePredictorParams().clip_margin
+    clipped = (np.abs(flight.recording.gyr) >= gyro_range * (1.0 - margin)) & after[:, None]
+    if not clipped.any():
+        return {}
+    err = flight.rate_est - flight.states[:, 10:13]
+    return {
+        "gyro_clipped_share": float(clipped.any(axis=1).sum() / max(after.sum(), 1)),
+        "clip_rate_error_rms_rad_s": [rms(err[clipped[:, j], j]) if clipped[:, j].any() else None for j in range(3)],
+    }
 
 
 def offline_errors(flight: Flight, estimator: str) -> dict:
