@@ -1,9 +1,11 @@
 """The rate of a clipped gyroscope axis in the closed loop: the predictor of
 :mod:`quadest.detect.rate` run on each sample, after the sensors and before the estimator.
 
-It reads the gyroscope, and either the rotor speeds (ESC telemetry: the true speeds with a
-relative noise per reading) or the commands sent over the interval just ended; a rotor the
-controller has given up counts as lost. On every axis within range it gives the gyroscope's
+It reads the gyroscope, the magnetometer, and either the rotor speeds (ESC telemetry: the true
+speeds with a relative noise per reading) or the commands sent over the interval just ended; a
+rotor the controller has given up counts as lost. Its model of the vehicle is the detector's
+(the flown one with the per-flight errors of ``FlightParams.detector_model_error``), its gyroscope
+range the sensor's configuration (as an autopilot knows it). On every axis within range it gives the gyroscope's
 reading itself; on a clipped axis the model's rate. The controller reads that rate; the
 estimator reads it too when asked (``to_estimator``), else the gyroscope as read.
 """
