@@ -109,6 +109,22 @@ def test_the_magnetometer_corrects_a_wrong_model_on_a_clipped_axis():
     assert np.sqrt(np.mean((without[last, 2] - rates[last]) ** 2)) > 1.0
 
 
+def test_a_bad_reading_does_not_poison_the_state():
+    """A NaN gyroscope sample is returned as it is and leaves the state alone: the samples after
+    it are, bit for bit, those of a run without it."""
+    rng = np.random.default_rng(4)
+    n = 400
+    gyr = np.clip(rng.normal(0.0, 1.5, (n, 3)), -1.0, 1.0)
+    speeds = HOVER * rng.uniform(0.8, 1.2, (n, 4))
+    bad = gyr.copy()
+    bad[200, 1] = np.nan
+    out = _run(BEBOP, 1.0, bad, speeds)
+    keep = np.arange(n) != 200
+    ref = _run(BEBOP, 1.0, gyr[keep], speeds[keep])
+    assert np.array_equal(out[200], bad[200], equal_nan=True)
+    assert np.array_equal(out[keep], ref)
+
+
 def test_bad_input_is_refused():
     with pytest.raises(ValueError, match="rate predictor"):
         RatePredictor(BEBOP, 8.0).run(np.full(3, DT), np.zeros((3, 3)), np.zeros((3, 3)))

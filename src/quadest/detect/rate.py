@@ -293,7 +293,12 @@ def rate_step(x, p, c, gyr, mag, rotors, eta, gyro_range, dt, out):
     rotor's measured speed or the command it was given over the interval that ends here (rad/s,
     ``p.rotor_speeds``), each rotor's effectiveness, the gyroscope's range (rad/s; 0 or inf: it
     does not clip) and the interval (s). Writes the rate into ``out`` (the reading on every
-    axis within range) and returns how many axes clipped."""
+    axis within range) and returns how many axes clipped. A non-finite reading is returned as it
+    is and leaves the state alone."""
+    if not (np.isfinite(gyr[0]) and np.isfinite(gyr[1]) and np.isfinite(gyr[2])):
+        for j in range(3):
+            out[j] = gyr[j]
+        return 0
     if x[STATE.init] == 0.0:
         _start(x, p, c, gyr, rotors)
         for j in range(3):

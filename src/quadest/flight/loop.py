@@ -236,9 +236,11 @@ def sample_baro(k, alt, sensing):
 @njit(cache=True, inline="always")
 def navigate(k, x, loop, q_est):
     """Position, velocity, attitude and rate for the controller of a flight (not a throw's
-    recovery): the truth's (rate: the gyro's), or the estimator's attitude ``q_est`` with the
-    position fusion (the accelerometer rotated by it, corrected at each position reading with a
-    constant gain). Returns :data:`ESTIMATE_NAN` for a non-finite attitude, else :data:`OK`."""
+    recovery): the truth's (rate: the gyro's, on a clipped axis the predicted one,
+    :mod:`quadest.flight.rate`; the whole true state with ``true-state``), or the estimator's
+    attitude ``q_est`` with the position fusion (the accelerometer rotated by it, corrected at
+    each position reading with a constant gain) and the same rate. Returns
+    :data:`ESTIMATE_NAN` for a non-finite attitude, else :data:`OK`."""
     nav, sensing, dt = loop.nav, loop.sensing, loop.sensing.dt
     xh, ph, vh, acc = nav.xh, nav.ph, nav.vh, sensing.acc
     truth = nav.kind != NAV_FILTER
