@@ -116,6 +116,12 @@ def flight_params() -> str:
     return _param_rows(FlightParams.describe())
 
 
+def rate_params() -> str:
+    from quadest.detect import RatePredictorParams
+
+    return _param_rows(RatePredictorParams.describe())
+
+
 def _f(v, fmt="{:.1f}"):
     return "-" if v is None else fmt.format(v)
 
@@ -705,6 +711,43 @@ def results_afckf_in_loop() -> str:
     )
 
 
+def results_clip_rate() -> str:
+    """docs/vehicle.md: the rate of a clipped gyroscope axis, flown in the loop (the ablation)."""
+    r = _load("clip-rate")
+    rows = []
+    for row in r["table"]:
+        err = row.get("clip_rate_error_rms_rad_s")
+        share = row.get("gyro_clipped_share")
+        rows.append(
+            [
+                row["variant"],
+                row["estimator"],
+                f"{row['survived']}/{row['runs']}",
+                _f(row["tilt_error_after_loss_deg"]),
+                "-" if share is None else f"{100 * share:.0f} %",
+                "-" if err is None else " / ".join(_f(e, "{:.2f}") for e in err),
+            ]
+        )
+    seeds = r["seeds"]
+    return (
+        _table(
+            [
+                "gyroscope, rate of a clipped axis",
+                "in the loop",
+                "stayed up",
+                "tilt error in the loop (°)",
+                "samples clipped after the loss",
+                "rate error on clipped samples, x / y / z (rad/s RMS)",
+            ],
+            rows,
+        )
+        + f"\n\nA {r['params']['vehicle']} loses rotor {r['params']['rotor']} at {r['params']['failure_s']:g} s "
+        f"and must stay up {r['after_loss_s']:g} s more; errors after the loss, mean over the runs that stayed up. "
+        f"Seeds {seeds[0]}-{seeds[-1]}; the predictor's values were chosen on seeds 100-109 "
+        f"(`quadest reproduce afckf --in-loop --clipping --seeds {seeds[0]}-{seeds[-1]}`, docs/results/clip-rate.json)."
+    )
+
+
 def results_afckf_prescribed() -> str:
     """docs/estimators.md: the prescribed reproduction."""
     r = _load("afckf-prescribed")
@@ -853,6 +896,7 @@ GENERATORS = {
     "vehicle-presets": vehicle_presets,
     "ftc-params": ftc_params,
     "flight-params": flight_params,
+    "rate-params": rate_params,
     "throw-params": throw_params,
     "results-flight": results_flight,
     "results-throw": results_throw,
@@ -868,6 +912,7 @@ GENERATORS = {
     "results-afckf-ablations": results_afckf_ablations,
     "results-afckf-prescribed": results_afckf_prescribed,
     "results-afckf-in-loop": results_afckf_in_loop,
+    "results-clip-rate": results_clip_rate,
     "results-recovery-flown": results_recovery_flown,
     "results-recovery-ablations": results_recovery_ablations,
     "results-repoimu": results_repoimu,

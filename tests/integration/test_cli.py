@@ -351,7 +351,14 @@ def test_fly_set_reaches_the_sensors_the_vehicle_and_the_controller(tmp_path, ca
     assert rec.meta["set"] == sets and rec.meta["vehicle"] == "recovery" and rec.meta["config"]["gyro"]["range"] == 8.73
     assert np.abs(rec.true_gyr).max() > 10.0 and np.abs(rec.gyr).max() == pytest.approx(8.73)
     hover = replace(vehicle_preset("recovery"), mass_kg=0.55).hover_speed()
-    assert pq.read_table(run0["files"]["flight"]).column("rotor0_speed")[0].as_py() == pytest.approx(hover)
+    table = pq.read_table(run0["files"]["flight"])
+    assert table.column("rotor0_speed")[0].as_py() == pytest.approx(hover)
+    # the controller read the gyroscope within range and the predicted rate, beyond the limit, where it clipped
+    rate = np.column_stack([table.column(f"est_w{a}").to_numpy() for a in "xyz"])
+    clipped = np.abs(rec.gyr) >= 8.73 * 0.995
+    assert clipped.any() and (np.abs(rate[clipped]) >= 8.73 * 0.995).all()
+    np.testing.assert_allclose(rate[~clipped], rec.gyr[~clipped], rtol=1e-9, atol=1e-12)
+    assert "gyro_clipped_share" in run0 and run0["clip_rate_error_rms_rad_s"][2] < 1.0
 
 
 def test_fly_a_throw_with_the_recovery_and_the_oracle(tmp_path, capsys):
@@ -394,6 +401,8 @@ def test_fly_a_throw_with_the_recovery_and_the_oracle(tmp_path, capsys):
         (["reproduce", "afckf", "--prescribed", "--ablations"], "leave out --prescribed"),
         (["reproduce", "afckf", "--any-direction"], "--any-direction is for reproduce recovery"),
         (["reproduce", "recovery", "--in-loop"], "are for reproduce afckf"),
+        (["reproduce", "afckf", "--clipping"], "add --in-loop"),
+        (["reproduce", "recovery", "--clipping"], "add --in-loop"),
         (["reproduce", "recovery", "--prescribed", "--any-direction"], "leave out --prescribed"),
     ],
 )

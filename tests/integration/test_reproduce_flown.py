@@ -49,15 +49,20 @@ def test_the_ablations_change_what_physics_says(flown):
 def test_estimators_in_the_loop_after_the_loss():
     """Part 3: the loss with an estimator in the fault-tolerant controller's loop. With the
     bebop2 sensors the truth and Madgwick's filter keep the vehicle up and in place; with a
-    gyroscope that clips below the spin even the truth loses it (the controller damps with the
-    measured rate)."""
-    from quadest.evaluation.flown import IN_LOOP_VARIANTS, in_loop_seed, in_loop_table
+    gyroscope that clips below the spin the truth loses it when the controller damps with the
+    clipped reading (the clipping ablation's flight.clip_rate off), and keeps it with the
+    predicted rate, whose error on the clipped samples the table carries."""
+    from quadest.evaluation.flown import CLIP_VARIANTS, IN_LOOP_VARIANTS, in_loop_seed, in_loop_table
 
-    runs = []
-    for label, overrides in (IN_LOOP_VARIANTS[0], IN_LOOP_VARIANTS[2]):
-        runs += in_loop_seed((label, overrides, 1, FlownAfckfParams(), ["truth", "madgwick"]))
+    runs = in_loop_seed((*IN_LOOP_VARIANTS[0], 1, FlownAfckfParams(), ["truth", "madgwick"]))
+    for label, overrides in (CLIP_VARIANTS[0], CLIP_VARIANTS[2]):
+        runs += in_loop_seed((label, overrides, 1, FlownAfckfParams(), ["truth"]))
     rows = {(r["variant"], r["estimator"]): r for r in in_loop_table(runs)}
     truth, madgwick = rows[("baseline: bebop2 sensors", "truth")], rows[("baseline: bebop2 sensors", "madgwick")]
     assert truth["survived"] == truth["settled"] == 1 and madgwick["survived"] == madgwick["settled"] == 1
     assert madgwick["tilt_error_after_loss_deg"] < 5.0 and madgwick["tilt_error_offline_deg"] < 5.0
-    assert rows[("gyro range ±500°/s", "truth")]["survived"] == 0
+    assert "gyro_clipped_share" not in truth  # the bebop2 sensors' ±1000°/s does not clip in this spin
+    assert rows[(CLIP_VARIANTS[0][0], "truth")]["survived"] == 0
+    predicted = rows[(CLIP_VARIANTS[2][0], "truth")]
+    assert predicted["survived"] == 1 and predicted["gyro_clipped_share"] > 0.9
+    assert predicted["clip_rate_error_rms_rad_s"][2] < 0.5

@@ -114,6 +114,8 @@ def cmd_compare(args):
 
 
 def cmd_reproduce(args):
+    if args.clipping and not (args.paper == "afckf" and args.in_loop):
+        raise CliError("--clipping is an ablation of reproduce afckf --in-loop: add --in-loop")
     if args.paper == "recovery":
         return _reproduce_recovery(args)
     args.seeds = args.seeds or ("1-20" if args.in_loop else "1-5")
@@ -175,13 +177,19 @@ def cmd_reproduce(args):
 
 def _reproduce_in_loop(args):
     seeds = parse_seeds(args.seeds)
+    what = (
+        "the clipping ablation (the rate of a clipped gyroscope axis predicted or not, for the controller and "
+        "the estimator; truth, robust and afckf)"
+        if args.clipping
+        else "the baseline sensors and the gyroscope-range and magnetometer-latency ablations"
+    )
     say(
         "The AFCKF paper's rotor loss flown with each estimator in the fault-tolerant controller's loop (a Bebop 2 "
-        f"loses rotor 0 at 5 s and must stay up 20 s more), seeds {args.seeds}, with the baseline sensors and "
-        "the gyroscope-range and magnetometer-latency ablations."
+        f"loses rotor 0 at 5 s and must stay up 20 s more), seeds {args.seeds}, with {what}."
     )
     say("(each estimator's loop compiles on its first flight: some seconds each)")
-    result = reproduce.afckf_in_loop(seeds, progress=True, workers=args.workers, scheduler=args.scheduler)
+    clipping = dict(estimators=flown.CLIP_ESTIMATORS, variants=flown.CLIP_VARIANTS) if args.clipping else {}
+    result = reproduce.afckf_in_loop(seeds, progress=True, workers=args.workers, scheduler=args.scheduler, **clipping)
     say(flown.format_in_loop(result["table"]))
     if args.json:
         write_json(args.json, result)
@@ -548,6 +556,15 @@ def _add_reproduce(sub):
         help="afckf: instead of the tables, the flown loss with each estimator in the fault-tolerant "
         "controller's loop (default seeds 1-20): which keep the vehicle up and in place, with the "
         "baseline sensors and the gyro-range and magnetometer-latency ablations",
+    )
+    r.add_argument(
+        "--clipping",
+        action="store_true",
+        help="afckf --in-loop: instead of its sensor variants, the clipping ablation with truth, robust and "
+        "afckf in the loop: a ±500°/s gyro with the clipped reading, the predicted rate of a clipped axis "
+        "(FlightParams.clip_rate) to the controller only, to the controller and the estimator, the same from "
+        "the rotor speeds, a ±1000°/s gyro without and with it, ±300, ±400 and ±600°/s gyros with it, and a "
+        "vehicle without rotor drag (a faster spin) at ±1000°/s without and with it (docs/vehicle.md)",
     )
     r.add_argument("--json", metavar="OUT", help="write all figures (per seed too) as JSON")
     r.add_argument(

@@ -67,8 +67,8 @@ def failure_record(f: Failure | None) -> dict | None:
 
 
 def flight_table(flight) -> dict:
-    """Per IMU sample: the true state, the rotor speeds and commands, what the controller read,
-    the barometer (NaN between its samples) and a throw's recovery state."""
+    """Per IMU sample: the true state, the rotor speeds and commands, what the controller read
+    (attitude, position, velocity, body rate), the barometer (NaN between its samples) and a throw's recovery state."""
     x = flight.states
     cols = {"t": flight.recording.t}
     names = ["pn", "pe", "pd", "vn", "ve", "vd", "qw", "qx", "qy", "qz", "wx", "wy", "wz"]
@@ -81,6 +81,9 @@ def flight_table(flight) -> dict:
         cols[f"est_{n}"] = flight.q_est[:, i]
     for i, n in enumerate(("pn", "pe", "pd", "vn", "ve", "vd")):
         cols[f"est_{n}"] = flight.pv_est[:, i]
+    if flight.rate_est is not None:  # the body rate the controller read (on a clipped axis the predicted one)
+        for i, n in enumerate(("wx", "wy", "wz")):
+            cols[f"est_{n}"] = flight.rate_est[:, i]
     if flight.baro is not None:
         cols["baro_alt"] = flight.baro
     if flight.modes is not None:

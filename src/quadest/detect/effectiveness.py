@@ -171,7 +171,7 @@ def model_coefficients(vehicle) -> np.ndarray:
 
 
 @njit(cache=True, inline="always")
-def _motor(omega, cmd, c, dt):
+def motor_step(omega, cmd, c, dt):
     """The detector's motor model: first order with its time constant, speed and rate limits."""
     target = min(max(cmd, c[MODEL.omega_min]), c[MODEL.omega_max])
     rate = (target - omega) / c[MODEL.tau]
@@ -185,6 +185,29 @@ def _thrust(c, om, w0, w1, gx, gy):
     u_z`` with the hub's axial speed from the rotation, ``u_z = ω_x r_y − ω_y r_x`` (the
     vehicle's own velocity is not known here: it moves every rotor alike)."""
     return c[MODEL.k_f] * om * om + c[MODEL.k_z] * om * (-w0 * gx - w1 * gy)
+
+
+@njit(cache=True, inline="always")
+def body_moments(c, w0, w1, w2):
+    """The moments on the body turning at ``ω`` other than the rotors': the gyroscopic
+    ``−ω × J ω`` and the quadratic drag ``−C_r |ω| ω`` (the linear damping ``D ω`` is applied by
+    the caller)."""
+    J0, J1, J2 = c[MODEL.inertia], c[MODEL.inertia + 1], c[MODEL.inertia + 2]
+    m0 = -(w1 * J2 * w2 - w2 * J1 * w1) - c[MODEL.rot_drag] * abs(w0) * w0
+    m1 = -(w2 * J0 * w0 - w0 * J2 * w2) - c[MODEL.rot_drag + 1] * abs(w1) * w1
+    m2 = -(w0 * J1 * w1 - w1 * J0 * w0) - c[MODEL.rot_drag + 2] * abs(w2) * w2
+    return m0, m1, m2
+
+
+@njit(cache=True, inline="always")
+def rotor_thrust_yaw(c, i, om, w0, w1, w2):
+    """Intact rotor ``i`` at speed ``om`` on a body turning at ``ω``: its thrust (:func:`_thrust`;
+    its roll and pitch moments are ``thrust · (g_x, g_y)``) and its yaw moment, the reaction
+    torque and the rotor drag of the hub's in-plane speed ``ω_z × r_i``."""
+    gx, gy, gz = c[MODEL.g + 3 * i], c[MODEL.g + 3 * i + 1], c[MODEL.g + 3 * i + 2]
+    thrust = _thrust(c, om, w0, w1, gx, gy)
+    yaw = c[MODEL.k_f] * om * om * gz - c[MODEL.k_h] * om * w2 * (gx * gx + gy * gy)  # reaction, rotor drag
+    return thrust, yaw
 
 
 @njit(cache=True, inline="always")
@@ -215,16 +238,12 @@ def _predict(x, p, c, gyr, dt):
     P, B, FP = STATE.P, STATE.B, STATE.FP  # offsets into x
     w0, w1, w2 = gyr[0], gyr[1], gyr[2]  # the measured rate for the gyroscopic and drag terms
     J0, J1, J2 = c[MODEL.inertia], c[MODEL.inertia + 1], c[MODEL.inertia + 2]
-    kf = c[MODEL.k_f]
-    m0 = -(w1 * J2 * w2 - w2 * J1 * w1) - c[MODEL.rot_drag] * abs(w0) * w0
-    m1 = -(w2 * J0 * w0 - w0 * J2 * w2) - c[MODEL.rot_drag + 1] * abs(w1) * w1
-    m2 = -(w0 * J1 * w1 - w1 * J0 * w0) - c[MODEL.rot_drag + 2] * abs(w2) * w2
+    m0, m1, m2 = body_moments(c, w0, w1, w2)
     # B[j, i]: the rate change over dt per unit effectiveness of rotor i
     for i in range(n):
         om = x[STATE.omega + i]
-        gx, gy, gz = c[MODEL.g + 3 * i], c[MODEL.g + 3 * i + 1], c[MODEL.g + 3 * i + 2]  # gx = −r_y, gy = r_x
-        thrust = _thrust(c, om, w0, w1, gx, gy)
-        yaw = kf * om * om * gz - c[MODEL.k_h] * om * w2 * (gx * gx + gy * gy)  # reaction, rotor drag
+        gx, gy = c[MODEL.g + 3 * i], c[MODEL.g + 3 * i + 1]  # gx = −r_y, gy = r_x
+        thrust, yaw = rotor_thrust_yaw(c, i, om, w0, w1, w2)
         x[B + i] = dt * thrust * gx / J0
         x[B + MAX_ROTORS + i] = dt * thrust * gy / J1
         x[B + 2 * MAX_ROTORS + i] = dt * yaw / J2
@@ -371,7 +390,7 @@ def detect_step(x, p, c, gyr, acc, rotors, dt, diag):
     measured = p[PARAM.rotor_speeds] != 0.0
     for i in range(n):  # the speeds over the interval: √(½(Ω²_begin + Ω²_end)), Ω² being what thrust needs
         begin = x[STATE.omega_end + i]
-        end = rotors[i] if measured else _motor(begin, rotors[i], c, dt)
+        end = rotors[i] if measured else motor_step(begin, rotors[i], c, dt)
         x[STATE.omega + i] = np.sqrt(0.5 * (begin * begin + end * end))
         x[STATE.omega_end + i] = end
     _predict(x, p, c, gyr, dt)

@@ -21,7 +21,7 @@ vehicle up, and in place (:func:`in_loop_seed`, :func:`in_loop_table`).
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -31,6 +31,7 @@ from quadest.evaluation.metrics import AXES
 from quadest.evaluation.runner import estimate, score_result
 from quadest.flight import FlightParams, fly, fly_many, resample
 from quadest.flight.common import mean_present
+from quadest.models.multirotor import vehicle_preset
 from quadest.records import check, describe, param
 from quadest.recovery import RecoveryParams
 from quadest.sim import build_config
@@ -256,8 +257,47 @@ IN_LOOP_VARIANTS = [
 """The sensors the in-loop campaign flies with: the baseline and the ablations of the gyroscope's
 range and the magnetometer's latency."""
 
+_R500, _R1000 = math.radians(500.0), math.radians(1000.0)
+CLIP_VARIANTS = [
+    ("gyro ±500°/s, clipped reading", {"gyro.range": _R500, "flight.clip_rate": "off"}),
+    (
+        "gyro ±500°/s, predicted rate to the controller only",
+        {"gyro.range": _R500, "flight.clip_rate_estimator": False},
+    ),
+    ("gyro ±500°/s, predicted rate to the controller and the estimator", {"gyro.range": _R500}),
+    (
+        "gyro ±500°/s, the same from the rotor speeds",
+        {"gyro.range": _R500, "flight.clip_rate": "rotor-speeds"},
+    ),
+    ("gyro ±1000°/s, clipped reading", {"gyro.range": _R1000, "flight.clip_rate": "off"}),
+    ("gyro ±1000°/s, predicted rate to the controller and the estimator", {"gyro.range": _R1000}),
+    *(
+        (f"gyro ±{d}°/s, predicted rate to the controller and the estimator", {"gyro.range": math.radians(d)})
+        for d in (300, 400, 600)
+    ),
+    (
+        "gyro ±1000°/s, no rotor drag (k_h = 0: a faster spin), clipped reading",
+        {"gyro.range": _R1000, "vehicle.k_h": 0.0, "flight.clip_rate": "off"},
+    ),
+    (
+        "gyro ±1000°/s, no rotor drag (k_h = 0: a faster spin), predicted rate to the controller and the estimator",
+        {"gyro.range": _R1000, "vehicle.k_h": 0.0},
+    ),
+]
+"""The clipping ablation (``--clipping``): the rate of a clipped gyroscope axis off, for the
+controller only, for the controller and the estimator (the default), and from the rotor speeds
+instead of the commands; other ranges (the clipping share); a vehicle without rotor drag, whose
+spin clips a ±1000°/s gyro. ``flight.*`` keys are :class:`~quadest.flight.FlightParams` fields,
+``vehicle.*`` the vehicle preset's."""
+CLIP_ESTIMATORS = ["truth", "robust", "afckf"]
+"""The estimators the clipping ablation flies: the truth's attitude (the rate as the controller
+reads it), quadest's own and the AFCKF (its eq 48 expects a clipped yaw rate)."""
+
 IN_LOOP_AFTER_S = 20.0
 """How long after the loss a run must stay up (20 s)."""
+
+
+_RECORDS = ("flight.", "vehicle.")
 
 
 def in_loop_seed(task) -> list[dict]:
@@ -265,16 +305,18 @@ def in_loop_seed(task) -> list[dict]:
     params, estimators)``): the loss flown with each estimator in the loop (the truth first),
     each estimator also run offline over the truth's flight; the runs' summaries."""
     label, overrides, seed, p, estimators = task
-    cfg = build_config(p.preset).with_overrides(overrides) if overrides else build_config(p.preset)
+    flight, vehicle = ({k.partition(".")[2]: v for k, v in overrides.items() if k.startswith(f)} for f in _RECORDS)
+    sensors = {k: v for k, v in overrides.items() if not k.startswith(_RECORDS)}
+    cfg = build_config(p.preset).with_overrides(sensors) if sensors else build_config(p.preset)
     runs = fly_many(
         "rotor-loss",
         estimators,
         [seed],
-        vehicle=p.vehicle,
+        vehicle=replace(vehicle_preset(p.vehicle), **vehicle) if vehicle else p.vehicle,
         config=cfg,
         duration=p.failure_s + IN_LOOP_AFTER_S,
         failure=Failure(p.rotor, p.failure_s),
-        params=FlightParams(height_m=p.height_m),
+        params=FlightParams(height_m=p.height_m, **flight),
     )
     for r in runs:
         r["variant"] = label
@@ -303,6 +345,7 @@ def in_loop_table(runs: list[dict]) -> list[dict]:
                     "position_rms_settled_m": mean([r["position_rms_settled_m"] for r in rs]),
                     "attitude_error_after_loss_deg": mean([r.get("attitude_error_after_failure_rms_deg") for r in up]),
                     "tilt_error_after_loss_deg": mean([r.get("tilt_error_after_failure_rms_deg") for r in up]),
+                    **_clipping_means(up),
                     "tilt_error_offline_deg": (
                         0.0
                         if name == "truth"
@@ -313,6 +356,19 @@ def in_loop_table(runs: list[dict]) -> list[dict]:
                 }
             )
     return rows
+
+
+def _clipping_means(runs: list[dict]) -> dict:
+    """Over the runs that stayed up and clipped: the share of clipped samples after the loss and
+    the RMS error per axis of the rate the controller read on clipped samples (their means)."""
+    clipped = [r for r in runs if "gyro_clipped_share" in r]
+    if not clipped:
+        return {}
+    errors = [r["clip_rate_error_rms_rad_s"] for r in clipped]
+    return {
+        "gyro_clipped_share": mean_present([r["gyro_clipped_share"] for r in clipped]),
+        "clip_rate_error_rms_rad_s": [mean_present([e[j] for e in errors]) for j in range(3)],
+    }
 
 
 def format_in_loop(rows: list[dict]) -> str:
@@ -338,8 +394,18 @@ def format_in_loop(rows: list[dict]) -> str:
                 f"{f(r['position_rms_settled_m'], '{:.2f} m'):>10}"
                 f"{f(r['attitude_error_after_loss_deg'], '{:.1f}°'):>10}"
                 f"{f(r['tilt_error_after_loss_deg'], '{:.1f}°'):>8}{f(r['tilt_error_offline_deg'], '{:.1f}°'):>9}"
+                + _clipping_columns(r)
             )
     return "\n".join(lines)
+
+
+def _clipping_columns(row: dict) -> str:
+    """A row's clipping: the share of samples clipped after the loss and the rate error on the
+    clipped samples per axis (rad/s RMS), for the runs that stayed up."""
+    if "gyro_clipped_share" not in row:
+        return ""
+    err = "/".join("-" if e is None else f"{e:.2f}" for e in row["clip_rate_error_rms_rad_s"])
+    return f"   clipped {100 * row['gyro_clipped_share']:.0f} %, rate error {err} rad/s"
 
 
 # -- the recovery paper's throws, flown ------------------------------------------------------------------

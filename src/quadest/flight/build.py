@@ -13,6 +13,7 @@ from quadest.detect.effectiveness import DIAG, STATE
 from quadest.flight.detection import DETECTION_MODES, Detection
 from quadest.flight.loop import MAX_RATE, MAX_SPEED, Loop, Navigation, Plant, Record, Sensing, record_arrays
 from quadest.flight.phases import NAV, PHASES, Bank
+from quadest.flight.rate import clip_rate
 from quadest.models.multirotor import work
 from quadest.recovery import RecoveryParams
 from quadest.recovery.logic import initial_bank
@@ -80,9 +81,10 @@ def sensing(sm, *, dt, rotors, position0, every=1, delay=0, noise=None, n=1, on=
     )
 
 
-def navigation(kind: str, x0, gain=None):
+def navigation(kind: str, x0, gain=None, clip=None):
     """The :data:`~quadest.flight.loop.Navigation` reading ``kind`` (:data:`~quadest.flight.phases.NAV`);
-    the position and velocity estimates start at the truth (on the pad)."""
+    the position and velocity estimates start at the truth (on the pad); ``clip`` the rate of a
+    clipped gyroscope axis (:func:`~quadest.flight.rate.clip_rate`; none: the reading as it is)."""
     return Navigation.make(
         kind=NAV[kind],
         xh=np.zeros(13),
@@ -90,6 +92,7 @@ def navigation(kind: str, x0, gain=None):
         ph=np.array(x0[0:3], float),
         vh=np.array(x0[3:6], float),
         gain=np.zeros((3, 2)) if gain is None else np.ascontiguousarray(gain, dtype=float),
+        clip=clip_rate() if clip is None else clip,
     )
 
 

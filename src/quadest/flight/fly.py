@@ -28,7 +28,7 @@ from quadest.control import (
 from quadest.control.ftc import relaxed_hover
 from quadest.control.registry import CONTROLLERS as REGISTRY
 from quadest.data.recording import Recording
-from quadest.detect import DetectorParams
+from quadest.detect import DetectorParams, RatePredictorParams
 from quadest.errors import UsageError
 from quadest.filters import ESTIMATORS, Estimator, filter_name, make_filter
 from quadest.flight import build
@@ -181,7 +181,7 @@ def fly(
             zero_failed=oracle,
         ),  # fmt: skip
         sensing=_position_sensing(sm, params, rate, every, n, x0, rng_mocap, vehicle.rotors, seed),
-        nav=build.navigation(nav, x0, position_gain(params, rate)),
+        nav=build.navigation(nav, x0, position_gain(params, rate), _clip_rate(params, vehicle, cfg, seed, n)),
         bank=build.bank(),
         control=build.control(
             dict(REGISTRY[controller].phases),
@@ -196,8 +196,7 @@ def fly(
         rotors=vehicle.rotors,
         phase="flying",
     )
-    x = x0.copy()
-    t0 = time.perf_counter()
+    x, t0 = x0.copy(), time.perf_counter()
     status, flown = _run(x, loop, est)
     loop_s = time.perf_counter() - t0
     if flown == 0:
@@ -220,6 +219,7 @@ def fly(
         ftc=ftc,
         vehicle=vehicle,
         ref=(loop.control.p_d, loop.control.yaw_d),
+        gyro_range=float(cfg.gyro.range),
     )
     if detection != "oracle":
         _add_detection(flight, loop.detection, detection, failure, flown)
@@ -397,6 +397,15 @@ def _detection(mode, detector, vehicle, params, seed, n):
         raise UsageError(f"unknown detection {mode!r}; detection: {', '.join(DETECTION_MODES)}")
     if mode == "oracle":
         return build.detection()
+    model, rng_speed = _detector_model(vehicle, params, seed)
+    noise = rng_speed.standard_normal((n, vehicle.rotors)) * params.speed_noise
+    return build.detection(mode, vehicle=model, params=detector, n=n, noise=noise)
+
+
+def _detector_model(vehicle, params, seed):
+    """The detector's model of the vehicle (the flight's, each of mass, inertia and thrust
+    coefficient off by a factor within ``params.detector_model_error`` drawn per flight) and
+    the generator of its rotor speed readings' noise, both from the flight's seed."""
     rng_model, rng_speed = (np.random.default_rng(s) for s in np.random.SeedSequence([int(seed), 29]).spawn(2))
     e = params.detector_model_error
     model = replace(
@@ -405,8 +414,27 @@ def _detection(mode, detector, vehicle, params, seed, n):
         inertia=tuple(np.asarray(vehicle.inertia) * (1 + rng_model.uniform(-e, e, 3))),
         k_f=vehicle.k_f * (1 + rng_model.uniform(-e, e)),
     )
-    noise = rng_speed.standard_normal((n, vehicle.rotors)) * params.speed_noise
-    return build.detection(mode, vehicle=model, params=detector, n=n, noise=noise)
+    return model, rng_speed
+
+
+def _clip_rate(params, vehicle, cfg, seed, n):
+    """The rate of a clipped gyroscope axis (:mod:`quadest.flight.rate`) with the detector's
+    model of the vehicle (:func:`_detector_model`) and the gyroscope's range (the sensor's
+    configuration, as an autopilot knows it); its rotor speed readings' noise from a generator
+    of its own."""
+    model, _ = _detector_model(vehicle, params, seed)
+    noise = None
+    if params.clip_rate == "rotor-speeds":
+        rng = np.random.default_rng(np.random.SeedSequence([int(seed), 31]))
+        noise = rng.standard_normal((n, vehicle.rotors)) * params.speed_noise
+    return build.clip_rate(
+        params.clip_rate,
+        vehicle=model,
+        gyro_range=float(cfg.gyro.range),
+        n=n,
+        noise=noise,
+        to_estimator=params.clip_rate_estimator,
+    )
 
 
 def _run(x, loop, est: InLoop):
@@ -417,7 +445,7 @@ def _run(x, loop, est: InLoop):
     sensing = loop.sensing
     for k in range(len(loop.record.phase)):
         sense_sample(k, x, loop)
-        status = act_sample(k, x, loop, est.peer.update(sensing.gyr, sensing.acc, sensing.mag, dt=sensing.dt))
+        status = act_sample(k, x, loop, est.peer.update(loop.nav.clip.gyr, sensing.acc, sensing.mag, dt=sensing.dt))
         if status != OK:
             return status, flown(status, k)
     return OK, len(loop.record.phase)
@@ -473,9 +501,23 @@ def resample(
 
 
 def summarize(
-    flight: Flight, *, scenario, status, duration, failure, controller, estimator, seed, params, ftc, vehicle, ref
+    flight: Flight,
+    *,
+    scenario,
+    status,
+    duration,
+    failure,
+    controller,
+    estimator,
+    seed,
+    params,
+    ftc,
+    vehicle,
+    ref,
+    gyro_range=np.inf,
 ) -> dict:
-    """The summary of one run (module doc)."""
+    """The summary of one run (module doc); with a gyroscope of ``gyro_range`` that clipped,
+    :func:`clipping_summary`'s too."""
     rec, x = flight.recording, flight.states
     t = rec.t
     p_d, _ = ref
@@ -527,7 +569,27 @@ def summarize(
             "tilt_deg": hover.tilt_deg,
             "thrusts_n": [float(v) for v in hover.thrusts],
         }
+    s.update(clipping_summary(flight, gyro_range, failure))
     return s
+
+
+def clipping_summary(flight: Flight, gyro_range: float, failure: Failure | None) -> dict:
+    """With a gyroscope that clipped (from the failure on, if any): the share of samples with an
+    axis clipped and, per axis, the RMS error of the rate the controller read against the true
+    rate on that axis's clipped samples (None for an axis that never clipped). Empty otherwise."""
+    if not np.isfinite(gyro_range) or flight.rate_est is None:
+        return {}
+    t = flight.recording.t
+    after = t >= (failure.time_s if failure is not None else 0.0)
+    margin = RatePredictorParams().clip_margin
+    clipped = (np.abs(flight.recording.gyr) >= gyro_range * (1.0 - margin)) & after[:, None]
+    if not clipped.any():
+        return {}
+    err = flight.rate_est - flight.states[:, 10:13]
+    return {
+        "gyro_clipped_share": float(clipped.any(axis=1).sum() / max(after.sum(), 1)),
+        "clip_rate_error_rms_rad_s": [rms(err[clipped[:, j], j]) if clipped[:, j].any() else None for j in range(3)],
+    }
 
 
 def offline_errors(flight: Flight, estimator: str) -> dict:

@@ -7,7 +7,8 @@ simulation rate, ``substeps`` RK4 steps per sample):
 1. a failure due at ``k`` strikes (the rotor's efficiency changes);
 2. the sensors are sampled (:mod:`quadest.sim.sensors`, the model every simulation samples)
    from the true state, or in the hand from the hand's motion; every ``every`` samples the
-   position sensor reads (its reading ``delay`` samples old);
+   position sensor reads (its reading ``delay`` samples old); a clipped gyroscope axis's rate
+   is predicted from the vehicle model (:mod:`quadest.flight.rate`);
 3. the estimate: an estimator's compiled step (the function its batch run calls) and the
    position fusion, the truth (an oracle, labelled), or a throw's recovery (:mod:`quadest.flight.phases`);
 4. the controller of the flight's phase (:data:`PHASES`, :mod:`quadest.control.registry`)
@@ -26,6 +27,7 @@ from quadest._jit import NO_ALLOCATION, copy_into, njit
 from quadest.control.registry import command
 from quadest.flight.detection import notice_failure
 from quadest.flight.phases import FAULT, FLYING, NAV_FILTER, NAV_TRUE_STATE, PHASE, recovery_phase
+from quadest.flight.rate import predict_rate
 from quadest.models.multirotor import derivative_ws, rk4_ws
 from quadest.records import compiled_record
 from quadest.rotation.kernels import qmul_s, rotate_s
@@ -99,20 +101,23 @@ Navigation = compiled_record(
     "Navigation",
     "What the controller reads and how it is made: the source (flight.phases.NAV), the "
     "estimated state xh (position, velocity, q_nb, body rate), the position fusion's position, "
-    "velocity and steady-state gain, and the estimator's latest attitude (geographic q_nb).",
+    "velocity and steady-state gain, the estimator's latest attitude (geographic q_nb), and the "
+    "rate of a clipped gyroscope axis (flight.rate.ClipRate).",
     kind="i8",
     xh="f8[:]",
     q_est="f8[:]",
     ph="f8[:]",
     vh="f8[:]",
     gain="f8[:, :]",
+    clip="any",
 )
 
 Record = compiled_record(
     "Record",
     "What the loop records per sample: true state, its derivative, rotor thrusts, "
     "efficiencies and commands, the readings (the barometer's NaN between readings), what the "
-    "controller read, the phase, a recovery's spherical variance and gravity direction, and its "
+    "controller read (attitude, position and velocity, body rate), the phase, a recovery's "
+    "spherical variance and gravity direction, and its "
     "events (detection, handover, detections, first detection).",
     x="f8[:, :]",
     dx="f8[:, :]",
@@ -125,6 +130,7 @@ Record = compiled_record(
     baro="f8[:]",
     q="f8[:, :]",
     pv="f8[:, :]",
+    rate="f8[:, :]",
     phase="i8[:]",
     sg="f8[:]",
     gdir="f8[:, :]",
@@ -152,7 +158,7 @@ Loop = compiled_record(
 def record_arrays(n: int, rotors: int) -> dict:
     """Empty arrays for a :data:`Record` of ``n`` samples (the events not yet happened)."""
     nx = 13 + rotors
-    shapes = dict(x=nx, dx=nx, thrust=rotors, eta=rotors, cmd=rotors, gyr=3, acc=3, mag=3, q=4, pv=6, gdir=3)
+    shapes = dict(x=nx, dx=nx, thrust=rotors, eta=rotors, cmd=rotors, gyr=3, acc=3, mag=3, q=4, pv=6, rate=3, gdir=3)
     out = {k: np.full((n, m), np.nan) for k, m in shapes.items()}
     out.update(
         baro=np.full(n, np.nan), phase=np.zeros(n, np.int64), sg=np.full(n, np.nan), events=np.full(4, -1, np.int64)
@@ -203,6 +209,7 @@ def sense(k, x, loop):
         if in_hand:
             copy_into(plant.dx, plant.hand_dx[k])
         sample(x, plant.dx, plant, sensing, k)
+        predict_rate(k, x, loop)
     for j in range(sensing.delay, 0, -1):
         copy_into(sensing.hist[j], sensing.hist[j - 1])
     copy_into(sensing.hist[0], x[0:3])
@@ -229,9 +236,11 @@ def sample_baro(k, alt, sensing):
 @njit(cache=True, inline="always")
 def navigate(k, x, loop, q_est):
     """Position, velocity, attitude and rate for the controller of a flight (not a throw's
-    recovery): the truth's (rate: the gyro's), or the estimator's attitude ``q_est`` with the
-    position fusion (the accelerometer rotated by it, corrected at each position reading with a
-    constant gain). Returns :data:`ESTIMATE_NAN` for a non-finite attitude, else :data:`OK`."""
+    recovery): the truth's (rate: the gyro's, on a clipped axis the predicted one,
+    :mod:`quadest.flight.rate`; the whole true state with ``true-state``), or the estimator's
+    attitude ``q_est`` with the position fusion (the accelerometer rotated by it, corrected at
+    each position reading with a constant gain) and the same rate. Returns
+    :data:`ESTIMATE_NAN` for a non-finite attitude, else :data:`OK`."""
     nav, sensing, dt = loop.nav, loop.sensing, loop.sensing.dt
     xh, ph, vh, acc = nav.xh, nav.ph, nav.vh, sensing.acc
     truth = nav.kind != NAV_FILTER
@@ -255,7 +264,7 @@ def navigate(k, x, loop, q_est):
                 vh[j] += nav.gain[j, 1] * e
     for j in range(3):
         xh[j], xh[3 + j] = ph[j], vh[j]
-        xh[10 + j] = x[10 + j] if nav.kind == NAV_TRUE_STATE else sensing.gyr[j]
+        xh[10 + j] = x[10 + j] if nav.kind == NAV_TRUE_STATE else nav.clip.rate[j]
     return OK
 
 
@@ -343,6 +352,7 @@ def fly_sample(k, x, loop, q_est):
     copy_into(record.q[k], nav.xh[6:10])
     copy_into(record.pv[k, 0:3], nav.ph)
     copy_into(record.pv[k, 3:6], nav.vh)
+    copy_into(record.rate[k], nav.xh[10:13])
     return record_and_fly(k, x, loop)
 
 
@@ -412,11 +422,11 @@ def _fly_with_estimator(x, loop, est_step, ex, ep, ec, ediag, dq):
     ``ep``, ``ec``, diagnostics ``ediag``; ``dq`` the declination quaternion). Not cached (it
     takes a function): numba compiles it once per estimator and process, so its halves stay
     calls to their cached compiled code."""
-    q, sensing = loop.nav.q_est, loop.sensing
+    q, sensing, gyr = loop.nav.q_est, loop.sensing, loop.nav.clip.gyr
     n = loop.record.phase.shape[0]
     for k in range(n):
         sense_sample(k, x, loop)
-        est_step(ex, ep, ec, sensing.gyr, sensing.acc, sensing.mag, sensing.dt, ediag)
+        est_step(ex, ep, ec, gyr, sensing.acc, sensing.mag, sensing.dt, ediag)
         # q = dq ⊗ q_est (the declination turns the magnetic frame into the geographic one)
         q[0], q[1], q[2], q[3] = qmul_s(dq[0], dq[1], dq[2], dq[3], ex[0], ex[1], ex[2], ex[3])
         status = act_sample(k, x, loop, q)

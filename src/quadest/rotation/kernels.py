@@ -153,3 +153,15 @@ def skew(v):
     S = np.zeros((3, 3))
     S[0, 1], S[0, 2], S[1, 0], S[1, 2], S[2, 0], S[2, 1] = -v[2], v[1], v[2], -v[0], -v[1], v[0]
     return S
+
+
+@njit(cache=True, inline="always")
+def mag_rate_terms(mi, mj, mk, dj, dk, wj, wk):
+    """The rate about body axis i from a vector fixed in the navigation frame and seen turning
+    in the body (the magnetic field: robust's eq R4, docs/estimators.md), (i, j, k) cyclic:
+    ``ṁ = −ω × m`` gives ``ṁ_j + ω_k m_i = ω_i m_k`` and ``ṁ_k − ω_j m_i = −ω_i m_j``, whose
+    least-squares solution is ``ω_i = num / den`` with
+    ``num = m_k (ṁ_j + ω_k m_i) − m_j (ṁ_k − ω_j m_i)`` and ``den = m_j² + m_k²`` (a field along the
+    axis says nothing of its rate). ``m`` the mid-point of two samples, ``d`` their difference over
+    the interval, ``w`` the other axes' mean rates over it."""
+    return mk * (dj + wk * mi) - mj * (dk - wj * mi), mj * mj + mk * mk

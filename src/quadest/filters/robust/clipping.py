@@ -10,16 +10,7 @@ import numpy as np
 
 from quadest._jit import njit
 from quadest.filters.robust.params import PARAM, STATE
-
-
-@njit(cache=True, inline="always")
-def mag_rate_terms(mi, mj, mk, dj, dk, wj, wk):
-    """Eq R4 for axis i, (i, j, k) cyclic: ``ṁ = −ω × m`` gives ``ṁ_j + ω_k m_i = ω_i m_k`` and
-    ``ṁ_k − ω_j m_i = −ω_i m_j``, whose least-squares solution is ``ω_i = num / den`` with
-    ``num = m_k (ṁ_j + ω_k m_i) − m_j (ṁ_k − ω_j m_i)`` and ``den = m_j² + m_k²`` (a field along the
-    axis says nothing of its rate). ``m`` the mid-point of two samples, ``d`` their difference over
-    the interval, ``w`` the other axes' mean rates over it."""
-    return mk * (dj + wk * mi) - mj * (dk - wj * mi), mj * mj + mk * mk
+from quadest.rotation.kernels import mag_rate_terms
 
 
 @njit(cache=True, inline="always")
