@@ -384,3 +384,22 @@ def test_vertical_bias_in_six_axis_use_stays_near_the_truth_on_a_circle():
     before = make_filter("robust", bias_rows_lp=False).run(rec).diag["bias_z"] - b_true
     assert np.abs(err).max() < math.radians(0.5), math.degrees(np.abs(err).max())
     assert np.abs(before).max() > math.radians(1.0), math.degrees(np.abs(before).max())
+
+
+def test_vertical_bias_in_six_axis_use_is_not_driven_by_the_manoeuvres():
+    """Eq R3d in the simulator's normal flight, 6-axis (never at rest: the preset's noise), the
+    gyro biased by BIAS (vertical 0.69 °/s). The tilt barely observes the vertical bias here, so
+    the estimate stays near its start: within two prior σ (bias_init 0.5 °/s, so 1 °/s) of the
+    truth over the second half of every seed 1-5 (0.49-0.83 °/s). Measured against the rows of
+    the moment, the manoeuvres drove it past that on seed 5 (1.46 °/s)."""
+    worst = {}
+    for seed in range(1, 6):
+        rec = _biased("nominal", seed, 60.0)
+        half = rec.t >= 30.0
+        on = make_filter("robust", use_mag=False).run(t=rec.t, gyr=rec.gyr, acc=rec.acc)
+        worst[seed] = np.abs(on.diag["bias_z"][half] - BIAS[2]).max()
+        if seed == 5:
+            off = make_filter("robust", use_mag=False, bias_rows_lp=False).run(t=rec.t, gyr=rec.gyr, acc=rec.acc)
+            before = np.abs(off.diag["bias_z"][half] - BIAS[2]).max()
+    assert max(worst.values()) < math.radians(1.0), {s: math.degrees(v) for s, v in worst.items()}
+    assert before > math.radians(1.0), math.degrees(before)
