@@ -6,6 +6,8 @@ the generic properties (streaming equals batch, split-and-resume bit-exact, bad 
 are tested for every estimator in test_filters.py and test_reliability.py."""
 
 import math
+import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,7 +15,9 @@ import pytest
 from quadest.conventions import GRAVITY
 from quadest.filters import make_filter
 from quadest.filters.robust import STATE, UNKNOWN_HEADING_VAR, mag_rate_terms
+from quadest.readers import read_recording
 from quadest.rotation import quat_conj, quat_from_rotvec, quat_mul, quat_rotate
+from quadest.rotation.quaternion import quat_to_rotvec
 from quadest.sim import simulate
 
 BIAS = (0.010, -0.008, 0.012)  # rad/s, 0.6-0.7 °/s: above the preset's σ (0.29 °/s), below the 2 °/s clip
@@ -359,3 +363,43 @@ def test_estimate_runs_robust_by_default(tmp_path):
     q = np.column_stack([t.column(c).to_numpy() for c in ("q_w", "q_x", "q_y", "q_z")])
     ref = make_filter("robust", declination=rec.declination).run(rec).q
     assert np.allclose(q, ref, atol=1e-12)
+
+
+DATA = Path(os.environ.get("QUADEST_DATA", Path(__file__).resolve().parents[3] / "shared" / "data"))
+CIRCLE = DATA / "dido" / "circle_a_1.5_v_2.5_r_1.5.hdf5"
+
+
+@pytest.mark.skipif(not CIRCLE.is_file(), reason="the shared DIDO circle is not present")
+def test_vertical_bias_in_six_axis_use_stays_near_the_truth_on_a_circle():
+    """Eq R3d on the DIDO circle, 6-axis (never at rest, no heading row): the vertical bias
+    stays within its prior σ (bias_init, 0.5 °/s) of the bias the motion capture implies (the
+    median of the gyro less the truth's rate, −0.05 °/s). Measured against the rows of the
+    moment, the circle's turning tilt and its correction's rate, correlated, drove it to −1.7 °/s
+    (docs/estimators.md, the vertical bias in 6-axis use)."""
+    rec = read_recording(CIRCLE)
+    dq = quat_mul(quat_conj(rec.true_q[:-1]), rec.true_q[1:])
+    rate = quat_to_rotvec(dq) / np.diff(rec.t)[:, None]
+    b_true = np.median(0.5 * (rec.gyr[:-1, 2] + rec.gyr[1:, 2]) - rate[:, 2])
+    err = make_filter("robust").run(rec).diag["bias_z"] - b_true
+    before = make_filter("robust", bias_rows_lp=False).run(rec).diag["bias_z"] - b_true
+    assert np.abs(err).max() < math.radians(0.5), math.degrees(np.abs(err).max())
+    assert np.abs(before).max() > math.radians(1.0), math.degrees(np.abs(before).max())
+
+
+def test_vertical_bias_in_six_axis_use_is_not_driven_by_the_manoeuvres():
+    """Eq R3d in the simulator's normal flight, 6-axis (never at rest: the preset's noise), the
+    gyro biased by BIAS (vertical 0.69 °/s). The tilt barely observes the vertical bias here, so
+    the estimate stays near its start: within two prior σ (bias_init 0.5 °/s, so 1 °/s) of the
+    truth over the second half of every seed 1-5 (0.49-0.83 °/s). Measured against the rows of
+    the moment, the manoeuvres drove it past that on seed 5 (1.46 °/s)."""
+    worst = {}
+    for seed in range(1, 6):
+        rec = _biased("nominal", seed, 60.0)
+        half = rec.t >= 30.0
+        on = make_filter("robust", use_mag=False).run(t=rec.t, gyr=rec.gyr, acc=rec.acc)
+        worst[seed] = np.abs(on.diag["bias_z"][half] - BIAS[2]).max()
+        if seed == 5:
+            off = make_filter("robust", use_mag=False, bias_rows_lp=False).run(t=rec.t, gyr=rec.gyr, acc=rec.acc)
+            before = np.abs(off.diag["bias_z"][half] - BIAS[2]).max()
+    assert max(worst.values()) < math.radians(1.0), {s: math.degrees(v) for s, v in worst.items()}
+    assert before > math.radians(1.0), math.degrees(before)

@@ -26,6 +26,9 @@ STATE = layout(
     ("coef", 8),  # b0, a1, a2, k_acc, k_rest, k_mag_lp, k_init, spare
     ("bias", 3),  # gyro bias, body, rad/s
     ("Pb", 9),  # its covariance, row-major
+    ("hlp", 18),  # eq R3d: Butterworth state of R(q_Eb)'s rows (north, east, down), 3 entries each
+    ("hrow", 9),  # their low-pass output
+    ("hblp", 4),  # Butterworth state of R(q_Eb) b, north and east
     ("rest_g", 3),
     ("rest_a", 3),  # low-passed gyro and accelerometer for rest detection
     ("rest_t", 1),  # time at rest so far, s
@@ -164,6 +167,13 @@ class RobustParams(Params):
         "of Δt/τ_acc (0.25: critically damped; more rings)",
         "quadest: critical damping (eq R3b)",
         bounds="(0, 1]",
+    )
+    bias_rows_lp: bool = param(
+        True,
+        "-",
+        "the bias in motion measured against the low-passed rows of the attitude (eq R3d), as the "
+        "correction comes from the low-passed force",
+        "VQF's in-motion bias estimate (Laidig & Seel 2023); quadest before: the rows of the moment",
     )
     bias_heading_std: float = param(
         0.2 * DEG,

@@ -10,7 +10,7 @@ import math
 from quadest._jit import njit
 from quadest.filters.robust.bias import bias_update
 from quadest.filters.robust.params import COEF, PARAM, STATE
-from quadest.rotation.kernels import normalize_s, qmul_s, rotate_s
+from quadest.rotation.kernels import normalize_s, qmul_s, rot_entries, rotate_s
 
 
 @njit(cache=True, inline="always")
@@ -137,16 +137,14 @@ def filtered_force(x, p, gyr, fI0, fI1, fI2, rest_rate2, dt):
 
 
 @njit(cache=True, inline="always")
-def correct_inclination(x, p, y0, y1, y2, ew, ex, ey, ez, u0, u1, u2, motion_bias, clip_b, dt):
+def correct_inclination(x, y0, y1, y2):
     """Eq R1: ``q_EI ← q_c ⊗ q_EI``, the shortest rotation taking the filtered down direction
-    onto ``e_z``; with ``motion_bias`` the correction's rate measures the horizontal drift of a
-    bias error (eq R3, ``q_Eb`` before the correction giving the rows ``H``), while the
-    scale-factor error at this rate is below the bias it resolves (eq R3c)."""
+    onto ``e_z``. Returns ``q_c``'s (w, x, y) and whether there was a direction to correct to."""
     iw, ix, iy, iz = x[STATE.qi], x[STATE.qi + 1], x[STATE.qi + 2], x[STATE.qi + 3]
     v0, v1, v2 = rotate_s(iw, ix, iy, iz, -y0, -y1, -y2)  # down, as estimated, in E
     vn = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
     if not vn > 0.0:
-        return
+        return 1.0, 0.0, 0.0, False
     v0, v1, v2 = v0 / vn, v1 / vn, v2 / vn
     cw = math.sqrt(max(0.0, 0.5 * (1.0 + v2)))
     if cw > 1e-6:
@@ -155,19 +153,63 @@ def correct_inclination(x, p, y0, y1, y2, ew, ex, ey, ez, u0, u1, u2, motion_bia
         cx, cy = 1.0, 0.0
     a0_, a1_, a2_, a3_ = qmul_s(cw, cx, cy, 0.0, iw, ix, iy, iz)
     x[STATE.qi], x[STATE.qi + 1], x[STATE.qi + 2], x[STATE.qi + 3] = normalize_s(a0_, a1_, a2_, a3_)
-    rate2 = u0 * u0 + u1 * u1 + u2 * u2
-    if motion_bias and p[PARAM.scale_max] ** 2 * rate2 <= p[PARAM.bias_motion_std] ** 2:
-        sn = math.sqrt(cx * cx + cy * cy)
-        ang = 2.0 * math.atan2(sn, cw)
-        sc = ang / sn / dt if sn > 1e-12 else 2.0 / dt
-        y_n, y_e = cx * sc, cy * sc  # E-frame rate of the correction, north and east
-        r = p[PARAM.bias_motion_std] * p[PARAM.bias_motion_std] * p[PARAM.tau_acc] / dt
-        # rows of R(q_Eb): body -> E
-        h00, h01, h02 = 1 - 2 * (ey * ey + ez * ez), 2 * (ex * ey - ew * ez), 2 * (ex * ez + ew * ey)
-        h10, h11, h12 = 2 * (ex * ey + ew * ez), 1 - 2 * (ex * ex + ez * ez), 2 * (ey * ez - ew * ex)
-        gmax = p[PARAM.bias_gain] * dt / p[PARAM.tau_acc]
-        bias_update(x, h00, h01, h02, -y_n, r, clip_b, gmax)
-        bias_update(x, h10, h11, h12, -y_e, r, clip_b, gmax)
+    return cw, cx, cy, True
+
+
+@njit(cache=True, inline="always")
+def lowpass_or_hold(x, i, v, hold):
+    """The force's Butterworth low-pass (state ``x[i], x[i + 1]``) of ``v``; with ``hold`` (the
+    force still averaged) its state set steady at ``v``, and ``v`` returned."""
+    b0, a1, a2 = x[STATE.coef], x[STATE.coef + 1], x[STATE.coef + 2]
+    if hold:
+        x[i], x[i + 1] = v - b0 * v, b0 * v - a2 * v
+        return v
+    return biquad(x, i, v, b0, a1, a2)
+
+
+@njit(cache=True, inline="always")
+def filtered_rows(x, ew, ex, ey, ez, hold):
+    """Eq R3d: the rows of ``R(q_Eb)`` (north, east, down) into ``hrow``, and ``R(q_Eb) b``
+    (north, east), low-passed as the force is; returns the latter."""
+    rows = rot_entries(ew, ex, ey, ez)
+    b0_, b1_, b2_ = x[STATE.bias], x[STATE.bias + 1], x[STATE.bias + 2]
+    for r in range(3):
+        for j in range(3):
+            k = 3 * r + j
+            x[STATE.hrow + k] = lowpass_or_hold(x, STATE.hlp + 2 * k, rows[r][j], hold)
+    hb_n = rows[0][0] * b0_ + rows[0][1] * b1_ + rows[0][2] * b2_
+    hb_e = rows[1][0] * b0_ + rows[1][1] * b1_ + rows[1][2] * b2_
+    return lowpass_or_hold(x, STATE.hblp, hb_n, hold), lowpass_or_hold(x, STATE.hblp + 2, hb_e, hold)
+
+
+@njit(cache=True, inline="always")
+def motion_bias(x, p, q_c, q_eb, lp_hb, rate2, clip_b, dt):
+    """Eq R3: the correction's rate ``q_c`` measures the horizontal drift of a bias error, while
+    the scale-factor error at the rate (``rate2`` its square) is below the bias it resolves (eq
+    R3c). Rows: ``R(q_Eb)``'s of the moment, or (``bias_rows_lp``, eq R3d) low-passed as the
+    force, the innovation then ``−y + lp(H b) − lp(H) b`` (``lp_hb``)."""
+    if p[PARAM.scale_max] ** 2 * rate2 > p[PARAM.bias_motion_std] ** 2:
+        return
+    cw, cx, cy = q_c
+    sn = math.sqrt(cx * cx + cy * cy)
+    ang = 2.0 * math.atan2(sn, cw)
+    sc = ang / sn / dt if sn > 1e-12 else 2.0 / dt
+    in_n, in_e = -cx * sc, -cy * sc  # minus the E-frame rate of the correction, north and east
+    r = p[PARAM.bias_motion_std] * p[PARAM.bias_motion_std] * p[PARAM.tau_acc] / dt
+    gmax = p[PARAM.bias_gain] * dt / p[PARAM.tau_acc]
+    if p[PARAM.bias_rows_lp] != 0.0:
+        H = STATE.hrow
+        h00, h01, h02 = x[H], x[H + 1], x[H + 2]
+        h10, h11, h12 = x[H + 3], x[H + 4], x[H + 5]
+        b0_, b1_, b2_ = x[STATE.bias], x[STATE.bias + 1], x[STATE.bias + 2]
+        in_n += lp_hb[0] - (h00 * b0_ + h01 * b1_ + h02 * b2_)
+        in_e += lp_hb[1] - (h10 * b0_ + h11 * b1_ + h12 * b2_)
+    else:
+        rows = rot_entries(q_eb[0], q_eb[1], q_eb[2], q_eb[3])
+        h00, h01, h02 = rows[0]
+        h10, h11, h12 = rows[1]
+    bias_update(x, h00, h01, h02, in_n, r, clip_b, gmax)
+    bias_update(x, h10, h11, h12, in_e, r, clip_b, gmax)
 
 
 @njit(cache=True, inline="always")
@@ -187,8 +229,11 @@ def tilt(x, p, c, gyr, f, fn, u, at_rest, nclip, rest_rate2, clip_b, dt):
     if fn > 0.0:
         fI0, fI1, fI2 = rotate_s(gw, gx, gy, gz, f0, f1, f2)
         y0, y1, y2, kk, n = filtered_force(x, p, gyr, fI0, fI1, fI2, rest_rate2, dt)
-        motion_bias = not at_rest and nclip == 0 and n < 0.0
-        correct_inclination(x, p, y0, y1, y2, ew, ex, ey, ez, u0, u1, u2, motion_bias, clip_b, dt)
+        lp_hb = filtered_rows(x, ew, ex, ey, ez, n >= 0.0)
+        cw, cx, cy, corrected = correct_inclination(x, y0, y1, y2)
+        if corrected and not at_rest and nclip == 0 and n < 0.0:
+            rate2 = u0 * u0 + u1 * u1 + u2 * u2
+            motion_bias(x, p, (cw, cx, cy), (ew, ex, ey, ez), lp_hb, rate2, clip_b, dt)
         # accelerometer direction noise (adaptive)
         fe2 = rotate_s(ew, ex, ey, ez, f0, f1, f2)[2]
         cosang = min(1.0, max(-1.0, -fe2 / fn))
