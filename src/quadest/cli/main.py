@@ -55,6 +55,7 @@ ORDER = (
     "benchmark",
     "sweep",
     "tune",
+    "campaign",
     "data",
     "demo",
 )

@@ -33,6 +33,7 @@ from quadest.models.aero import AeroModel
 from quadest.recovery import recover
 from quadest.rotation import quat_to_euler
 from quadest.sim import aero_model_of
+from quadest.sweep.campaign import campaign_summary, is_campaign
 from quadest.sweep.engine import ResultStore
 from quadest.sweep.summary import is_results, sweep_summary
 
@@ -211,6 +212,17 @@ def _rotor_speeds(path, explicit: bool):
     return table.column("t").to_numpy(), {c: table.column(c).to_numpy() for c in cols}
 
 
+def _campaign_report(args, table):
+    from quadest.plot.campaign import write_campaign_report  # bokeh: only when a report is written
+
+    summ = campaign_summary(table.to_pylist())
+    out = write_campaign_report(summ, args.output, args.title or f"quadest campaign: {Path(args.file).name}")
+    if args.json:
+        write_json(args.json, summ)
+    say(f"{summ['runs']} flights of a survival campaign; wrote {out} (open it in a browser)")
+    return 0
+
+
 def _sweep_report(args):
     need("bokeh", "the HTML report")
     from quadest.plot.report import write_sweep_report  # bokeh: only when a report is written
@@ -225,6 +237,8 @@ def _sweep_report(args):
         )
     if table is None:
         raise CliError(f"{args.file}: no results left to report")
+    if is_campaign(table.column_names):
+        return _campaign_report(args, table)
     summ = sweep_summary(table)
     out = write_sweep_report(summ, args.output, args.title or f"quadest sweep results: {Path(args.file).name}")
     if args.json:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
@@ -17,6 +18,7 @@ from quadest.cli.common import (
     write_json,
 )
 from quadest.cli.fly import failure_record, parse_failure
+from quadest.extras import need
 from quadest.filters import filter_name
 from quadest.flight import CONTROLLERS, DEFAULT_DURATION, FLIGHT_SCENARIOS
 from quadest.models import VEHICLE_PRESETS, vehicle_preset
@@ -33,6 +35,9 @@ from quadest.sweep import (
     sim_sources,
     tune,
 )
+from quadest.sweep.campaign import DETECTIONS, campaign_runs, campaign_summary, format_campaign
+from quadest.sweep.engine import ResultStore
+from quadest.sweep.runs import flown_names
 
 
 def _flown_sources(args):
@@ -135,6 +140,108 @@ def cmd_tune(args):
     return 0
 
 
+def _campaign_list(text: str, option: str, unit: str) -> list:
+    """A comma-separated list of numbers (``none``: the preset's value) for ``option``."""
+    out = []
+    for item in str(text).split(","):
+        item = item.strip().lower()
+        if item in ("none", "preset"):
+            out.append(None)
+            continue
+        try:
+            v = float(item)
+        except ValueError:
+            raise CliError(f"{option}: {item!r} is not a number of {unit} (give e.g. {option} 1000,500)") from None
+        if not math.isfinite(v) or v < 0 or (v == 0 and unit == "°/s"):
+            raise CliError(f"{option}: {item} is out of range (give a positive number of {unit})")
+        out.append(v)
+    return out
+
+
+def _campaign_runs(args):
+    filters = flown_names(args.filters, "rotor-loss")
+    detections = [d.strip() for d in args.detection.split(",") if d.strip()]
+    seeds, nominal = parse_seeds(args.seeds), parse_seeds(args.nominal_seeds, "--nominal-seeds")
+    gyro = _campaign_list(args.gyro_range, "--gyro-range", "°/s")
+    lat = [v or 0.0 for v in _campaign_list(args.mag_latency, "--mag-latency", "s")]
+    per_case = len(filters) * len(detections) * len(gyro) * len(lat)
+    check_runs(args, per_case * (len(seeds) + len(nominal)), f"{len(seeds) + len(nominal):,} cases x {per_case} set(s)")
+    return campaign_runs(seeds, nominal, filters, detections=detections, gyro_ranges_dps=gyro, mag_latencies_s=lat,
+                         duration=args.duration)  # fmt: skip
+
+
+def cmd_campaign(args):
+    runs = _campaign_runs(args)
+    if args.report:
+        need("bokeh", "the campaign's HTML report")
+    _announce(args, runs)
+    res = run_sweep(runs, args.out, **_engine(args))
+    _report(args, res)
+    summary = campaign_summary(ResultStore(args.out).read().to_pylist())
+    say(format_campaign(summary))
+    if args.json:
+        write_json(args.json, {**summary, "sweep": res})
+    if args.report:
+        from quadest.plot.campaign import write_campaign_report  # bokeh: only when a report is written
+
+        say(f"wrote {write_campaign_report(summary, args.report, f'quadest campaign: {args.out.name}')}")
+    return 1 if res["executed"] and not res["executed_ok"] else 0
+
+
+def _add_campaign_args(p):
+    p.add_argument(
+        "--seeds",
+        default="0-99",
+        help="the failures' seeds: each decides the scenario (hover, "
+        "circle, figure eight in turn), the rotor, the time, and for one in four a partial loss (default: 0-99)",
+    )
+    p.add_argument("--nominal-seeds", default="1000-1019", help="the nominal flights' seeds (default: 1000-1019)")
+    p.add_argument("--duration", type=float, default=60.0, help="seconds of each nominal flight (default: 60)")
+    p.add_argument(
+        "--filters",
+        default="robust",
+        help="estimators in the loop, comma-separated (truth: the true state, an oracle; default: robust)",
+    )
+    p.add_argument(
+        "--detection",
+        default=",".join(DETECTIONS),
+        help="how the controller learns of a loss, "
+        "comma-separated: rotor-speeds, commands (the detector), oracle (told 50 ms after) (default: all three)",
+    )
+    p.add_argument(
+        "--gyro-range",
+        default="none",
+        metavar="DPS[,DPS...]",
+        help="gyroscope full-scale ranges in °/s, "
+        "comma-separated (none: the Bebop 2 preset's, ±1000 °/s; default: none)",
+    )
+    p.add_argument(
+        "--mag-latency",
+        default="0",
+        metavar="S[,S...]",
+        help="magnetometer latencies in s, comma-separated (default: 0)",
+    )
+    _add_results_args(p, "flight")
+    p.add_argument("--report", metavar="PATH", help="write the campaign's HTML page (docs/campaign.md)")
+    add_engine_args(p)
+
+
+def _add_results_args(p, row: str):
+    """The results file and what a sweep or a campaign does with it: the same options on both."""
+    p.add_argument(
+        "-o",
+        "--out",
+        required=True,
+        type=Path,
+        metavar="RESULTS.parquet",
+        help=f"results file, one row per {row} (parts go to RESULTS.parquet.parts/ while it runs); "
+        "an existing one is resumed",
+    )
+    p.add_argument("--retry-failed", action="store_true", help="run again the runs recorded as failed")
+    add_max_runs_arg(p)
+    p.add_argument("--json", metavar="OUT", help="write the summary as JSON")
+
+
 def _add_sweep_args(p):
     p.add_argument(
         "--grid",
@@ -195,18 +302,7 @@ def _add_sweep_args(p):
         default=None,
         help="constant navigation-frame rotation removed (default: the reader's recommendation)",
     )
-    p.add_argument(
-        "-o",
-        "--out",
-        required=True,
-        type=Path,
-        metavar="RESULTS.parquet",
-        help="results file, one row per run (parts go to RESULTS.parquet.parts/ while it runs); "
-        "an existing one is resumed",
-    )
-    p.add_argument("--retry-failed", action="store_true", help="run again the runs recorded as failed")
-    add_max_runs_arg(p)
-    p.add_argument("--json", metavar="OUT", help="write the summary as JSON")
+    _add_results_args(p, "run")
     add_engine_args(p)
 
 
@@ -252,3 +348,14 @@ def add_parsers(sub):
     )
     _add_sweep_args(tu)
     tu.set_defaults(func=cmd_tune)
+
+    ca = sub.add_parser(
+        "campaign",
+        help="rotor failures and nominal flights with detection in the loop: survival, delay, false alarms",
+        description="Fly rotor failures (complete and partial, from a hover, on a circle and on a figure eight) "
+        "and nominal flights with each estimator, detection mode, gyroscope range and magnetometer latency in "
+        "the loop, on Dask, into one resumable results file; print survival, detection delay and isolation "
+        "and the false alarms per group. quadest report RESULTS draws its page. docs/campaign.md",
+    )
+    _add_campaign_args(ca)
+    ca.set_defaults(func=cmd_campaign)

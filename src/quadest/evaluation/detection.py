@@ -14,7 +14,8 @@ import numpy as np
 from quadest.control import Failure
 from quadest.detect import DetectorParams
 from quadest.evaluation.parallel import execute
-from quadest.flight import fly
+from quadest.flight import Flight, fly
+from quadest.sim import SimConfig
 
 SCENARIOS = ("hover", "trajectory", "aggressive")
 
@@ -53,9 +54,17 @@ def fly_case(case: dict, detector: DetectorParams | None = None, estimator: str 
     """Fly one failure (``efficiency`` > 0: the SE(3) controller flies on) or one nominal flight
     (``rotor`` None) with the detector and ``estimator`` in the loop; the flight's summary with
     the case."""
+    f = fly_case_flight(case, detector, estimator)
+    return {**case, "status": f.summary["status"], **f.summary.get("detection", {}), "flown_s": f.summary["flown_s"]}
+
+
+def fly_case_flight(
+    case: dict, detector: DetectorParams | None = None, estimator: str = "truth", config: SimConfig | None = None
+) -> Flight:
+    """The flight of :func:`fly_case`, on the sensors of ``config`` (default: the Bebop 2 preset's)."""
     failure = case_failure(case)
     controller = "ftc" if failure is not None and failure.efficiency == 0.0 else "se3"
-    f = fly(
+    return fly(
         case["scenario"],
         seed=case["seed"],
         duration=case["duration"],
@@ -64,8 +73,8 @@ def fly_case(case: dict, detector: DetectorParams | None = None, estimator: str 
         controller=controller,
         estimator=estimator,
         detection=_detection(case["mode"], detector),
+        config=config,
     )
-    return {**case, "status": f.summary["status"], **f.summary.get("detection", {}), "flown_s": f.summary["flown_s"]}
 
 
 def _detection(mode: str, detector: DetectorParams | None):

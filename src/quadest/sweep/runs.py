@@ -27,19 +27,13 @@ from quadest.filters import filter_name
 from quadest.flight import fly, in_loop_estimators
 from quadest.readers import read_recording
 from quadest.sim import simulate
+from quadest.sweep.campaign import CAMPAIGN_ROW_TYPES, RUN_COLUMNS, campaign_label, fly_campaign
 
 METRICS = ("total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg", "roll_rms_deg", "pitch_rms_deg", "yaw_rms_deg")
 
 
 ROW_TYPES = {
-    "run_id": "string",
-    "filter": "string",
-    "params": "string",
-    "source": "string",
-    "seed": "int64",
-    "spec": "string",
-    "status": "string",
-    "error": "string",
+    **RUN_COLUMNS,
     **{k: "double" for k in METRICS},
     "samples": "int64",
     "seconds": "double",
@@ -77,28 +71,34 @@ FLOWN_FIELDS = {
 
 def row_types(runs) -> dict:
     """The layout of a sweep's results: flown runs have their own (a sweep is one or the other)."""
-    kinds = {r["source"]["kind"] == "flown" for r in runs}
-    if len(kinds) > 1:
-        raise UsageError("a sweep runs either flown flights or estimation runs, not both")
-    return FLOWN_ROW_TYPES if kinds == {True} else ROW_TYPES
+    kinds = {r["source"]["kind"] for r in runs} or {"sim"}
+    layouts = {id(_layout(k)) for k in kinds}
+    if len(layouts) > 1:
+        raise UsageError("a sweep runs either flown flights, a campaign or estimation runs, not a mix")
+    return _layout(kinds.pop())
+
+
+def _layout(kind: str) -> dict:
+    """A run kind's row layout."""
+    return {"flown": FLOWN_ROW_TYPES, "campaign": CAMPAIGN_ROW_TYPES}.get(kind, ROW_TYPES)
 
 
 def empty_row(spec: dict, error: str = "") -> dict:
     """A run's row before (or without) its results: NaN metrics, status failed when ``error``."""
-    layout = FLOWN_ROW_TYPES if spec["source"]["kind"] == "flown" else ROW_TYPES
+    layout = _layout(spec["source"]["kind"])
     row = {
         "run_id": run_id(spec),
         "filter": spec["filter"],
         "params": json.dumps(spec["params"], sort_keys=True),
         "source": source_label(spec["source"]),
-        "seed": spec["source"].get("seed", -1),
+        "seed": spec["source"].get("seed", spec["source"].get("case", {}).get("seed", -1)),
         "spec": json.dumps(spec, sort_keys=True),
         "status": "failed" if error else "ok",
         "error": error,
     }
     for k, t in layout.items():
         if k not in row:
-            row[k] = {"double": math.nan, "int64": -1 if k == "recovered" else 0, "string": ""}[t]
+            row[k] = {"double": math.nan, "int64": 0 if k == "samples" else -1, "string": ""}[t]
     return row
 
 
@@ -322,6 +322,8 @@ def source_label(src: dict) -> str:
         return f"flown {src['scenario']}{fail}/seed{src['seed']}"
     if src["kind"] == "sim":
         return f"{src['scenario']}/{src['preset']}/seed{src['seed']}"
+    if src["kind"] == "campaign":
+        return campaign_label(src)
     return Path(src["path"]).stem if Path(src["path"]).is_file() else Path(src["path"]).name
 
 
@@ -400,9 +402,9 @@ def run_one(spec: dict) -> dict:
     """Evaluate one run; never raises: a failure becomes a row with ``status='failed'``."""
     t0 = time.perf_counter()
     row = empty_row(spec)
-    if spec["source"]["kind"] == "flown":
+    if spec["source"]["kind"] in ("flown", "campaign"):
         try:
-            fly_one(spec, row)
+            (fly_one if spec["source"]["kind"] == "flown" else fly_campaign)(spec, row)
         except Exception as exc:  # a failing run is recorded and the sweep goes on
             row["status"] = "failed"
             row["error"] = f"{type(exc).__name__}: {exc}"

@@ -1,0 +1,320 @@
+"""The survival campaign (``quadest campaign``; docs/campaign.md): rotor failures and nominal
+flights flown with each estimator, each detection mode and each gyroscope range in the loop, on
+the sweep engine (Dask, one resumable results file), and what they show: survival, detection
+delay and isolation, false alarms per hour of nominal flight, survival against the spin, the
+clipping share, the detection delay and the magnetometer's latency.
+
+A run is a case of :mod:`quadest.evaluation.detection` (its seed decides the scenario, the rotor,
+the time and how much effectiveness is left) with the detection mode, the estimator in the
+loop, the gyroscope's range and the magnetometer's latency; its row is one flight."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from quadest.errors import UsageError
+from quadest.evaluation.detection import failure_case, fly_case_flight, nominal_case, summarize_failures
+from quadest.flight import FlightParams
+from quadest.sim import build_config
+
+DETECTIONS = ("rotor-speeds", "commands", "oracle")
+"""The ways the fault-tolerant controller learns of a loss: the detector from measured rotor
+speeds or from the commands, or the oracle (told 50 ms after the loss: not what a vehicle knows)."""
+
+RUN_COLUMNS = {
+    "run_id": "string",
+    "filter": "string",
+    "params": "string",
+    "source": "string",
+    "seed": "int64",
+    "spec": "string",
+    "status": "string",
+    "error": "string",
+}
+"""The columns every results row starts with (a sweep's and a campaign's): the run, its status."""
+
+CAMPAIGN_ROW_TYPES = {
+    **RUN_COLUMNS,
+    "samples": "int64",
+    "seconds": "double",
+    "scenario": "string",
+    "kind": "string",
+    "detection": "string",
+    "gyro_range_dps": "double",
+    "mag_latency_s": "double",
+    "rotor": "int64",
+    "failure_s": "double",
+    "efficiency": "double",
+    "flight": "string",
+    "reason": "string",
+    "flown_s": "double",
+    "lost_rotor": "int64",
+    "lost_s": "double",
+    "delay_s": "double",
+    "isolated": "int64",
+    "false_alarm": "int64",
+    "damaged_rotor": "int64",
+    "damaged_s": "double",
+    "damaged_effectiveness": "double",
+    "spin_rate_rad_s": "double",
+    "peak_rate_rad_s": "double",
+    "gyro_clipped_share": "double",
+    "tilt_error_rms_deg": "double",
+}
+"""A campaign run's row: the run (as a sweep's), the case, and what happened. Integers are −1
+where they do not apply (no rotor failed, none found); numbers NaN."""
+
+CASE_KEYS = ("scenario", "kind", "detection", "gyro_range_dps", "mag_latency_s", "rotor", "failure_s", "efficiency")
+
+
+def campaign_runs(
+    seeds, nominal_seeds, filters, *, detections=DETECTIONS, gyro_ranges_dps=(None,), mag_latencies_s=(0.0,),
+    duration: float = 60.0, failure_duration: float = 6.0,
+) -> list[dict]:  # fmt: skip
+    """Every (failure seed or nominal seed, estimator, detection mode, gyroscope range,
+    magnetometer latency) as a run spec. The oracle flies only the complete losses (it knows
+    nothing of a partial one, and has nothing to alarm on in nominal flight)."""
+    bad = [d for d in detections if d not in DETECTIONS]
+    if bad:
+        raise UsageError(f"--detection: unknown mode(s) {', '.join(bad)}; known: {', '.join(DETECTIONS)}")
+    cases = [failure_case(s, "x", failure_duration) for s in seeds]
+    cases += [nominal_case(s, "x", duration) for s in nominal_seeds]
+    runs = []
+    for case in cases:
+        for mode in detections:
+            if mode == "oracle" and (case["rotor"] is None or case["efficiency"] > 0.0):
+                continue
+            for g in gyro_ranges_dps:
+                for lat in mag_latencies_s:
+                    src = {"kind": "campaign", "case": {**case, "mode": mode}, "gyro_range_dps": g,
+                           "mag_latency_s": float(lat)}  # fmt: skip
+                    runs += [{"filter": f, "params": {}, "source": src, "align": None} for f in filters]
+    return runs
+
+
+def campaign_label(src: dict) -> str:
+    c = src["case"]
+    what = "nominal" if c["rotor"] is None else f"rotor{c['rotor']}@{c['time_s']:.3f}:{c['efficiency']:.2f}"
+    g = "" if src["gyro_range_dps"] is None else f"/gyro{src['gyro_range_dps']:g}"
+    lat = f"/maglat{src['mag_latency_s']:g}" if src["mag_latency_s"] else ""
+    return f"campaign {c['scenario']}/{what}/{c['mode']}{g}{lat}/seed{c['seed']}"
+
+
+def _config(src: dict):
+    """The Bebop 2 sensors with the run's gyroscope range and magnetometer latency."""
+    over = {"mag.latency_s": src["mag_latency_s"]}
+    if src["gyro_range_dps"] is not None:
+        over["gyro.range"] = math.radians(src["gyro_range_dps"])
+    return build_config("bebop2", over)
+
+
+def fly_campaign(spec: dict, row: dict) -> None:
+    """Fly one campaign run and put what happened into ``row``."""
+    src = spec["source"]
+    case = src["case"]
+    cfg = _config(src)
+    f = fly_case_flight(case, estimator=spec["filter"], config=cfg)
+    s, det = f.summary, f.summary.get("detection", {})
+    row.update(_case_columns(src, cfg))
+    row.update(
+        {
+            "samples": len(f.recording),
+            "flight": s["status"],
+            "reason": s["reason"],
+            "flown_s": s["flown_s"],
+            "lost_rotor": _int(det.get("lost_rotor")),
+            "lost_s": _num(det.get("lost_s")),
+            "delay_s": _num(det.get("delay_s")),
+            "isolated": -1 if "isolated" not in det else int(bool(det["isolated"])),
+            "false_alarm": int(bool(det.get("false_alarm", False))),
+            "damaged_rotor": _int(det.get("damaged_rotor")),
+            "damaged_s": _num(det.get("damaged_s")),
+            "damaged_effectiveness": _num(det.get("damaged_effectiveness")),
+            "tilt_error_rms_deg": _num(s.get("tilt_error_after_failure_rms_deg", s.get("tilt_error_rms_deg"))),
+        }
+    )
+    if case["mode"] == "oracle":
+        row.update(_told(case))
+    row.update(_spin_columns(f, case, s, np.isfinite(cfg.gyro.range)))
+
+
+def _told(case: dict) -> dict:
+    """The oracle's detection: the failed rotor, ``FlightParams.detect_delay_s`` after the
+    failure (what it is told, not what it found)."""
+    delay = FlightParams().detect_delay_s
+    return {"lost_rotor": case["rotor"], "lost_s": case["time_s"] + delay, "delay_s": delay, "isolated": 1}
+
+
+def _case_columns(src: dict, cfg) -> dict:
+    c = src["case"]
+    kind = "nominal" if c["rotor"] is None else ("loss" if c["efficiency"] == 0.0 else "partial")
+    return {
+        "scenario": c["scenario"],
+        "kind": kind,
+        "detection": c["mode"],
+        "gyro_range_dps": round(math.degrees(cfg.gyro.range), 6) if np.isfinite(cfg.gyro.range) else math.inf,
+        "mag_latency_s": src["mag_latency_s"],
+        "rotor": _int(c["rotor"]),
+        "failure_s": _num(c.get("time_s")),
+        "efficiency": _num(c.get("efficiency")),
+    }
+
+
+def _spin_columns(flight, case: dict, summary: dict, clips: bool) -> dict:
+    """The true body rate after the failure (or over a nominal flight): the mean yaw rate's
+    magnitude from 0.5 s after the failure on (the spin the vehicle reached), its peak rate, and
+    the share of samples with a gyroscope axis clipped."""
+    t, w = flight.recording.t, flight.states[:, 10:13]
+    start = case.get("time_s") or 0.0
+    after = t >= start
+    late = t >= start + 0.5
+    return {
+        "spin_rate_rad_s": float(np.mean(np.abs(w[late, 2]))) if late.any() else math.nan,
+        "peak_rate_rad_s": float(np.linalg.norm(w[after], axis=1).max()) if after.any() else math.nan,
+        "gyro_clipped_share": float(summary.get("gyro_clipped_share", 0.0)) if clips else math.nan,
+    }
+
+
+def _int(v) -> int:
+    return -1 if v is None else int(v)
+
+
+def _num(v) -> float:
+    return math.nan if v is None else float(v)
+
+
+# -- the summary ----------------------------------------------------------------------------------------
+def is_campaign(names) -> bool:
+    """Whether a results file with these column names is a campaign's."""
+    return {"detection", "kind", "lost_rotor", "flight"} <= set(names)
+
+
+def _as_case_row(r: dict) -> dict:
+    """A campaign row as :func:`~quadest.evaluation.detection.summarize_failures` reads one."""
+
+    def opt(v):
+        return None if v is None or (isinstance(v, float) and math.isnan(v)) or v == -1 else v
+
+    return {
+        "rotor": opt(r["rotor"]),
+        "time_s": r["failure_s"],
+        "efficiency": r["efficiency"],
+        "status": r["flight"],
+        "delay_s": opt(r["delay_s"]),
+        "isolated": r["isolated"] == 1,
+        "false_alarm": r["false_alarm"] == 1,
+        "lost_rotor": opt(r["lost_rotor"]),
+        "damaged_rotor": opt(r["damaged_rotor"]),
+        "damaged_s": opt(r["damaged_s"]),
+        "damaged_effectiveness": opt(r["damaged_effectiveness"]),
+    }
+
+
+GROUP = ("filter", "detection", "gyro_range_dps", "mag_latency_s")
+
+
+def campaign_summary(rows: list[dict]) -> dict:
+    """Per (estimator, detection, gyroscope range, magnetometer latency): the losses' survival,
+    detection and isolation (:func:`summarize_failures`), survival by scenario, the nominal
+    flights' hours and alarms; and survival against spin, clipping, delay and latency."""
+    ok = [r for r in rows if r["status"] == "ok"]
+    groups: dict = {}
+    for r in ok:
+        groups.setdefault(tuple(r[k] for k in GROUP), []).append(r)
+    out = {"runs": len(rows), "ok": len(ok), "failed": len(rows) - len(ok), "groups": []}
+    for key in sorted(groups, key=lambda k: (k[0], DETECTIONS.index(k[1]), -k[2], k[3])):
+        mine = groups[key]
+        failures = [_as_case_row(r) for r in mine if r["kind"] != "nominal"]
+        nominal = [r for r in mine if r["kind"] == "nominal"]
+        g = dict(zip(GROUP, key))
+        g["failures"] = summarize_failures(failures)
+        g["survival_by_scenario"] = _by_scenario([r for r in mine if r["kind"] == "loss"])
+        g["nominal"] = {
+            "flights": len(nominal),
+            "hours": sum(r["flown_s"] for r in nominal) / 3600.0,
+            "lost_alarms": sum(r["lost_rotor"] >= 0 for r in nominal),
+            "damaged_alarms": sum(r["damaged_rotor"] >= 0 for r in nominal),
+            "crashed": sum(r["flight"] != "survived" for r in nominal),
+        }
+        out["groups"].append(g)
+    out["curves"] = survival_curves([r for r in ok if r["kind"] == "loss"])
+    return out
+
+
+def _by_scenario(rows: list[dict]) -> dict:
+    out: dict = {}
+    for r in rows:
+        cell = out.setdefault(r["scenario"], [0, 0])
+        cell[0] += r["flight"] == "survived"
+        cell[1] += 1
+    return out
+
+
+CURVES = {
+    "spin_rate_rad_s": ("spin rate after the loss (rad/s)", 8),
+    "gyro_clipped_share": ("share of samples with a gyro axis clipped", 8),
+    "delay_s": ("detection delay (s)", 8),
+    "mag_latency_s": ("magnetometer latency (s)", None),
+}
+"""What survival is drawn against, with the number of quantile bins (None: each value its own)."""
+
+
+def survival_curves(rows: list[dict]) -> dict:
+    """``{variable: {"label", "lines": {"estimator / detection": {"x", "survived", "flights"}}}}``:
+    the share of complete losses that stayed up in bins of the variable (equal counts), per
+    estimator and detection mode; a variable with no finite value is left out."""
+    out = {}
+    for var, (label, bins) in CURVES.items():
+        lines = {}
+        for name in sorted({(r["filter"], r["detection"]) for r in rows}):
+            mine = [r for r in rows if (r["filter"], r["detection"]) == name and np.isfinite(r[var])]
+            if mine:
+                lines[" / ".join(name)] = _binned(mine, var, bins)
+        if lines:
+            out[var] = {"label": label, "lines": lines}
+    return out
+
+
+def _binned(rows: list[dict], var: str, bins: int | None) -> dict:
+    x = np.array([r[var] for r in rows], float)
+    up = np.array([r["flight"] == "survived" for r in rows])
+    if bins is None or len(np.unique(x)) <= bins:
+        edges = np.unique(x)
+        idx = np.searchsorted(edges, x)
+    else:
+        edges = np.unique(np.quantile(x, np.linspace(0, 1, bins + 1)))
+        idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
+    keep = [k for k in range(int(idx.max()) + 1) if (idx == k).any()]
+    return {
+        "x": [float(np.median(x[idx == k])) for k in keep],
+        "survived": [int(up[idx == k].sum()) for k in keep],
+        "flights": [int((idx == k).sum()) for k in keep],
+    }
+
+
+def format_campaign(summary: dict) -> str:
+    """The campaign's table for a person: a line per group."""
+    head = (
+        f"{'estimator':<10}{'detection':<13}{'gyro °/s':>9}{'mag lat':>8}{'losses':>8}{'survived':>10}"
+        f"{'found':>7}{'named':>7}{'median':>8}{'p99':>7}{'max':>7}{'partial':>9}{'nominal h':>10}{'alarms':>7}"
+    )
+    lines = [head]
+    for g in summary["groups"]:
+        f, n, d = g["failures"], g["nominal"], g["failures"]["delay_ms"]
+        share = f"{f['survived']}/{f['complete']}" if f["complete"] else "-"
+        part = f"{f['partial']['isolated']}/{f['partial']['flights']}" if f["partial"]["flights"] else "-"
+        alarms = "-" if g["detection"] == "oracle" else f"{n['lost_alarms']}"
+        gyro = "none" if math.isinf(g["gyro_range_dps"]) else f"{g['gyro_range_dps']:.0f}"
+        lines.append(
+            f"{g['filter']:<10}{g['detection']:<13}{gyro:>9}{g['mag_latency_s']:>8g}{f['complete']:>8}{share:>10}"
+            f"{f['found']:>7}{f['isolated']:>7}{_ms(d['median']):>8}{_ms(d['p99']):>7}{_ms(d['max']):>7}{part:>9}"
+            f"{n['hours']:>10.2f}{alarms:>7}"
+        )
+    lines.append("delays in ms; the oracle's is what it is told (50 ms), not found; 'partial': named as damaged")
+    return "\n".join(lines)
+
+
+def _ms(v) -> str:
+    return "-" if v is None else f"{v:.0f}"

@@ -1,0 +1,105 @@
+"""The survival campaign: its runs, its rows against the detection benchmark's own flights, its
+summary against counts made by hand, resuming, its page, and its refusals."""
+
+import json
+import math
+
+import pytest
+
+from quadest.cli.main import main
+from quadest.evaluation.detection import failure_case, fly_case
+from quadest.sweep import ResultStore
+from quadest.sweep.campaign import campaign_runs, campaign_summary, survival_curves
+
+
+def _row(**kw):
+    row = {
+        "status": "ok", "filter": "robust", "detection": "rotor-speeds", "gyro_range_dps": 1000.0,
+        "mag_latency_s": 0.0, "kind": "loss", "scenario": "hover", "rotor": 1, "failure_s": 2.0,
+        "efficiency": 0.0, "flight": "survived", "flown_s": 6.0, "lost_rotor": 1, "lost_s": 2.02,
+        "delay_s": 0.02, "isolated": 1, "false_alarm": 0, "damaged_rotor": -1, "damaged_s": math.nan,
+        "damaged_effectiveness": math.nan, "spin_rate_rad_s": 11.0, "gyro_clipped_share": math.nan,
+    }  # fmt: skip
+    row.update(kw)
+    return row
+
+
+def test_the_summary_counts_what_happened():
+    rows = [
+        _row(),
+        _row(flight="crashed", scenario="aggressive", delay_s=0.2, spin_rate_rad_s=8.0),
+        _row(kind="nominal", rotor=-1, failure_s=math.nan, efficiency=math.nan, lost_rotor=2, flown_s=3600.0),
+        _row(kind="nominal", rotor=-1, failure_s=math.nan, efficiency=math.nan, lost_rotor=-1, flown_s=1800.0),
+        _row(detection="oracle", delay_s=0.05),
+        _row(status="failed"),
+    ]
+    s = campaign_summary(rows)
+    assert (s["runs"], s["ok"], s["failed"]) == (6, 5, 1)
+    mine, oracle = s["groups"]  # the detector before the oracle
+    assert mine["detection"] == "rotor-speeds" and oracle["detection"] == "oracle"
+    assert (mine["failures"]["complete"], mine["failures"]["survived"]) == (2, 1)
+    assert mine["failures"]["delay_ms"]["median"] == pytest.approx(110.0)
+    assert mine["survival_by_scenario"] == {"hover": [1, 1], "aggressive": [0, 1]}
+    assert mine["nominal"] == {"flights": 2, "hours": 1.5, "lost_alarms": 1, "damaged_alarms": 0, "crashed": 0}
+    spin = s["curves"]["spin_rate_rad_s"]["lines"]["robust / rotor-speeds"]
+    assert sum(spin["flights"]) == 2 and sum(spin["survived"]) == 1
+    assert "gyro_clipped_share" not in s["curves"]  # no range clipped: nothing to draw against
+
+
+def test_the_curves_bin_every_flight_once():
+    rows = [_row(spin_rate_rad_s=float(k), flight="survived" if k % 3 else "crashed") for k in range(40)]
+    line = survival_curves(rows)["spin_rate_rad_s"]["lines"]["robust / rotor-speeds"]
+    assert sum(line["flights"]) == 40 and sum(line["survived"]) == sum(1 for k in range(40) if k % 3)
+    assert line["x"] == sorted(line["x"])
+
+
+def test_the_oracle_flies_only_complete_losses():
+    runs = campaign_runs(range(4), range(100, 102), ["truth"], gyro_ranges_dps=(None, 500.0))
+    kinds = [(r["source"]["case"]["mode"], r["source"]["case"]["rotor"] is None) for r in runs]
+    assert ("oracle", True) not in kinds
+    oracle = [r for r in runs if r["source"]["case"]["mode"] == "oracle"]
+    assert len(oracle) == 2 * 3  # seeds 0-2 complete, seed 3 partial; two gyroscope ranges
+    assert len(runs) == 2 * (4 * 2 + 3 + 2 * 2)
+
+
+def test_a_campaign_flies_resumes_and_draws(tmp_path, capsys):
+    out, page, js = tmp_path / "c.parquet", tmp_path / "c.html", tmp_path / "c.json"
+    args = ["campaign", "--seeds", "0-1", "--nominal-seeds", "1000", "--duration", "3", "--filters", "truth",
+            "--detection", "rotor-speeds,oracle", "--gyro-range", "none,500", "-o", str(out),
+            "--workers", "0"]  # fmt: skip
+    assert main([*args, "--report", str(page), "--json", str(js)]) == 0
+    rows = ResultStore(out).read().to_pylist()
+    assert len(rows) == 2 * (2 * 2 + 1)
+    assert all(r["status"] == "ok" for r in rows)
+    # the campaign's flight is the detection benchmark's: the same detection, to the sample
+    loss = next(r for r in rows if r["seed"] == 0 and r["detection"] == "rotor-speeds" and r["gyro_range_dps"] == 1000)
+    direct = fly_case(failure_case(0, "rotor-speeds"))
+    assert loss["lost_s"] == pytest.approx(direct["lost_s"]) and loss["flight"] == direct["status"]
+    clipped = [r for r in rows if r["gyro_range_dps"] == 500 and r["kind"] == "loss"]
+    assert all(r["gyro_clipped_share"] > 0.1 for r in clipped)  # spinning at ~11 rad/s > 8.7 rad/s
+    told = [r for r in rows if r["detection"] == "oracle"]
+    assert all(r["delay_s"] == pytest.approx(0.05) for r in told)
+    summary = json.loads(js.read_text())
+    assert summary["sweep"]["executed"] == len(rows)
+    assert "campaign-table" in page.read_text() and "oracle (told)" in page.read_text()
+    capsys.readouterr()
+    assert main(args) == 0  # resumed: nothing flown again
+    assert "executed 0 (skipped 10" in capsys.readouterr().out
+    assert main(["report", str(out), "-o", str(tmp_path / "r.html")]) == 0
+    assert "campaign-scenarios" in (tmp_path / "r.html").read_text()
+
+
+@pytest.mark.parametrize(
+    "option, value, says",
+    [
+        ("--gyro-range", "fast", "--gyro-range: 'fast' is not a number"),
+        ("--gyro-range", "-5", "--gyro-range: -5 is out of range"),
+        ("--detection", "psychic", "--detection: unknown mode(s) psychic"),
+        ("--filters", "nobody", "unknown estimator(s) in the loop"),
+    ],
+)
+def test_a_wrong_option_is_one_line(tmp_path, capsys, option, value, says):
+    assert main(["campaign", option, value, "-o", str(tmp_path / "c.parquet"), "--workers", "0"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and says in err[0]
+    assert not (tmp_path / "c.parquet").exists()
