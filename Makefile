@@ -64,4 +64,5 @@ clean:
 # reuses stale machine code; this removes every cached folder
 clean-cache:
 	rm -rf $${XDG_CACHE_HOME:-$$HOME/.cache}/quadest/numba
+	if [ -n "$$NUMBA_CACHE_DIR" ]; then rm -rf "$$NUMBA_CACHE_DIR"/quadest-*; fi
 	find src -name '*.nbi' -delete; find src -name '*.nbc' -delete

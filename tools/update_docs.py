@@ -887,7 +887,40 @@ def results_robust_targets() -> str:
     )
 
 
+def results_campaign() -> str:
+    """The survival campaign's table (docs/results/campaign.json: quadest campaign --json)."""
+    r = _load("campaign")
+    rows = []
+    for g in r["groups"]:
+        f, n, d = g["failures"], g["nominal"], g["failures"]["delay_ms"]
+        p = f["partial"]
+        oracle = g["detection"] == "oracle"
+        gyro = "none" if math.isinf(g["gyro_range_dps"]) else f"±{g['gyro_range_dps']:.0f}"
+        share = (
+            f"{f['survived']}/{f['complete']} ({100.0 * f['survived'] / f['complete']:.1f} %)" if f["complete"] else "-"
+        )
+        rows.append(
+            [
+                g["filter"],
+                g["detection"] + (" (told 50 ms after: an oracle)" if oracle else ""),
+                gyro,
+                share,
+                "-" if oracle else f"{f['found']} / {f['isolated']}",
+                "-" if oracle else " / ".join(_f(d[k], "{:.0f}") for k in ("median", "p90", "p99", "max")),
+                "-"
+                if oracle or not p["flights"]
+                else f"{p['isolated']}/{p['flights']}, {_f(p['effectiveness_error_median'], '{:.3f}')}",
+                "-" if oracle else f"{n['lost_alarms']} in {n['hours']:.1f} h",
+            ]
+        )
+    header = ["estimator", "detection", "gyro (°/s)", "complete losses up", "found / named",
+              "delay ms (median / p90 / p99 / max)", "partial: named, effectiveness error",
+              "false alarms (nominal)"]  # fmt: skip
+    return _table(header, rows)
+
+
 GENERATORS = {
+    "results-campaign": results_campaign,
     "results-speed-paired": results_speed_paired,
     "simulator-params": simulator_params,
     "estimator-params": estimator_params,

@@ -48,7 +48,7 @@ def __getattr__(name: str):
         from quadest import filters
 
         return getattr(filters, name)
-    if name == "NUMBA_CACHE_DIR":  # where compiled code is cached (quadest._jit); None: the user's own
+    if name == "NUMBA_CACHE_DIR":  # where compiled code is cached (quadest._jit); None: nowhere writable
         from quadest import _jit
 
         return _jit.CACHE_DIR

@@ -16,9 +16,11 @@ used are removed. ``make clean-cache`` removes them all.
 A damaged cache entry (a cut ``.nbi`` or ``.nbc`` file, on which numba's unpickling fails at
 every call) is removed and compiled again, with one note (:func:`njit`'s loading guard).
 
-``NUMBA_CACHE_DIR`` set by the user is respected as it is. The folder is
-``$XDG_CACHE_HOME/quadest/numba/<hash>`` (``~/.cache`` without ``XDG_CACHE_HOME``), or under the
-temporary directory where that cannot be written.
+The folder is ``$XDG_CACHE_HOME/quadest/numba/<hash>`` (``~/.cache`` without
+``XDG_CACHE_HOME``), or under the temporary directory where that cannot be written. A user who
+sets ``NUMBA_CACHE_DIR`` gets ``$NUMBA_CACHE_DIR/quadest-<hash>``: the user's folder, still one
+subfolder per source (an upgrade or an edit cannot run stale code), and housekeeping there
+touches only quadest's own subfolders.
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ KEEP = 4
 """Cache folders kept: the current one and the most recently used others."""
 
 _MARK = "QUADEST_NUMBA_CACHE_DIR"  # set beside NUMBA_CACHE_DIR when quadest chose it
+_USER = "QUADEST_NUMBA_USER_DIR"  # the user's NUMBA_CACHE_DIR, kept for worker processes
 
 
 def source_hash(root: Path = PACKAGE_DIR) -> str:
@@ -71,10 +74,11 @@ def _made(folder: Path) -> bool | None:
         return None
 
 
-def clean(root: Path, current: Path, keep: int = KEEP) -> list[Path]:
-    """Remove cache folders of other hashes beyond the ``keep − 1`` most recently changed."""
+def clean(root: Path, current: Path, keep: int = KEEP, prefix: str = "") -> list[Path]:
+    """Remove cache folders of other hashes (named ``prefix…``) beyond the ``keep − 1`` most
+    recently changed."""
     try:
-        others = [d for d in root.iterdir() if d.is_dir() and d != current]
+        others = [d for d in root.iterdir() if d.is_dir() and d != current and d.name.startswith(prefix)]
     except OSError:
         return []
     others.sort(key=lambda d: d.stat().st_mtime, reverse=True)
@@ -85,34 +89,49 @@ def clean(root: Path, current: Path, keep: int = KEEP) -> list[Path]:
     return removed
 
 
-def configure() -> str | None:
-    """Point numba's cache at the folder of the current source; returns it (None when the user
-    set ``NUMBA_CACHE_DIR``)."""
-    user = os.environ.get("NUMBA_CACHE_DIR")
-    if user and user != os.environ.get(_MARK):
-        return None
-    digest = source_hash()
+USER_PREFIX = "quadest-"
+"""The name of quadest's subfolders of a ``NUMBA_CACHE_DIR`` the user set (before the hash)."""
+
+
+def _roots() -> tuple[tuple[Path, ...], str]:
+    """Where the source's folder may go, and its name's prefix: the user's ``NUMBA_CACHE_DIR``
+    (a subfolder named ``quadest-<hash>``), else quadest's cache, else the temporary directory."""
+    cache = os.environ.get("NUMBA_CACHE_DIR")
+    chosen = cache and cache == os.environ.get(_MARK)  # by quadest, in a parent process
+    user = os.environ.get(_USER) if chosen else cache
+    if user:
+        return (Path(user),), USER_PREFIX
     uid = getattr(os, "getuid", lambda: 0)()
-    for root in (cache_root(), Path(tempfile.gettempdir()) / f"quadest-numba-{uid}"):
-        made = _made(root / digest)
+    return (cache_root(), Path(tempfile.gettempdir()) / f"quadest-numba-{uid}"), ""
+
+
+def configure() -> str | None:
+    """Point numba's cache at the folder of the current source; returns it (None when no
+    folder can be written: numba then keeps nothing)."""
+    roots, prefix = _roots()
+    digest = source_hash()
+    for root in roots:
+        made = _made(root / f"{prefix}{digest}")
         if made is not None:
             break
     else:
         return None
-    folder = root / digest
+    folder = root / f"{prefix}{digest}"
     if made:  # a new source: everything compiles now, and older folders may go
-        clean(root, folder)
+        clean(root, folder, prefix=prefix)
     from numba.core import config
 
     # both: numba re-reads its environment before compiling when a NUMBA_ variable changed,
     # and worker processes inherit it (the mark tells them quadest, not the user, chose it)
     os.environ["NUMBA_CACHE_DIR"] = os.environ[_MARK] = str(folder)
+    if prefix:
+        os.environ[_USER] = str(root)
     config.CACHE_DIR = str(folder)
     return str(folder)
 
 
 CACHE_DIR = configure()
-"""Where compiled code is cached (None when ``NUMBA_CACHE_DIR`` was set by the user)."""
+"""Where compiled code is cached (None when no folder could be written)."""
 
 
 def cold() -> bool:

@@ -436,3 +436,29 @@ def test_the_source_needs_nothing_newer_than_python_310():
         timeout=600,
     )
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-2000:]
+
+
+def test_a_users_cache_folder_gets_a_subfolder_per_source(tmp_path):
+    """With ``NUMBA_CACHE_DIR`` set, quadest's code goes to ``quadest-<hash>`` inside it (an
+    upgrade cannot run stale compiled code); housekeeping removes only quadest's own old
+    subfolders, never the user's other folders; a child process keeps the same folder."""
+    user = tmp_path / "mine"
+    for i in range(5):
+        (user / f"quadest-old{i}").mkdir(parents=True)
+        os.utime(user / f"quadest-old{i}", (1000 + i, 1000 + i))
+    (user / "other-project").mkdir()
+    os.utime(user / "other-project", (1, 1))
+    code = (
+        "import subprocess, sys, quadest.rotation.kernels, quadest; print(quadest.NUMBA_CACHE_DIR); "
+        "print(subprocess.run([sys.executable, '-c', 'import quadest.rotation.kernels, quadest; "
+        "print(quadest.NUMBA_CACHE_DIR)'], capture_output=True, text=True).stdout.strip())"
+    )
+    env = {k: v for k, v in os.environ.items() if k not in ("QUADEST_NUMBA_CACHE_DIR", "QUADEST_NUMBA_USER_DIR")}
+    env["NUMBA_CACHE_DIR"] = str(user)
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    mine, child = (Path(line) for line in out.stdout.split())
+    assert mine.parent == user and mine.name.startswith("quadest-") and mine.is_dir()
+    assert child == mine
+    left = sorted(d.name for d in user.iterdir() if d != mine)
+    assert left == ["other-project", "quadest-old2", "quadest-old3", "quadest-old4"]
