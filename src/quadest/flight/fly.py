@@ -80,6 +80,7 @@ DEFAULT_DURATION = {
     "rotor-loss": 10.0,
     "throw": 14.0,
 }  # a throw: from the release
+COLLISION_S = 16.0  # s: a flight with a collision (at 2-4 s), then the 10 s hover it is judged by
 IN_FLIGHT_MAG = {"mag.rate_hz": 100.0}
 """A recovery in flight flies the recovery paper's IMU (``fma``) with a magnetometer at the
 simulator's default rate: the estimator in the loop needs a heading before the collision."""
@@ -152,10 +153,10 @@ def fly(
     ``params.collision`` and ``params.divergence``: a collision and the checks that start a recovery
     in flight (:mod:`quadest.flight.collision`; with the checks the sensors are ``fma`` by default)."""
     estimator = filter_name(estimator) if isinstance(estimator, str) else estimator
-    controller, duration = _check_request(scenario, estimator, controller, duration)
+    params = params or FlightParams()
+    controller, duration = _check_request(scenario, estimator, controller, duration, params.collision != "none")
     vehicle_name = vehicle if isinstance(vehicle, str) else ("recovery" if vehicle is None else "custom")
     vehicle = vehicle_preset(vehicle) if isinstance(vehicle, str) else (vehicle or MultirotorParams())
-    params = params or FlightParams()
     failure = _checked_failure(scenario, failure, controller, vehicle, duration)
     event, watching = _in_flight_request(scenario, params, seed, duration)
     preset, cfg = _sensors(preset, config, scenario, watching)
@@ -216,7 +217,7 @@ def fly(
         raise ValueError(f"the flight ended before its first sample ({STATUS[status]})")
     out = flown_arrays(loop.record, flown)
     meta.update(controller=controller, estimator=est.name, position_sensor=params.position_sensor)
-    flight = _flight(out, t[:flown], vehicle, cfg, seed, failure, meta, processes, loop_s)
+    flight = _flight(out, t[:flown], vehicle, cfg, seed, failure, meta, processes, loop_s, watching is not None)
     flight.summary = summarize(
         flight, scenario=scenario, status=status, duration=duration, failure=failure, controller=controller,
         estimator=est.name, seed=seed, params=params, ftc=ftc, vehicle=vehicle,
@@ -288,8 +289,9 @@ def detection_summary(det, mode: str, failure: Failure | None, t: np.ndarray) ->
     return out
 
 
-def _check_request(scenario, estimator, controller, duration):
-    """The controller and duration of a flight, after refusing what cannot fly (one line each)."""
+def _check_request(scenario, estimator, controller, duration, collision=False):
+    """The controller and duration of a flight (with a ``collision``, 16 s by default: the
+    collision at 2-4 s, then the 10 s hover), after refusing what cannot fly (one line each)."""
     if scenario not in FLIGHT_SCENARIOS:
         raise UsageError(f"unknown scenario {scenario!r}; scenarios: {', '.join(FLIGHT_SCENARIOS)}")
     if scenario == "throw":
@@ -308,7 +310,9 @@ def _check_request(scenario, estimator, controller, duration):
     controller = controller or ("ftc" if scenario == "rotor-loss" else "se3")
     if controller not in CONTROLLERS:
         raise UsageError(f"unknown controller {controller!r}; controllers: {', '.join(CONTROLLERS)}")
-    duration = DEFAULT_DURATION[scenario] if duration is None else float(duration)
+    if duration is None:
+        duration = COLLISION_S if collision and scenario != "throw" else DEFAULT_DURATION[scenario]
+    duration = float(duration)
     if not (math.isfinite(duration) and 0 < duration <= 3600):
         raise UsageError(f"duration must be between 0 and 3600 s, got {duration}")
     return controller, duration
@@ -481,16 +485,18 @@ def _run(x, loop, est: InLoop):
     return OK, len(loop.record.phase)
 
 
-def _flight(out, t, vehicle, cfg, seed, failure, meta, processes, loop_s) -> Flight:
+def _flight(out, t, vehicle, cfg, seed, failure, meta, processes, loop_s, phases=False) -> Flight:
     """The :class:`Flight` of the loop's record ``out`` (its recording sampled as every
-    simulation samples, with the loop's readings; the ``failure`` in its ``meta``)."""
+    simulation samples, with the loop's readings; the ``failure`` in its ``meta``; the phase of
+    each sample with ``phases``: a flight that may recover in flight)."""
     imbalance = np.zeros((len(t), vehicle.rotors))
     if failure is not None:
         meta["failure"] = asdict(failure)  # imbalance in kg m
         imbalance[int(round(failure.time_s * cfg.imu.rate_hz)) :, failure.rotor] = failure.imbalance
     return flight_of(
-        out, t, vehicle, cfg=cfg, seed=seed, meta=meta, processes=processes, loop_s=loop_s, imbalance=imbalance
-    )
+        out, t, vehicle, cfg=cfg, seed=seed, meta=meta, processes=processes, loop_s=loop_s, imbalance=imbalance,
+        modes=out["phase"] if phases else None,
+    )  # fmt: skip
 
 
 def resample(
@@ -579,11 +585,12 @@ def summarize(
     s["time_to_settle_s"] = None if settle is None else settle - start
     s["position_rms_settled_m"] = rms(err[t >= settle]) if settle is not None else None
     total, tilt = angle_errors(x[:, 6:10], flight.q_est)
-    s["attitude_error_rms_deg"] = rms(total)
-    s["tilt_error_rms_deg"] = rms(tilt)
-    s["tilt_error_max_deg"] = float(tilt.max())
+    ok = np.isfinite(total)  # a recovery in flight reads no attitude until its bank hands over
+    s["attitude_error_rms_deg"] = rms(total[ok])
+    s["tilt_error_rms_deg"] = rms(tilt[ok])
+    s["tilt_error_max_deg"] = float(tilt[ok].max())
     if failure is not None:
-        after = t >= start
+        after = (t >= start) & ok
         s["attitude_error_after_failure_rms_deg"] = rms(total[after])
         s["tilt_error_after_failure_rms_deg"] = rms(tilt[after])
     if failure is not None and failure.efficiency == 0.0 and controller == "ftc":
@@ -694,7 +701,7 @@ def campaign_table(summaries: list[dict]) -> list[dict]:
                 "tilt_deg": mean([s.get("tilt_deg") for s in ok]),
             }
         )
-        if any("recovered" in s for s in runs):  # throws
+        if any(s["scenario"] == "throw" for s in runs):  # throws
             rows[-1].update(
                 {
                     "recovered": sum(bool(s.get("recovered")) for s in runs),

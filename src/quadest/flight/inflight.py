@@ -12,6 +12,7 @@ import numpy as np
 from quadest.flight import build
 from quadest.flight.collision import Collision, CollisionParams, draw_collision
 from quadest.flight.collision import watch as watch_record
+from quadest.flight.phases import HOLD_Z, reads_truth
 from quadest.flight.throw import ThrowParams, _held_from, _tilt_deg, fit_throw_model
 from quadest.recovery import RecoveryParams
 from quadest.recovery.divergence import STATE, fired_names
@@ -85,12 +86,14 @@ def summary(flight, out: dict, loop, event: Collision | None, status, rate: floa
         "divergence_s": float(t[k_fire]) if k_fire >= 0 else None,
         "divergence_delay_s": float(t[k_fire] - t0) if k_fire >= 0 and k_hit >= 0 else None,
         "checks": fired_names(int(st[STATE.fired])) if k_fire >= 0 else [],
-        "check_peaks": dict(zip(("impact", "rate", "innovation"), map(float, st[STATE.peak : STATE.peak + 3]))),
+        "check_peaks": dict(zip(("impact", "rate", "innovation"), map(float, st[STATE.peak : STATE.peak + 3])))
+        if loop.watch.on
+        else None,
         "free_fall_s": float(t[events[0]] - t0) if events[0] >= 0 else None,
         "handover_s": float(t[k_conv] - t0) if k_conv >= 0 else None,
         "fall_m": float(x[max(k_hit, 0) :, 2].max() - x[max(k_hit, 0), 2]) if len(x) else None,
     }
-    if k_conv >= 0 and loop.nav.kind >= 2:
+    if k_conv >= 0 and not reads_truth(loop.nav.kind):  # the bank's estimate (the truth hands over at once)
         q = x[k_conv, 6:10]
         g_true = quat_rotate(quat_conj(q[None]), np.array([[0.0, 0.0, 1.0]]))[0]
         s["gravity_error_at_handover_deg"] = float(np.degrees(np.arccos(np.clip(out["gdir"][k_conv] @ g_true, -1, 1))))
@@ -106,7 +109,7 @@ def _hover_from(t, x, k_conv, k_hit, loop, throw, ok_status):
         up = np.flatnonzero((t >= t[k_conv]) & (_tilt_deg(x[:, 6:10]) < throw.recovered_tilt_deg))
         if not len(up):
             return None
-        return _held_from(t, x[:, 2], up[0], float(loop.held[1]), throw.hover_tol_m, throw.hover_s, t0)
+        return _held_from(t, x[:, 2], up[0], float(loop.held[HOLD_Z]), throw.hover_tol_m, throw.hover_s, t0)
     if ok_status != 0 or t[-1] - t0 < throw.hover_s:
         return None
     last = t >= t[-1] - throw.hover_s

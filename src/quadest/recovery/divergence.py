@@ -42,8 +42,8 @@ class DivergenceParams:
         1.5,
         "-",
         "impact: ‖z_acc‖ above this times the rotors' largest specific force (k_f N Ω_max² / m)",
-        "chosen: the rotors cannot push harder; nominal flights (seeds 1000-1299) reach at most "
-        "0.6 of it, vibration included (docs/recovery.md)",
+        "chosen: the rotors cannot push harder (1.5: their model may be off by tens of %); 300 nominal "
+        "flights of 60 s (seeds 1000-1299) reach at most 0.30 of it, vibration included (docs/recovery.md)",
         bounds="(0, 100]",
     )
     impact_samples: int = param(
@@ -76,7 +76,8 @@ class DivergenceParams:
         0.1,
         "m",
         "innovation: the low-passed position innovation's length above this",
-        "chosen on seeds 1000-1099 (collisions) and 1000-1299 (nominal flights), not the reported ones",
+        "chosen before any collision was flown (a few cm of error the fusion cannot explain), kept after "
+        "checking it on seeds 1000-1099 (collisions) and 1000-1299 (nominal flights: at most 0.42 of it)",
         bounds="(0, 1e3]",
     )
     innovation_tau_s: float = param(
