@@ -15,6 +15,10 @@ simulation rate, ``substeps`` RK4 steps per sample):
    commands the rotors;
 5. the vehicle flies to the next sample (in the hand it is carried).
 
+A collision adds its velocity and body rate over its impact (:func:`strike`: the sensors see it);
+with the divergence checks on, a check that fires after step 3 turns the flight into a
+throw's recovery (:mod:`quadest.flight.collision`).
+
 The loop ends early with a status: ground contact, lost control (body rate or speed beyond
 what a flying vehicle has), a non-finite estimate, or a diverged simulation.
 """

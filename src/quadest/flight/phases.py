@@ -19,6 +19,10 @@ recovery's phases:
    column of ``C``, along z) holds that thrust; from the handover it holds the thrust the
    measured rotor speeds give (``k_f Σ Ω²``). With the truth in the loop (an oracle) the
    handover is at the detection and the controller reads the true state.
+
+A flight enters the same phases, at ``waiting``, when a divergence check fires in flight
+(:mod:`quadest.flight.collision`): the rotors then go to the throw's speed, and while they spin
+down the bank's constant force follows the measured rotor speeds (:func:`measured_thrust`).
 """
 
 from __future__ import annotations
