@@ -2,6 +2,8 @@
 recovery paper's bank of EKFs in the loop, a nominal flight that never starts a recovery, and the
 checks changing nothing until they fire."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -65,3 +67,16 @@ def test_the_command_line_flies_a_collision_and_refuses_a_bad_check_in_one_line(
     assert main(["fly", "--divergence", "impact,wobble", "-o", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--divergence" in err[0] and "Traceback" not in err[0]
+
+
+def test_the_benchmark_flies_each_ablation_on_the_same_collision_and_writes_json(tmp_path, capsys):
+    out = tmp_path / "c.json"
+    argv = ["benchmark", "collisions", "--seeds", "1002", "--nominal-seeds", "1", "--duration", "3", "--json", str(out)]
+    assert main(argv) == 0
+    res = json.loads(out.read_text())
+    cases = res["cases"]
+    assert list(cases) == ["all checks", "impact only", "rate only", "innovation only", "no checks"]
+    assert cases["all checks"]["recovered"] == 1 and cases["no checks"]["recovered"] == 0  # as flown above
+    assert cases["no checks"]["detected"] == 0 and cases["impact only"]["first_by_check"]["impact"] == 1
+    assert res["nominal"]["flights"] == 1 and res["nominal"]["recovery_started"] == 0
+    assert "recovered 1/1" in capsys.readouterr().out
