@@ -69,7 +69,8 @@ class DivergenceParams:
         0.3,
         "rad/s",
         "rate: added to the threshold (gyroscope noise and vibration over the window)",
-        "chosen: ten times the gyroscope's noise per sample of the fma and bebop2 presets",
+        "chosen: well above the gyroscope's noise (0.005-0.01 rad/s per sample in the fma and bebop2 "
+        "presets) and vibration; nominal flights reach at most 0.30 of the whole rate threshold",
         bounds="[0, 100]",
     )
     innovation_m: float = param(
