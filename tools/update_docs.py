@@ -919,8 +919,75 @@ def results_campaign() -> str:
     return _table(header, rows)
 
 
+def divergence_params() -> str:
+    from quadest.recovery.divergence import DivergenceParams
+
+    return _param_rows(DivergenceParams.describe())
+
+
+def collision_params() -> str:
+    from quadest.flight.collision import CollisionParams
+
+    return _param_rows(CollisionParams.describe())
+
+
+def _med(d, fmt="{:.2f}", scale=1.0):
+    return "-" if d["median"] is None else f"{fmt.format(scale * d['median'])} / {fmt.format(scale * d['p90'])}"
+
+
+def results_collisions() -> str:
+    """docs/recovery.md: collisions in flight recovered, each check alone and none, and nominal flights."""
+    r = _load("collisions")
+    rows = []
+    for name, st in r["cases"].items():
+        n, fates = st["collisions"], st["by_estimator"]
+        first = ", ".join(f"{c} {k}" for c, k in st["first_by_check"].items() if k) or "-"
+        rows.append(
+            [
+                name,
+                f"{st['recovered']}/{n} ({100 * st['recovered'] / max(n, 1):.0f} %)",
+                str(st["crashed"]),
+                f"{st['detected']}/{n} ({first})",
+                _med(st["divergence_delay_s"], "{:.0f}", 1e3),
+                _med(st["handover_s"]),
+                _med(st["gravity_error_deg"], "{:.1f}"),
+                _med(st["fall_m"]),
+                f"{fates['reset']['recovered']}/{fates['reset']['collisions']}",
+                f"{fates['left']['recovered']}/{fates['left']['collisions']}",
+            ]
+        )
+    nom = r["nominal"]
+    peaks = "; ".join(f"{sc} " + ", ".join(f"{c} {v:.2f}" for c, v in p.items()) for sc, p in nom["peak_ratio"].items())
+    return (
+        _table(
+            [
+                "checks",
+                "recovered to hover",
+                "crashed",
+                "recovery started (first by)",
+                "delay (ms, median / p90)",
+                "handover after the collision (s, median / p90)",
+                "gravity error at the handover (°, median / p90)",
+                "fall (m, median / p90)",
+                "reset: recovered",
+                "left: recovered",
+            ],
+            rows,
+        )
+        + f"\n\n{r['cases']['all checks']['collisions']} collisions (seeds {r['seeds'][0]}-{r['seeds'][1]}), "
+        f"{r['estimator']} in the loop, each row the same collisions. Nominal flights with every check on "
+        f"(seeds {r['nominal_seeds'][0]}-{r['nominal_seeds'][1]}, {r['nominal_s']:g} s each, hover, circle and "
+        f"figure eight in turn): {nom['flights']} flights, {nom['hours']:.1f} h, recovery started in "
+        f"{nom['recovery_started']}, survived {nom['survived']}; the largest statistic over its threshold: {peaks} "
+        "(`quadest benchmark collisions --seeds 1-100 --nominal-seeds 1-600 --json ...`, docs/results/collisions.json)."
+    )
+
+
 GENERATORS = {
     "results-campaign": results_campaign,
+    "divergence-params": divergence_params,
+    "collision-params": collision_params,
+    "results-collisions": results_collisions,
     "results-speed-paired": results_speed_paired,
     "simulator-params": simulator_params,
     "estimator-params": estimator_params,

@@ -26,7 +26,7 @@ from quadest.cli.common import (
     write_json,
     write_report_for,
 )
-from quadest.evaluation import benchmark, detection, diagnose, flown, reproduce
+from quadest.evaluation import benchmark, collisions, detection, diagnose, flown, reproduce
 from quadest.evaluation.compare import compare, format_tables, parse_params
 from quadest.evaluation.runner import estimator_names, filter_notes
 from quadest.evaluation.speed import benchmark_speed, format_paired
@@ -322,6 +322,25 @@ def _benchmark_detection(args):
     return res
 
 
+def _benchmark_collisions(args):
+    seeds, nominal = parse_seeds(args.seeds), parse_seeds(args.nominal_seeds, "--nominal-seeds")
+    ablate = 1 + len(collisions.ABLATIONS)
+    check_runs(
+        args, ablate * len(seeds) + len(nominal), f"--seeds {args.seeds} and --nominal-seeds {args.nominal_seeds}"
+    )
+    est = args.filters if args.filters in ("truth", *FILTERS) else "robust"
+    say(
+        f"collisions in flight recovered, {est} in the loop, fma sensors with a magnetometer, recovery vehicle: "
+        f"{len(seeds)} collisions (up to 5 m/s and 20 rad/s at 2-4 s, the estimator reset or left as drawn; "
+        f"hover, circle, figure eight in turn), flown with every divergence check, each alone and none; "
+        f"{len(nominal)} nominal flights of {args.duration:g} s with every check on"
+    )
+    res = collisions.benchmark_collisions(seeds, nominal, nominal_s=args.duration, estimator=est, workers=args.workers,
+                                          progress=True)  # fmt: skip
+    say(collisions.format_collisions(res))
+    return res
+
+
 def _benchmark_tradeoff(args):
     train, test = parse_seeds(args.train_seeds, "--train-seeds"), parse_seeds(args.seeds)
     train_nominal = parse_seeds(args.train_nominal_seeds, "--train-nominal-seeds")
@@ -369,8 +388,9 @@ def cmd_benchmark(args):
         if args.json:
             write_json(args.json, res)
         return 0
-    if args.what in ("detection", "detection-tradeoff"):
-        res = (_benchmark_detection if args.what == "detection" else _benchmark_tradeoff)(args)
+    if args.what in ("detection", "detection-tradeoff", "collisions"):
+        bench = {"detection": _benchmark_detection, "detection-tradeoff": _benchmark_tradeoff}
+        res = bench.get(args.what, _benchmark_collisions)(args)
         if args.json:
             write_json(args.json, res)
         return 0
@@ -602,12 +622,26 @@ def _add_benchmark(sub):
         "'lost' test's threshold against delay and false alarms, chosen on --train-seeds and "
         "--train-nominal-seeds, reported on --seeds and --nominal-seeds. diagnose: quadest diagnose "
         "on every log in --data with its model's chosen values across their range (docs/diagnose.md). "
+        "collisions: collisions in flight (up to 5 m/s and 20 rad/s, the estimator reset or left) "
+        "for --seeds, recovered by the divergence checks and the bank of EKFs, again with each check "
+        "alone and with none, and nominal flights of --duration s for --nominal-seeds with the checks on "
+        "(--filters names the estimator in the loop, default robust; docs/recovery.md). "
         "quadest's filters and the installed peers (pip install 'quadest[peers]': "
         "vqf, imufusion, ahrs) run side by side.",
     )
     b.add_argument(
         "what",
-        choices=["broad", "flights", "repoimu", "speed", "sim", "detection", "detection-tradeoff", "diagnose"],
+        choices=[
+            "broad",
+            "flights",
+            "repoimu",
+            "speed",
+            "sim",
+            "detection",
+            "detection-tradeoff",
+            "diagnose",
+            "collisions",
+        ],  # fmt: skip
         help="what to benchmark",
     )
     b.add_argument(
@@ -631,18 +665,24 @@ def _add_benchmark(sub):
         "--duration",
         type=float,
         default=60.0,
-        help="speed: seconds of simulated data; sim: seconds flown (RotorPy: at most 10); detection: each "
-        "nominal flight's seconds (default: 60)",
+        help="speed: seconds of simulated data; sim: seconds flown (RotorPy: at most 10); detection, collisions: "
+        "each nominal flight's seconds (default: 60)",
     )
-    b.add_argument("--seeds", default="0-99", help="detection: the failures' seeds (default: 0-99)")
     b.add_argument(
-        "--nominal-seeds", default="1000-1019", help="detection: the nominal flights' seeds (default: 1000-1019)"
+        "--seeds", default="0-99", help="detection: the failures' seeds; collisions: the collisions' (default: 0-99)"
+    )
+    b.add_argument(
+        "--nominal-seeds",
+        default="1000-1019",
+        help="detection, collisions: the nominal flights' seeds (default: 1000-1019)",
     )
     b.add_argument("--train-seeds", default="0-99", help="detection-tradeoff: the training failures' seeds")
     b.add_argument(
         "--train-nominal-seeds", default="0-19", help="detection-tradeoff: the training nominal flights' seeds"
     )
-    b.add_argument("--workers", type=int, default=0, help="detection: Dask workers (0: this process; default: 0)")
+    b.add_argument(
+        "--workers", type=int, default=0, help="detection, collisions: Dask workers (0: this process; default: 0)"
+    )
     add_max_runs_arg(b)
     b.add_argument("--json", metavar="OUT", help="write the figures as JSON")
     b.set_defaults(func=cmd_benchmark)

@@ -26,12 +26,14 @@ from quadest.flight import (
     fly_many,
     in_loop_estimators,
 )
+from quadest.flight.common import COLLISIONS
 from quadest.flight.detection import DETECTION_MODES
 from quadest.flight.fly import DEFAULT_PRESET
 from quadest.flight.throw import ThrowParams
 from quadest.models import VEHICLE_PRESETS
 from quadest.models.multirotor import vehicle_preset
 from quadest.records import with_fields
+from quadest.recovery.divergence import CHECKS
 from quadest.sim import PRESETS, build_config
 
 FAILURE_FORMAT = (
@@ -142,7 +144,11 @@ def fly_settings(args, sets: dict) -> dict:
     sensors, the vehicle, the flight, the controllers' and a throw's parameters."""
     groups = grouped_sets(sets)
     _check_sets_fly(groups, args.scenario, args.controller)
-    flight = FlightParams(position_sensor=args.position_sensor)
+    checks = [c.strip() for c in args.divergence.split(",")]
+    if args.divergence not in ("auto", "off") and not all(c in CHECKS for c in checks):
+        raise CliError(f"--divergence expects auto, off or a comma-separated list of {', '.join(CHECKS)}, "
+                       f"got {args.divergence!r}")  # fmt: skip
+    flight = FlightParams(position_sensor=args.position_sensor, collision=args.collision, divergence=args.divergence)
     out = {"params": with_fields(flight, groups.get("flight", {}), "flight"), "vehicle": args.vehicle}
     if "sensors" in groups:
         preset = args.preset or DEFAULT_PRESET.get(args.scenario, "bebop2")
@@ -198,7 +204,7 @@ def _report(flight, out: Path, plot: bool):
     extra = ""
     if "spin_rate_rad_s" in s:
         extra = f", spin {s['spin_rate_rad_s']:.1f} rad/s, tilt {s['tilt_deg']:.1f}°"
-    if "recovered" in s:
+    if s["scenario"] == "throw":
         hand = "-" if s["handover_s"] is None else f"{s['handover_s']:.3f} s"
         say(
             f"{s['estimator']}, seed {s['seed']}: {s['reason']}; {'recovered' if s['recovered'] else 'not recovered'}: "
@@ -207,6 +213,8 @@ def _report(flight, out: Path, plot: bool):
         )
         return
     end = f" at {s['end_time_s']:.2f} s" if s["end_time_s"] is not None else ""
+    if s.get("collision") is not None or s.get("recovery_started"):
+        extra += "; " + in_flight_line(s)
     det = s.get("detection")
     if det is not None:
         found = (
@@ -225,6 +233,23 @@ def _report(flight, out: Path, plot: bool):
         f"{s['estimator']}, seed {s['seed']}: {s['reason']}{end}; settled after {_fmt(s['time_to_settle_s'], ' s')}, "
         f"position RMS {_fmt(s['position_rms_settled_m'], ' m', 3)}, tilt error in the loop "
         f"{_fmt(s['tilt_error_rms_deg'], '°')} RMS{extra}"
+    )
+
+
+def in_flight_line(s: dict) -> str:
+    """A flight's collision and recovery in flight, in one line."""
+    c = s.get("collision")
+    out = "" if c is None else (
+        f"collision at {c['time_s']:.2f} s ({c['speed_m_s']:.1f} m/s, {c['rate_rad_s']:.1f} rad/s, the estimator "
+        f"{c['estimator']}): "
+    )  # fmt: skip
+    if not s["recovery_started"]:
+        return out + "no recovery started" + ("" if c is None else f"; {'' if s['recovered'] else 'not '}recovered")
+    return out + (
+        f"recovery started by {', '.join(s['checks'])} at {s['divergence_s']:.3f} s, handover "
+        f"{_fmt(s['handover_s'], ' s', 3)} after, gravity error there "
+        f"{_fmt(s.get('gravity_error_at_handover_deg'), '°')}, "
+        f"fall {_fmt(s['fall_m'], ' m')}" + ("" if c is None else f"; {'' if s['recovered'] else 'not '}recovered")
     )
 
 
@@ -371,6 +396,23 @@ def add_parsers(sub):
         help="how the fault-tolerant controller learns of a rotor loss: oracle (told 50 ms after it, the "
         "lost rotor's command zeroed from the failure on), rotor-speeds or commands (found by the "
         "detector from the measured rotor speeds or from the commands; docs/detection.md) (default: oracle)",
+    )
+    s.add_argument(
+        "--collision",
+        choices=COLLISIONS,
+        default="none",
+        help="a collision in flight, drawn from the seed (at 2-4 s, up to 5 m/s and 20 rad/s; 16 s flights by "
+        "default): drawn (the estimator's state reset to nonsense or left to diverge, as drawn), reset or left; "
+        "the divergence checks then start the recovery paper's bank of EKFs in flight (docs/recovery.md) "
+        "(default: none)",
+    )
+    s.add_argument(
+        "--divergence",
+        default="auto",
+        metavar="CHECKS",
+        help="the checks that start a recovery in flight: auto (all with a collision, none without), off, or "
+        f"a comma-separated list of {', '.join(CHECKS)}; with them on, the sensors are fma with a magnetometer "
+        "unless --preset says otherwise (default: auto)",
     )
     s.add_argument("--set", action="append", metavar="KEY=VALUE", help=SET_HELP)
     s.add_argument("-o", "--output", required=True, metavar="DIR", help="folder for the runs' files")

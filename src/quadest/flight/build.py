@@ -10,6 +10,7 @@ from quadest.control import FtcParams
 from quadest.control.registry import Control, controller_id
 from quadest.detect import Detector, DetectorParams
 from quadest.detect.effectiveness import DIAG, STATE
+from quadest.flight.collision import watch as watch_record
 from quadest.flight.detection import DETECTION_MODES, Detection
 from quadest.flight.loop import MAX_RATE, MAX_SPEED, Loop, Navigation, Plant, Record, Sensing, record_arrays
 from quadest.flight.phases import NAV, PHASES, Bank
@@ -20,10 +21,13 @@ from quadest.recovery.logic import initial_bank
 from quadest.recovery.sphere import spread_points
 
 
-def plant(vehicle, *, h, substeps, ground_z, failure=None, rate=1.0, hand=None, limits=True, zero_failed=True):
+def plant(
+    vehicle, *, h, substeps, ground_z, failure=None, rate=1.0, hand=None, limits=True, zero_failed=True, collision=None
+):
     """The :data:`~quadest.flight.loop.Plant` of ``vehicle``: a ``failure`` striking at its
-    sample (``rate`` Hz), the ``hand``'s ``(states, derivatives)`` until the release, the
-    flight ended by the ground at ``ground_z`` and (``limits``) by lost control."""
+    sample (``rate`` Hz), the ``hand``'s ``(states, derivatives)`` until the release, a
+    ``collision`` (:class:`~quadest.flight.collision.Collision`), the flight ended by the ground
+    at ``ground_z`` and (``limits``) by lost control."""
     n_rot, nx = vehicle.rotors, 13 + vehicle.rotors
     dynamics = vehicle.vehicle()
     hand_x, hand_dx = hand if hand is not None else (np.zeros((1, nx)), np.zeros((0, nx)))
@@ -42,6 +46,10 @@ def plant(vehicle, *, h, substeps, ground_z, failure=None, rate=1.0, hand=None, 
         fail_eta=1.0 if failure is None else float(failure.efficiency),
         fail_imb=0.0 if failure is None else float(failure.imbalance),
         zero_failed=zero_failed,
+        hit_k=-1 if collision is None else int(round(collision.time_s * rate)),
+        hit_n=0 if collision is None else max(1, int(round(collision.impact_s * rate))),
+        hit_dv=np.zeros(3) if collision is None else np.array(collision.dv, float),
+        hit_dw=np.zeros(3) if collision is None else np.array(collision.dw, float),
         hand_x=np.ascontiguousarray(hand_x, dtype=float),
         hand_dx=np.ascontiguousarray(hand_dx, dtype=float),
         work=work(dynamics, nx),
@@ -81,10 +89,11 @@ def sensing(sm, *, dt, rotors, position0, every=1, delay=0, noise=None, n=1, on=
     )
 
 
-def navigation(kind: str, x0, gain=None, clip=None):
+def navigation(kind: str, x0, gain=None, clip=None, reset=None):
     """The :data:`~quadest.flight.loop.Navigation` reading ``kind`` (:data:`~quadest.flight.phases.NAV`);
     the position and velocity estimates start at the truth (on the pad); ``clip`` the rate of a
-    clipped gyroscope axis (:func:`~quadest.flight.rate.clip_rate`; none: the reading as it is)."""
+    clipped gyroscope axis (:func:`~quadest.flight.rate.clip_rate`; none: the reading as it is);
+    ``reset`` ``(sample, state)``: the estimator's state swapped in at that sample (none: never)."""
     return Navigation.make(
         kind=NAV[kind],
         xh=np.zeros(13),
@@ -93,6 +102,9 @@ def navigation(kind: str, x0, gain=None, clip=None):
         vh=np.array(x0[3:6], float),
         gain=np.zeros((3, 2)) if gain is None else np.ascontiguousarray(gain, dtype=float),
         clip=clip_rate() if clip is None else clip,
+        innov=np.zeros(3),
+        reset_k=-1 if reset is None else int(reset[0]),
+        reset_x=np.zeros(1) if reset is None else np.ascontiguousarray(reset[1], dtype=float),
     )
 
 
@@ -190,8 +202,9 @@ def detection(mode="oracle", *, vehicle=None, params=None, n=1, noise=None):
     )
 
 
-def loop(*, plant, sensing, nav, bank, control, detection, n, rotors, phase):
-    """The :data:`~quadest.flight.loop.Loop` of ``n`` samples starting in ``phase``, with its record."""
+def loop(*, plant, sensing, nav, bank, control, detection, n, rotors, phase, watch=None):
+    """The :data:`~quadest.flight.loop.Loop` of ``n`` samples starting in ``phase``, with its
+    record; ``watch`` the divergence checks (:func:`~quadest.flight.collision.watch`; none: off)."""
     record = Record.make(**record_arrays(n, rotors))
     state = np.array([PHASES.index(phase), 0, 0], np.int64)
     return Loop.make(
@@ -201,6 +214,7 @@ def loop(*, plant, sensing, nav, bank, control, detection, n, rotors, phase):
         bank=bank,
         control=control,
         detection=detection,
+        watch=watch_record() if watch is None else watch,
         record=record,
         state=state,
         held=np.full(2, np.nan),

@@ -11,6 +11,7 @@ from scipy.linalg import solve_discrete_are
 from quadest.data.recording import Recording
 from quadest.flight.rate import CLIP_RATE_MODES
 from quadest.records import check, check_triples, describe, param
+from quadest.recovery.divergence import CHECKS
 from quadest.rotation import quat_conj, quat_mul, quat_rotate
 from quadest.sim import sensors
 from quadest.sim.flown import flown_recording
@@ -18,6 +19,8 @@ from quadest.sim.sensors import sensor_model
 from quadest.sim.simulator import draw_processes
 
 SIM_RATE_HZ = 1000.0
+COLLISIONS = ("none", "drawn", "reset", "left")
+"""A flight's collision (FlightParams.collision)."""
 
 
 @dataclass(frozen=True)
@@ -126,6 +129,21 @@ class FlightParams:
         "measured on rotor losses with a ±500 °/s gyro, seeds 100-104: robust stayed up in 5 of 5 with it, "
         "0 of 5 without (docs/vehicle.md, A clipped gyroscope)",
     )
+    collision: str = param(
+        "none",
+        "-",
+        "a collision in flight (quadest.flight.collision), drawn from the seed: none, drawn (the "
+        "estimator's state reset to nonsense or left to diverge, as drawn), reset or left",
+        "chosen: none by default",
+    )
+    divergence: str = param(
+        "auto",
+        "-",
+        "the divergence checks that start a recovery in flight (quadest.recovery.divergence): auto "
+        "(all with a collision, none without), off, or those that run, comma-separated (impact, "
+        "rate, innovation, nonfinite)",
+        "chosen: on where a collision is flown",
+    )
     settle_m: float = param(
         0.3,
         "m",
@@ -136,6 +154,13 @@ class FlightParams:
 
     def __post_init__(self):
         check(self, "flight")
+        if self.collision not in COLLISIONS:
+            raise ValueError(f"flight: collision must be one of {', '.join(COLLISIONS)}, got {self.collision!r}")
+        checks = [c.strip() for c in self.divergence.split(",")]
+        if self.divergence not in ("auto", "off") and not all(c in CHECKS for c in checks):
+            raise ValueError(
+                f"flight: divergence must be auto, off or checks of {', '.join(CHECKS)}, got {self.divergence!r}"
+            )
         if self.position_sensor not in ("mocap", "gnss"):
             raise ValueError(f"flight: position_sensor must be mocap or gnss, got {self.position_sensor!r}")
         check_triples(self, "flight", "gnss_noise_m")

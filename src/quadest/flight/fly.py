@@ -31,7 +31,7 @@ from quadest.data.recording import Recording
 from quadest.detect import DetectorParams, RatePredictorParams
 from quadest.errors import UsageError
 from quadest.filters import ESTIMATORS, Estimator, filter_name, make_filter
-from quadest.flight import build
+from quadest.flight import build, inflight
 from quadest.flight.common import (
     SIM_RATE_HZ,
     Flight,
@@ -57,6 +57,7 @@ from quadest.flight.loop import (
 from quadest.flight.throw import ThrowParams, fly_throw
 from quadest.models.multirotor import MultirotorParams, vehicle_preset
 from quadest.recovery import RecoveryParams
+from quadest.recovery.divergence import CHECKS, DivergenceParams
 from quadest.rotation import euler_to_quat, quat_rotate
 from quadest.sim import build_config
 from quadest.sim.flown import flown_recording
@@ -79,6 +80,10 @@ DEFAULT_DURATION = {
     "rotor-loss": 10.0,
     "throw": 14.0,
 }  # a throw: from the release
+COLLISION_S = 16.0  # s: a flight with a collision (at 2-4 s), then the 10 s hover it is judged by
+IN_FLIGHT_MAG = {"mag.rate_hz": 100.0}
+"""A recovery in flight flies the recovery paper's IMU (``fma``) with a magnetometer at the
+simulator's default rate: the estimator in the loop needs a heading before the collision."""
 DEFAULT_PRESET = {"throw": "fma"}  # the recovery paper's sensors (IMU 1 kHz, no magnetometer); else bebop2
 
 
@@ -144,15 +149,17 @@ def fly(
     ``params.detect_delay_s`` after it, the lost rotor's command zeroed from the failure on),
     ``rotor-speeds`` or ``commands`` (found by the detector of :mod:`quadest.detect` with a model
     of the vehicle off by ``params.detector_model_error``), or a
-    :class:`~quadest.detect.DetectorParams` (its ``rotor_speeds`` says which)."""
+    :class:`~quadest.detect.DetectorParams` (its ``rotor_speeds`` says which).
+    ``params.collision`` and ``params.divergence``: a collision and the checks that start a recovery
+    in flight (:mod:`quadest.flight.collision`; with the checks the sensors are ``fma`` by default)."""
     estimator = filter_name(estimator) if isinstance(estimator, str) else estimator
-    controller, duration = _check_request(scenario, estimator, controller, duration)
+    params = params or FlightParams()
+    controller, duration = _check_request(scenario, estimator, controller, duration, params.collision != "none")
     vehicle_name = vehicle if isinstance(vehicle, str) else ("recovery" if vehicle is None else "custom")
     vehicle = vehicle_preset(vehicle) if isinstance(vehicle, str) else (vehicle or MultirotorParams())
-    params = params or FlightParams()
     failure = _checked_failure(scenario, failure, controller, vehicle, duration)
-    preset = preset or DEFAULT_PRESET.get(scenario, "bebop2")
-    cfg = (config or build_config(preset)).validate()
+    event, watching = _in_flight_request(scenario, params, seed, duration)
+    preset, cfg = _sensors(preset, config, scenario, watching)
     rate, substeps, every = _rates(cfg, params, preset)
     meta = {"scenario": f"flown {scenario}", "preset": preset, "vehicle": vehicle_name}
     if scenario == "throw":
@@ -161,13 +168,12 @@ def fly(
             estimator=estimator, duration=duration, seed=seed, cfg=cfg, vehicle=vehicle, params=params, se3=se3,
             throw=throw, recovery=_recovery_params(estimator_params), meta=meta,
         )  # fmt: skip
-    n = int(round(duration * rate))
-    t = np.arange(n) / rate
+    t = np.arange(n := int(round(duration * rate))) / rate
     rng_ref, rng_mocap = (np.random.default_rng(s) for s in np.random.SeedSequence([int(seed), 13]).spawn(2))
     x0, ref = _reference(scenario, t, rng_ref, vehicle)
     processes, sm = sensors_for(cfg, n, seed, vehicle)  # the generators and order of flown_recording's
     nav, est = _in_loop(estimator, cfg, rate, estimator_params)
-    ftc = ftc or FtcParams()
+    ftc, gains = ftc or FtcParams(), (se3 or SE3Params()).gains(vehicle)
     detection, detector = (detection, None) if isinstance(detection, str) else (_mode(detection), detection)
     oracle = detection == "oracle"
     loop = build.loop(
@@ -175,21 +181,30 @@ def fly(
             vehicle,
             h=1.0 / SIM_RATE_HZ,
             substeps=substeps,
-            ground_z=float(params.height_m),
             failure=failure,
             rate=rate,
             zero_failed=oracle,
+            ground_z=float(params.height_m if event is None else event.height_m),
+            collision=event,
         ),  # fmt: skip
         sensing=_position_sensing(sm, params, rate, every, n, x0, rng_mocap, vehicle.rotors, seed),
-        nav=build.navigation(nav, x0, position_gain(params, rate), _clip_rate(params, vehicle, cfg, seed, n)),
-        bank=build.bank(),
+        nav=build.navigation(
+            nav,
+            x0,
+            position_gain(params, rate),
+            _clip_rate(params, vehicle, cfg, seed, n),
+            inflight.reset(event, est, rate),
+        ),  # fmt: skip
+        bank=build.bank() if watching is None else inflight.bank(vehicle, cfg, gains),
+        watch=inflight.watch(watching, _detector_model(vehicle, params, seed)[0], rate, rate / every),
         control=build.control(
-            dict(REGISTRY[controller].phases),
-            gains=(se3 or SE3Params()).gains(vehicle),
+            {**dict(REGISTRY[controller].phases), **({} if watching is None else {"nominal": "recovery"})},
+            gains=gains,
             ftc=_ftc_gains(ftc, vehicle, controller, failure, oracle),
             reference=ref,
             fault=_known_fault(controller, failure, params, rate, n) if oracle else (-1, -1),
             cmd0=x0[13:].copy(),  # what the rotors were doing (a detector reads it before the first command)
+            **inflight.recovery_control(watching),
         ),
         detection=_detection(detection, detector, vehicle, params, seed, n),
         n=n,
@@ -197,33 +212,48 @@ def fly(
         phase="flying",
     )
     x, t0 = x0.copy(), time.perf_counter()
-    status, flown = _run(x, loop, est)
-    loop_s = time.perf_counter() - t0
+    (status, flown), loop_s = _run(x, loop, est), time.perf_counter() - t0
     if flown == 0:
         raise ValueError(f"the flight ended before its first sample ({STATUS[status]})")
     out = flown_arrays(loop.record, flown)
     meta.update(controller=controller, estimator=est.name, position_sensor=params.position_sensor)
-    if failure is not None:
-        meta["failure"] = asdict(failure)  # imbalance in kg m
-    flight = _flight(out, t[:flown], vehicle, cfg, seed, failure, meta, processes, loop_s)
+    flight = _flight(out, t[:flown], vehicle, cfg, seed, failure, meta, processes, loop_s, watching is not None)
     flight.summary = summarize(
-        flight,
-        scenario=scenario,
-        status=status,
-        duration=duration,
-        failure=failure,
-        controller=controller,
-        estimator=est.name,
-        seed=seed,
-        params=params,
-        ftc=ftc,
-        vehicle=vehicle,
-        ref=(loop.control.p_d, loop.control.yaw_d),
-        gyro_range=float(cfg.gyro.range),
-    )
+        flight, scenario=scenario, status=status, duration=duration, failure=failure, controller=controller,
+        estimator=est.name, seed=seed, params=params, ftc=ftc, vehicle=vehicle,
+        ref=(loop.control.p_d, loop.control.yaw_d), gyro_range=float(cfg.gyro.range),
+    )  # fmt: skip
     if detection != "oracle":
         _add_detection(flight, loop.detection, detection, failure, flown)
+    if watching is not None or event is not None:
+        flight.summary.update(inflight.summary(flight, out, loop, event, status, rate))
     return flight
+
+
+def _sensors(preset, config, scenario, watching):
+    """The preset's name and the sensors: ``config``, the ``preset``'s, or by default the
+    scenario's (:data:`DEFAULT_PRESET`); with the divergence checks on, ``fma`` with a magnetometer
+    (:data:`IN_FLIGHT_MAG`)."""
+    if preset is None and config is None and watching is not None:
+        return "fma+mag", build_config("fma").with_overrides(IN_FLIGHT_MAG, source="a recovery in flight").validate()
+    preset = preset or DEFAULT_PRESET.get(scenario, "bebop2")
+    return preset, (config or build_config(preset)).validate()
+
+
+def _in_flight_request(scenario, params: FlightParams, seed, duration):
+    """The flight's collision (``params.collision``, drawn from ``seed``; None: none) and its
+    divergence checks (``params.divergence``; None: off), after refusing what cannot fly."""
+    if scenario == "throw" and (params.collision != "none" or params.divergence not in ("auto", "off")):
+        raise UsageError("a throw starts its recovery at the release: no collision or divergence checks")
+    event = inflight.collision_of(params.collision, seed)
+    if event is not None and not 0.0 <= event.time_s < duration:
+        raise UsageError(
+            f"collision: time {event.time_s:g} s lies outside the run (0 to {duration:g} s): a longer --duration"
+        )
+    checks = params.divergence
+    if checks == "auto":
+        checks = "off" if event is None or scenario == "throw" else ",".join(CHECKS)
+    return event, None if checks == "off" else DivergenceParams(checks=checks)
 
 
 def _add_detection(flight: Flight, det, mode: str, failure: Failure | None, flown: int) -> None:
@@ -259,8 +289,9 @@ def detection_summary(det, mode: str, failure: Failure | None, t: np.ndarray) ->
     return out
 
 
-def _check_request(scenario, estimator, controller, duration):
-    """The controller and duration of a flight, after refusing what cannot fly (one line each)."""
+def _check_request(scenario, estimator, controller, duration, collision=False):
+    """The controller and duration of a flight (with a ``collision``, 16 s by default: the
+    collision at 2-4 s, then the 10 s hover), after refusing what cannot fly (one line each)."""
     if scenario not in FLIGHT_SCENARIOS:
         raise UsageError(f"unknown scenario {scenario!r}; scenarios: {', '.join(FLIGHT_SCENARIOS)}")
     if scenario == "throw":
@@ -279,7 +310,9 @@ def _check_request(scenario, estimator, controller, duration):
     controller = controller or ("ftc" if scenario == "rotor-loss" else "se3")
     if controller not in CONTROLLERS:
         raise UsageError(f"unknown controller {controller!r}; controllers: {', '.join(CONTROLLERS)}")
-    duration = DEFAULT_DURATION[scenario] if duration is None else float(duration)
+    if duration is None:
+        duration = COLLISION_S if collision and scenario != "throw" else DEFAULT_DURATION[scenario]
+    duration = float(duration)
     if not (math.isfinite(duration) and 0 < duration <= 3600):
         raise UsageError(f"duration must be between 0 and 3600 s, got {duration}")
     return controller, duration
@@ -351,22 +384,23 @@ def _position_sensing(sm, params, rate, every, n, x0, rng, rotors, seed):
     )
 
 
-InLoop = namedtuple("InLoop", ["name", "args", "peer"])
-"""An estimator in the loop: its name, the compiled loop's estimator arguments (None: no estimator), or a peer."""
+InLoop = namedtuple("InLoop", ["name", "args", "peer", "instance"])
+"""An estimator in the loop: its name, the compiled loop's estimator arguments (None: no
+estimator), or a peer; the estimator (None: the truth)."""
 
 
 def _in_loop(estimator, cfg, rate, estimator_params):
     """What the controller reads (a :data:`~quadest.flight.phases.NAV` name) and the estimator."""
     declination = math.radians(cfg.environment.declination_deg)
     if isinstance(estimator, str) and estimator == "truth":
-        return "truth", InLoop("truth", None, None)
+        return "truth", InLoop("truth", None, None, None)
     if isinstance(estimator, Estimator):
         est = estimator
     elif ESTIMATORS[estimator].peer:
         est = make_filter(estimator, declination=declination, use_mag=cfg.mag.rate_hz > 0)
     else:
         est = make_filter(estimator, declination=declination, **(estimator_params or {}))
-    return "filter", InLoop(est.name, None if est.peer else tuple(est.compiled()), est if est.peer else None)
+    return "filter", InLoop(est.name, None if est.peer else tuple(est.compiled()), est if est.peer else None, est)
 
 
 def _mode(detector: DetectorParams) -> str:
@@ -451,15 +485,18 @@ def _run(x, loop, est: InLoop):
     return OK, len(loop.record.phase)
 
 
-def _flight(out, t, vehicle, cfg, seed, failure, meta, processes, loop_s) -> Flight:
+def _flight(out, t, vehicle, cfg, seed, failure, meta, processes, loop_s, phases=False) -> Flight:
     """The :class:`Flight` of the loop's record ``out`` (its recording sampled as every
-    simulation samples, with the loop's readings)."""
+    simulation samples, with the loop's readings; the ``failure`` in its ``meta``; the phase of
+    each sample with ``phases``: a flight that may recover in flight)."""
     imbalance = np.zeros((len(t), vehicle.rotors))
     if failure is not None:
+        meta["failure"] = asdict(failure)  # imbalance in kg m
         imbalance[int(round(failure.time_s * cfg.imu.rate_hz)) :, failure.rotor] = failure.imbalance
     return flight_of(
-        out, t, vehicle, cfg=cfg, seed=seed, meta=meta, processes=processes, loop_s=loop_s, imbalance=imbalance
-    )
+        out, t, vehicle, cfg=cfg, seed=seed, meta=meta, processes=processes, loop_s=loop_s, imbalance=imbalance,
+        modes=out["phase"] if phases else None,
+    )  # fmt: skip
 
 
 def resample(
@@ -548,11 +585,12 @@ def summarize(
     s["time_to_settle_s"] = None if settle is None else settle - start
     s["position_rms_settled_m"] = rms(err[t >= settle]) if settle is not None else None
     total, tilt = angle_errors(x[:, 6:10], flight.q_est)
-    s["attitude_error_rms_deg"] = rms(total)
-    s["tilt_error_rms_deg"] = rms(tilt)
-    s["tilt_error_max_deg"] = float(tilt.max())
+    ok = np.isfinite(total)  # a recovery in flight reads no attitude until its bank hands over
+    s["attitude_error_rms_deg"] = rms(total[ok])
+    s["tilt_error_rms_deg"] = rms(tilt[ok])
+    s["tilt_error_max_deg"] = float(tilt[ok].max())
     if failure is not None:
-        after = t >= start
+        after = (t >= start) & ok
         s["attitude_error_after_failure_rms_deg"] = rms(total[after])
         s["tilt_error_after_failure_rms_deg"] = rms(tilt[after])
     if failure is not None and failure.efficiency == 0.0 and controller == "ftc":
@@ -663,7 +701,7 @@ def campaign_table(summaries: list[dict]) -> list[dict]:
                 "tilt_deg": mean([s.get("tilt_deg") for s in ok]),
             }
         )
-        if any("recovered" in s for s in runs):  # throws
+        if any(s["scenario"] == "throw" for s in runs):  # throws
             rows[-1].update(
                 {
                     "recovered": sum(bool(s.get("recovered")) for s in runs),

@@ -15,6 +15,10 @@ simulation rate, ``substeps`` RK4 steps per sample):
    commands the rotors;
 5. the vehicle flies to the next sample (in the hand it is carried).
 
+A collision adds its velocity and body rate over its impact (:func:`strike`: the sensors see it);
+with the divergence checks on, a check that fires after step 3 turns the flight into a
+throw's recovery (:mod:`quadest.flight.collision`).
+
 The loop ends early with a status: ground contact, lost control (body rate or speed beyond
 what a flying vehicle has), a non-finite estimate, or a diverged simulation.
 """
@@ -25,6 +29,7 @@ import numpy as np
 
 from quadest._jit import NO_ALLOCATION, copy_into, njit
 from quadest.control.registry import command
+from quadest.flight.collision import diverged, start_recovery
 from quadest.flight.detection import notice_failure
 from quadest.flight.phases import FAULT, FLYING, NAV_FILTER, NAV_TRUE_STATE, PHASE, recovery_phase
 from quadest.flight.rate import predict_rate
@@ -49,7 +54,8 @@ Plant = compiled_record(
     "The vehicle and what happens to it: the integration step and substeps per sample, where "
     "a flight ends, the rotor failure (rotor -1: none; its command zeroed from the failure on "
     "with zero_failed, an oracle), the hand's states and derivatives until the release (none: "
-    "zero rows), and the work arrays of the dynamics.",
+    "zero rows), a collision (from sample hit_k over hit_n samples, the velocity hit_dv, NED, and "
+    "body rate hit_dw it adds; hit_n 0: none), and the work arrays of the dynamics.",
     vehicle="any",
     h="f8",
     substeps="i8",
@@ -64,6 +70,10 @@ Plant = compiled_record(
     fail_eta="f8",
     fail_imb="f8",
     zero_failed="b1",
+    hit_k="i8",
+    hit_n="i8",
+    hit_dv="f8[:]",
+    hit_dw="f8[:]",
     hand_x="f8[:, :]",
     hand_dx="f8[:, :]",
     work="any",
@@ -102,7 +112,9 @@ Navigation = compiled_record(
     "What the controller reads and how it is made: the source (flight.phases.NAV), the "
     "estimated state xh (position, velocity, q_nb, body rate), the position fusion's position, "
     "velocity and steady-state gain, the estimator's latest attitude (geographic q_nb), and the "
-    "rate of a clipped gyroscope axis (flight.rate.ClipRate).",
+    "rate of a clipped gyroscope axis (flight.rate.ClipRate); the position fusion's latest "
+    "innovation; the estimator's state swapped in at sample reset_k (-1: never), a collision's "
+    "reset to nonsense.",
     kind="i8",
     xh="f8[:]",
     q_est="f8[:]",
@@ -110,6 +122,9 @@ Navigation = compiled_record(
     vh="f8[:]",
     gain="f8[:, :]",
     clip="any",
+    innov="f8[:]",
+    reset_k="i8",
+    reset_x="f8[:]",
 )
 
 Record = compiled_record(
@@ -140,8 +155,8 @@ Record = compiled_record(
 Loop = compiled_record(
     "Loop",
     "One flight: its plant, sensing, navigation, recovery bank, control, rotor-failure detection "
-    "and record, and what "
-    "it carries from sample to sample (state: phase, samples below the throw threshold, the "
+    "and record, the divergence checks that start a recovery in flight (flight.collision.Watch), "
+    "and what it carries from sample to sample (state: phase, samples below the throw threshold, the "
     "accelerometer gate; held: the yaw and height a recovery holds).",
     plant="any",
     sensing="any",
@@ -149,6 +164,7 @@ Loop = compiled_record(
     bank="any",
     control="any",
     detection="any",
+    watch="any",
     record="any",
     state="i8[:]",
     held="f8[:]",
@@ -208,6 +224,8 @@ def sense(k, x, loop):
         )  # also the rotor thrusts
         if in_hand:
             copy_into(plant.dx, plant.hand_dx[k])
+        if hitting(k, plant):
+            strike(plant.dx, plant, 1.0 / (plant.hit_n * sensing.dt))
         sample(x, plant.dx, plant, sensing, k)
         predict_rate(k, x, loop)
     for j in range(sensing.delay, 0, -1):
@@ -219,6 +237,21 @@ def sense(k, x, loop):
             sensing.reading[j] = sensing.hist[sensing.delay, j] + sensing.noise[m, j]
     if k < sensing.baro_a.shape[0]:
         sample_baro(k, -x[2], sensing)
+
+
+@njit(cache=True, inline="always")
+def hitting(k, plant):
+    """Whether a collision acts over sample ``k``."""
+    return plant.hit_n > 0 and plant.hit_k <= k < plant.hit_k + plant.hit_n
+
+
+@njit(cache=True, inline="always")
+def strike(x, plant, scale):
+    """Add ``scale`` times the collision's velocity and body rate to ``x``'s (a state: its share
+    of one sample; a derivative: its acceleration over the impact)."""
+    for j in range(3):
+        x[3 + j] += scale * plant.hit_dv[j]
+        x[10 + j] += scale * plant.hit_dw[j]
 
 
 @njit(cache=True, inline="always")
@@ -260,6 +293,7 @@ def navigate(k, x, loop, q_est):
         if k % sensing.every == 0:
             for j in range(3):
                 e = sensing.reading[j] - ph[j]
+                nav.innov[j] = e
                 ph[j] += nav.gain[j, 0] * e
                 vh[j] += nav.gain[j, 1] * e
     for j in range(3):
@@ -335,6 +369,8 @@ def record_and_fly(k, x, loop):
         return status
     for _ in range(plant.substeps):
         rk4_ws(x, control.cmd, plant.eta, plant.vehicle, plant.h, plant.work)
+    if hitting(k, plant):
+        strike(x, plant, 1.0 / plant.hit_n)
     return ended(x, plant)
 
 
@@ -344,6 +380,9 @@ def fly_sample(k, x, loop, q_est):
     attitude ``q_est`` (geographic ``q_nb``; read only with an estimator in the loop): the
     estimate, control, record, fly to the next sample. Returns the status (:data:`OK` to go on)."""
     status = navigate(k, x, loop, q_est)
+    if diverged(k, loop, status == OK):
+        start_recovery(loop)
+        return recover_sample(k, x, loop)
     if status != OK:
         return status
     notice_failure(k, x, loop)
@@ -426,6 +465,8 @@ def _fly_with_estimator(x, loop, est_step, ex, ep, ec, ediag, dq):
     n = loop.record.phase.shape[0]
     for k in range(n):
         sense_sample(k, x, loop)
+        if k == loop.nav.reset_k:
+            copy_into(ex, loop.nav.reset_x)  # a collision's reset to nonsense
         est_step(ex, ep, ec, gyr, sensing.acc, sensing.mag, sensing.dt, ediag)
         # q = dq ⊗ q_est (the declination turns the magnetic frame into the geographic one)
         q[0], q[1], q[2], q[3] = qmul_s(dq[0], dq[1], dq[2], dq[3], ex[0], ex[1], ex[2], ex[3])

@@ -19,6 +19,10 @@ recovery's phases:
    column of ``C``, along z) holds that thrust; from the handover it holds the thrust the
    measured rotor speeds give (``k_f Σ Ω²``). With the truth in the loop (an oracle) the
    handover is at the detection and the controller reads the true state.
+
+A flight enters the same phases, at ``waiting``, when a divergence check fires in flight
+(:mod:`quadest.flight.collision`): the rotors then go to the throw's speed, and while they spin
+down the bank's constant force follows the measured rotor speeds (:func:`measured_thrust`).
 """
 
 from __future__ import annotations
@@ -85,6 +89,12 @@ Bank = compiled_record(
 )
 
 
+@njit(cache=True, inline="always")
+def reads_truth(kind):
+    """Whether the controller reads the truth (an oracle) rather than the recovery's estimate."""
+    return kind == NAV_TRUTH or kind == NAV_TRUE_STATE
+
+
 @njit(cache=True)
 def quat_yaw(q):
     """ZYX yaw of ``q_nb``."""
@@ -93,7 +103,8 @@ def quat_yaw(q):
 
 @njit(cache=True)
 def hold(k, yaw, z, loop):
-    """Hand over at sample ``k``: the controller holds ``yaw`` and the height ``z`` from now on."""
+    """Hand over at sample ``k``: the controller holds ``yaw``, the height ``z`` and zero
+    velocity from now on (a flight's path given up)."""
     control = loop.control
     loop.state[PHASE] = NOMINAL
     loop.record.events[1] = k
@@ -101,6 +112,10 @@ def hold(k, yaw, z, loop):
     for i in range(k, control.yaw_d.shape[0]):
         control.p_d[i, 2] = z
         control.yaw_d[i] = yaw
+        for j in range(3):
+            control.v_d[i, j] = 0.0
+            control.a_d[i, j] = 0.0
+        control.p_d[i, 0], control.p_d[i, 1] = 0.0, 0.0
 
 
 @njit(cache=True)
@@ -118,7 +133,7 @@ def wait_for_throw(k, x, loop):
         events[2] = max(events[2], 0) + 1
         if events[3] < 0:
             events[3] = k
-        if loop.nav.kind != NAV_BANK:
+        if reads_truth(loop.nav.kind):
             hold(k, quat_yaw(x[6:10]), x[2], loop)
     else:
         bank.w_prev[0], bank.w_prev[1], bank.w_prev[2] = gyr[0], gyr[1], gyr[2]
@@ -143,13 +158,15 @@ def rearmed(loop):
 
 
 @njit(cache=True)
-def converge(k, loop):
+def converge(k, x, loop):
     """``converging``: one step of the bank (eqs 38-39) unless re-armed; below β2, once the dwell
     has passed, its most likely hypothesis starts the nominal EKF (the height from the latest
     barometer reading) and the controller holds the measured height."""
     if rearmed(loop):
         return
     bank, sensing, record = loop.bank, loop.sensing, loop.record
+    if loop.watch.on:  # started in flight: the rotors still spin down to the throw's speed
+        measured_thrust(loop, x)
     bank_step(
         bank.Vb,
         bank.Qr,
@@ -162,7 +179,7 @@ def converge(k, loop):
         bank.prm,
         bank.A,
         bank.B,
-        bank.C,
+        bank.Cn if loop.watch.on else bank.C,
         True,
     )
     best, sg = summarize(bank.Qr, bank.Lb, bank.prm.gravity, bank.prob, bank.gd)
@@ -183,6 +200,17 @@ def converge(k, loop):
 
 
 @njit(cache=True)
+def measured_thrust(loop, x):
+    """The bank's constant force (the last column of ``C``, along z) moved from the thrust of
+    the throw's rotor speed to the thrust the measured rotor speeds give (``k_f Σ Ω²``), into ``Cn``."""
+    bank = loop.bank
+    t_est = 0.0
+    for i in range(loop.plant.vehicle.rotor_pos.shape[0]):
+        t_est += loop.control.gains.k_f * x[13 + i] * x[13 + i]
+    bank.Cn[2, 9] = bank.C[2, 9] - (t_est - bank.t_throw)
+
+
+@njit(cache=True)
 def nominal_estimate(k, x, loop):
     """``nominal``: the state the recovery controller reads: the truth, or the nominal EKF's
     attitude and velocity (:func:`quadest.recovery.nominal.nominal_step`, the barometer's
@@ -190,14 +218,11 @@ def nominal_estimate(k, x, loop):
     speeds, the gyro's rate and the position sensor's height (no horizontal position: velocity
     and height hold)."""
     bank, sensing, xh = loop.bank, loop.sensing, loop.nav.xh
-    if loop.nav.kind != NAV_BANK:
+    if reads_truth(loop.nav.kind):
         for j in range(13):
             xh[j] = x[j]
         return
-    t_est = 0.0
-    for i in range(loop.plant.vehicle.rotor_pos.shape[0]):
-        t_est += loop.control.gains.k_f * x[13 + i] * x[13 + i]
-    bank.Cn[2, 9] = bank.C[2, 9] - (t_est - bank.t_throw)
+    measured_thrust(loop, x)
     noise = sensing.baro_noise
     baro = sensing.baro[0] if k < noise.shape[0] and np.isfinite(noise[k]) else np.nan
     nominal_step(
@@ -228,7 +253,7 @@ def recovery_phase(k, x, loop):
     if loop.state[PHASE] == WAITING:
         wait_for_throw(k, x, loop)
     if loop.state[PHASE] == CONVERGING:
-        converge(k, loop)
+        converge(k, x, loop)
     elif loop.state[PHASE] == NOMINAL:
         nominal_estimate(k, x, loop)
         xh, control = loop.nav.xh, loop.control
