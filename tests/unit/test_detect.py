@@ -138,7 +138,7 @@ def test_the_tradeoff_reads_each_thresholds_first_alarm():
     alarm in nominal flight or before a failure."""
     from quadest.evaluation.detection import choose_threshold, crossings, failure_case, tradeoff
 
-    cases = [failure_case(s, "rotor-speeds", duration=4.0) for s in (0, 1, 2)]
+    cases = [failure_case(s, "rotor-speeds", duration=4.0, disturbed=False) for s in (0, 1, 2)]
     cases.append({"seed": 5, "mode": "rotor-speeds", "scenario": "trajectory", "rotor": None, "duration": 4.0})
     table = tradeoff([crossings(c) for c in cases])
     assert [r["found"] for r in table] == sorted((r["found"] for r in table), reverse=True)
