@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from quadest.control import Failure
-from quadest.detect import Detector
+from quadest.detect import Detector, DetectorParams
 from quadest.flight import fly
 from quadest.models import vehicle_preset
 
@@ -145,3 +145,41 @@ def test_the_tradeoff_reads_each_thresholds_first_alarm():
     medians = [r["delay_ms"]["median"] for r in table if r["delay_ms"]["median"] is not None]
     assert medians == sorted(medians) and table[0]["found"] == 3 and table[0]["isolated"] == 3
     assert choose_threshold(table) == min(r["threshold"] for r in table if r["nominal_alarms"] == 0)
+
+
+def _case(seed, duration, keep):
+    """A detection case with only the disturbances named in ``keep``."""
+    from quadest.evaluation.detection import nominal_case
+
+    case = nominal_case(seed, "rotor-speeds", duration)
+    for key in ("wind", "sensors", "landing_m_s"):
+        if key not in keep:
+            case.pop(key)
+    return case
+
+
+def test_a_saturated_start_with_a_vibrating_gyroscope_raises_no_alarm():
+    """A hover started 150° off in yaw (two rotors near idle, two saturated) with the case's
+    gyroscope tone: the near-idle rotors' effectiveness wanders, and against the plain mean of
+    the others the saturated rotor's deficit raised an alarm; weighted by how well each is
+    known, none."""
+    from quadest.evaluation.detection import crossings
+
+    case = _case(12, 3.0, ("sensors",))
+    assert case["sensors"]["gyro_tone_rad_s_per_m_s2"][0] > 0.15
+    plain = replace(DetectorParams(), weighted_others=False)
+    assert crossings(case, (0.004,))["first"]["0.004"] is None
+    assert crossings(case, (0.004,), plain)["first"]["0.004"] is not None
+
+
+@pytest.mark.parametrize("seed", [4, 7])
+def test_a_hard_landing_raises_no_alarm(seed):
+    """A circle ending in a touchdown at 1-2 m/s: the legs' push is a force the rotor model has
+    not; the accelerometer reading more than the rotors can make holds the tests (and keeps
+    them held while the vehicle stands), without which the touchdown raised an alarm."""
+    from quadest.evaluation.detection import crossings
+
+    case = _case(seed, 8.0, ("landing_m_s",))
+    assert crossings(case, (0.004,))["first"]["0.004"] is None
+    alarm = crossings(case, (0.004,), replace(DetectorParams(), contact_margin=0.0))["first"]["0.004"]
+    assert alarm is not None and abs(alarm[0] - 7.0) < 0.1
