@@ -175,7 +175,11 @@ class DetectorParams(Params):
     )
     lost_drift: float = param(0.6, "-", "deficit the 'lost' test ignores (ν)", "chosen: above a 50 % loss", "(0, 1]")
     lost_threshold: float = param(
-        0.004, "s", "the 'lost' test's threshold (h, deficit-seconds)", "chosen: tuned on training seeds", "(0, 10]"
+        0.016,
+        "s",
+        "the 'lost' test's threshold (h, deficit-seconds)",
+        "chosen on training seeds 0-399 and nominal 0-119 (the smallest without an alarm; docs/detection.md)",
+        "(0, 10]",
     )
     damaged_drift: float = param(
         0.15,
