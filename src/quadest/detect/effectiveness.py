@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from quadest._jit import NO_ALLOCATION, njit
+from quadest.conventions import GRAVITY
 from quadest.records import Params, check, layout, pack, param, params_record
 
 if TYPE_CHECKING:
@@ -52,6 +53,11 @@ STATE = layout(
     ("damaged", 1),
     ("damaged_t", 1),
     ("damaged_eta", 1),
+    ("gyr_prev", 6),  # the last two gyroscope readings, then the estimate of its noise's variance per axis
+    ("gyr_var", 3),
+    ("samples", 1),
+    ("contact_t", 1),  # when the accelerometer last read a push the rotors cannot make (-inf: never)
+    ("landed", 1),  # 1 from a contact until the rotors carry the weight again
     ("B", 3 * MAX_ROTORS),  # scratch of one step: the input matrix, F P's rows, P h, h
     ("FP", 3 * NS),
     ("ph", NS),
@@ -89,6 +95,14 @@ class DetectorParams(Params):
         "chosen: the presets' noise and vibration",
         "(0, 10]",
     )
+    noise_window_s: float = param(
+        0.2,
+        "s",
+        "the gyroscope's noise (with the rotors' vibration) is estimated over about this window from its "
+        "second difference, and used when larger than gyro_noise (0: gyro_noise only)",
+        "chosen: vibration changes with the rotor speeds within a second",
+        "[0, 100]",
+    )
     acc_noise: float = param(
         1.0, "m/s²", "accelerometer z noise with vibration, per sample", "chosen: the presets' vibration", "(0, 100]"
     )
@@ -114,7 +128,11 @@ class DetectorParams(Params):
         "[0, 10]",
     )
     eta_walk: float = param(
-        3.0, "1/√s", "random walk of a rotor's effectiveness", "chosen: tuned on training seeds", "(0, 1e3]"
+        1.5,
+        "1/√s",
+        "random walk of a rotor's effectiveness",
+        "chosen on training seeds 0-35 (3.0 before the disturbed flights)",
+        "(0, 1e3]",
     )
     deficit_sd_ratio: float = param(
         2.0,
@@ -124,6 +142,13 @@ class DetectorParams(Params):
         "chosen",
         "[1, 100]",
     )
+    weighted_others: bool = param(
+        True,
+        "-",
+        "a rotor's deficit is against the others' effectiveness weighted by how well each is known (else "
+        "their plain mean)",
+        "measured: near-idle rotors' wandering effectiveness made the false alarms of saturated manoeuvres",
+    )
     deficit_sigmas: float = param(
         0.0,
         "-",
@@ -132,9 +157,29 @@ class DetectorParams(Params):
         "chosen: 0 in flight (the fast sensors make it certain), 3 for logs",
         "[0, 100]",
     )
+    contact_margin: float = param(
+        5.0,
+        "m/s²",
+        "a contact (the ground, an impact) is a specific force along −z beyond 1.3 times what the intact "
+        "rotors make plus this; the tests hold during it, contact_hold_s after, and until the intact rotors "
+        "make 0.9 g again (a vehicle standing on the ground: landed) (0: never)",
+        "chosen: above the model's ±10 % thrust and mass error, the accelerometer's tone and a lost rotor's drop",
+        "[0, 1000]",
+    )
+    contact_hold_s: float = param(
+        0.5,
+        "s",
+        "the tests hold this long after a contact",
+        "chosen: a touchdown's bounce settles within it",
+        "[0, 100]",
+    )
     lost_drift: float = param(0.6, "-", "deficit the 'lost' test ignores (ν)", "chosen: above a 50 % loss", "(0, 1]")
     lost_threshold: float = param(
-        0.004, "s", "the 'lost' test's threshold (h, deficit-seconds)", "chosen: tuned on training seeds", "(0, 10]"
+        0.016,
+        "s",
+        "the 'lost' test's threshold (h, deficit-seconds)",
+        "chosen on training seeds 0-399 and nominal 0-119 (the smallest without an alarm; docs/detection.md)",
+        "(0, 10]",
     )
     damaged_drift: float = param(
         0.15,
@@ -227,6 +272,7 @@ def _start(x, p, c, gyr, rotors):
         x[STATE.s_lost + i] = 0.0
         x[STATE.s_damaged + i] = 0.0
     x[STATE.lost] = x[STATE.damaged] = -1.0
+    x[STATE.contact_t] = -np.inf
 
 
 @njit(cache=True, inline="always")
@@ -316,13 +362,38 @@ def _correct(x, p, c, gyr, acc):
     rg = p[PARAM.gyro_noise] ** 2
     for j in range(3):
         x[h + j] = 1.0
-        _update(x, ns, gyr[j], rg)
+        _update(x, ns, gyr[j], max(rg, x[STATE.gyr_var + j]))
         x[h + j] = 0.0
     if np.isfinite(acc[2]):
+        intact = 0.0
         for i in range(n):
             gx, gy = c[MODEL.g + 3 * i], c[MODEL.g + 3 * i + 1]
             x[h + 3 + i] = -_thrust(c, x[STATE.omega + i], gyr[0], gyr[1], gx, gy) / c[MODEL.mass]
+            intact -= x[h + 3 + i]
+        margin = p[PARAM.contact_margin]
+        if margin > 0.0 and -acc[2] > 1.3 * intact + margin:  # the ground pushes: the rotors cannot
+            x[STATE.contact_t] = x[STATE.time]
+            x[STATE.landed] = 1.0
+        elif intact > 0.9 * GRAVITY:  # the rotors carry the weight again (lifted off)
+            x[STATE.landed] = 0.0
         _update(x, ns, acc[2], p[PARAM.acc_noise] ** 2)
+
+
+@njit(cache=True, inline="always")
+def gyro_noise_estimate(x, p, gyr, dt):
+    """The gyroscope's noise variance per axis from its second difference, ``(g_k − 2 g_{k−1} +
+    g_{k−2})² / 6`` (white noise's; the motion's share is its jerk times dt², negligible at IMU
+    rates), averaged over ``noise_window_s`` (a running mean over the first window)."""
+    x[STATE.samples] += 1.0
+    k = x[STATE.samples]
+    if p[PARAM.noise_window_s] > 0.0 and k >= 3.0:
+        a = max(dt / p[PARAM.noise_window_s], 1.0 / (k - 2.0))
+        for j in range(3):
+            d2 = gyr[j] - 2.0 * x[STATE.gyr_prev + j] + x[STATE.gyr_prev + 3 + j]
+            x[STATE.gyr_var + j] += a * (d2 * d2 / 6.0 - x[STATE.gyr_var + j])
+    for j in range(3):
+        x[STATE.gyr_prev + 3 + j] = x[STATE.gyr_prev + j]
+        x[STATE.gyr_prev + j] = gyr[j]
 
 
 @njit(cache=True, inline="always")
@@ -338,8 +409,13 @@ def _test(x, p, c, dt):
         var_total += x[STATE.P + (3 + i) * (3 + n) + 3 + i]
         var_min = min(var_min, x[STATE.P + (3 + i) * (3 + n) + 3 + i])
     sd_max = p[PARAM.deficit_sd_ratio] * np.sqrt(var_min)
+    touching = x[STATE.landed] != 0.0 or x[STATE.time] - x[STATE.contact_t] <= p[PARAM.contact_hold_s]
     for i in range(n):
-        others = (total - x[STATE.eta + i]) / (n - 1)
+        if touching:  # forces the rotor model has not: no evidence either way
+            x[STATE.s_lost + i] = 0.0
+            x[STATE.s_damaged + i] = 0.0
+            continue
+        others = _others(x, i, n) if p[PARAM.weighted_others] != 0.0 else (total - x[STATE.eta + i]) / (n - 1)
         var_i = x[STATE.P + (3 + i) * (3 + n) + 3 + i]
         d = others - x[STATE.eta + i] if np.sqrt(var_i) < sd_max else 0.0  # too uncertain: no evidence
         k = p[PARAM.deficit_sigmas]
@@ -353,6 +429,20 @@ def _test(x, p, c, dt):
             x[STATE.lost], x[STATE.lost_t], x[STATE.lost_eta] = i, x[STATE.time], left
         if x[STATE.damaged] < 0.0 and sd > p[PARAM.damaged_threshold]:
             x[STATE.damaged], x[STATE.damaged_t], x[STATE.damaged_eta] = i, x[STATE.time], left
+
+
+@njit(cache=True, inline="always")
+def _others(x, i, n):
+    """The other rotors' effectiveness, each weighted by how well it is known (``1/P_jj``): a
+    rotor turning slowly, whose effectiveness wanders, does not set the reference."""
+    num = 0.0
+    den = 0.0
+    for j in range(n):
+        if j != i:
+            w = 1.0 / x[STATE.P + (3 + j) * (3 + n) + 3 + j]
+            num += w * x[STATE.eta + j]
+            den += w
+    return num / den
 
 
 @njit(cache=True, inline="always")
@@ -393,6 +483,7 @@ def detect_step(x, p, c, gyr, acc, rotors, dt, diag):
         end = rotors[i] if measured else motor_step(begin, rotors[i], c, dt)
         x[STATE.omega + i] = np.sqrt(0.5 * (begin * begin + end * end))
         x[STATE.omega_end + i] = end
+    gyro_noise_estimate(x, p, gyr, dt)
     _predict(x, p, c, gyr, dt)
     _correct(x, p, c, gyr, acc)
     x[STATE.time] += dt

@@ -14,16 +14,23 @@ import numpy as np
 from quadest.control import Failure
 from quadest.detect import DetectorParams
 from quadest.evaluation.parallel import execute
-from quadest.flight import Flight, fly
-from quadest.sim import SimConfig
+from quadest.flight import Flight, FlightParams, fly
+from quadest.sim import build_config
+from quadest.sim.params import SimConfig
+from quadest.sim.wind import WindParams
 
 SCENARIOS = ("hover", "trajectory", "aggressive")
 
 
-def failure_case(seed: int, mode: str, duration: float = 6.0) -> dict:
+PRESET = "bebop2"
+"""The sensors' preset the cases start from; each flight scales its noise, biases and vibration."""
+
+
+def failure_case(seed: int, mode: str, duration: float = 6.0, *, disturbed: bool = True) -> dict:
     """The failure flown for ``seed``: the scenario in turn (hover from a disturbed start, the
     circle, the figure eight), a random rotor at a random time
-    between 2 and 4 s; complete for three seeds in four, else left at 0-70 % effectiveness."""
+    between 2 and 4 s; complete for three seeds in four, else left at 0-70 % effectiveness; with
+    ``disturbed`` the flight's wind and sensors drawn from the seed (:func:`disturbances`)."""
     rng = np.random.default_rng([int(seed), 31])
     partial = seed % 4 == 3
     return {
@@ -34,13 +41,76 @@ def failure_case(seed: int, mode: str, duration: float = 6.0) -> dict:
         "time_s": float(rng.uniform(2.0, 4.0)),
         "efficiency": float(rng.uniform(0.0, 0.7)) if partial else 0.0,
         "duration": duration,
+        **(disturbances(seed, duration, landing=False) if disturbed else {}),
     }
 
 
-def nominal_case(seed: int, mode: str, duration: float) -> dict:
-    """The nominal flight flown for ``seed``: the scenarios in turn, no failure."""
+def nominal_case(seed: int, mode: str, duration: float, *, disturbed: bool = True) -> dict:
+    """The nominal flight flown for ``seed``: the scenarios in turn, no failure; with
+    ``disturbed`` its wind and sensors drawn from the seed, and a hard landing at its end
+    (:func:`disturbances`)."""
     return {"seed": int(seed), "mode": mode, "scenario": SCENARIOS[seed % len(SCENARIOS)], "rotor": None,
-            "duration": duration}  # fmt: skip
+            "duration": duration, **(disturbances(seed, duration, landing=True) if disturbed else {})}  # fmt: skip
+
+
+def disturbances(seed: int, duration: float, *, landing: bool) -> dict:
+    """What a flight meets besides its scenario, drawn from its seed (docs/detection.md):
+
+    - ``wind``: steady 0-5 m/s, turbulence 0-1.5 m/s, one discrete gust per 20 s (at least one)
+      of up to 6 m/s (:class:`~quadest.sim.wind.WindParams`);
+    - ``sensors``: the preset's gyroscope and accelerometer noise, each scaled by 0.5-2, their
+      constant biases' spread by 0.5-3, the accelerometer's rotor tone by 0.5-2, and a gyroscope
+      tone of 0.15-0.3 rad/s per m/s² of it on roll and pitch, 0.02-0.04 on yaw (real flights of
+      the DIDO dataset show 0.16-0.30 and 0.03: docs/detection.md);
+    - ``landing_m_s``: with ``landing``, the flight ends with a touchdown at 1-2 m/s."""
+    rng = np.random.default_rng([int(seed), 41])
+    acc_tone = float(rng.uniform(0.5, 2.0))
+    out = {
+        "wind": {
+            "mean_m_s": float(rng.uniform(0.0, 5.0)),
+            "turbulence_m_s": float(rng.uniform(0.0, 1.5)),
+            "gusts": max(1, int(duration // 20)),
+            "gust_m_s": 6.0,
+        },
+        "sensors": {
+            "gyro_noise": float(rng.uniform(0.5, 2.0)),
+            "acc_noise": float(rng.uniform(0.5, 2.0)),
+            "gyro_bias": float(rng.uniform(0.5, 3.0)),
+            "acc_bias": float(rng.uniform(0.5, 3.0)),
+            "acc_tone": acc_tone,
+            "gyro_tone_rad_s_per_m_s2": [
+                float(rng.uniform(0.15, 0.3)),
+                float(rng.uniform(0.15, 0.3)),
+                float(rng.uniform(0.02, 0.04)),
+            ],  # fmt: skip
+        },
+    }
+    if landing:
+        out["landing_m_s"] = float(rng.uniform(1.0, 2.0))
+    return out
+
+
+def case_config(case: dict, overrides: dict | None = None) -> SimConfig:
+    """The sensors of a case: the preset's (with ``overrides``), scaled as the case's ``sensors`` say."""
+    cfg = build_config(PRESET, overrides)
+    f = case.get("sensors")
+    if f is None:
+        return cfg
+    acc_tone = tuple(v * f["acc_tone"] for v in cfg.acc.vibration_amp)
+    gyro_tone = tuple(a * r for a, r in zip(acc_tone, f["gyro_tone_rad_s_per_m_s2"]))
+    g, a = cfg.gyro, cfg.acc
+    gyro = replace(g, noise_std=g.noise_std * f["gyro_noise"], bias_std=g.bias_std * f["gyro_bias"])
+    acc = replace(a, noise_std=a.noise_std * f["acc_noise"], bias_std=a.bias_std * f["acc_bias"])
+    gyro, acc = replace(gyro, vibration_amp=gyro_tone), replace(acc, vibration_amp=acc_tone)
+    return replace(cfg, gyro=gyro, acc=acc)
+
+
+def case_flight_kwargs(case: dict, overrides: dict | None = None) -> dict:
+    """What :func:`~quadest.flight.fly` takes for a case's disturbances (its sensors' parameters
+    changed by ``overrides`` first)."""
+    wind = case.get("wind")
+    params = FlightParams(wind=None if wind is None else WindParams(**wind), landing_m_s=case.get("landing_m_s", 0.0))
+    return {"config": case_config(case, overrides), "params": params}
 
 
 def case_failure(case: dict) -> Failure | None:
@@ -59,9 +129,10 @@ def fly_case(case: dict, detector: DetectorParams | None = None, estimator: str 
 
 
 def fly_case_flight(
-    case: dict, detector: DetectorParams | None = None, estimator: str = "truth", config: SimConfig | None = None
+    case: dict, detector: DetectorParams | None = None, estimator: str = "truth", overrides: dict | None = None
 ) -> Flight:
-    """The flight of :func:`fly_case`, on the sensors of ``config`` (default: the Bebop 2 preset's)."""
+    """The flight of :func:`fly_case`, its sensors' parameters changed by ``overrides``
+    (``{"gyro.range": 8.73}``) before the case's own draws."""
     failure = case_failure(case)
     controller = "ftc" if failure is not None and failure.efficiency == 0.0 else "se3"
     return fly(
@@ -73,7 +144,7 @@ def fly_case_flight(
         controller=controller,
         estimator=estimator,
         detection=_detection(case["mode"], detector),
-        config=config,
+        **case_flight_kwargs(case, overrides),
     )
 
 
@@ -182,7 +253,7 @@ def crossings(case: dict, thresholds=THRESHOLDS, detector: DetectorParams | None
     det = replace(detector or DetectorParams(), lost_threshold=10.0)
     failure = case_failure(case)
     f = fly(case["scenario"], seed=case["seed"], duration=case["duration"], vehicle="bebop2", failure=failure,
-            controller="se3", detection=_detection(case["mode"], det))  # fmt: skip
+            controller="se3", detection=_detection(case["mode"], det), **case_flight_kwargs(case))  # fmt: skip
     t, stat = f.recording.t, f.detector_statistics
     first = {}
     for h in thresholds:

@@ -17,6 +17,12 @@ OMEGA_REF = 1000.0
 given ``OMEGA_REF √(thrust fraction)``, whose square is what thrust needs."""
 
 
+LOG_DETECTOR = {"noise_window_s": 0.0, "weighted_others": False, "eta_walk": 3.0, "contact_margin": 0.0}
+"""The detector as the logs' figures were made (docs/diagnose.md): the noise estimated from the whole
+log, the plain mean of the others, the former random walk, no contact gate (tuned on flown flights at
+IMU rate, not yet looked at on logs)."""
+
+
 @dataclass(frozen=True)
 class DiagnoseParams:
     """What the diagnosis assumes where a log says nothing (docs/diagnose.md has the sources)."""
@@ -157,7 +163,7 @@ def find_failures(log: MotorLog, vehicle: MultirotorParams, params: DiagnosePara
         "acc_noise": float(max(robust_sd(np.diff(log.acc[mask, 2])) / np.sqrt(2.0), 0.01)),
         "moment_noise": max(robust_sd(np.diff(log.gyr[mask], axis=0) / dt[:, None]), 0.1),
     }
-    detector_params = DetectorParams(deficit_sigmas=params.deficit_sigmas, **noise)
+    detector_params = DetectorParams(deficit_sigmas=params.deficit_sigmas, **LOG_DETECTOR, **noise)
     failures = []
     for start, end in runs(mask, shortest=11):
         det = Detector(vehicle, detector_params)

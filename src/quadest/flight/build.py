@@ -15,21 +15,26 @@ from quadest.flight.detection import DETECTION_MODES, Detection
 from quadest.flight.loop import MAX_RATE, MAX_SPEED, Loop, Navigation, Plant, Record, Sensing, record_arrays
 from quadest.flight.phases import NAV, PHASES, Bank
 from quadest.flight.rate import clip_rate
-from quadest.models.multirotor import work
+from quadest.models.multirotor import with_ground, work
 from quadest.recovery import RecoveryParams
 from quadest.recovery.logic import initial_bank
 from quadest.recovery.sphere import spread_points
 
 
 def plant(
-    vehicle, *, h, substeps, ground_z, failure=None, rate=1.0, hand=None, limits=True, zero_failed=True, collision=None
-):
+    vehicle, *, h, substeps, ground_z, failure=None, rate=1.0, hand=None, limits=True, zero_failed=True,
+    collision=None, wind=None, legs=False,
+):  # fmt: skip
     """The :data:`~quadest.flight.loop.Plant` of ``vehicle``: a ``failure`` striking at its
     sample (``rate`` Hz), the ``hand``'s ``(states, derivatives)`` until the release, a
     ``collision`` (:class:`~quadest.flight.collision.Collision`), the flight ended by the ground
-    at ``ground_z`` and (``limits``) by lost control."""
+    at ``ground_z`` and (``limits``) by lost control; the ``wind`` (NED, m/s, one row per sample;
+    none: still air); with ``legs`` the vehicle stands on legs that touch the ground first
+    (:func:`~quadest.models.multirotor.with_ground`)."""
     n_rot, nx = vehicle.rotors, 13 + vehicle.rotors
     dynamics = vehicle.vehicle()
+    if legs:
+        dynamics = with_ground(dynamics, ground_z)
     hand_x, hand_dx = hand if hand is not None else (np.zeros((1, nx)), np.zeros((0, nx)))
     return Plant.make(
         vehicle=dynamics,
@@ -52,6 +57,7 @@ def plant(
         hit_dw=np.zeros(3) if collision is None else np.array(collision.dw, float),
         hand_x=np.ascontiguousarray(hand_x, dtype=float),
         hand_dx=np.ascontiguousarray(hand_dx, dtype=float),
+        wind=np.zeros((0, 3)) if wind is None else np.ascontiguousarray(wind, dtype=float),
         work=work(dynamics, nx),
         dx=np.zeros(nx),
         Fb=np.empty(3),

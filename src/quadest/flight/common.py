@@ -17,6 +17,7 @@ from quadest.sim import sensors
 from quadest.sim.flown import flown_recording
 from quadest.sim.sensors import sensor_model
 from quadest.sim.simulator import draw_processes
+from quadest.sim.wind import WindParams
 
 SIM_RATE_HZ = 1000.0
 COLLISIONS = ("none", "drawn", "reset", "left")
@@ -143,6 +144,20 @@ class FlightParams:
         "(all with a collision, none without), off, or those that run, comma-separated (impact, "
         "rate, innovation, nonfinite)",
         "chosen: on where a collision is flown",
+    )
+    wind: WindParams | None = param(
+        None,
+        "-",
+        "the wind the flown vehicle meets (quadest.sim.wind.WindParams; none: still air), unknown to the loop",
+        "chosen: still air unless asked",
+    )
+    landing_m_s: float = param(
+        0.0,
+        "m/s",
+        "the flight ends with a hard landing: the reference holds its point and descends at this speed onto "
+        "the ground height_m below, touching down about 1 s before the end, the vehicle on sprung legs (0: none)",
+        "chosen: none unless asked; 1-2 m/s is a hard landing",
+        bounds="[0, 10]",
     )
     settle_m: float = param(
         0.3,

@@ -62,6 +62,7 @@ from quadest.rotation import euler_to_quat, quat_rotate
 from quadest.sim import build_config
 from quadest.sim.flown import flown_recording
 from quadest.sim.params import SimConfig
+from quadest.sim.wind import wind_samples
 
 FLIGHT_SCENARIOS = ("hover", "trajectory", "aggressive", "rotor-loss", "throw")
 
@@ -151,7 +152,11 @@ def fly(
     of the vehicle off by ``params.detector_model_error``), or a
     :class:`~quadest.detect.DetectorParams` (its ``rotor_speeds`` says which).
     ``params.collision`` and ``params.divergence``: a collision and the checks that start a recovery
-    in flight (:mod:`quadest.flight.collision`; with the checks the sensors are ``fma`` by default)."""
+    in flight (:mod:`quadest.flight.collision`; with the checks the sensors are ``fma`` by default).
+    ``params.wind``: the air's motion (:class:`~quadest.sim.wind.WindParams`; its realisation
+    drawn from the seed), which the vehicle flies in and nothing in the loop knows.
+    ``params.landing_m_s``: the flight ends with a hard landing (:func:`landing_reference`) on
+    sprung legs (:func:`~quadest.models.multirotor.with_ground`)."""
     estimator = filter_name(estimator) if isinstance(estimator, str) else estimator
     params = params or FlightParams()
     controller, duration = _check_request(scenario, estimator, controller, duration, params.collision != "none")
@@ -171,22 +176,15 @@ def fly(
     t = np.arange(n := int(round(duration * rate))) / rate
     rng_ref, rng_mocap = (np.random.default_rng(s) for s in np.random.SeedSequence([int(seed), 13]).spawn(2))
     x0, ref = _reference(scenario, t, rng_ref, vehicle)
+    if params.landing_m_s > 0.0:
+        ref = landing_reference(ref, t, params.landing_m_s, params.height_m)
     processes, sm = sensors_for(cfg, n, seed, vehicle)  # the generators and order of flown_recording's
     nav, est = _in_loop(estimator, cfg, rate, estimator_params)
     ftc, gains = ftc or FtcParams(), (se3 or SE3Params()).gains(vehicle)
     detection, detector = (detection, None) if isinstance(detection, str) else (_mode(detection), detection)
     oracle = detection == "oracle"
     loop = build.loop(
-        plant=build.plant(
-            vehicle,
-            h=1.0 / SIM_RATE_HZ,
-            substeps=substeps,
-            failure=failure,
-            rate=rate,
-            zero_failed=oracle,
-            ground_z=float(params.height_m if event is None else event.height_m),
-            collision=event,
-        ),  # fmt: skip
+        plant=_plant(vehicle, params, failure, t, (rate, substeps), oracle, seed, event),
         sensing=_position_sensing(sm, params, rate, every, n, x0, rng_mocap, vehicle.rotors, seed),
         nav=build.navigation(
             nav,
@@ -254,6 +252,44 @@ def _in_flight_request(scenario, params: FlightParams, seed, duration):
     if checks == "auto":
         checks = "off" if event is None or scenario == "throw" else ",".join(CHECKS)
     return event, None if checks == "off" else DivergenceParams(checks=checks)
+
+
+def _plant(vehicle, params, failure, t, rates, oracle, seed, event):
+    """The flight's plant: the vehicle in ``params``' wind (drawn from the seed), on legs for a
+    landing, the oracle zeroing the lost rotor's command when it is the one that tells, struck
+    by the collision ``event`` (None: none); ``rates`` the IMU rate and the simulation substeps
+    per sample."""
+    rate, substeps = rates
+    wind = None if params.wind is None else wind_samples(t, params.wind, np.random.default_rng([int(seed), 37]))
+    return build.plant(
+        vehicle,
+        h=1.0 / SIM_RATE_HZ,
+        substeps=substeps,
+        ground_z=float(params.height_m if event is None else event.height_m),
+        failure=failure,
+        rate=rate,
+        zero_failed=oracle,
+        collision=event,
+        wind=wind,
+        legs=params.landing_m_s > 0.0,
+    )
+
+
+def landing_reference(ref, t, speed: float, height: float, after_s: float = 1.0):
+    """``ref`` ending in a landing: from ``t_d`` (touchdown ``after_s`` before the end) the
+    reference holds the horizontal point it had reached and descends at ``speed`` (m/s) from its
+    height there to ``height`` below the origin, then 0.2 m further (pressing the vehicle down
+    on its legs)."""
+    if not (np.isfinite(speed) and 0.0 < speed <= 10.0):
+        raise UsageError(f"landing speed must be within (0, 10] m/s, got {speed}")
+    p, v, a, yaw = (np.array(x, dtype=float) for x in ref)
+    k = max(int(np.searchsorted(t, t[-1] - after_s - (height - p[0, 2]) / speed)), 0)
+    p[k:, :2], v[k:], a[k:] = p[k, :2], 0.0, 0.0
+    yaw[k:] = yaw[k]
+    z = p[k, 2] + speed * (t[k:] - t[k])
+    p[k:, 2] = np.minimum(z, height + 0.2)
+    v[k:, 2] = np.where(z < height + 0.2, speed, 0.0)
+    return p, v, a, yaw
 
 
 def _add_detection(flight: Flight, det, mode: str, failure: Failure | None, flown: int) -> None:

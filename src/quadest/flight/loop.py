@@ -55,7 +55,8 @@ Plant = compiled_record(
     "a flight ends, the rotor failure (rotor -1: none; its command zeroed from the failure on "
     "with zero_failed, an oracle), the hand's states and derivatives until the release (none: "
     "zero rows), a collision (from sample hit_k over hit_n samples, the velocity hit_dv, NED, and "
-    "body rate hit_dw it adds; hit_n 0: none), and the work arrays of the dynamics.",
+    "body rate hit_dw it adds; hit_n 0: none), the wind per sample (NED, m/s; no rows: still air) "
+    "and the work arrays of the dynamics.",
     vehicle="any",
     h="f8",
     substeps="i8",
@@ -76,6 +77,7 @@ Plant = compiled_record(
     hit_dw="f8[:]",
     hand_x="f8[:, :]",
     hand_dx="f8[:, :]",
+    wind="f8[:, :]",
     work="any",
     dx="f8[:]",
     Fb="f8[:]",
@@ -215,6 +217,8 @@ def sense(k, x, loop):
     if k == plant.fail_k and plant.fail_rotor >= 0:
         plant.eta[plant.fail_rotor] = plant.fail_eta
         plant.imb[plant.fail_rotor] = plant.fail_imb
+    if k < plant.wind.shape[0]:
+        copy_into(plant.vehicle.wind, plant.wind[k])
     in_hand = k < plant.hand_dx.shape[0]
     if in_hand:
         copy_into(x, plant.hand_x[k])

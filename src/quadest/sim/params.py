@@ -88,6 +88,13 @@ class Gyroscope:
     misalignment: tuple | None = param(None, "-", "fixed 3x3 misalignment matrix, zero diagonal")
     range: float = param(math.radians(1000.0), "rad/s", "saturation limit per axis")
     dlpf_hz: float = param(0.0, "Hz", "anti-alias low-pass (first order) cut-off before saturation (0: none)")
+    vibration_amp: tuple = param(
+        (0.0, 0.0, 0.0),
+        "rad/s",
+        "rotor blade-pass tone amplitude per axis at hover in the gyroscope (a flown vehicle only; grows with "
+        "the rotor speed squared); real flights show about 0.25 rad/s per m/s² of the accelerometer's tone on "
+        "roll and pitch, 0.03 on yaw (docs/simulator.md)",
+    )
 
 
 @dataclass(frozen=True)
@@ -313,7 +320,7 @@ class SimConfig:
         return replace(
             self,
             imu=replace(self.imu, jitter_std_s=0.0, drop_prob=0.0),
-            gyro=replace(self.gyro, **inertial),
+            gyro=replace(self.gyro, **inertial, vibration_amp=zero3),
             acc=replace(self.acc, **inertial, vibration_amp=zero3),
             mag=replace(self.mag, noise_std=0.0, hard_iron=zero3, soft_iron=eye, motor_coef=zero3, range=math.inf),
         )

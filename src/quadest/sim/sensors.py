@@ -108,18 +108,20 @@ def vibration(t, rotor_load, rotor_hz_hover, amp, rng=None, offsets=None):
 
 RotorVibration = namedtuple(
     "RotorVibration",
-    ["pos", "spin", "inv_inertia", "mass", "omega_hover", "blades", "bp_amp", "has_bp", "offsets", "lever"],
+    ["pos", "spin", "inv_inertia", "mass", "omega_hover", "blades", "bp_amp", "bp_gyr", "has_bp", "offsets", "lever"],
 )
 """What :func:`rotor_vibration_step` reads: the vehicle's rotors, the blade-pass amplitude per
 rotor and axis, one run's phases and the IMU's lever arm (built by :func:`rotor_vibration_model`)."""
 
 
-def rotor_vibration_model(vehicle: MultirotorParams, amp, offsets, lever) -> RotorVibration:
+def rotor_vibration_model(vehicle: MultirotorParams, amp, offsets, lever, gyro_amp=(0.0, 0.0, 0.0)) -> RotorVibration:
     """The flown vehicle's vibration: ``amp`` the total blade-pass amplitude per axis at hover
     (the configuration's ``acc.vibration_amp``, shared by the rotors so that N incoherent tones
-    carry the power of one: ``amp/√N`` each), ``offsets`` one run's phases (rotors × 4: the
-    blade-pass phase per axis, then the rotor's angle at the start)."""
+    carry the power of one: ``amp/√N`` each), ``gyro_amp`` the gyroscope's (``gyro.vibration_amp``,
+    rad/s, shared alike), ``offsets`` one run's phases (rotors × 4: the blade-pass phase per axis,
+    then the rotor's angle at the start)."""
     amp = np.asarray(amp, float)
+    gyro_amp = np.asarray(gyro_amp, float)
     offsets = np.ascontiguousarray(offsets, dtype=float)
     if offsets.shape != (vehicle.rotors, 4):
         raise ValueError(f"rotor vibration: offsets must be {vehicle.rotors} rows of 4, got shape {offsets.shape}")
@@ -131,7 +133,8 @@ def rotor_vibration_model(vehicle: MultirotorParams, amp, offsets, lever) -> Rot
         vehicle.hover_speed(),
         float(vehicle.blades),
         amp / np.sqrt(vehicle.rotors),
-        bool(amp.any()),
+        gyro_amp / np.sqrt(vehicle.rotors),
+        bool(amp.any() or gyro_amp.any()),
         offsets,
         np.asarray(lever, float),
     )
@@ -147,6 +150,7 @@ def no_rotor_vibration(lever) -> RotorVibration:
         1.0,
         1.0,
         1.0,
+        np.zeros(3),
         np.zeros(3),
         False,
         np.zeros((0, 4)),
@@ -176,7 +180,8 @@ def rotor_vibration_step(rv, t, speeds, imbalance, state, acc, gyr):
 
     - **Blade pass**: per rotor and axis ``a_bp (Ω_i/Ω_hover)² sin(B ψ_i + φ_ia)``, B blades;
       the amplitude at hover ``a_bp`` is chosen (a property of the frame and the IMU's mount,
-      which a rigid-body model does not have).
+      which a rigid-body model does not have); in the gyroscope ``g_bp (Ω_i/Ω_hover)²
+      sin(B ψ_i + φ_i,a+1)`` (the frame's rocking at the same tone, the next axis's phase).
     - **Imbalance** of a damaged propeller: the centrifugal force of the missing mass,
       ``F_i = u Ω² [cos ψ, s sin ψ, 0]`` (body; ``s`` the rotor's sense, ψ measured in it),
       acting at the rotor ``r_i``. The rigid body's response, superposed on the flown motion:
@@ -204,6 +209,7 @@ def rotor_vibration_step(rv, t, speeds, imbalance, state, acc, gyr):
             s2 = (w / rv.omega_hover) ** 2
             for a in range(3):
                 acc[a] += rv.bp_amp[a] * s2 * np.sin(rv.blades * psi + rv.offsets[i, a])
+                gyr[a] += rv.bp_gyr[a] * s2 * np.sin(rv.blades * psi + rv.offsets[i, (a + 1) % 3])
         u = imbalance[i]
         if u > 0.0:
             c, sn, sp = np.cos(psi), np.sin(psi), rv.spin[i]
@@ -343,7 +349,9 @@ def sensor_model(cfg: SimConfig, processes, has_mag, vehicle: MultirotorParams |
     if vehicle is None:
         rv = no_rotor_vibration(cfg.acc.lever_arm)
     else:
-        rv = rotor_vibration_model(vehicle, cfg.acc.vibration_amp, processes.vib_offsets, cfg.acc.lever_arm)
+        rv = rotor_vibration_model(
+            vehicle, cfg.acc.vibration_amp, processes.vib_offsets, cfg.acc.lever_arm, cfg.gyro.vibration_amp
+        )
     c = np.ascontiguousarray
     return SensorModel(
         c(processes.gyro_errors["matrix"]), c(processes.gyr_bias), c(processes.gyr_noise), float(cfg.gyro.range),

@@ -15,9 +15,14 @@ import math
 import numpy as np
 
 from quadest.errors import UsageError
-from quadest.evaluation.detection import failure_case, fly_case_flight, nominal_case, summarize_failures
+from quadest.evaluation.detection import (
+    case_config,
+    failure_case,
+    fly_case_flight,
+    nominal_case,
+    summarize_failures,
+)
 from quadest.flight import FlightParams
-from quadest.sim import build_config
 
 DETECTIONS = ("rotor-speeds", "commands", "oracle")
 """The ways the fault-tolerant controller learns of a loss: the detector from measured rotor
@@ -102,20 +107,21 @@ def campaign_label(src: dict) -> str:
     return f"campaign {c['scenario']}/{what}/{c['mode']}{g}{lat}/seed{c['seed']}"
 
 
-def _config(src: dict):
-    """The Bebop 2 sensors with the run's gyroscope range and magnetometer latency."""
+def _overrides(src: dict) -> dict:
+    """The run's gyroscope range and magnetometer latency, as sensor parameters."""
     over = {"mag.latency_s": src["mag_latency_s"]}
     if src["gyro_range_dps"] is not None:
         over["gyro.range"] = math.radians(src["gyro_range_dps"])
-    return build_config("bebop2", over)
+    return over
 
 
 def fly_campaign(spec: dict, row: dict) -> None:
     """Fly one campaign run and put what happened into ``row``."""
     src = spec["source"]
     case = src["case"]
-    cfg = _config(src)
-    f = fly_case_flight(case, estimator=spec["filter"], config=cfg)
+    over = _overrides(src)
+    cfg = case_config(case, over)
+    f = fly_case_flight(case, estimator=spec["filter"], overrides=over)
     s, det = f.summary, f.summary.get("detection", {})
     row.update(_case_columns(src, cfg))
     row.update(

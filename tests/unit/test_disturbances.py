@@ -1,0 +1,113 @@
+"""What a flown vehicle meets besides its scenario (the detection campaign's nominal flights):
+the gyroscope's share of the rotors' blade-pass tone, wind and gusts acting on the flown
+vehicle, a hard landing on sprung legs, and each case's sensors and wind drawn from its seed."""
+
+import numpy as np
+import pytest
+
+from quadest.evaluation.detection import case_config, disturbances, failure_case, nominal_case
+from quadest.flight import FlightParams, fly
+from quadest.flight.common import sensors_for
+from quadest.models import MultirotorParams, vehicle_preset
+from quadest.sim.sensors import rotor_vibration, rotor_vibration_model
+from quadest.sim.wind import WindParams, wind_samples
+
+
+def test_the_gyroscope_has_each_rotors_tone():
+    """Rotors at different speeds: the gyroscope holds one tone per rotor at B Ω_i / 2π with
+    amplitude ``g/√N (Ω_i/Ω_hover)²`` on each axis given one (least squares), nothing else."""
+    V = MultirotorParams(blades=2)
+    g = (0.06, 0.05, 0.008)
+    offsets = np.random.default_rng(4).uniform(0, 6, (4, 4))
+    rv = rotor_vibration_model(V, (0.0, 0.0, 0.0), offsets, (0, 0, 0), g)
+    rate = 8000.0
+    t = np.arange(int(2.0 * rate)) / rate
+    omegas = np.array([380.0, 430.0, 470.0, 520.0])
+    acc, gyr = rotor_vibration(rv, t, np.tile(omegas, (len(t), 1)), np.zeros((len(t), 4)))
+    assert not acc.any()
+    A = np.column_stack([f(V.blades * w * t) for w in omegas for f in (np.sin, np.cos)])
+    for axis in range(3):
+        coef, *_ = np.linalg.lstsq(A, gyr[:, axis], rcond=None)
+        assert np.abs(gyr[:, axis] - A @ coef).max() < 1e-9
+        fitted = np.hypot(coef[0::2], coef[1::2])
+        np.testing.assert_allclose(fitted, g[axis] / 2.0 * (omegas / V.hover_speed()) ** 2, rtol=1e-9)
+
+
+def test_a_flown_gyroscope_vibrates_as_drawn():
+    """A case's hover: the gyroscope's reading minus the true rate, above 60 Hz, has about the
+    RMS of the drawn tone (``g/√2`` per axis), the drawn white noise taken off: within a factor
+    2, since the four rotors turn at nearly one speed near hover and their tones add with their
+    drawn phases; yaw's well below roll's and pitch's, as drawn."""
+    case = nominal_case(7, "rotor-speeds", 6.0)
+    cfg = case_config(case)
+    f = fly("hover", seed=7, duration=6.0, vehicle="bebop2", config=cfg)
+    rec = f.recording
+    processes, _ = sensors_for(cfg, len(rec.t), 7, vehicle_preset("bebop2"))  # the flight's own draws
+    ripple = (rec.gyr - rec.true_gyr - processes.gyr_noise)[rec.t > 2.0]
+    spectrum = np.fft.rfft(ripple - ripple.mean(axis=0), axis=0)
+    freqs = np.fft.rfftfreq(len(ripple), 1.0 / rec.meta["imu_rate_hz"])
+    spectrum[freqs < 60.0] = 0.0  # the tone (3 blades × the rotors' turning) is far above the motion
+    tone = np.fft.irfft(spectrum, n=len(ripple), axis=0)
+    rms = np.sqrt((tone**2).mean(axis=0))
+    expected = np.asarray(cfg.gyro.vibration_amp) / np.sqrt(2.0)
+    assert expected[0] > 0.02 and expected[2] < expected[0] / 3
+    assert (rms > expected / 2).all() and (rms < 2 * expected).all(), (rms, expected)
+    assert rms[2] < 0.5 * min(rms[0], rms[1])
+
+
+def test_wind_samples_have_the_asked_statistics():
+    """The steady wind's speed, the turbulence's standard deviation (half of it vertically) and
+    a gust's peak, from a long draw."""
+    t = np.arange(0, 2000.0, 0.01)
+    w = wind_samples(t, WindParams(mean_m_s=3.0, turbulence_m_s=1.0), np.random.default_rng(1))
+    assert abs(np.hypot(*w[:, :2].mean(axis=0)) - 3.0) < 0.2
+    np.testing.assert_allclose(w.std(axis=0), [1.0, 1.0, 0.5], rtol=0.15)
+    g = wind_samples(t[:1000], WindParams(gusts=1, gust_m_s=5.0, gust_s=(1.0, 1.0)), np.random.default_rng(2))
+    assert 0.0 < np.linalg.norm(g, axis=1).max() <= 5.0 * np.sqrt(1 + 1 / 9) + 1e-9
+
+
+def test_a_gust_moves_the_flown_vehicle():
+    """The same hover in still air and in a 4 m/s wind with a gust: the wind pushes the vehicle
+    off its point (the controller does not know it), still air leaves the flight unchanged."""
+    still = fly("hover", seed=3, duration=6.0, vehicle="bebop2")
+    same = fly("hover", seed=3, duration=6.0, vehicle="bebop2", params=FlightParams(wind=WindParams()))
+    gusty = FlightParams(wind=WindParams(mean_m_s=4.0, gusts=2, gust_m_s=5.0))
+    windy = fly("hover", seed=3, duration=6.0, vehicle="bebop2", params=gusty)
+    np.testing.assert_array_equal(still.states, same.states)
+    late = still.recording.t > 3.0
+    err = [np.linalg.norm(f.states[late, :3], axis=1).max() for f in (still, windy)]
+    assert err[1] > err[0] + 0.05, err
+    assert windy.summary["status"] == "survived"
+
+
+@pytest.mark.parametrize("speed", [1.0, 2.0])
+def test_a_hard_landing_is_an_impact(speed):
+    """A hover ending in a descent at 1 and 2 m/s onto the ground 3 m below: the vehicle stands
+    on its legs at the end (the centre of mass 5 cm above the ground, level); at the touchdown
+    the accelerometer's z reads the legs' push, about ``v √(k/m)`` (63 rad/s for four legs of
+    500 N/m on 0.5 kg) above gravity, within a factor 2 (the damping adds, the controller's
+    thrust and the sensor's range take off)."""
+    f = fly("hover", seed=5, duration=8.0, vehicle="bebop2", params=FlightParams(landing_m_s=speed))
+    assert f.summary["status"] == "survived"
+    x = f.states
+    assert abs(x[-1, 2] - (3.0 - 0.05)) < 0.01 and np.abs(x[-1, 10:13]).max() < 0.1
+    acc_z = f.recording.acc[:, 2]
+    k = int(np.argmin(acc_z))
+    assert 6.0 < f.recording.t[k] < 7.2  # touchdown near 1 s before the end
+    peak = -acc_z[k] - 9.81
+    expected = speed * np.sqrt(4 * 500.0 / 0.5)
+    assert expected / 2 < peak < 2 * expected, (peak, expected)
+
+
+def test_cases_draw_their_disturbances_from_the_seed():
+    """Each case's wind, sensors and landing follow from its seed (the same twice, another
+    seed another), failures without a landing; a case's rotor and time are unchanged by them."""
+    assert disturbances(3, 60.0, landing=True) == disturbances(3, 60.0, landing=True)
+    assert disturbances(3, 60.0, landing=True) != disturbances(4, 60.0, landing=True)
+    n = nominal_case(3, "commands", 60.0)
+    assert 1.0 <= n["landing_m_s"] <= 2.0 and n["wind"]["gusts"] == 3
+    f, plain = failure_case(3, "commands"), failure_case(3, "commands", disturbed=False)
+    assert "landing_m_s" not in f and "wind" not in plain
+    assert (f["rotor"], f["time_s"]) == (plain["rotor"], plain["time_s"])
+    cfg = case_config(n)
+    assert cfg.gyro.vibration_amp[0] > 0 and cfg.acc.noise_std != case_config(plain).acc.noise_std
