@@ -103,3 +103,11 @@ def test_a_wrong_option_is_one_line(tmp_path, capsys, option, value, says):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and says in err[0]
     assert not (tmp_path / "c.parquet").exists()
+
+
+def test_two_outputs_on_one_file_are_refused(tmp_path, capsys):
+    out = tmp_path / "c.parquet"
+    assert main(["campaign", "-o", str(out), "--report", str(out), "--workers", "0"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "give each output its own file" in err[0]
+    assert not out.exists()

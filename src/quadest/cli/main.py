@@ -120,11 +120,23 @@ def check_outputs(args) -> None:
     folders = {OUTPUT_OPTIONS[name] for command, name in FOLDER_OUTPUTS if command == args.command}
     try:
         refuse_overwriting_inputs(outputs, inputs)
+        _refuse_shared_outputs(outputs)
         for opt, path in outputs.items():
             if opt not in folders:
                 output_target(path, force=getattr(args, "force", False))
     except ValueError as exc:
         raise UsageError(str(exc)) from None
+
+
+def _refuse_shared_outputs(outputs: dict) -> None:
+    """Two output options naming one file (``-o r.parquet --report r.parquet``): the second
+    written would destroy the first."""
+    seen: dict = {}
+    for opt, path in outputs.items():
+        key = os.path.realpath(path)
+        if key in seen:
+            raise ValueError(f"{opt} {path} is also the file of {seen[key]}; give each output its own file")
+        seen[key] = opt
 
 
 # options whose output needs an extra, checked before any work is done
