@@ -61,6 +61,7 @@ Vehicle = namedtuple(
         "damping",
         "rot_drag",
         "gravity",
+        "rotor_inertia",
     ],
 )
 """What the compiled dynamics read (built by :meth:`MultirotorParams.vehicle`)."""
@@ -151,6 +152,13 @@ class MultirotorParams:
         "Sun et al. 2021, their Bebop 2 simulation (simParams.m, aero.rotDrag)",
     )
     gravity: float = param(GRAVITY, "m/s²", "gravity", "standard gravity", bounds="(0, 100]")
+    rotor_inertia: float = param(
+        0.0,
+        "kg m²",
+        "moment of inertia of each rotor (propeller and motor bell) about its axis",
+        "chosen: none (the recovery paper gives none; its throws keep the rotors at a constant speed)",
+        bounds="[0, 1e-2]",
+    )
     blades: int = param(
         2,
         "-",
@@ -198,6 +206,7 @@ class MultirotorParams:
             np.asarray(self.damping, float),
             np.asarray(self.rot_drag, float),
             float(self.gravity),
+            float(self.rotor_inertia),
         )
 
     def hover_speed(self) -> float:
@@ -218,6 +227,7 @@ class MultirotorParams:
 
 _SUN = "Sun et al., T-RO 2021, public simulation (github.com/SihaoSun/INDI_Quadrotor_FTC)"
 _ROTORPY = "RotorPy 3.0, rotorpy/vehicles/hummingbird_params.py"
+_PPRZ = "Paparazzi's Bebop 2 INDI airframe (conf/airframes/TUDELFT/tudelft_bebop2_indi.xml)"
 
 VEHICLE_PRESETS = {
     "recovery": ({}, {}),
@@ -240,6 +250,7 @@ VEHICLE_PRESETS = {
             rot_drag=(5e-5, 5e-5, 1e-4),
             gravity=9.8124,
             blades=3,
+            rotor_inertia=4.7e-6,
         ),
         dict(
             mass_kg=f"{_SUN}: controlParams.m (the simulation's own mass is in a .mat file)",
@@ -259,6 +270,10 @@ VEHICLE_PRESETS = {
             rot_drag=f"{_SUN}: simParams.m, aero.rotDrag",
             gravity=f"{_SUN}: simParams.m (Delft)",
             blades="the Bebop 2's stock propellers have three blades",
+            rotor_inertia=f"{_PPRZ}: the ratio of the yaw effectiveness of the rotor acceleration to "
+            "that of the rotor speed, G2_R / G1_R = 0.20 / 0.0022 at 512 Hz, is I_p f / (2 k_m Ω) for the "
+            "incremental yaw model; with this preset's k_m and hover speed (695 rad/s) I_p = 4.7e-6 "
+            "(range: docs/vehicle.md, Spin range)",
         ),
     ),
     "hummingbird": (
@@ -280,6 +295,7 @@ VEHICLE_PRESETS = {
             rot_drag=(0.0, 0.0, 0.0),
             gravity=9.81,
             blades=2,
+            rotor_inertia=0.0,
         ),
         dict(
             mass_kg=f"{_ROTORPY}: mass",
@@ -299,6 +315,7 @@ VEHICLE_PRESETS = {
             rot_drag="RotorPy has none",
             gravity="RotorPy: 9.81",
             blades="the AscTec Hummingbird's 8-inch propellers have two blades",
+            rotor_inertia="RotorPy has none (its rotors' inertia is not modelled: the cross-check stays like for like)",
         ),
     ),
 }
@@ -371,15 +388,19 @@ def derivative_ws(x, cmd, eta, vehicle, dx, F, M, T):
     dx[0], dx[1], dx[2] = x[3], x[4], x[5]
     dx[3], dx[4], dx[5] = a0, a1, a2 + vehicle.gravity
     dx[6], dx[7], dx[8], dx[9] = qdot_s(qw, qx, qy, qz, w0, w1, w2)
-    J0, J1, J2 = vehicle.inertia[0], vehicle.inertia[1], vehicle.inertia[2]
-    # Euler: J ω̇ = M − ω × (J ω)
-    dx[10] = (M[0] - (w1 * J2 * w2 - w2 * J1 * w1)) / J0
-    dx[11] = (M[1] - (w2 * J0 * w0 - w0 * J2 * w2)) / J1
-    dx[12] = (M[2] - (w0 * J1 * w1 - w1 * J0 * w0)) / J2
+    h = 0.0  # the rotors' angular momentum about body z, and its rate
+    h_dot = 0.0
     for i in range(vehicle.rotor_pos.shape[0]):
         target = min(max(cmd[i], vehicle.omega_min), vehicle.omega_max)
         rate = (target - x[13 + i]) / vehicle.tau
         dx[13 + i] = min(max(rate, -vehicle.omega_dot_max), vehicle.omega_dot_max)
+        h += vehicle.rotor_inertia * eta[i] * vehicle.spin[i] * x[13 + i]
+        h_dot += vehicle.rotor_inertia * eta[i] * vehicle.spin[i] * dx[13 + i]
+    J0, J1, J2 = vehicle.inertia[0], vehicle.inertia[1], vehicle.inertia[2]
+    # Euler: J ω̇ = M − ω × (J ω + h e_z) − ḣ e_z
+    dx[10] = (M[0] - (w1 * J2 * w2 - w2 * J1 * w1) - w1 * h) / J0
+    dx[11] = (M[1] - (w2 * J0 * w0 - w0 * J2 * w2) + w0 * h) / J1
+    dx[12] = (M[2] - (w0 * J1 * w1 - w1 * J0 * w0) - h_dot) / J2
 
 
 @njit(cache=True)
