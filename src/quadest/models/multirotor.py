@@ -323,6 +323,28 @@ VEHICLE_PRESETS = {
 recovery paper's vehicle) and the source of each."""
 
 
+SPIN_RANGES = {
+    "bebop2": {
+        "k_h": (
+            (0.0, "Sun et al.'s simple aerodynamic model (simpleAeroModel.m) has no rotor drag"),
+            (4.05e-5, "the preset's (chosen: Faessler et al. 2018's linear rotor drag, 0.3 1/s at hover)"),
+            (
+                6.1e-5,
+                "RotorPy's Hummingbird rotor drag per unit mass at hover (4 k_d Ω_h / m = 0.45 1/s) on the "
+                "Bebop 2: 0.45 m / (4 Ω_h)",
+            ),
+        ),
+        "rotor_inertia": (
+            (0.0, "a bound, not a measurement: no rotor inertia (quadest before; the controller models of Sun et al.)"),
+            (4.7e-6, "the preset's: Paparazzi's Bebop 2 INDI airframe, G2_R / G1_R"),
+            (1.1e-5, "LADAC's Bebop 2 (TU Braunschweig, LADAC_params/Bebop2/copter_params_Bebop2.m: prop.I)"),
+        ),
+    },
+}
+"""Per vehicle, the parameters that decide the spin after a rotor loss, each as ``(low, chosen,
+high)`` values with their sources (docs/vehicle.md, *Spin range*)."""
+
+
 def vehicle_preset(name: str) -> MultirotorParams:
     """A vehicle by name (:data:`VEHICLE_PRESETS`)."""
     if name not in VEHICLE_PRESETS:
