@@ -334,7 +334,9 @@ def ftc_command(xh, p_d, v_d, a_d, ftc, vehicle, dt, integral, cmd):
         h += ftc.rotor_momentum[i] * cmd[i]
     M0 = J0 * ftc.k_w * (od0 - w0) + (w1 * J2 * w2 - w2 * J1 * w1) + w1 * h + ftc.damping[0] * w0
     M1 = J1 * ftc.k_w * (od1 - w1) + (w2 * J0 * w0 - w0 * J2 * w2) - w0 * h + ftc.damping[1] * w1
-    thrust = _thrust_that_fits(ftc, thrust, M0, M1)
+    thrust, scale = _fit_to_rotors(ftc, thrust, M0, M1)
+    M0 *= scale
+    M1 *= scale
     for i in range(cmd.shape[0]):
         cmd[i] = 0.0
     for a in range(3):
@@ -343,11 +345,9 @@ def ftc_command(xh, p_d, v_d, a_d, ftc, vehicle, dt, integral, cmd):
 
 
 @njit(cache=True, inline="always")
-def _thrust_that_fits(ftc, thrust, M0, M1):
-    """The collective thrust yields to the roll and pitch moments: the largest thrust up to
-    ``thrust`` for which every rotor's share stays within ``[0, t_max]`` (the moments keep the
-    axis; clipping each rotor alone would give up the moments' ratio). Where none fits, the
-    thrust that puts the rotors' shares nearest the middle of their range."""
+def _thrust_range(ftc, thrust, M0, M1):
+    """The collective thrusts in ``[0, thrust]`` for which every rotor that shares the thrust
+    stays within ``[0, t_max]`` with the moments ``M0``, ``M1``: ``(lo, hi)``, empty if lo > hi."""
     lo, hi = 0.0, thrust
     for a in range(3):
         c = ftc.alloc_inv[a, 0]  # rotor a's share of the thrust (0 for the one opposite the lost one)
@@ -358,6 +358,25 @@ def _thrust_that_fits(ftc, thrust, M0, M1):
         elif c < -1e-9:
             hi = min(hi, -m / c)
             lo = max(lo, (ftc.t_max - m) / c)
+    return lo, hi
+
+
+@njit(cache=True, inline="always")
+def _fit_to_rotors(ftc, thrust, M0, M1):
+    """What the rotors can give, the roll and pitch moments first: the largest collective
+    thrust up to ``thrust`` with every rotor that shares it within ``[0, t_max]``; where none
+    fits, the moments scaled down (their direction kept, bisection) until one does. Returns the
+    thrust and the moments' scale. (Clipping each rotor alone would give up the moments' ratio.)"""
+    lo, hi = _thrust_range(ftc, thrust, M0, M1)
     if lo <= hi:
-        return hi
-    return 0.5 * (lo + hi)
+        return hi, 1.0
+    s_ok, s_bad = 0.0, 1.0
+    for _ in range(12):
+        s = 0.5 * (s_ok + s_bad)
+        lo, hi = _thrust_range(ftc, thrust, s * M0, s * M1)
+        if lo <= hi:
+            s_ok = s
+        else:
+            s_bad = s
+    lo, hi = _thrust_range(ftc, thrust, s_ok * M0, s_ok * M1)
+    return max(hi, 0.0), s_ok
