@@ -95,9 +95,9 @@ def test_a_clipped_gyro_axis_gives_the_controller_the_predicted_rate():
 
     cfg = build_config("bebop2").with_overrides({"gyro.range": np.radians(500.0)})
     kw = dict(estimator="truth", vehicle="bebop2", config=cfg, seed=3, duration=10.0, failure=Failure(0, 2.0))
-    off = fly("rotor-loss", params=FlightParams(clip_rate="off"), **kw)
+    off = fly("rotor-loss", params=FlightParams(clip_rate="off", height_m=10.0), **kw)
     assert off.summary["status"] == "crashed", off.summary
-    f = fly("rotor-loss", **kw)
+    f = fly("rotor-loss", params=FlightParams(height_m=10.0), **kw)
     assert f.summary["status"] == "survived", f.summary
     clipped = np.abs(f.recording.gyr[:, 2]) >= cfg.gyro.range * 0.995
     assert clipped.mean() > 0.5

@@ -220,6 +220,27 @@ def flown_seed(task) -> dict:
     return {"scores": score_filters(flight.recording, fparams, t_from), "flight": flight_outputs(flight, t_from)}
 
 
+def surviving_seed(task) -> dict | None:
+    """:func:`flown_seed`, or None where the truth's flight did not stay up (a vehicle at an end
+    of its spin range the controller cannot hold): its outputs say so."""
+    case, seed, p, fparams = task
+    flight = flown_flight(case, seed, p)
+    t_from = p.failure_s if CASES[case][1] else 0.0
+    out = {"seed": seed, "flight": flight_outputs(flight, t_from), "scores": None}
+    if flight.summary["status"] == "survived":
+        out["scores"] = score_filters(flight.recording, fparams, t_from)
+    return out
+
+
+SPIN_RANGE_VARIANTS = [
+    ("gyro ±1000°/s", {"gyro.range": math.radians(1000.0)}),
+    ("gyro ±500°/s", {"gyro.range": math.radians(500.0)}),
+]
+"""The sensors the spin range flies in the loop: the preset's ±1000 °/s gyro and a ±500 °/s one
+(with the predicted rate of a clipped axis, the default)."""
+SPIN_RANGE_ESTIMATORS = ["truth", "robust", "afckf"]
+
+
 # -- ablations -----------------------------------------------------------------------------------------
 ABLATIONS = [
     ("baseline: bebop2 sensors", {}, None),
