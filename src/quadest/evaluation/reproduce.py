@@ -265,7 +265,7 @@ def _spin_range_end(p, seeds, progress, workers, scheduler) -> dict:
         "truth_flights": {
             "survived": len(up),
             "runs": len(per_seed),
-            **{k: v for k, v in _flight_means([r["flight"] for r in up]).items() if k != "per_seed"},
+            **_means_of_survivors([r["flight"] for r in up]),
             "per_seed": [r["flight"] for r in per_seed],
         },
         "offline": _aggregate([r["scores"] for r in up], flown.LABELS) if up else None,
@@ -287,6 +287,13 @@ def format_spin_range(result: dict) -> str:
         for row in r["in_loop"]:
             lines.append(f"  {row['variant']}, {row['estimator']} in the loop: {row['survived']}/{row['runs']} up")
     return "\n".join(lines)
+
+
+def _means_of_survivors(outputs: list[dict]) -> dict:
+    keys = ("spin_rate_rad_s", "tilt_deg", "gyro_clipped_share", "peak_rate_rad_s")
+    if not outputs:
+        return dict.fromkeys(keys)
+    return {k: v for k, v in _flight_means(outputs).items() if k != "per_seed"}
 
 
 def _flight_means(outputs: list[dict]) -> dict:
