@@ -748,6 +748,75 @@ def results_clip_rate() -> str:
     )
 
 
+def results_spin_range() -> str:
+    """docs/vehicle.md: the flown rotor loss at the ends of the Bebop 2's spin range."""
+    r = _load("spin-range")
+    rows, loop = [], []
+    for end, e in r["ends"].items():
+        t, m, off = e["truth_flights"], e["relaxed_hover_model"], e["offline"]
+        share = t["gyro_clipped_share"]
+        rows.append(
+            [
+                end,
+                f"{e['vehicle']['k_h']:.3g}",
+                f"{e['vehicle']['rotor_inertia']:.3g}",
+                f"{m['spin_rate_rad_s']:.1f} / {m['tilt_deg']:.1f}",
+                f"{t['survived']}/{t['runs']}",
+                "-" if t["spin_rate_rad_s"] is None else f"{t['spin_rate_rad_s']:.1f} / {t['tilt_deg']:.1f}",
+                "-" if share is None else f"{100 * share:.0f} %",
+                "-" if t["peak_rate_rad_s"] is None else f"{t['peak_rate_rad_s']:.1f}",
+                *("-" if off is None else _rpy(off[n]["rms_deg"], "{:.1f}") for n in ("robust", "afckf", "madgwick")),
+            ]
+        )
+        for row in e["in_loop"]:
+            share, err = row.get("gyro_clipped_share"), row.get("clip_rate_error_rms_rad_s")
+            loop.append(
+                [
+                    end,
+                    row["variant"],
+                    row["estimator"],
+                    f"{row['survived']}/{row['runs']}",
+                    _f(row["tilt_error_after_loss_deg"]),
+                    "-" if share is None else f"{100 * share:.0f} %",
+                    "-" if err is None else " / ".join(_f(e, "{:.2f}") for e in err),
+                ]
+            )
+    seeds = r["seeds"]
+    cmd = f"`quadest reproduce afckf --spin-range --seeds {seeds[0]}-{seeds[-1]}`, docs/results/spin-range.json"
+    head = [
+        "end",
+        "k_h (N s²/m)",
+        "I_p (kg m²)",
+        "model: spin (rad/s) / tilt (°)",
+        "truth up",
+        "flown: spin / tilt",
+        "clipped (±1000 °/s)",
+        "peak rate (rad/s)",
+        "robust, roll / pitch / yaw (° RMS)",
+        "afckf",
+        "madgwick",
+    ]
+    return (
+        _table(head, rows)
+        + "\n\n"
+        + _table(
+            [
+                "end",
+                "gyroscope (predicted rate on a clipped axis)",
+                "in the loop",
+                "stayed up",
+                "tilt error in the loop (°)",
+                "samples clipped after the loss",
+                "rate error on clipped samples, x / y / z (rad/s RMS)",
+            ],
+            loop,
+        )
+        + f"\n\nA {r['params']['vehicle']} loses rotor {r['params']['rotor']} at {r['params']['failure_s']:g} s; "
+        f"flown values are means over the truth's flights that stayed up (errors offline over them, from the loss "
+        f"on); in the loop it must stay up {r['after_loss_s']:g} s more. Seeds {seeds[0]}-{seeds[-1]} ({cmd})."
+    )
+
+
 def results_afckf_prescribed() -> str:
     """docs/estimators.md: the prescribed reproduction."""
     r = _load("afckf-prescribed")
@@ -1013,6 +1082,7 @@ GENERATORS = {
     "results-afckf-prescribed": results_afckf_prescribed,
     "results-afckf-in-loop": results_afckf_in_loop,
     "results-clip-rate": results_clip_rate,
+    "results-spin-range": results_spin_range,
     "results-recovery-flown": results_recovery_flown,
     "results-recovery-ablations": results_recovery_ablations,
     "results-repoimu": results_repoimu,

@@ -404,6 +404,10 @@ def test_fly_a_throw_with_the_recovery_and_the_oracle(tmp_path, capsys):
         (["reproduce", "afckf", "--clipping"], "add --in-loop"),
         (["reproduce", "recovery", "--clipping"], "add --in-loop"),
         (["reproduce", "recovery", "--prescribed", "--any-direction"], "leave out --prescribed"),
+        (["reproduce", "qukf", "--vehicle-range", "high"], "--vehicle-range is for reproduce afckf"),
+        (["reproduce", "afckf", "--prescribed", "--vehicle-range", "low"], "--vehicle-range is for reproduce afckf"),
+        (["reproduce", "afckf", "--spin-range", "--in-loop"], "--spin-range is its own run"),
+        (["reproduce", "afckf", "--spin-range", "--vehicle-range", "high"], "leave out --vehicle-range"),
     ],
 )
 def test_reproduce_refuses_options_that_do_not_fit(capsys, argv, match):

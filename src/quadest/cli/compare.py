@@ -116,9 +116,15 @@ def cmd_compare(args):
 def cmd_reproduce(args):
     if args.clipping and not (args.paper == "afckf" and args.in_loop):
         raise CliError("--clipping is an ablation of reproduce afckf --in-loop: add --in-loop")
+    if args.vehicle_range != "chosen" and (args.paper != "afckf" or args.prescribed):
+        raise CliError("--vehicle-range is for reproduce afckf on the flown vehicle: leave out --prescribed")
+    if args.spin_range and (args.paper != "afckf" or args.prescribed or args.ablations or args.in_loop):
+        raise CliError("--spin-range is its own run of reproduce afckf: leave out --prescribed, --ablations, --in-loop")
+    if args.spin_range and args.vehicle_range != "chosen":
+        raise CliError("--spin-range flies every end of the range: leave out --vehicle-range")
     if args.paper == "recovery":
         return _reproduce_recovery(args)
-    args.seeds = args.seeds or ("1-20" if args.in_loop else "1-5")
+    args.seeds = args.seeds or ("1-20" if args.in_loop or args.spin_range else "1-5")
     seeds = parse_seeds(args.seeds)
     check_runs(args, len(seeds), f"--seeds {args.seeds}")
     if (args.prescribed or args.ablations or args.in_loop) and args.paper == "qukf":
@@ -129,6 +135,8 @@ def cmd_reproduce(args):
         raise CliError("--ablations and --in-loop run on the flown rotor loss: leave out --prescribed")
     if args.in_loop:
         return _reproduce_in_loop(args)
+    if args.spin_range:
+        return _reproduce_spin_range(args)
     if args.paper == "afckf":
         if args.prescribed:
             say(
@@ -151,6 +159,7 @@ def cmd_reproduce(args):
             scheduler=args.scheduler,
             prescribed=args.prescribed,
             ablations=args.ablations,
+            params=None if args.prescribed else flown.FlownAfckfParams(vehicle_range=args.vehicle_range),
         )
     else:
         say(
@@ -189,8 +198,28 @@ def _reproduce_in_loop(args):
     )
     say("(each estimator's loop compiles on its first flight: some seconds each)")
     clipping = dict(estimators=flown.CLIP_ESTIMATORS, variants=flown.CLIP_VARIANTS) if args.clipping else {}
-    result = reproduce.afckf_in_loop(seeds, progress=True, workers=args.workers, scheduler=args.scheduler, **clipping)
+    result = reproduce.afckf_in_loop(
+        seeds,
+        progress=True,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        params=flown.FlownAfckfParams(vehicle_range=args.vehicle_range),
+        **clipping,
+    )
     say(flown.format_in_loop(result["table"]))
+    if args.json:
+        write_json(args.json, result)
+    return 0
+
+
+def _reproduce_spin_range(args):
+    seeds = parse_seeds(args.seeds)
+    say(
+        "The AFCKF paper's rotor loss flown at the low, chosen and high ends of the Bebop 2's spin range "
+        f"(rotor drag k_h and rotor inertia I_p, docs/vehicle.md), seeds {args.seeds}."
+    )
+    result = reproduce.afckf_spin_range(seeds, progress=True, workers=args.workers, scheduler=args.scheduler)
+    say(reproduce.format_spin_range(result))
     if args.json:
         write_json(args.json, result)
     return 0
@@ -585,6 +614,21 @@ def _add_reproduce(sub):
         "(FlightParams.clip_rate) to the controller only, to the controller and the estimator, the same from "
         "the rotor speeds, a ±1000°/s gyro without and with it, ±300, ±400 and ±600°/s gyros with it, and a "
         "vehicle without rotor drag (a faster spin) at ±1000°/s without and with it (docs/vehicle.md)",
+    )
+    r.add_argument(
+        "--spin-range",
+        action="store_true",
+        help="afckf: instead of the tables, the flown loss at the low, chosen and high ends of the vehicle's "
+        "spin range (default seeds 1-20): the truth's spin, tilt and clipping share, every filter's error over "
+        "its flights, and truth, robust and afckf in the loop with a ±1000 and a ±500 °/s gyro (docs/vehicle.md)",
+    )
+    r.add_argument(
+        "--vehicle-range",
+        choices=["low", "chosen", "high"],
+        default="chosen",
+        help="afckf, flown: fly the vehicle at an end of the range of the parameters that decide its spin "
+        "(rotor drag k_h and rotor inertia I_p, from sources; docs/vehicle.md, Spin range): low or high, the "
+        "corner whose relaxed hover spins slowest or fastest; chosen, the preset (default)",
     )
     r.add_argument("--json", metavar="OUT", help="write all figures (per seed too) as JSON")
     r.add_argument(

@@ -7,13 +7,15 @@ The vehicle gives up its heading. It spins about a *primary axis* ``n`` fixed in
 the controller keeps ``n`` pointing up; the spin rate is whatever the yaw torques balance to.
 
 **Relaxed hover** (the controller's own model: rigid body, thrust ``k_f Ω²``, reaction torque
-``k_m Ω²``, damping ``d ⊙ ω`` with a lumped yaw damping). At a steady spin ``ω = ω̄ n`` with
+``k_m Ω²``, damping ``d ⊙ ω`` with a lumped yaw damping, the rotors' angular momentum
+``h e_z = I_p Σ_j s_j Ω_j e_z``). At a steady spin ``ω = ω̄ n`` with
 ``R n = −e_z`` (up):
 
 - force along ``n``: ``T (−n_z) = m g`` (the horizontal part of the thrust turns with the
   vehicle: it draws a small circle);
-- moments (body): ``Σ_j [−r_jy t_j, r_jx t_j, −s_j κ t_j] − d ⊙ ω = ω × J ω`` with ``κ = k_m/k_f``
-  (the rotors' moments and reaction torques, and the damping, balance the gyroscopic moment).
+- moments (body): ``Σ_j [−r_jy t_j, r_jx t_j, −s_j κ t_j] − d ⊙ ω = ω × (J ω + h e_z)`` with
+  ``κ = k_m/k_f`` and ``Ω_j = √(t_j/k_f)`` in ``h`` (the rotors' moments and reaction torques,
+  and the damping, balance the gyroscopic moment of body and rotors).
 
 Three rotors remain, so with ``n`` (two unknowns), the spin ``ω̄`` and three thrusts the four
 equations leave two choices. As Mueller & D'Andrea (2014, section V) the two rotors beside the
@@ -31,7 +33,8 @@ measured rate ``ω`` and the position and velocity estimates:
   the first terms turn ``n`` towards ``d_b`` (``ḋ_b = d_b × ω``; the integral, in the body frame
   where the error of a steady spin stands still, removes what the model leaves out), the last
   leaves the spin about ``d_b`` free;
-- moment ``M = J k_ω (ω_d − ω) + ω × J ω + d ⊙ ω`` of which the x and y components are kept;
+- moment ``M = J k_ω (ω_d − ω) + ω × (J ω + h e_z) + d ⊙ ω`` of which the x and y components
+  are kept (``h`` from the last rotor commands);
 - allocation: ``[T, M_x, M_y] = A₃ t`` for the three remaining rotors, ``t`` clipped to what the
   rotors can give, ``Ω = √(t/k_f)``. The yaw moment is not controlled: it sets the spin.
 
@@ -71,6 +74,7 @@ FtcGains = namedtuple(
         "gravity",
         "k_f",
         "t_max",
+        "rotor_momentum",
     ],
 )
 """What the compiled controller reads (built by :meth:`FtcParams.gains`)."""
@@ -163,6 +167,7 @@ class FtcParams:
             float(vehicle.gravity),
             float(vehicle.k_f),
             float(vehicle.k_f * vehicle.omega_max**2),
+            model.rotor_inertia * np.asarray(model.spin, float),
         )
 
     def all_gains(self, vehicle: MultirotorParams) -> tuple[FtcGains, ...]:
@@ -186,6 +191,8 @@ class FtcModel:
     rotor_pos: tuple
     spin: tuple
     kappa: float  # k_m / k_f
+    k_f: float = 1.0
+    rotor_inertia: float = 0.0  # I_p: the rotors' angular momentum I_p Σ s_j Ω_j about body z
 
     @classmethod
     def of(cls, v: MultirotorParams, yaw_damping: float) -> FtcModel:
@@ -197,6 +204,8 @@ class FtcModel:
             tuple(map(tuple, v.rotor_pos)),
             tuple(v.spin),
             v.k_m / v.k_f,
+            v.k_f,
+            v.rotor_inertia,
         )
 
 
@@ -232,13 +241,16 @@ def relaxed_hover(model: FtcModel, failed: int, rho: float) -> RelaxedHover:
         t = t_a * share
         w = wbar * n
         M = np.array([-(pos[:, 1] * t).sum(), (pos[:, 0] * t).sum(), -(spin * model.kappa * t).sum()]) - d * w
-        return np.concatenate([[t.sum() * -nz - model.mass * model.gravity], M - np.cross(w, J * w)])
+        h = model.rotor_inertia * (spin * np.sqrt(np.maximum(t, 0.0) / model.k_f)).sum()
+        gyro = np.cross(w, J * w + np.array([0.0, 0.0, h]))
+        return np.concatenate([[t.sum() * -nz - model.mass * model.gravity], M - gyro])
 
     t0 = model.mass * model.gravity / (2.0 + rho)
     w0 = -(spin * model.kappa * t0 * share).sum() / d[2]  # yaw balance with n = −e_z: ω_z = −ω̄
     best = None
-    for guess in ((-0.05, -0.05), (0.05, 0.05), (-0.05, 0.05), (0.05, -0.05)):
-        z, info, ok, _ = fsolve(residual, [t0, guess[0], guess[1], -w0], full_output=True, xtol=1e-12)
+    guesses = [(g, s) for s in (1.0, 1.5, 2.0) for g in ((-0.05, -0.05), (0.05, 0.05), (-0.05, 0.05), (0.05, -0.05))]
+    for guess, scale in guesses:  # the rotors' momentum (I_p) spins it faster than the yaw balance alone
+        z, info, ok, _ = fsolve(residual, [t0, guess[0], guess[1], -w0 * scale], full_output=True, xtol=1e-12)
         if ok == 1 and np.abs(residual(z)).max() < 1e-9 and z[0] > 0 and z[1] ** 2 + z[2] ** 2 < 1:
             if best is None or z[1] ** 2 + z[2] ** 2 < best[1] ** 2 + best[2] ** 2:
                 best = z
@@ -317,10 +329,54 @@ def ftc_command(xh, p_d, v_d, a_d, ftc, vehicle, dt, integral, cmd):
     od0 = ftc.k_n * e0 + ftc.k_i * integral[0] + wd * db[0]
     od1 = ftc.k_n * e1 + ftc.k_i * integral[1] + wd * db[1]
     J0, J1, J2 = ftc.inertia[0], ftc.inertia[1], ftc.inertia[2]
-    M0 = J0 * ftc.k_w * (od0 - w0) + (w1 * J2 * w2 - w2 * J1 * w1) + ftc.damping[0] * w0
-    M1 = J1 * ftc.k_w * (od1 - w1) + (w2 * J0 * w0 - w0 * J2 * w2) + ftc.damping[1] * w1
+    h = 0.0  # the rotors' angular momentum about z, from the last commands (cmd on entry)
+    for i in range(cmd.shape[0]):
+        h += ftc.rotor_momentum[i] * cmd[i]
+    M0 = J0 * ftc.k_w * (od0 - w0) + (w1 * J2 * w2 - w2 * J1 * w1) + w1 * h + ftc.damping[0] * w0
+    M1 = J1 * ftc.k_w * (od1 - w1) + (w2 * J0 * w0 - w0 * J2 * w2) - w0 * h + ftc.damping[1] * w1
+    thrust, scale = _fit_to_rotors(ftc, thrust, M0, M1)
+    M0 *= scale
+    M1 *= scale
     for i in range(cmd.shape[0]):
         cmd[i] = 0.0
     for a in range(3):
         t = ftc.alloc_inv[a, 0] * thrust + ftc.alloc_inv[a, 1] * M0 + ftc.alloc_inv[a, 2] * M1
         cmd[ftc.active[a]] = np.sqrt(min(max(t, 0.0), ftc.t_max) / ftc.k_f)
+
+
+@njit(cache=True, inline="always")
+def _thrust_range(ftc, thrust, M0, M1):
+    """The collective thrusts in ``[0, thrust]`` for which every rotor that shares the thrust
+    stays within ``[0, t_max]`` with the moments ``M0``, ``M1``: ``(lo, hi)``, empty if lo > hi."""
+    lo, hi = 0.0, thrust
+    for a in range(3):
+        c = ftc.alloc_inv[a, 0]  # rotor a's share of the thrust (0 for the one opposite the lost one)
+        m = ftc.alloc_inv[a, 1] * M0 + ftc.alloc_inv[a, 2] * M1
+        if c > 1e-9:
+            hi = min(hi, (ftc.t_max - m) / c)
+            lo = max(lo, -m / c)
+        elif c < -1e-9:
+            hi = min(hi, -m / c)
+            lo = max(lo, (ftc.t_max - m) / c)
+    return lo, hi
+
+
+@njit(cache=True, inline="always")
+def _fit_to_rotors(ftc, thrust, M0, M1):
+    """What the rotors can give, the roll and pitch moments first: the largest collective
+    thrust up to ``thrust`` with every rotor that shares it within ``[0, t_max]``; where none
+    fits, the moments scaled down (their direction kept, bisection) until one does. Returns the
+    thrust and the moments' scale. (Clipping each rotor alone would give up the moments' ratio.)"""
+    lo, hi = _thrust_range(ftc, thrust, M0, M1)
+    if lo <= hi:
+        return hi, 1.0
+    s_ok, s_bad = 0.0, 1.0
+    for _ in range(12):
+        s = 0.5 * (s_ok + s_bad)
+        lo, hi = _thrust_range(ftc, thrust, s * M0, s * M1)
+        if lo <= hi:
+            s_ok = s
+        else:
+            s_bad = s
+    lo, hi = _thrust_range(ftc, thrust, s_ok * M0, s_ok * M1)
+    return max(hi, 0.0), s_ok

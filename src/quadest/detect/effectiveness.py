@@ -36,6 +36,7 @@ if TYPE_CHECKING:
     from quadest.models.multirotor import MultirotorParams
 
 MAX_ROTORS = 8
+H_TAU = 0.004  # s: the low-pass of the rotors' momentum whose change the model reads (chosen: two samples at 500 Hz)
 NS = 3 + MAX_ROTORS  # the filter's largest state: rate and effectiveness
 STATE = layout(
     ("w", 3),
@@ -58,6 +59,7 @@ STATE = layout(
     ("samples", 1),
     ("contact_t", 1),  # when the accelerometer last read a push the rotors cannot make (-inf: never)
     ("landed", 1),  # 1 from a contact until the rotors carry the weight again
+    ("h_lp", MAX_ROTORS),  # each rotor's angular momentum I_p s_i Ω_i, low-passed over H_TAU
     ("B", 3 * MAX_ROTORS),  # scratch of one step: the input matrix, F P's rows, P h, h
     ("FP", 3 * NS),
     ("ph", NS),
@@ -77,6 +79,7 @@ MODEL = layout(
     ("damping", 3),
     ("rot_drag", 3),
     ("g", 3 * MAX_ROTORS),  # per rotor: the moment per unit thrust
+    ("ip_s", MAX_ROTORS),  # per rotor: its inertia times its sense, I_p s_i (the rotors' momentum per speed)
 )
 
 
@@ -212,7 +215,9 @@ def model_coefficients(vehicle) -> np.ndarray:
     values = [n, vehicle.mass_kg, *vehicle.inertia, vehicle.k_f, vehicle.k_z, vehicle.k_h, vehicle.motor_tau_s]
     values += [vehicle.omega_min]
     values += [vehicle.omega_max, vehicle.omega_dot_max, *vehicle.damping, *vehicle.rot_drag, *g.ravel()]
-    return pack(values)
+    ip_s = np.zeros(MAX_ROTORS)
+    ip_s[:n] = vehicle.rotor_inertia * spin
+    return pack(values + list(ip_s))
 
 
 @njit(cache=True, inline="always")
@@ -269,6 +274,7 @@ def _start(x, p, c, gyr, rotors):
         x[STATE.eta + i] = 1.0
         x[STATE.P + (3 + i) * ns + 3 + i] = 0.01  # intact within ±10 % at the start
         x[STATE.omega + i] = x[STATE.omega_end + i] = rotors[i]
+        x[STATE.h_lp + i] = c[MODEL.ip_s + i] * rotors[i]
         x[STATE.s_lost + i] = 0.0
         x[STATE.s_damaged + i] = 0.0
     x[STATE.lost] = x[STATE.damaged] = -1.0
@@ -290,9 +296,15 @@ def _predict(x, p, c, gyr, dt):
         om = x[STATE.omega + i]
         gx, gy = c[MODEL.g + 3 * i], c[MODEL.g + 3 * i + 1]  # gx = −r_y, gy = r_x
         thrust, yaw = rotor_thrust_yaw(c, i, om, w0, w1, w2)
-        x[B + i] = dt * thrust * gx / J0
-        x[B + MAX_ROTORS + i] = dt * thrust * gy / J1
-        x[B + 2 * MAX_ROTORS + i] = dt * yaw / J2
+        # the rotor's inertia: its gyroscopic moment −ω × (I_p s_i Ω_i e_z) and the reaction to its
+        # acceleration, from its speed low-passed over H_TAU (speed readings with 1 % noise,
+        # differentiated per sample, would give noise larger than the yaw moment)
+        h = c[MODEL.ip_s + i] * x[STATE.omega_end + i]
+        h_before = x[STATE.h_lp + i]
+        x[STATE.h_lp + i] = h_before + min(dt / H_TAU, 1.0) * (h - h_before)
+        x[B + i] = dt * thrust * gx / J0 - dt * w1 * h / J0
+        x[B + MAX_ROTORS + i] = dt * thrust * gy / J1 + dt * w0 * h / J1
+        x[B + 2 * MAX_ROTORS + i] = dt * yaw / J2 - (x[STATE.h_lp + i] - h_before) / J2
     a = (1.0 - dt * c[MODEL.damping] / J0, 1.0 - dt * c[MODEL.damping + 1] / J1, 1.0 - dt * c[MODEL.damping + 2] / J2)
     base = (dt * m0 / J0, dt * m1 / J1, dt * m2 / J2)
     rel = (p[PARAM.model_error], p[PARAM.model_error], p[PARAM.yaw_model_error])

@@ -5,9 +5,10 @@ The rate follows the Euler equations with the detector's model of the vehicle
 (:mod:`quadest.detect.effectiveness`: its arms, thrust with inflow, reaction torque, rotor drag
 and drag; never the simulated truth's), integrated once per sample (Heun's method)::
 
-    J ω̇ = Σ_i η_i M_i(Ω_i, ω) − ω × J ω − D ω − C_r |ω| ω + J b
+    J ω̇ = Σ_i η_i M_i(Ω_i, ω) − ω × (J ω + h e_z) − ḣ e_z − D ω − C_r |ω| ω + J b
 
-with ``Ω_i`` the rotor speeds, measured (ESC telemetry) or from the commands through the
+with ``h = I_p Σ_i η_i s_i Ω_i`` the rotors' angular momentum (``rotor_inertia``),
+``Ω_i`` the rotor speeds, measured (ESC telemetry) or from the commands through the
 model's motor, ``η_i`` the rotors' effectiveness as the controller knows it (a rotor given up:
 0), and ``b`` per axis the angular acceleration the model misses, a random walk
 (``bias_walk``). Each axis is a two-state Kalman filter (rate and ``b``) whose rate is
@@ -59,6 +60,7 @@ STATE = layout(
     ("gclip", 3),  # an axis clipped since it
     ("V", 3),  # per axis the field's noise (the variance of num − ω den)
     ("Vt", 3),  # and how long it has been learnt
+    ("h_dot", 1),  # the rate of the rotors' angular momentum about z over the last interval
 )
 
 
@@ -150,6 +152,7 @@ def _start(x, p, c, gyr, rotors):
         x[STATE.gclip + j] = 0.0
         x[STATE.V + j] = 0.0
         x[STATE.Vt + j] = 0.0
+    x[STATE.h_dot] = 0.0
     x[STATE.mdt] = 0.0
     for i in range(int(c[MODEL.rotors])):
         x[STATE.omega_end + i] = rotors[i]
@@ -162,11 +165,16 @@ def rate_derivative(c, w0, w1, w2, x, eta):
     ``x[STATE.omega_end:]`` (module doc), and the rotors' share of it per axis."""
     m0, m1, m2 = body_moments(c, w0, w1, w2)
     r0, r1, r2 = 0.0, 0.0, 0.0
+    h = 0.0  # the rotors' angular momentum about z: gyroscopic −ω × h e_z, reaction −ḣ
     for i in range(int(c[MODEL.rotors])):
         thrust, yaw = rotor_thrust_yaw(c, i, x[STATE.omega_end + i], w0, w1, w2)
         r0 += eta[i] * thrust * c[MODEL.g + 3 * i]
         r1 += eta[i] * thrust * c[MODEL.g + 3 * i + 1]
         r2 += eta[i] * yaw
+        h += eta[i] * c[MODEL.ip_s + i] * x[STATE.omega_end + i]
+    m0 -= w1 * h
+    m1 += w0 * h
+    m2 -= x[STATE.h_dot]
     J0, J1, J2 = c[MODEL.inertia], c[MODEL.inertia + 1], c[MODEL.inertia + 2]
     D0, D1, D2 = c[MODEL.damping], c[MODEL.damping + 1], c[MODEL.damping + 2]
     return (
@@ -307,9 +315,11 @@ def rate_step(x, p, c, gyr, mag, rotors, eta, gyro_range, dt, out):
         return 0
     if dt > 0.0:
         measured = p[PARAM.rotor_speeds] != 0.0
+        x[STATE.h_dot] = 0.0
         for i in range(int(c[MODEL.rotors])):
             begin = x[STATE.omega_end + i]
             x[STATE.omega_end + i] = rotors[i] if measured else motor_step(begin, rotors[i], c, dt)
+            x[STATE.h_dot] += eta[i] * c[MODEL.ip_s + i] * (x[STATE.omega_end + i] - begin) / dt
         _propagate(x, p, c, eta, dt)
     limit = gyro_range * (1.0 - p[PARAM.clip_margin]) if np.isfinite(gyro_range) else 0.0
     n = _fuse_axis(x, p, 0, gyr[0], limit, out)

@@ -20,6 +20,8 @@ vehicle up, and in place (:func:`in_loop_seed`, :func:`in_loop_table`).
 
 from __future__ import annotations
 
+import functools
+import itertools
 import math
 from dataclasses import asdict, dataclass, replace
 
@@ -27,11 +29,12 @@ import numpy as np
 
 from quadest.calibration import calibrate_centrifugal
 from quadest.control import Failure
+from quadest.control.ftc import FtcParams, relaxed_hover
 from quadest.evaluation.metrics import AXES
 from quadest.evaluation.runner import estimate, score_result
 from quadest.flight import FlightParams, fly, fly_many, resample
 from quadest.flight.common import mean_present
-from quadest.models.multirotor import vehicle_preset
+from quadest.models.multirotor import SPIN_RANGES, vehicle_preset
 from quadest.records import check, describe, param
 from quadest.recovery import RecoveryParams
 from quadest.sim import build_config
@@ -81,12 +84,51 @@ class FlownAfckfParams:
         bounds="[0, 3600]",
     )
 
+    vehicle_range: str = param(
+        "chosen",
+        "-",
+        "where in the range of the parameters that decide the spin (SPIN_RANGES) the vehicle flies: chosen "
+        "(the preset), low or high (the corner of the ranges whose relaxed hover spins slowest or fastest)",
+        "chosen: the preset's values",
+    )
+
     def __post_init__(self):
         check(self, "flown afckf")
+        if self.vehicle_range not in RANGE_ENDS:
+            raise ValueError(f"flown afckf: vehicle_range must be one of {', '.join(RANGE_ENDS)}")
 
     @classmethod
     def describe(cls) -> list[dict]:
         return describe(cls)
+
+
+RANGE_ENDS = ("low", "chosen", "high")
+
+
+@functools.lru_cache(maxsize=16)
+def range_vehicle(name: str, end: str = "chosen"):
+    """Vehicle preset ``name`` at an end of its spin range (:data:`SPIN_RANGES`): ``chosen`` is the
+    preset; ``low`` and ``high`` are the corners of the parameters' ranges whose relaxed hover (the
+    fault-tolerant controller's model after the loss of rotor 0) spins slowest and fastest."""
+    base = vehicle_preset(name)
+    if end == "chosen" or name not in SPIN_RANGES:
+        return base
+    ranges = SPIN_RANGES[name]
+    corners = [
+        replace(base, **dict(zip(ranges, values)))
+        for values in itertools.product(*[(r[0][0], r[2][0]) for r in ranges.values()])
+    ]
+    spins = [_relaxed_spin(v) for v in corners]  # a corner with no relaxed hover cannot be flown: left out
+    flyable = [i for i, w in enumerate(spins) if w is not None]
+    pick = min if end == "low" else max
+    return corners[pick(flyable, key=lambda i: spins[i])]
+
+
+def _relaxed_spin(v) -> float | None:
+    try:
+        return abs(relaxed_hover(FtcParams().model(v), 0, FtcParams().rho).spin)
+    except ValueError:
+        return None
 
 
 CASES = {
@@ -117,7 +159,7 @@ def flown_flight(case: str, seed: int, p: FlownAfckfParams | None = None, config
         scenario,
         estimator="truth",
         controller="ftc" if lost else "se3",
-        vehicle=p.vehicle,
+        vehicle=p.vehicle if p.vehicle_range == "chosen" else range_vehicle(p.vehicle, p.vehicle_range),
         preset=p.preset,
         config=config,
         seed=seed,
@@ -176,6 +218,27 @@ def flown_seed(task) -> dict:
     if flight.summary["status"] != "survived":
         raise ValueError(f"the flown {case} (seed {seed}) did not survive: {flight.summary['reason']}")
     return {"scores": score_filters(flight.recording, fparams, t_from), "flight": flight_outputs(flight, t_from)}
+
+
+def surviving_seed(task) -> dict | None:
+    """:func:`flown_seed`, or None where the truth's flight did not stay up (a vehicle at an end
+    of its spin range the controller cannot hold): its outputs say so."""
+    case, seed, p, fparams = task
+    flight = flown_flight(case, seed, p)
+    t_from = p.failure_s if CASES[case][1] else 0.0
+    out = {"seed": seed, "flight": flight_outputs(flight, t_from), "scores": None}
+    if flight.summary["status"] == "survived":
+        out["scores"] = score_filters(flight.recording, fparams, t_from)
+    return out
+
+
+SPIN_RANGE_VARIANTS = [
+    ("gyro ±1000°/s", {"gyro.range": math.radians(1000.0)}),
+    ("gyro ±500°/s", {"gyro.range": math.radians(500.0)}),
+]
+"""The sensors the spin range flies in the loop: the preset's ±1000 °/s gyro and a ±500 °/s one
+(with the predicted rate of a clipped axis, the default)."""
+SPIN_RANGE_ESTIMATORS = ["truth", "robust", "afckf"]
 
 
 # -- ablations -----------------------------------------------------------------------------------------
@@ -312,7 +375,9 @@ def in_loop_seed(task) -> list[dict]:
         "rotor-loss",
         estimators,
         [seed],
-        vehicle=replace(vehicle_preset(p.vehicle), **vehicle) if vehicle else p.vehicle,
+        vehicle=replace(range_vehicle(p.vehicle, p.vehicle_range), **vehicle)
+        if vehicle or p.vehicle_range != "chosen"
+        else p.vehicle,
         config=cfg,
         duration=p.failure_s + IN_LOOP_AFTER_S,
         failure=Failure(p.rotor, p.failure_s),

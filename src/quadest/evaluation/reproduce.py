@@ -20,7 +20,9 @@ from dataclasses import asdict, replace
 import numpy as np
 
 from quadest.calibration import calibrate_centrifugal
+from quadest.control.ftc import FtcParams, relaxed_hover
 from quadest.evaluation import flown
+from quadest.evaluation.flown import FlownAfckfParams
 from quadest.evaluation.metrics import AXES
 from quadest.evaluation.parallel import execute
 from quadest.evaluation.runner import estimate, estimate_all, score_result
@@ -28,6 +30,7 @@ from quadest.evaluation.speed import time_estimator
 from quadest.filters import make_filter
 from quadest.flight.throw import ThrowParams
 from quadest.models.aero import fit_aero
+from quadest.models.multirotor import SPIN_RANGES
 from quadest.recovery.logic import RecoveryParams, recover
 from quadest.sim import aero_model, build_config, simulate
 
@@ -201,6 +204,96 @@ def afckf_in_loop(
         "table": flown.in_loop_table(runs),
         "runs": runs,
     }
+
+
+def afckf_spin_range(
+    seeds=range(1, 21),
+    progress: bool = False,
+    workers: int = 0,
+    scheduler=None,
+    *,
+    ends=flown.RANGE_ENDS,
+) -> dict:
+    """The flown loss at each end of the vehicle's spin range (:data:`quadest.models.SPIN_RANGES`,
+    :func:`quadest.evaluation.flown.range_vehicle`): the controller model's relaxed hover, the
+    truth's flights (spin, tilt, clipping share) with every filter's error over those that stayed
+    up, and truth, robust and the AFCKF in the loop with a ±1000 and a ±500 °/s gyro."""
+    seeds = list(seeds)
+    out = {"seeds": seeds, "mode": "spin-range", "ranges": {}, "ends": {}}
+    base = FlownAfckfParams()
+    out["ranges"] = {
+        k: [{"value": v, "source": src} for v, src in r] for k, r in SPIN_RANGES.get(base.vehicle, {}).items()
+    }
+    for end in ends:
+        p = replace(base, vehicle_range=end)
+        out["ends"][end] = _spin_range_end(p, seeds, progress, workers, scheduler)
+    out["params"] = {r["name"]: getattr(base, r["name"]) for r in base.describe()}
+    out["after_loss_s"] = flown.IN_LOOP_AFTER_S
+    return out
+
+
+def _spin_range_end(p, seeds, progress, workers, scheduler) -> dict:
+    v = flown.range_vehicle(p.vehicle, p.vehicle_range)
+    ftc = FtcParams()
+    hover = relaxed_hover(ftc.model(v), p.rotor, ftc.rho)
+    cal, fparams = None, {}  # where the calibration flight does not stay up the AFCKF runs uncalibrated
+    if flown.flown_flight("damaged-rotor", p.calibration_seed, p).summary["status"] == "survived":
+        cal = flown.afckf_calibration_flown(p)
+        fparams = {"afckf": {"omega1": cal["omega1"], "omega2": cal["omega2"]}, "afckf-nocal": {}}
+    per_seed = _map(
+        flown.surviving_seed,
+        [("damaged-rotor", s, p, fparams) for s in seeds],
+        progress,
+        f"spin range {p.vehicle_range}: truth's flights",
+        workers,
+        scheduler,
+    )
+    up = [r for r in per_seed if r["scores"] is not None]
+    loop = afckf_in_loop(
+        seeds,
+        progress,
+        workers,
+        scheduler,
+        params=p,
+        estimators=flown.SPIN_RANGE_ESTIMATORS,
+        variants=flown.SPIN_RANGE_VARIANTS,
+    )
+    return {
+        "vehicle": {"k_h": v.k_h, "rotor_inertia": v.rotor_inertia},
+        "relaxed_hover_model": {"spin_rate_rad_s": abs(hover.spin), "tilt_deg": hover.tilt_deg},
+        "calibration": cal,
+        "truth_flights": {
+            "survived": len(up),
+            "runs": len(per_seed),
+            **_means_of_survivors([r["flight"] for r in up]),
+            "per_seed": [r["flight"] for r in per_seed],
+        },
+        "offline": _aggregate([r["scores"] for r in up], flown.LABELS) if up else None,
+        "in_loop": loop["table"],
+    }
+
+
+def format_spin_range(result: dict) -> str:
+    """The spin range as text: per end the vehicle, the spin, and who stays up in the loop."""
+    lines = []
+    for end, r in result["ends"].items():
+        t = r["truth_flights"]
+        spin = "-" if t["spin_rate_rad_s"] is None else f"{t['spin_rate_rad_s']:.1f} rad/s"
+        lines.append(
+            f"{end}: k_h {r['vehicle']['k_h']:.3g}, I_p {r['vehicle']['rotor_inertia']:.3g}; model "
+            f"{r['relaxed_hover_model']['spin_rate_rad_s']:.1f} rad/s; "
+            f"truth up {t['survived']}/{t['runs']}, spin {spin}"
+        )
+        for row in r["in_loop"]:
+            lines.append(f"  {row['variant']}, {row['estimator']} in the loop: {row['survived']}/{row['runs']} up")
+    return "\n".join(lines)
+
+
+def _means_of_survivors(outputs: list[dict]) -> dict:
+    keys = ("spin_rate_rad_s", "tilt_deg", "gyro_clipped_share", "peak_rate_rad_s")
+    if not outputs:
+        return dict.fromkeys(keys)
+    return {k: v for k, v in _flight_means(outputs).items() if k != "per_seed"}
 
 
 def _flight_means(outputs: list[dict]) -> dict:

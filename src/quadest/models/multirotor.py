@@ -61,6 +61,7 @@ Vehicle = namedtuple(
         "damping",
         "rot_drag",
         "gravity",
+        "rotor_inertia",
         "wind",
         "ground",
         "legs",
@@ -173,6 +174,13 @@ class MultirotorParams:
         "Sun et al. 2021, their Bebop 2 simulation (simParams.m, aero.rotDrag)",
     )
     gravity: float = param(GRAVITY, "m/s²", "gravity", "standard gravity", bounds="(0, 100]")
+    rotor_inertia: float = param(
+        0.0,
+        "kg m²",
+        "moment of inertia of each rotor (propeller and motor bell) about its axis",
+        "chosen: none (the recovery paper gives none; its throws keep the rotors at a constant speed)",
+        bounds="[0, 1e-2]",
+    )
     blades: int = param(
         2,
         "-",
@@ -220,6 +228,7 @@ class MultirotorParams:
             np.asarray(self.damping, float),
             np.asarray(self.rot_drag, float),
             float(self.gravity),
+            float(self.rotor_inertia),
             np.zeros(3),
             np.array([np.inf, 0.0, 0.0, 0.0]),
             np.zeros((0, 3)),
@@ -243,6 +252,7 @@ class MultirotorParams:
 
 _SUN = "Sun et al., T-RO 2021, public simulation (github.com/SihaoSun/INDI_Quadrotor_FTC)"
 _ROTORPY = "RotorPy 3.0, rotorpy/vehicles/hummingbird_params.py"
+_PPRZ = "Paparazzi's Bebop 2 INDI airframe (conf/airframes/TUDELFT/tudelft_bebop2_indi.xml)"
 
 VEHICLE_PRESETS = {
     "recovery": ({}, {}),
@@ -265,6 +275,7 @@ VEHICLE_PRESETS = {
             rot_drag=(5e-5, 5e-5, 1e-4),
             gravity=9.8124,
             blades=3,
+            rotor_inertia=4.7e-6,
         ),
         dict(
             mass_kg=f"{_SUN}: controlParams.m (the simulation's own mass is in a .mat file)",
@@ -284,6 +295,10 @@ VEHICLE_PRESETS = {
             rot_drag=f"{_SUN}: simParams.m, aero.rotDrag",
             gravity=f"{_SUN}: simParams.m (Delft)",
             blades="the Bebop 2's stock propellers have three blades",
+            rotor_inertia=f"{_PPRZ}: the ratio of the yaw effectiveness of the rotor acceleration to "
+            "that of the rotor speed, G2_R / G1_R = 0.20 / 0.0022 at 512 Hz, is I_p f / (2 k_m Ω) for the "
+            "incremental yaw model; with this preset's k_m and hover speed (695 rad/s) I_p = 4.7e-6 "
+            "(range: docs/vehicle.md, Spin range)",
         ),
     ),
     "hummingbird": (
@@ -305,6 +320,7 @@ VEHICLE_PRESETS = {
             rot_drag=(0.0, 0.0, 0.0),
             gravity=9.81,
             blades=2,
+            rotor_inertia=0.0,
         ),
         dict(
             mass_kg=f"{_ROTORPY}: mass",
@@ -324,11 +340,34 @@ VEHICLE_PRESETS = {
             rot_drag="RotorPy has none",
             gravity="RotorPy: 9.81",
             blades="the AscTec Hummingbird's 8-inch propellers have two blades",
+            rotor_inertia="RotorPy has none (its rotors' inertia is not modelled: the cross-check stays like for like)",
         ),
     ),
 }
 """Vehicles by name: the fields that differ from :class:`MultirotorParams`' defaults (the
 recovery paper's vehicle) and the source of each."""
+
+
+SPIN_RANGES = {
+    "bebop2": {
+        "k_h": (
+            (0.0, "Sun et al.'s simple aerodynamic model (simpleAeroModel.m) has no rotor drag"),
+            (4.05e-5, "the preset's (chosen: Faessler et al. 2018's linear rotor drag, 0.3 1/s at hover)"),
+            (
+                6.1e-5,
+                "RotorPy's Hummingbird rotor drag per unit mass at hover (4 k_d Ω_h / m = 0.45 1/s) on the "
+                "Bebop 2: 0.45 m / (4 Ω_h)",
+            ),
+        ),
+        "rotor_inertia": (
+            (0.0, "a bound, not a measurement: no rotor inertia (quadest before; the controller models of Sun et al.)"),
+            (4.7e-6, "the preset's: Paparazzi's Bebop 2 INDI airframe, G2_R / G1_R"),
+            (1.1e-5, "LADAC's Bebop 2 (TU Braunschweig, LADAC_params/Bebop2/copter_params_Bebop2.m: prop.I)"),
+        ),
+    },
+}
+"""Per vehicle, the parameters that decide the spin after a rotor loss, each as ``(low, chosen,
+high)`` values with their sources (docs/vehicle.md, *Spin range*)."""
 
 
 def vehicle_preset(name: str) -> MultirotorParams:
@@ -425,15 +464,19 @@ def derivative_ws(x, cmd, eta, vehicle, dx, F, M, T):
     dx[0], dx[1], dx[2] = x[3], x[4], x[5]
     dx[3], dx[4], dx[5] = a0, a1, a2 + vehicle.gravity
     dx[6], dx[7], dx[8], dx[9] = qdot_s(qw, qx, qy, qz, w0, w1, w2)
-    J0, J1, J2 = vehicle.inertia[0], vehicle.inertia[1], vehicle.inertia[2]
-    # Euler: J ω̇ = M − ω × (J ω)
-    dx[10] = (M[0] - (w1 * J2 * w2 - w2 * J1 * w1)) / J0
-    dx[11] = (M[1] - (w2 * J0 * w0 - w0 * J2 * w2)) / J1
-    dx[12] = (M[2] - (w0 * J1 * w1 - w1 * J0 * w0)) / J2
+    h = 0.0  # the rotors' angular momentum about body z, and its rate
+    h_dot = 0.0
     for i in range(vehicle.rotor_pos.shape[0]):
         target = min(max(cmd[i], vehicle.omega_min), vehicle.omega_max)
         rate = (target - x[13 + i]) / vehicle.tau
         dx[13 + i] = min(max(rate, -vehicle.omega_dot_max), vehicle.omega_dot_max)
+        h += vehicle.rotor_inertia * eta[i] * vehicle.spin[i] * x[13 + i]
+        h_dot += vehicle.rotor_inertia * eta[i] * vehicle.spin[i] * dx[13 + i]
+    J0, J1, J2 = vehicle.inertia[0], vehicle.inertia[1], vehicle.inertia[2]
+    # Euler: J ω̇ = M − ω × (J ω + h e_z) − ḣ e_z
+    dx[10] = (M[0] - (w1 * J2 * w2 - w2 * J1 * w1) - w1 * h) / J0
+    dx[11] = (M[1] - (w2 * J0 * w0 - w0 * J2 * w2) + w0 * h) / J1
+    dx[12] = (M[2] - (w0 * J1 * w1 - w1 * J0 * w0) - h_dot) / J2
 
 
 @njit(cache=True)
