@@ -14,6 +14,8 @@ import re
 import sys
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -956,6 +958,71 @@ def results_robust_targets() -> str:
     )
 
 
+def _tradeoff_rows(mode: dict, label: str, chosen: float) -> list[list[str]]:
+    rows = []
+    for r in mode[label]:
+        d = r["delay_ms"]
+        h = f"**{r['threshold']:g}** (default)" if r["threshold"] == chosen else f"{r['threshold']:g}"
+        rows.append(
+            [label, h, f"{r['found']}/{r['complete']}", str(r["isolated"])]
+            + [_f(d[k], "{:.0f} ms" if k == "median" else "{:.0f}") for k in ("median", "p90", "p99", "max")]
+            + [f"{r['nominal_alarms']} in {r['nominal_hours']:.1f} h", str(r["alarms_before_failure"])]
+        )
+    return rows
+
+
+def _smallest_quiet(rows: list[dict]) -> float | None:
+    """The rule's choice on one set: the smallest threshold without an alarm, nominal or early."""
+    quiet = [r["threshold"] for r in rows if r["nominal_alarms"] == 0 and r["alarms_before_failure"] == 0]
+    return min(quiet) if quiet else None
+
+
+def results_detection_tradeoff() -> str:
+    """The 'lost' test's threshold against delay and false alarms, with rotor speeds, both sets,
+    and the rule applied the other way round (docs/results/detection-tradeoff.json)."""
+    modes = _load("detection-tradeoff")["modes"]
+    m = modes["rotor-speeds"]
+    rows = _tradeoff_rows(m, "train", m["chosen"]) + _tradeoff_rows(m, "test", m["chosen"])
+    header = ["set", "threshold h (deficit-s)", "complete losses found", "named", "median", "p90", "p99", "max",
+              "alarms in nominal flight", "alarms before a failure"]  # fmt: skip
+    lines = [_table(header, rows), ""]
+    for name, mode in modes.items():
+        back = _smallest_quiet(mode["test"])
+        at = next((r for r in mode["train"] if r["threshold"] == back), None)
+        lines.append(
+            f"- {name}: chosen on the training seeds {mode['chosen']:g}; chosen the other way round (on the "
+            f"test seeds) {back:g}, which on the training seeds finds {at['found']}/{at['complete']}, median "
+            f"{_f(at['delay_ms']['median'], '{:.0f}')} ms, p99 {_f(at['delay_ms']['p99'], '{:.0f}')} ms, "
+            f"{at['nominal_alarms']} nominal alarms."
+        )
+    return "\n".join(lines)
+
+
+SCENARIO_LABELS = {"hover": "hover (disturbed start)", "trajectory": "1 m circle",
+                   "aggressive": "figure eight (7-12 m/s², 5-8 rad/s)"}  # fmt: skip
+
+
+def _delays_ms(runs: list[dict], key: str) -> list[float]:
+    """The delays of the complete losses found at threshold ``key`` (ms)."""
+    hits = [r["first"][key] for r in runs if r["rotor"] is not None and r["efficiency"] == 0.0]
+    times = [r["time_s"] for r in runs if r["rotor"] is not None and r["efficiency"] == 0.0]
+    return [1e3 * (h[0] - t) for h, t in zip(hits, times) if h and h[0] >= t]
+
+
+def results_detection_scenarios() -> str:
+    """The default threshold's delays by scenario on the test seeds, rotor speeds."""
+    m = _load("detection-tradeoff")["modes"]["rotor-speeds"]
+    rows = []
+    for name, label in SCENARIO_LABELS.items():
+        runs = [r for r in m["test_runs"] if r["scenario"] == name]
+        complete = sum(r["rotor"] is not None and r["efficiency"] == 0.0 for r in runs)
+        d = _delays_ms(runs, str(m["chosen"]))
+        q = np.percentile(d, [50, 99]) if d else [None, None]
+        cells = [_f(v, "{:.0f} ms") for v in (q[0], q[1], max(d, default=None))]
+        rows.append([label, f"{len(d)}/{complete}", *cells])
+    return _table(["scenario", "found", "median", "p99", "max"], rows)
+
+
 def results_campaign() -> str:
     """The survival campaign's table (docs/results/campaign.json: quadest campaign --json)."""
     r = _load("campaign")
@@ -1054,6 +1121,8 @@ def results_collisions() -> str:
 
 GENERATORS = {
     "results-campaign": results_campaign,
+    "results-detection-tradeoff": results_detection_tradeoff,
+    "results-detection-scenarios": results_detection_scenarios,
     "divergence-params": divergence_params,
     "collision-params": collision_params,
     "results-collisions": results_collisions,

@@ -46,8 +46,8 @@ def test_a_lost_rotor_is_found_isolated_and_survived_in_the_loop(mode, rotor):
     in hover is found within 100 ms at the default threshold (the loop's budget: switching
     150 ms after the loss crashes the vehicle) and named; at 0.004 (about 25 ms) the vehicle
     stays up (hovering 10 m up: with its rotors' inertia the Bebop 2 falls about 5 m before the
-    fault-tolerant controller catches it). The default (0.016, chosen for no false alarm) takes
-    48-66 ms; whether the vehicle stays up then is in docs/detection.md, not asserted here."""
+    fault-tolerant controller catches it). The default (0.008, chosen for no false alarm) takes
+    about 40 ms; whether the vehicle stays up then is in docs/detection.md, not asserted here."""
     fail = Failure(rotor=rotor, time_s=2.0)
     high = FlightParams(height_m=10.0)
     s = fly("rotor-loss", seed=rotor, duration=5.0, vehicle="bebop2", failure=fail, detection=mode, params=high).summary

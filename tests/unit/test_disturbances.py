@@ -34,13 +34,15 @@ def test_the_gyroscope_has_each_rotors_tone():
 
 
 def test_a_flown_gyroscope_vibrates_as_drawn():
-    """A case's hover: the gyroscope's reading minus the true rate, above 60 Hz, has about the
-    RMS of the drawn tone (``g/√2`` per axis), the drawn white noise taken off: within a factor
-    2, since the four rotors turn at nearly one speed near hover and their tones add with their
-    drawn phases; yaw's well below roll's and pitch's, as drawn."""
+    """A case's circle: the gyroscope's reading minus the true rate, above 60 Hz, has the RMS of
+    the drawn tone (``g/√2`` per axis: four rotors of amplitude ``g/2`` adding in power), the
+    drawn white noise taken off, within 1.5× (the rotors' speeds move about hover's). On the
+    circle the four rotors turn at different speeds, so their tones add in power; in a level
+    hover they turn at nearly one speed and add by their drawn phases (anywhere from 0 to 2×),
+    which is why the test flies the circle. Yaw's well below roll's and pitch's, as drawn."""
     case = nominal_case(7, "rotor-speeds", 6.0)
     cfg = case_config(case)
-    f = fly("hover", seed=7, duration=6.0, vehicle="bebop2", config=cfg)
+    f = fly("trajectory", seed=7, duration=6.0, vehicle="bebop2", config=cfg)
     rec = f.recording
     processes, _ = sensors_for(cfg, len(rec.t), 7, vehicle_preset("bebop2"))  # the flight's own draws
     ripple = (rec.gyr - rec.true_gyr - processes.gyr_noise)[rec.t > 2.0]
@@ -51,7 +53,7 @@ def test_a_flown_gyroscope_vibrates_as_drawn():
     rms = np.sqrt((tone**2).mean(axis=0))
     expected = np.asarray(cfg.gyro.vibration_amp) / np.sqrt(2.0)
     assert expected[0] > 0.02 and expected[2] < expected[0] / 3
-    assert (rms > expected / 2).all() and (rms < 2 * expected).all(), (rms, expected)
+    assert (rms > expected / 1.5).all() and (rms < 1.5 * expected).all(), (rms, expected)
     assert rms[2] < 0.5 * min(rms[0], rms[1])
 
 
