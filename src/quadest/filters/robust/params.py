@@ -19,16 +19,17 @@ STATE = layout(
     ("qg", 4),  # q_Ib: gyro strapdown, body -> almost-inertial frame I
     ("qi", 4),  # q_EI: inclination correction, I -> E
     ("delta", 1),  # heading offset δ about down, E -> n (rad)
-    ("lp", 6),  # Butterworth state of f_I: (s1, s2) per axis
+    ("lp", 12),  # Butterworth state of f_I: (s1, s2) per axis and section (eq R1c)
     ("lpy", 3),  # the low-pass output (f_I filtered)
     ("mean_n", 1),  # samples in the initial averaging (until τ_acc has passed)
     ("coef_dt", 1),  # Δt the cached coefficients were computed for
     ("coef", 8),  # b0, a1, a2, k_acc, k_rest, k_mag_lp, k_init, spare
     ("bias", 3),  # gyro bias, body, rad/s
     ("Pb", 9),  # its covariance, row-major
-    ("hlp", 18),  # eq R3d: Butterworth state of R(q_Eb)'s rows (north, east, down), 3 entries each
+    ("hlp", 36),  # eq R3d: Butterworth state of R(q_Eb)'s rows (north, east, down), 3 entries each
     ("hrow", 9),  # their low-pass output
-    ("hblp", 4),  # Butterworth state of R(q_Eb) b, north and east
+    ("wlp", 1),  # eq R1c: the rate's norm low-passed (first order, τ_acc), rad/s
+    ("hblp", 8),  # Butterworth state of R(q_Eb) b, north and east
     ("rest_g", 3),
     ("rest_a", 3),  # low-passed gyro and accelerometer for rest detection
     ("rest_t", 1),  # time at rest so far, s
@@ -91,6 +92,17 @@ class RobustParams(Params):
         "chosen: the 2nd-order low-pass (cut-off √2/(2π τ)) attenuates a vehicle's 2 m/s² manoeuvre at "
         "0.2 Hz to 1° of tilt; on BROAD's split 3-5 s are within 0.04° (VQF: 3 s)",
         bounds="(0, 1e3]",
+    )
+    lp_rate: float = param(
+        0.0,
+        "rad/s",
+        "eq R1c: the specific force's low-pass (and the rows of eq R3d) is the 2nd-order Butterworth "
+        "plus a share 1/(1 + (lp‖ω‖/lp_rate)²) of what a second section in series changes (a 4th "
+        "order: far less of a sustained manoeuvre's acceleration, twice the delay, which a rotation's "
+        "scale-factor drift turns into tilt); 0: the 2nd order alone",
+        "chosen: off (it costs BROAD's undisturbed trials and the simulator's yaw); for 6-axis "
+        "multirotor flights 0.5 rad/s, chosen on half of the shared flights (docs/estimators.md)",
+        bounds="[0, 1e3]",
     )
     tau_mag: float = param(
         15.0,

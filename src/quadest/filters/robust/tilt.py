@@ -1,7 +1,7 @@
 """Tilt (docs/estimators.md, robust, items 1, 2, 7, 10, 11): the strapdown in an almost-inertial
-frame, the specific force low-passed there (its initial averaging ended by eq R8), the
-inclination correction (eq R1) and the bias it measures in motion (eqs R3-R3c), the lever arm,
-and the tilt's reported variance (eq R6)."""
+frame, the specific force low-passed there (a 4th-order share optional, eq R1c; the initial
+averaging ended by eq R8), the inclination correction (eq R1) and the bias it measures in motion
+(eqs R3-R3d), the lever arm, and the tilt's reported variance (eq R6)."""
 
 from __future__ import annotations
 
@@ -39,6 +39,24 @@ def biquad(x, i, v, b0, a1, a2):
     x[i] = 2.0 * b0 * v - a1 * y + x[i + 1]
     x[i + 1] = b0 * v - a2 * y
     return y
+
+
+@njit(cache=True, inline="always")
+def lowpass(x, i, v, b0, a1, a2, share):
+    """The force's low-pass (eq R1c): a Butterworth section, and unless ``share`` < 0 that output
+    plus ``share`` of what a second section in series changes; state ``x[i]`` to ``x[i + 4]``
+    (two per section)."""
+    y = biquad(x, i, v, b0, a1, a2)
+    if share >= 0.0:
+        y += share * (biquad(x, i + 2, y, b0, a1, a2) - y)
+    return y
+
+
+@njit(cache=True, inline="always")
+def steady_lowpass(x, i, v, b0, a2):
+    """The low-pass's state in steady state at ``v`` (every section)."""
+    x[i], x[i + 1] = v - b0 * v, b0 * v - a2 * v
+    x[i + 2], x[i + 3] = v - b0 * v, b0 * v - a2 * v
 
 
 @njit(cache=True, inline="always")
@@ -107,7 +125,7 @@ def end_of_averaging(x, p, gyr, fI0, fI1, fI2, y0, y1, y2, n, rest_rate2):
 
 
 @njit(cache=True, inline="always")
-def filtered_force(x, p, gyr, fI0, fI1, fI2, rest_rate2, dt):
+def filtered_force(x, p, gyr, fI0, fI1, fI2, rest_rate2, share, dt):
     """Item 2: the specific force in I low-passed (2nd-order Butterworth); for the first τ_acc a
     running mean (converges at once, no initial transient) until eq R8 ends it. Returns the
     filtered force, the equivalent first-order gain and the averaging's count (−1 once over)."""
@@ -123,17 +141,30 @@ def filtered_force(x, p, gyr, fI0, fI1, fI2, rest_rate2, dt):
         if n * dt >= p[PARAM.tau_acc] or x[STATE.moved] > 0.0:
             n = -1.0
             # the low-pass starts in steady state at the mean
-            x[STATE.lp], x[STATE.lp + 1] = y0 - b0 * y0, b0 * y0 - a2 * y0
-            x[STATE.lp + 2], x[STATE.lp + 3] = y1 - b0 * y1, b0 * y1 - a2 * y1
-            x[STATE.lp + 4], x[STATE.lp + 5] = y2 - b0 * y2, b0 * y2 - a2 * y2
+            steady_lowpass(x, STATE.lp, y0, b0, a2)
+            steady_lowpass(x, STATE.lp + 4, y1, b0, a2)
+            steady_lowpass(x, STATE.lp + 8, y2, b0, a2)
         x[STATE.mean_n] = n
     else:
         kk = k_acc
-        y0 = biquad(x, STATE.lp, fI0, b0, a1, a2)
-        y1 = biquad(x, STATE.lp + 2, fI1, b0, a1, a2)
-        y2 = biquad(x, STATE.lp + 4, fI2, b0, a1, a2)
+        y0 = lowpass(x, STATE.lp, fI0, b0, a1, a2, share)
+        y1 = lowpass(x, STATE.lp + 4, fI1, b0, a1, a2, share)
+        y2 = lowpass(x, STATE.lp + 8, fI2, b0, a1, a2, share)
     x[STATE.lpy], x[STATE.lpy + 1], x[STATE.lpy + 2] = y0, y1, y2
     return y0, y1, y2, kk, n
+
+
+@njit(cache=True, inline="always")
+def fourth_order_share(x, p, u0, u1, u2):
+    """Eq R1c: the 4th-order low-pass's share, ``1 / (1 + (lp‖ω‖ / lp_rate)²)``, ``lp`` first order
+    over τ_acc (a rotation's scale-factor drift lags by the filter's delay, and the 4th order's is
+    twice the 2nd's); −1 with ``lp_rate`` 0 (the 2nd order alone)."""
+    if p[PARAM.lp_rate] <= 0.0:
+        return -1.0
+    wn = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    x[STATE.wlp] += x[STATE.coef + 3] * (wn - x[STATE.wlp])
+    r = x[STATE.wlp] / p[PARAM.lp_rate]
+    return 1.0 / (1.0 + r * r)
 
 
 @njit(cache=True, inline="always")
@@ -157,18 +188,18 @@ def correct_inclination(x, y0, y1, y2):
 
 
 @njit(cache=True, inline="always")
-def lowpass_or_hold(x, i, v, hold):
-    """The force's Butterworth low-pass (state ``x[i], x[i + 1]``) of ``v``; with ``hold`` (the
-    force still averaged) its state set steady at ``v``, and ``v`` returned."""
+def lowpass_or_hold(x, i, v, hold, share):
+    """The force's low-pass (state from ``x[i]``, eq R1c) of ``v``; with ``hold`` (the force still
+    averaged) its state set steady at ``v``, and ``v`` returned."""
     b0, a1, a2 = x[STATE.coef], x[STATE.coef + 1], x[STATE.coef + 2]
     if hold:
-        x[i], x[i + 1] = v - b0 * v, b0 * v - a2 * v
+        steady_lowpass(x, i, v, b0, a2)
         return v
-    return biquad(x, i, v, b0, a1, a2)
+    return lowpass(x, i, v, b0, a1, a2, share)
 
 
 @njit(cache=True, inline="always")
-def filtered_rows(x, ew, ex, ey, ez, hold):
+def filtered_rows(x, ew, ex, ey, ez, hold, share):
     """Eq R3d: the rows of ``R(q_Eb)`` (north, east, down) into ``hrow``, and ``R(q_Eb) b``
     (north, east), low-passed as the force is; returns the latter."""
     rows = rot_entries(ew, ex, ey, ez)
@@ -176,10 +207,13 @@ def filtered_rows(x, ew, ex, ey, ez, hold):
     for r in range(3):
         for j in range(3):
             k = 3 * r + j
-            x[STATE.hrow + k] = lowpass_or_hold(x, STATE.hlp + 2 * k, rows[r][j], hold)
+            x[STATE.hrow + k] = lowpass_or_hold(x, STATE.hlp + 4 * k, rows[r][j], hold, share)
     hb_n = rows[0][0] * b0_ + rows[0][1] * b1_ + rows[0][2] * b2_
     hb_e = rows[1][0] * b0_ + rows[1][1] * b1_ + rows[1][2] * b2_
-    return lowpass_or_hold(x, STATE.hblp, hb_n, hold), lowpass_or_hold(x, STATE.hblp + 2, hb_e, hold)
+    return (
+        lowpass_or_hold(x, STATE.hblp, hb_n, hold, share),
+        lowpass_or_hold(x, STATE.hblp + 4, hb_e, hold, share),
+    )
 
 
 @njit(cache=True, inline="always")
@@ -228,8 +262,9 @@ def tilt(x, p, c, gyr, f, fn, u, at_rest, nclip, rest_rate2, clip_b, dt):
     pt += (c[COEF.sg2] + p[PARAM.tau_acc] * sb2) * dt
     if fn > 0.0:
         fI0, fI1, fI2 = rotate_s(gw, gx, gy, gz, f0, f1, f2)
-        y0, y1, y2, kk, n = filtered_force(x, p, gyr, fI0, fI1, fI2, rest_rate2, dt)
-        lp_hb = filtered_rows(x, ew, ex, ey, ez, n >= 0.0)
+        share = fourth_order_share(x, p, u0, u1, u2)
+        y0, y1, y2, kk, n = filtered_force(x, p, gyr, fI0, fI1, fI2, rest_rate2, share, dt)
+        lp_hb = filtered_rows(x, ew, ex, ey, ez, n >= 0.0, share)
         cw, cx, cy, corrected = correct_inclination(x, y0, y1, y2)
         if corrected and not at_rest and nclip == 0 and n < 0.0:
             rate2 = u0 * u0 + u1 * u1 + u2 * u2
