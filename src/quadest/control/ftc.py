@@ -369,6 +369,14 @@ def ftc_command(xh, p_d, v_d, a_d, ftc, vehicle, dt, integral, cmd):
         db[i] = (R[0, i] * fd[0] + R[1, i] * fd[1] + R[2, i] * fd[2]) / nf
     thrust = ftc.mass * nf / max(-db[2], 0.3)
     M0, M1 = _moments(xh, db, ftc, dt, integral, cmd)
+    allocate(ftc, thrust, M0, M1, cmd)
+
+
+@njit(cache=True)
+def allocate(ftc, thrust, M0, M1, cmd):
+    """Rotor speeds (rad/s) into ``cmd`` for the collective thrust and the roll and pitch moments
+    (body) asked of the three rotors left: the bounded least squares (``thrust_weight`` > 0) or
+    the former allocation (module doc)."""
     if ftc.alloc_weight[0] > 0.0:
         _bounded_allocation(ftc, thrust, M0, M1, cmd)
         return
