@@ -12,8 +12,6 @@ from quadest.flight import fly
 from quadest.models import vehicle_preset
 
 BEBOP = vehicle_preset("bebop2")
-FORMER = dict(rho=0.25, k_w=50.0, max_tilt_deg=25.0, thrust_weight=0.0, cancel_gyroscopic=True, spin_about_axis=False)
-"""The controller before the transient was looked into (each field restores one change)."""
 
 
 def _given(gains, thrust, m0, m1):
@@ -46,7 +44,7 @@ def test_the_bounded_least_squares_is_the_optimum_and_never_turns_a_moment_aroun
     tumble, docs/vehicle.md)."""
     weight = BEBOP.mass_kg * BEBOP.gravity
     new = FtcParams().gains(BEBOP, 0)
-    old = FtcParams(**FORMER).gains(BEBOP, 0)
+    old = FtcParams.former().gains(BEBOP, 0)
     for ask in ([weight, -0.27, 0.30], [weight, -0.05, 0.06], [0.5 * weight, -0.2, 0.1]):
         given, t = _given(new, *ask)
         w = new.alloc_weight
@@ -76,7 +74,7 @@ def losses():
     """A Bebop 2 hovering 3 m up loses rotor 0 at 2 s (true state in the loop, told 50 ms later:
     oracles), flown by the controller as it is and as it was."""
     kw = dict(vehicle="bebop2", estimator="truth", seed=0, duration=5.0, failure=Failure(0, 2.0))
-    return {name: fly("rotor-loss", ftc=FtcParams(**p), **kw) for name, p in (("now", {}), ("former", FORMER))}
+    return {name: fly("rotor-loss", ftc=p, **kw) for name, p in (("now", FtcParams()), ("former", FtcParams.former()))}
 
 
 def test_the_loss_from_a_hover_no_longer_reaches_the_ground(losses):

@@ -174,6 +174,14 @@ class FtcParams:
         if self.yaw_damping is not None and not (np.isfinite(self.yaw_damping) and self.yaw_damping > 0):
             raise ValueError(f"ftc: yaw_damping must be a positive number, got {self.yaw_damping!r}")
 
+    @classmethod
+    def former(cls, **changes) -> FtcParams:
+        """The controller before its loss transient was looked into (docs/vehicle.md): the tilted
+        relaxed hover (ρ = 0.25), the gyroscopic moment cancelled, the spin about ``d_b`` left
+        free, the former allocation, ``k_w`` 50, the tilt at most 25°."""
+        former = dict(rho=0.25, k_w=50.0, max_tilt_deg=25.0, thrust_weight=0.0, cancel_gyroscopic=True)
+        return cls(**{**former, "spin_about_axis": False, **changes})
+
     def model(self, vehicle: MultirotorParams) -> FtcModel:
         d_z = self.yaw_damping if self.yaw_damping is not None else fit_yaw_damping(vehicle, self.rho)
         return FtcModel.of(vehicle, d_z)
