@@ -19,9 +19,13 @@ from quadest.sim.flown import flown_recording
 V = MultirotorParams()
 
 
+TILTED = FtcParams(rho=0.25)
+"""A relaxed hover with a tilted axis (the default ρ = 0 is level), to check the solver and the flight against."""
+
+
 @pytest.fixture(scope="module")
 def ftc_truth():
-    return fly("rotor-loss", estimator="truth", seed=1, duration=12.0)
+    return fly("rotor-loss", estimator="truth", seed=1, duration=12.0, ftc=TILTED)
 
 
 def _relaxed_hover_independently(model, failed, rho):
@@ -64,7 +68,7 @@ def test_the_relaxed_hover_is_the_controllers_model_solved_and_the_flight_reache
     written in the test (1e-6), and the flown vehicle's spin rate and tilt (outputs of the
     rotor-level physics: inflow and rotor drag the controller's model lacks) agree with that
     solution within 10 %."""
-    ftc = FtcParams()
+    ftc = TILTED
     model = ftc.model(V)
     h = relaxed_hover(model, 0, ftc.rho)
     t_a, theta, phi, w = _relaxed_hover_independently(model, 0, ftc.rho)
@@ -88,7 +92,7 @@ def test_the_relaxed_hover_with_the_rotors_inertia_is_solved(rotor_inertia):
     """With the rotors' angular momentum in the controller's model (the Bebop 2 and the high end
     of its range) the controller's solver agrees with the independent one (1e-6), and the
     rotors' momentum tilts the axis and speeds the spin (against I_p = 0)."""
-    ftc = FtcParams()
+    ftc = TILTED
     model = ftc.model(replace(vehicle_preset("bebop2"), rotor_inertia=rotor_inertia))
     h = relaxed_hover(model, 0, ftc.rho)
     t_a, theta, phi, w = _relaxed_hover_independently(model, 0, ftc.rho)

@@ -22,24 +22,33 @@ equations leave two choices. As Mueller & D'Andrea (2014, section V) the two rot
 lost one carry equal thrust ``t_a`` and the opposite one ``ρ t_a``; ``ρ`` is chosen
 (:class:`FtcParams`). :func:`relaxed_hover` solves the four equations.
 
-**Control** (here the inner loop is a dynamic inversion of the same model, not the LQR of the
+**Control** (here the inner loop is a rate loop scaled by the model's inertia, not the LQR of the
 paper; gains are chosen, see :class:`FtcParams`). With the estimated attitude ``R̂``, the
 measured rate ``ω`` and the position and velocity estimates:
 
 - desired specific force ``f_d = −k_p e_p − k_v e_v + a_ref − g e_z`` (tilt limited), up
   direction ``d = f_d/‖f_d‖`` and in the body ``d_b = R̂ᵀ d``;
 - collective thrust ``T = m ‖f_d‖ / (−d_b,z)`` (its component along ``d`` carries ``m ‖f_d‖``);
-- desired rate ``ω_d = k_n e + k_i ∫ e dt + (ω · d_b) d_b`` with the axis error ``e = n × d_b``:
+- desired rate ``ω_d = k_n e + k_i ∫ e dt + (ω · n) n`` with the axis error ``e = n × d_b``:
   the first terms turn ``n`` towards ``d_b`` (``ḋ_b = d_b × ω``; the integral, in the body frame
   where the error of a steady spin stands still, removes what the model leaves out), the last
-  leaves the spin about ``d_b`` free;
-- moment ``M = J k_ω (ω_d − ω) + ω × (J ω + h e_z) + d ⊙ ω`` of which the x and y components
-  are kept (``h`` from the last rotor commands);
-- allocation: ``[T, M_x, M_y] = A₃ t`` for the three remaining rotors, ``t`` clipped to what the
-  rotors can give, ``Ω = √(t/k_f)``. The yaw moment is not controlled: it sets the spin.
+  leaves the spin about the primary axis free (``spin_about_axis``; formerly the spin about
+  ``d_b``, which, with the body tilted far from ``d``, left the loss's tumble free);
+- moment ``M = J k_ω (ω_d − ω)`` of which the x and y components are kept; with
+  ``cancel_gyroscopic`` (the former inner loop) ``+ ω × (J ω + h e_z) + d ⊙ ω`` (``h`` from the
+  last rotor commands): cancelled, the gyroscopic coupling no longer turns the tumble the lost
+  rotor starts onto the axis the remaining rotors can brake;
+- allocation: ``[T, M_x, M_y] = A₃ t`` for the three remaining rotors, solved as a bounded
+  weighted least squares (every ``t`` within ``[0, t_max]``, the moments first:
+  ``thrust_weight``), ``Ω = √(t/k_f)``. The yaw moment is not controlled: it sets the spin.
+  (The former allocation, ``thrust_weight = 0``, kept the moments' direction for the rotors
+  that share the thrust but clipped the rotor opposite the lost one alone, which turned a
+  moment that needed it to pull into one of the opposite sense.)
 
-In the relaxed hover ``d_b = n`` and ``ω ∥ n``, so ``ω_d = ω`` and the controller supplies
-exactly the gyroscopic moment the equilibrium needs.
+In the relaxed hover ``d_b = n`` and ``ω ∥ n``, so ``ω_d = ω``; the equilibrium's moment comes
+from the axis integral (or, cancelled, from the model). With ``ρ = 0`` (the default) the relaxed
+hover is level: ``n = −e_z``, the opposite rotor idle, the two beside the lost one equal.
+Choices and their measurements: docs/vehicle.md.
 """
 
 from __future__ import annotations
@@ -75,6 +84,10 @@ FtcGains = namedtuple(
         "k_f",
         "t_max",
         "rotor_momentum",
+        "alloc",
+        "alloc_weight",
+        "cancel_gyroscopic",
+        "spin_about_axis",
     ],
 )
 """What the compiled controller reads (built by :meth:`FtcParams.gains`)."""
@@ -83,11 +96,12 @@ FtcGains = namedtuple(
 @dataclass(frozen=True)
 class FtcParams:
     rho: float = param(
-        0.25,
+        0.0,
         "-",
         "thrust of the rotor opposite the lost one over that of its neighbours",
-        "chosen: leaves that rotor room to push and to relax (Mueller & D'Andrea 2014 leave "
-        "it free); a smaller ratio spins faster and tilts less",
+        "chosen on training seeds (failure_case 0-399, docs/vehicle.md): 0 makes the relaxed hover "
+        "level (no axis to reach, the most thrust upward); 0.25 before (Mueller & D'Andrea 2014 "
+        "leave it free)",
         bounds="[0, 1]",
     )
     k_n: float = param(
@@ -106,10 +120,10 @@ class FtcParams:
         bounds="[0, 1e3]",
     )
     k_w: float = param(
-        50.0,
+        35.0,
         "1/s",
         "rate gain (angular acceleration per rate error)",
-        "chosen: above the spin rate (15-25 rad/s), below the motors' 1/τ",
+        "chosen on training seeds: about the motors' 1/τ (30/s on the Bebop 2); 50 before",
         bounds="(0, 1e4]",
     )
     k_p: tuple = param(
@@ -120,11 +134,32 @@ class FtcParams:
     )
     k_v: tuple = param((2.5, 2.5, 5.0), "1/s", "velocity gain (north, east, down)", "chosen: about critical damping")
     max_tilt_deg: float = param(
-        25.0,
+        10.0,
         "deg",
         "largest tilt of the commanded up direction",
-        "chosen: keeps thrust for the height",
+        "chosen on training seeds: keeps thrust for the height (25 before)",
         bounds="(0, 80]",
+    )
+    thrust_weight: float = param(
+        1e-3,
+        "-",
+        "allocation: weight of the collective thrust's error against the roll and pitch moments' "
+        "(over the mean arm) in the bounded least squares; 0: the former allocation (the moments' "
+        "direction kept, the rotor opposite the lost one clipped alone)",
+        "chosen: small, the moments first; the thrust takes what is left",
+        bounds="[0, 1e6]",
+    )
+    cancel_gyroscopic: bool = param(
+        False,
+        "-",
+        "cancel the gyroscopic moment at the measured rate in the inner loop (the former inversion)",
+        "chosen: cancelled, it keeps the loss's tumble on the axis no rotor can brake",
+    )
+    spin_about_axis: bool = param(
+        True,
+        "-",
+        "the rate left free is the spin about the primary axis (else about the desired up direction d_b)",
+        "chosen: about d_b, a body tilted far leaves its tumble free",
     )
     yaw_damping: float | None = param(
         None,
@@ -138,6 +173,14 @@ class FtcParams:
         check_triples(self, "ftc", "k_p", "k_v")
         if self.yaw_damping is not None and not (np.isfinite(self.yaw_damping) and self.yaw_damping > 0):
             raise ValueError(f"ftc: yaw_damping must be a positive number, got {self.yaw_damping!r}")
+
+    @classmethod
+    def former(cls, **changes) -> FtcParams:
+        """The controller before its loss transient was looked into (docs/vehicle.md): the tilted
+        relaxed hover (ρ = 0.25), the gyroscopic moment cancelled, the spin about ``d_b`` left
+        free, the former allocation, ``k_w`` 50, the tilt at most 25°."""
+        former = dict(rho=0.25, k_w=50.0, max_tilt_deg=25.0, thrust_weight=0.0, cancel_gyroscopic=True)
+        return cls(**{**former, "spin_about_axis": False, **changes})
 
     def model(self, vehicle: MultirotorParams) -> FtcModel:
         d_z = self.yaw_damping if self.yaw_damping is not None else fit_yaw_damping(vehicle, self.rho)
@@ -168,6 +211,10 @@ class FtcParams:
             float(vehicle.k_f),
             float(vehicle.k_f * vehicle.omega_max**2),
             model.rotor_inertia * np.asarray(model.spin, float),
+            A,
+            allocation_weights(pos, self.thrust_weight),
+            bool(self.cancel_gyroscopic),
+            bool(self.spin_about_axis),
         )
 
     def all_gains(self, vehicle: MultirotorParams) -> tuple[FtcGains, ...]:
@@ -221,6 +268,16 @@ def neighbours(rotor_pos, failed: int) -> tuple[list[int], int]:
     dist = np.linalg.norm(pos - pos[failed], axis=1)
     order = [j for j in np.argsort(dist) if j != failed]
     return [int(order[0]), int(order[1])], int(order[-1])
+
+
+def allocation_weights(pos, thrust_weight: float) -> np.ndarray:
+    """The bounded least squares' weights on ``[T, M_x, M_y]``: ``√thrust_weight`` on the thrust
+    and one over the rotors' mean arm on each moment (a moment error counts as the thrust error
+    that would make it at that arm); all zero for the former allocation."""
+    if thrust_weight == 0.0:
+        return np.zeros(3)
+    arm = float(np.mean(np.linalg.norm(np.asarray(pos, float)[:, :2], axis=1)))
+    return np.array([np.sqrt(thrust_weight), 1.0 / arm, 1.0 / arm])
 
 
 def relaxed_hover(model: FtcModel, failed: int, rho: float) -> RelaxedHover:
@@ -280,8 +337,9 @@ def fit_yaw_damping(vehicle: MultirotorParams, rho: float = 0.25, seconds: float
     # reaction torque −κ (2 t_plus − 2 t_minus) = torque about +z
     plus = spin > 0
     t_plus = (w / 2.0 - torque / (2.0 * kappa)) / 2.0 if plus.sum() == 2 else None
-    if t_plus is None or t_plus <= 0:
+    if t_plus is None or t_plus < -1e-9 * w:
         raise ValueError("fit_yaw_damping: the layout needs two rotors of each sense")
+    t_plus = max(t_plus, 0.0)  # rho = 0: the pair of the lost rotor's sense idle
     t_minus = w / 2.0 - t_plus
     thrust = np.where(plus, t_plus, t_minus)
     x = vehicle.hover_state()
@@ -318,22 +376,18 @@ def ftc_command(xh, p_d, v_d, a_d, ftc, vehicle, dt, integral, cmd):
     for i in range(3):
         db[i] = (R[0, i] * fd[0] + R[1, i] * fd[1] + R[2, i] * fd[2]) / nf
     thrust = ftc.mass * nf / max(-db[2], 0.3)
-    n = ftc.n_b
-    w0, w1, w2 = xh[10], xh[11], xh[12]
-    wd = w0 * db[0] + w1 * db[1] + w2 * db[2]
-    e0, e1, e2 = n[1] * db[2] - n[2] * db[1], n[2] * db[0] - n[0] * db[2], n[0] * db[1] - n[1] * db[0]
-    lim = 0.5  # rad s: anti-windup (the integral term stays below k_i · 0.5 rad/s)
-    integral[0] = min(max(integral[0] + e0 * dt, -lim), lim)
-    integral[1] = min(max(integral[1] + e1 * dt, -lim), lim)
-    integral[2] = min(max(integral[2] + e2 * dt, -lim), lim)
-    od0 = ftc.k_n * e0 + ftc.k_i * integral[0] + wd * db[0]
-    od1 = ftc.k_n * e1 + ftc.k_i * integral[1] + wd * db[1]
-    J0, J1, J2 = ftc.inertia[0], ftc.inertia[1], ftc.inertia[2]
-    h = 0.0  # the rotors' angular momentum about z, from the last commands (cmd on entry)
-    for i in range(cmd.shape[0]):
-        h += ftc.rotor_momentum[i] * cmd[i]
-    M0 = J0 * ftc.k_w * (od0 - w0) + (w1 * J2 * w2 - w2 * J1 * w1) + w1 * h + ftc.damping[0] * w0
-    M1 = J1 * ftc.k_w * (od1 - w1) + (w2 * J0 * w0 - w0 * J2 * w2) - w0 * h + ftc.damping[1] * w1
+    M0, M1 = _moments(xh, db, ftc, dt, integral, cmd)
+    allocate(ftc, thrust, M0, M1, cmd)
+
+
+@njit(cache=True)
+def allocate(ftc, thrust, M0, M1, cmd):
+    """Rotor speeds (rad/s) into ``cmd`` for the collective thrust and the roll and pitch moments
+    (body) asked of the three rotors left: the bounded least squares (``thrust_weight`` > 0) or
+    the former allocation (module doc)."""
+    if ftc.alloc_weight[0] > 0.0:
+        _bounded_allocation(ftc, thrust, M0, M1, cmd)
+        return
     thrust, scale = _fit_to_rotors(ftc, thrust, M0, M1)
     M0 *= scale
     M1 *= scale
@@ -342,6 +396,129 @@ def ftc_command(xh, p_d, v_d, a_d, ftc, vehicle, dt, integral, cmd):
     for a in range(3):
         t = ftc.alloc_inv[a, 0] * thrust + ftc.alloc_inv[a, 1] * M0 + ftc.alloc_inv[a, 2] * M1
         cmd[ftc.active[a]] = np.sqrt(min(max(t, 0.0), ftc.t_max) / ftc.k_f)
+
+
+@njit(cache=True, inline="always")
+def _moments(xh, db, ftc, dt, integral, cmd):
+    """The roll and pitch moments (body) that turn the primary axis towards ``d_b`` (module doc):
+    the desired rate, the spin about the axis (or about ``d_b``) left free, and the gyroscopic
+    moment at the measured rate cancelled or not (``cancel_gyroscopic``)."""
+    n = ftc.n_b
+    w0, w1, w2 = xh[10], xh[11], xh[12]
+    e0, e1, e2 = n[1] * db[2] - n[2] * db[1], n[2] * db[0] - n[0] * db[2], n[0] * db[1] - n[1] * db[0]
+    lim = 0.5  # rad s: anti-windup (the integral term stays below k_i · 0.5 rad/s)
+    integral[0] = min(max(integral[0] + e0 * dt, -lim), lim)
+    integral[1] = min(max(integral[1] + e1 * dt, -lim), lim)
+    integral[2] = min(max(integral[2] + e2 * dt, -lim), lim)
+    a0, a1 = (n[0], n[1]) if ftc.spin_about_axis else (db[0], db[1])
+    ws = w0 * a0 + w1 * a1 + w2 * (n[2] if ftc.spin_about_axis else db[2])
+    od0 = ftc.k_n * e0 + ftc.k_i * integral[0] + ws * a0
+    od1 = ftc.k_n * e1 + ftc.k_i * integral[1] + ws * a1
+    J0, J1, J2 = ftc.inertia[0], ftc.inertia[1], ftc.inertia[2]
+    M0 = J0 * ftc.k_w * (od0 - w0)
+    M1 = J1 * ftc.k_w * (od1 - w1)
+    if ftc.cancel_gyroscopic:
+        h = 0.0  # the rotors' angular momentum about z, from the last commands (cmd on entry)
+        for i in range(cmd.shape[0]):
+            h += ftc.rotor_momentum[i] * cmd[i]
+        M0 += (w1 * J2 * w2 - w2 * J1 * w1) + w1 * h + ftc.damping[0] * w0
+        M1 += (w2 * J0 * w0 - w0 * J2 * w2) - w0 * h + ftc.damping[1] * w1
+    return M0, M1
+
+
+@njit(cache=True, inline="always")
+def _bounded_allocation(ftc, thrust, M0, M1, cmd):
+    """Rotor speeds into ``cmd`` from the three thrusts within ``[0, t_max]`` nearest
+    ``[thrust, M0, M1]`` in the weighted least squares (``alloc_weight``). Each of the 27 active
+    sets (every rotor free, at 0 or at ``t_max``) is solved and the best one within the bounds
+    kept: the problem is convex, so that is its optimum. A moment that would need the rotor
+    opposite the lost one to pull is met as nearly as the others can, not turned around."""
+    A, w = ftc.alloc, ftc.alloc_weight
+    u0, u1, u2 = thrust, M0, M1
+    best0, best1, best2, best = 0.0, 0.0, 0.0, np.inf
+    for code in range(27):
+        m0, m1, m2 = code % 3, (code // 3) % 3, code // 9  # 0 free, 1 at zero, 2 at t_max
+        t0 = 0.0 if m0 == 1 else ftc.t_max
+        t1 = 0.0 if m1 == 1 else ftc.t_max
+        t2 = 0.0 if m2 == 1 else ftc.t_max
+        if m0 == 0 and m1 == 0 and m2 == 0:
+            t0, t1, t2 = _solve3(ftc.alloc_inv, u0, u1, u2)
+        elif (m0 == 0) + (m1 == 0) + (m2 == 0) == 2:
+            f, g = (0, 1) if m2 != 0 else ((0, 2) if m1 != 0 else (1, 2))
+            x, y = _least_squares2(A, w, u0, u1, u2, f, g, t0, t1, t2)
+            t0, t1, t2 = _put(t0, t1, t2, f, x)
+            t0, t1, t2 = _put(t0, t1, t2, g, y)
+        elif (m0 == 0) + (m1 == 0) + (m2 == 0) == 1:
+            f = 0 if m0 == 0 else (1 if m1 == 0 else 2)
+            t0, t1, t2 = _put(t0, t1, t2, f, _least_squares1(A, w, u0, u1, u2, f, t0, t1, t2))
+        tol = 1e-9 * ftc.t_max
+        if min(t0, t1, t2) < -tol or max(t0, t1, t2) > ftc.t_max + tol:
+            continue
+        cost = 0.0
+        for i in range(3):
+            r = A[i, 0] * t0 + A[i, 1] * t1 + A[i, 2] * t2 - (u0 if i == 0 else (u1 if i == 1 else u2))
+            cost += (w[i] * r) ** 2
+        if cost < best:
+            best0, best1, best2, best = t0, t1, t2, cost
+    for i in range(cmd.shape[0]):
+        cmd[i] = 0.0
+    for a, t in ((0, best0), (1, best1), (2, best2)):
+        cmd[ftc.active[a]] = np.sqrt(min(max(t, 0.0), ftc.t_max) / ftc.k_f)
+
+
+@njit(cache=True, inline="always")
+def _solve3(inv, u0, u1, u2):
+    """``A⁻¹ u``: the three thrusts that give ``u`` exactly."""
+    return (
+        inv[0, 0] * u0 + inv[0, 1] * u1 + inv[0, 2] * u2,
+        inv[1, 0] * u0 + inv[1, 1] * u1 + inv[1, 2] * u2,
+        inv[2, 0] * u0 + inv[2, 1] * u1 + inv[2, 2] * u2,
+    )
+
+
+@njit(cache=True, inline="always")
+def _put(t0, t1, t2, j, v):
+    """``(t0, t1, t2)`` with entry ``j`` set to ``v``."""
+    return (v if j == 0 else t0), (v if j == 1 else t1), (v if j == 2 else t2)
+
+
+@njit(cache=True, inline="always")
+def _residual(A, u0, u1, u2, t0, t1, t2, free_a, free_b, i):
+    """Row ``i`` of ``u − A t`` with the free entries' thrusts left out."""
+    r = u0 if i == 0 else (u1 if i == 1 else u2)
+    for j, t in ((0, t0), (1, t1), (2, t2)):
+        if j != free_a and j != free_b:
+            r -= A[i, j] * t
+    return r
+
+
+@njit(cache=True, inline="always")
+def _least_squares2(A, w, u0, u1, u2, f, g, t0, t1, t2):
+    """The weighted least squares of thrusts ``f`` and ``g``, the third held (normal equations)."""
+    a11, a12, a22, b1, b2 = 0.0, 0.0, 0.0, 0.0, 0.0
+    for i in range(3):
+        r = _residual(A, u0, u1, u2, t0, t1, t2, f, g, i)
+        p, q, ww = A[i, f], A[i, g], w[i] * w[i]
+        a11 += ww * p * p
+        a12 += ww * p * q
+        a22 += ww * q * q
+        b1 += ww * p * r
+        b2 += ww * q * r
+    det = a11 * a22 - a12 * a12
+    if abs(det) < 1e-300:
+        return -1.0, -1.0  # singular: no solution (refused by the bounds)
+    return (a22 * b1 - a12 * b2) / det, (a11 * b2 - a12 * b1) / det
+
+
+@njit(cache=True, inline="always")
+def _least_squares1(A, w, u0, u1, u2, f, t0, t1, t2):
+    """The weighted least squares of thrust ``f``, the other two held."""
+    num, den = 0.0, 0.0
+    for i in range(3):
+        r = _residual(A, u0, u1, u2, t0, t1, t2, f, -1, i)
+        num += w[i] * w[i] * A[i, f] * r
+        den += w[i] * w[i] * A[i, f] * A[i, f]
+    return num / den
 
 
 @njit(cache=True, inline="always")

@@ -62,6 +62,13 @@ class FlownAfckfParams:
     duration_s: float = param(
         30.0, "s", "length of each flight", "chosen: 25 s after the loss, mostly the settled spin", bounds="(0, 3600]"
     )
+    ftc: str = param(
+        "former",
+        "-",
+        "the fault-tolerant controller in these flights: former (FtcParams.former()) or default (FtcParams())",
+        "chosen: the former one holds the tilted relaxed hover whose flown spin (15 rad/s) is the "
+        "paper's 15.5; the default is level and spins slower (docs/vehicle.md)",
+    )
     height_m: float = param(
         10.0,
         "m",
@@ -124,9 +131,17 @@ def range_vehicle(name: str, end: str = "chosen"):
     return corners[pick(flyable, key=lambda i: spins[i])]
 
 
+def flown_ftc(p: FlownAfckfParams) -> FtcParams:
+    """The fault-tolerant controller these flights fly (``p.ftc``)."""
+    if p.ftc not in ("former", "default"):
+        raise ValueError(f"flown: ftc must be former or default, got {p.ftc!r}")
+    return FtcParams.former() if p.ftc == "former" else FtcParams()
+
+
 def _relaxed_spin(v) -> float | None:
     try:
-        return abs(relaxed_hover(FtcParams().model(v), 0, FtcParams().rho).spin)
+        ftc = flown_ftc(FlownAfckfParams())
+        return abs(relaxed_hover(ftc.model(v), 0, ftc.rho).spin)
     except ValueError:
         return None
 
@@ -166,6 +181,7 @@ def flown_flight(case: str, seed: int, p: FlownAfckfParams | None = None, config
         duration=p.duration_s,
         failure=Failure(p.rotor, p.failure_s) if lost else None,
         params=FlightParams(height_m=p.height_m),
+        ftc=flown_ftc(p),
     )
 
 
@@ -382,6 +398,7 @@ def in_loop_seed(task) -> list[dict]:
         duration=p.failure_s + IN_LOOP_AFTER_S,
         failure=Failure(p.rotor, p.failure_s),
         params=FlightParams(height_m=p.height_m, **flight),
+        ftc=flown_ftc(p),
     )
     for r in runs:
         r["variant"] = label

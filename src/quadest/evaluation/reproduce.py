@@ -20,7 +20,7 @@ from dataclasses import asdict, replace
 import numpy as np
 
 from quadest.calibration import calibrate_centrifugal
-from quadest.control.ftc import FtcParams, relaxed_hover
+from quadest.control.ftc import relaxed_hover
 from quadest.evaluation import flown
 from quadest.evaluation.flown import FlownAfckfParams
 from quadest.evaluation.metrics import AXES
@@ -234,7 +234,7 @@ def afckf_spin_range(
 
 def _spin_range_end(p, seeds, progress, workers, scheduler) -> dict:
     v = flown.range_vehicle(p.vehicle, p.vehicle_range)
-    ftc = FtcParams()
+    ftc = flown.flown_ftc(p)
     hover = relaxed_hover(ftc.model(v), p.rotor, ftc.rho)
     cal, fparams = None, {}  # where the calibration flight does not stay up the AFCKF runs uncalibrated
     if flown.flown_flight("damaged-rotor", p.calibration_seed, p).summary["status"] == "survived":
