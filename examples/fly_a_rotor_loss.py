@@ -15,4 +15,7 @@ delay_ms = 1e3 * FlightParams().detect_delay_s
 print(f"the loss is told to the controller {delay_ms:.0f} ms after it happens (an oracle: not detected yet)")
 print(f"{s['status']}: spinning at {s['spin_rate_rad_s']:.1f} rad/s, tilted {s['tilt_deg']:.1f}°")
 print(f"attitude error in the loop after the loss: {s['attitude_error_after_failure_rms_deg']:.2f}° RMS")
-print(f"position error once settled: {s['position_rms_settled_m']:.2f} m RMS")
+if s["position_rms_settled_m"] is None:  # the level relaxed hover wanders about a metre (docs/vehicle.md)
+    print("did not settle within 0.3 m of the hover point in the flight")
+else:
+    print(f"position error once settled: {s['position_rms_settled_m']:.2f} m RMS")

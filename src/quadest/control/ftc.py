@@ -435,7 +435,12 @@ def _bounded_allocation(ftc, thrust, M0, M1, cmd):
     opposite the lost one to pull is met as nearly as the others can, not turned around."""
     A, w = ftc.alloc, ftc.alloc_weight
     u0, u1, u2 = thrust, M0, M1
-    best0, best1, best2, best = 0.0, 0.0, 0.0, np.inf
+    tol = 1e-9 * ftc.t_max
+    best0, best1, best2 = _solve3(ftc.alloc_inv, u0, u1, u2)  # met exactly within the bounds: the optimum
+    if min(best0, best1, best2) >= -tol and max(best0, best1, best2) <= ftc.t_max + tol:
+        _set_speeds(ftc, best0, best1, best2, cmd)
+        return
+    best = np.inf
     for code in range(27):
         m0, m1, m2 = code % 3, (code // 3) % 3, code // 9  # 0 free, 1 at zero, 2 at t_max
         t0 = 0.0 if m0 == 1 else ftc.t_max
@@ -451,7 +456,6 @@ def _bounded_allocation(ftc, thrust, M0, M1, cmd):
         elif (m0 == 0) + (m1 == 0) + (m2 == 0) == 1:
             f = 0 if m0 == 0 else (1 if m1 == 0 else 2)
             t0, t1, t2 = _put(t0, t1, t2, f, _least_squares1(A, w, u0, u1, u2, f, t0, t1, t2))
-        tol = 1e-9 * ftc.t_max
         if min(t0, t1, t2) < -tol or max(t0, t1, t2) > ftc.t_max + tol:
             continue
         cost = 0.0
@@ -460,9 +464,15 @@ def _bounded_allocation(ftc, thrust, M0, M1, cmd):
             cost += (w[i] * r) ** 2
         if cost < best:
             best0, best1, best2, best = t0, t1, t2, cost
+    _set_speeds(ftc, best0, best1, best2, cmd)
+
+
+@njit(cache=True, inline="always")
+def _set_speeds(ftc, t0, t1, t2, cmd):
+    """The three rotors' speeds for their thrusts, clipped to what they can give; the lost one 0."""
     for i in range(cmd.shape[0]):
         cmd[i] = 0.0
-    for a, t in ((0, best0), (1, best1), (2, best2)):
+    for a, t in ((0, t0), (1, t1), (2, t2)):
         cmd[ftc.active[a]] = np.sqrt(min(max(t, 0.0), ftc.t_max) / ftc.k_f)
 
 
