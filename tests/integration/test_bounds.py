@@ -228,6 +228,12 @@ def _wait_for_exec(pid: int) -> None:
         time.sleep(0.001)
 
 
+def _as_from_a_terminal() -> None:
+    """Ctrl-C's default action in the child, as a terminal's foreground program has it: a test
+    run started in the background by a shell without job control inherits SIGINT ignored."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.parametrize("delay", [0.05, 0.15, 0.3, 0.6, 1.2, 2.5])
 def test_ctrl_c_at_any_moment_is_one_line(tmp_path, delay):
     """SIGINT while Python starts, while quadest loads, while it simulates: exit code 130 (or the
@@ -244,6 +250,7 @@ def test_ctrl_c_at_any_moment_is_one_line(tmp_path, delay):
         stderr=subprocess.PIPE,
         env=_env(),
         text=True,
+        preexec_fn=_as_from_a_terminal,
     )
     _wait_for_exec(p.pid)  # a signal between fork and exec is lost with the forked copy of pytest
     time.sleep(delay)
