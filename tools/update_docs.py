@@ -713,23 +713,24 @@ def results_afckf_in_loop() -> str:
     )
 
 
+def _in_loop_cells(row: dict) -> list[str]:
+    """An in-loop row's estimator, survival, tilt error, clipping share and clipped-rate error."""
+    share, err = row.get("gyro_clipped_share"), row.get("clip_rate_error_rms_rad_s")
+    return [
+        row["estimator"],
+        f"{row['survived']}/{row['runs']}",
+        _f(row["tilt_error_after_loss_deg"]),
+        "-" if share is None else f"{100 * share:.0f} %",
+        "-" if err is None else " / ".join(_f(e, "{:.2f}") for e in err),
+    ]
+
+
 def results_clip_rate() -> str:
     """docs/vehicle.md: the rate of a clipped gyroscope axis, flown in the loop (the ablation)."""
     r = _load("clip-rate")
     rows = []
     for row in r["table"]:
-        err = row.get("clip_rate_error_rms_rad_s")
-        share = row.get("gyro_clipped_share")
-        rows.append(
-            [
-                row["variant"],
-                row["estimator"],
-                f"{row['survived']}/{row['runs']}",
-                _f(row["tilt_error_after_loss_deg"]),
-                "-" if share is None else f"{100 * share:.0f} %",
-                "-" if err is None else " / ".join(_f(e, "{:.2f}") for e in err),
-            ]
-        )
+        rows.append([row["variant"], *_in_loop_cells(row)])
     seeds = r["seeds"]
     return (
         _table(
@@ -771,18 +772,7 @@ def results_spin_range() -> str:
             ]
         )
         for row in e["in_loop"]:
-            share, err = row.get("gyro_clipped_share"), row.get("clip_rate_error_rms_rad_s")
-            loop.append(
-                [
-                    end,
-                    row["variant"],
-                    row["estimator"],
-                    f"{row['survived']}/{row['runs']}",
-                    _f(row["tilt_error_after_loss_deg"]),
-                    "-" if share is None else f"{100 * share:.0f} %",
-                    "-" if err is None else " / ".join(_f(e, "{:.2f}") for e in err),
-                ]
-            )
+            loop.append([end, row["variant"], *_in_loop_cells(row)])
     seeds = r["seeds"]
     cmd = f"`quadest reproduce afckf --spin-range --seeds {seeds[0]}-{seeds[-1]}`, docs/results/spin-range.json"
     head = [
