@@ -17,12 +17,6 @@ OMEGA_REF = 1000.0
 given ``OMEGA_REF √(thrust fraction)``, whose square is what thrust needs."""
 
 
-LOG_DETECTOR = {"noise_window_s": 0.0, "weighted_others": False, "eta_walk": 3.0, "contact_margin": 0.0}
-"""The detector as the logs' figures were made (docs/diagnose.md): the noise estimated from the whole
-log, the plain mean of the others, the former random walk, no contact gate (tuned on flown flights at
-IMU rate, not yet looked at on logs)."""
-
-
 @dataclass(frozen=True)
 class DiagnoseParams:
     """What the diagnosis assumes where a log says nothing (docs/diagnose.md has the sources)."""
@@ -36,6 +30,16 @@ class DiagnoseParams:
     I_zz ≈ 2 I_xx, typical of small quadrotors."""
     deficit_sigmas: float = 3.0
     """The detector counts a rotor's deficit only beyond this many standard deviations."""
+    eta_walk: float = 3.0
+    """The effectiveness's random walk (1/√s): the in-flight detector's 1.5 "finds" the loss of
+    motor 2 5.4 s before it happens (docs/diagnose.md; in-sample)."""
+    noise_window_s: float = 0.0
+    """0: the gyroscope's noise from the whole log (else over this window, as in flight)."""
+    weighted_others: bool = False
+    """A rotor's deficit against the others' effectiveness weighted by how well each is known (the
+    in-flight setting) or their plain mean."""
+    contact_margin: float = 0.0
+    """The in-flight detector's contact gate (m/s²; 0: none): the log is cut to its flying spans."""
     settle_s: float = 2.0
     """Seconds after take-off before the detector starts (leaving the ground)."""
     before_landing_s: float = 1.5
@@ -163,7 +167,14 @@ def find_failures(log: MotorLog, vehicle: MultirotorParams, params: DiagnosePara
         "acc_noise": float(max(robust_sd(np.diff(log.acc[mask, 2])) / np.sqrt(2.0), 0.01)),
         "moment_noise": max(robust_sd(np.diff(log.gyr[mask], axis=0) / dt[:, None]), 0.1),
     }
-    detector_params = DetectorParams(deficit_sigmas=params.deficit_sigmas, **LOG_DETECTOR, **noise)
+    detector_params = DetectorParams(
+        deficit_sigmas=params.deficit_sigmas,
+        eta_walk=params.eta_walk,
+        noise_window_s=params.noise_window_s,
+        weighted_others=params.weighted_others,
+        contact_margin=params.contact_margin,
+        **noise,
+    )
     failures = []
     for start, end in runs(mask, shortest=11):
         det = Detector(vehicle, detector_params)
@@ -256,14 +267,25 @@ def format_diagnosis(d: Diagnosis) -> str:
     return "\n".join(lines)
 
 
+IN_FLIGHT = {
+    "eta_walk": "effectiveness walk",
+    "noise_window_s": "gyroscope noise window",
+    "weighted_others": "deficit against the better-known rotors",
+    "contact_margin": "contact gate",
+}
+"""The detector's settings the log mode sets apart from the in-flight detector's defaults."""
+
 SWEEP = {
     "default": {},
     **{f"moment gain {g:g}": {"moment_gain": g} for g in (2.5, 5.0, 20.0, 40.0)},
     **{f"yaw ratio {r:g}": {"yaw_ratio": r} for r in (0.035, 0.14)},
     "no significance test": {"deficit_sigmas": 0.0},
+    **{f"in flight's {label}": {k: getattr(DetectorParams(), k)} for k, label in IN_FLIGHT.items()},
+    "the in-flight detector": {k: getattr(DetectorParams(), k) for k in IN_FLIGHT},
 }
 """The variants :func:`benchmark_diagnose` runs: the default, the chosen values across their
-range, and the log mode's two settings taken away (docs/diagnose.md)."""
+range, the log mode's significance test taken away, and each setting the log mode keeps apart from
+the in-flight detector set to the in-flight value, then all of them (docs/diagnose.md)."""
 
 
 def score(d: Diagnosis, truth: tuple[float, int] | None) -> dict:
