@@ -725,12 +725,25 @@ def _in_loop_cells(row: dict) -> list[str]:
     ]
 
 
-def results_clip_rate() -> str:
+def _ftc_option(r: dict) -> str:
+    """The reproduce command's ``--ftc`` option for a result flown with the default controller."""
+    return " --ftc default" if r["params"].get("ftc") == "default" else ""
+
+
+def _controller_text(r: dict) -> str:
+    """Which fault-tolerant controller a reproduce result was flown with."""
+    if r["params"].get("ftc") == "default":
+        return "the default fault-tolerant controller (the level relaxed hover)"
+    return "the former fault-tolerant controller (the tilted relaxed hover of the AFCKF reproduction)"
+
+
+def results_clip_rate(name: str = "clip-rate") -> str:
     """docs/vehicle.md: the rate of a clipped gyroscope axis, flown in the loop (the ablation)."""
-    r = _load("clip-rate")
+    r = _load(name)
     rows = []
     for row in r["table"]:
-        rows.append([row["variant"], *_in_loop_cells(row)])
+        cells = _in_loop_cells(row)
+        rows.append([row["variant"], *cells[:2], f"{row['settled']}/{row['runs']}", *cells[2:]])
     seeds = r["seeds"]
     return (
         _table(
@@ -738,6 +751,7 @@ def results_clip_rate() -> str:
                 "gyroscope, rate of a clipped axis",
                 "in the loop",
                 "stayed up",
+                "settled",
                 "tilt error in the loop (°)",
                 "samples clipped after the loss",
                 "rate error on clipped samples, x / y / z (rad/s RMS)",
@@ -745,15 +759,16 @@ def results_clip_rate() -> str:
             rows,
         )
         + f"\n\nA {r['params']['vehicle']} loses rotor {r['params']['rotor']} at {r['params']['failure_s']:g} s "
-        f"and must stay up {r['after_loss_s']:g} s more; errors after the loss, mean over the runs that stayed up. "
-        f"Seeds {seeds[0]}-{seeds[-1]}; the predictor's values were chosen on seeds 100-109 "
-        f"(`quadest reproduce afckf --in-loop --clipping --seeds {seeds[0]}-{seeds[-1]}`, docs/results/clip-rate.json)."
+        f"and must stay up {r['after_loss_s']:g} s more, flown by {_controller_text(r)}; errors after the loss, "
+        f"mean over the runs that stayed up. Seeds {seeds[0]}-{seeds[-1]}; the predictor's values were chosen on "
+        f"seeds 100-109 (`quadest reproduce afckf --in-loop --clipping{_ftc_option(r)} --seeds "
+        f"{seeds[0]}-{seeds[-1]}`, docs/results/{name}.json)."
     )
 
 
-def results_spin_range() -> str:
+def results_spin_range(name: str = "spin-range") -> str:
     """docs/vehicle.md: the flown rotor loss at the ends of the Bebop 2's spin range."""
-    r = _load("spin-range")
+    r = _load(name)
     rows, loop = [], []
     for end, e in r["ends"].items():
         t, m, off = e["truth_flights"], e["relaxed_hover_model"], e["offline"]
@@ -774,7 +789,10 @@ def results_spin_range() -> str:
         for row in e["in_loop"]:
             loop.append([end, row["variant"], *_in_loop_cells(row)])
     seeds = r["seeds"]
-    cmd = f"`quadest reproduce afckf --spin-range --seeds {seeds[0]}-{seeds[-1]}`, docs/results/spin-range.json"
+    cmd = (
+        f"`quadest reproduce afckf --spin-range{_ftc_option(r)} --seeds {seeds[0]}-{seeds[-1]}`, "
+        f"docs/results/{name}.json"
+    )
     head = [
         "end",
         "k_h (N s²/m)",
@@ -805,7 +823,8 @@ def results_spin_range() -> str:
         )
         + f"\n\nA {r['params']['vehicle']} loses rotor {r['params']['rotor']} at {r['params']['failure_s']:g} s; "
         f"flown values are means over the truth's flights that stayed up (errors offline over them, from the loss "
-        f"on); in the loop it must stay up {r['after_loss_s']:g} s more. Seeds {seeds[0]}-{seeds[-1]} ({cmd})."
+        f"on); in the loop it must stay up {r['after_loss_s']:g} s more; flown by {_controller_text(r)}. "
+        f"Seeds {seeds[0]}-{seeds[-1]} ({cmd})."
     )
 
 
@@ -1167,7 +1186,9 @@ GENERATORS = {
     "results-afckf-prescribed": results_afckf_prescribed,
     "results-afckf-in-loop": results_afckf_in_loop,
     "results-clip-rate": results_clip_rate,
+    "results-clip-rate-default": lambda: results_clip_rate("clip-rate-default"),
     "results-spin-range": results_spin_range,
+    "results-spin-range-default": lambda: results_spin_range("spin-range-default"),
     "results-recovery-flown": results_recovery_flown,
     "results-recovery-ablations": results_recovery_ablations,
     "results-repoimu": results_repoimu,

@@ -408,11 +408,38 @@ def test_fly_a_throw_with_the_recovery_and_the_oracle(tmp_path, capsys):
         (["reproduce", "afckf", "--prescribed", "--vehicle-range", "low"], "--vehicle-range is for reproduce afckf"),
         (["reproduce", "afckf", "--spin-range", "--in-loop"], "--spin-range is its own run"),
         (["reproduce", "afckf", "--spin-range", "--vehicle-range", "high"], "leave out --vehicle-range"),
+        (["reproduce", "afckf", "--prescribed", "--ftc", "default"], "--ftc is for reproduce afckf"),
+        (["reproduce", "qukf", "--ftc", "default"], "--ftc is for reproduce afckf"),
     ],
 )
 def test_reproduce_refuses_options_that_do_not_fit(capsys, argv, match):
     code, _, err = run(capsys, *argv)
     assert code == 2 and match in err and len(err.strip().splitlines()) == 1, err
+
+
+@pytest.mark.parametrize(
+    "argv, target",
+    [
+        (["--in-loop"], "afckf_in_loop"),
+        (["--in-loop", "--clipping"], "afckf_in_loop"),
+        (["--spin-range"], "afckf_spin_range"),
+        ([], "reproduce_afckf"),
+    ],
+)
+def test_reproduce_afckf_flies_the_controller_ftc_names(capsys, monkeypatch, argv, target):
+    """--ftc reaches the flown loss's parameters in every flown mode (former unless asked)."""
+    from quadest.evaluation import reproduce
+
+    for ftc in ("former", "default"):
+        seen = []
+        monkeypatch.setattr(reproduce, target, lambda *a, seen=seen, **kw: seen.append(kw["params"]) or {"table": []})
+        monkeypatch.setattr(reproduce, "format_spin_range", lambda r: "")
+        monkeypatch.setattr(reproduce, "format_reproduction", lambda paper, r: "")
+        monkeypatch.setattr("quadest.evaluation.flown.format_in_loop", lambda t: "")
+        extra = [] if ftc == "former" else ["--ftc", "default"]
+        code, _, err = run(capsys, "reproduce", "afckf", "--seeds", "1-1", *argv, *extra)
+        assert code == 0, err
+        assert len(seen) == 1 and seen[0].ftc == ftc and seen[0].vehicle_range == "chosen"
 
 
 def test_reproduce_recovery_flies_the_throws(tmp_path, capsys):

@@ -122,6 +122,8 @@ def cmd_reproduce(args):
         raise CliError("--spin-range is its own run of reproduce afckf: leave out --prescribed, --ablations, --in-loop")
     if args.spin_range and args.vehicle_range != "chosen":
         raise CliError("--spin-range flies every end of the range: leave out --vehicle-range")
+    if args.ftc != "former" and (args.paper != "afckf" or args.prescribed):
+        raise CliError("--ftc is for reproduce afckf on the flown vehicle: leave out --prescribed")
     if args.paper == "recovery":
         return _reproduce_recovery(args)
     args.seeds = args.seeds or ("1-20" if args.in_loop or args.spin_range else "1-5")
@@ -159,7 +161,7 @@ def cmd_reproduce(args):
             scheduler=args.scheduler,
             prescribed=args.prescribed,
             ablations=args.ablations,
-            params=None if args.prescribed else flown.FlownAfckfParams(vehicle_range=args.vehicle_range),
+            params=None if args.prescribed else _flown_params(args),
         )
     else:
         say(
@@ -184,6 +186,12 @@ def cmd_reproduce(args):
     return 0
 
 
+def _flown_params(args) -> flown.FlownAfckfParams:
+    """The flown rotor loss's parameters the command line sets: the vehicle's end of the spin range
+    and the fault-tolerant controller."""
+    return flown.FlownAfckfParams(vehicle_range=args.vehicle_range, ftc=args.ftc)
+
+
 def _reproduce_in_loop(args):
     seeds = parse_seeds(args.seeds)
     what = (
@@ -203,7 +211,7 @@ def _reproduce_in_loop(args):
         progress=True,
         workers=args.workers,
         scheduler=args.scheduler,
-        params=flown.FlownAfckfParams(vehicle_range=args.vehicle_range),
+        params=_flown_params(args),
         **clipping,
     )
     say(flown.format_in_loop(result["table"]))
@@ -218,7 +226,9 @@ def _reproduce_spin_range(args):
         "The AFCKF paper's rotor loss flown at the low, chosen and high ends of the Bebop 2's spin range "
         f"(rotor drag k_h and rotor inertia I_p, docs/vehicle.md), seeds {args.seeds}."
     )
-    result = reproduce.afckf_spin_range(seeds, progress=True, workers=args.workers, scheduler=args.scheduler)
+    result = reproduce.afckf_spin_range(
+        seeds, progress=True, workers=args.workers, scheduler=args.scheduler, params=_flown_params(args)
+    )
     say(reproduce.format_spin_range(result))
     if args.json:
         write_json(args.json, result)
@@ -629,6 +639,14 @@ def _add_reproduce(sub):
         help="afckf, flown: fly the vehicle at an end of the range of the parameters that decide its spin "
         "(rotor drag k_h and rotor inertia I_p, from sources; docs/vehicle.md, Spin range): low or high, the "
         "corner whose relaxed hover spins slowest or fastest; chosen, the preset (default)",
+    )
+    r.add_argument(
+        "--ftc",
+        choices=["former", "default"],
+        default="former",
+        help="afckf, flown: the fault-tolerant controller after the loss: former (default here: the tilted "
+        "relaxed hover, whose spin is the paper's) or default (the level relaxed hover that quadest fly and "
+        "quadest campaign fly; docs/vehicle.md, The loss's transient)",
     )
     r.add_argument("--json", metavar="OUT", help="write all figures (per seed too) as JSON")
     r.add_argument(

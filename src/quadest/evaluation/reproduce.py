@@ -213,6 +213,7 @@ def afckf_spin_range(
     scheduler=None,
     *,
     ends=flown.RANGE_ENDS,
+    params: flown.FlownAfckfParams | None = None,
 ) -> dict:
     """The flown loss at each end of the vehicle's spin range (:data:`quadest.models.SPIN_RANGES`,
     :func:`quadest.evaluation.flown.range_vehicle`): the controller model's relaxed hover, the
@@ -220,7 +221,7 @@ def afckf_spin_range(
     up, and truth, robust and the AFCKF in the loop with a ±1000 and a ±500 °/s gyro."""
     seeds = list(seeds)
     out = {"seeds": seeds, "mode": "spin-range", "ranges": {}, "ends": {}}
-    base = FlownAfckfParams()
+    base = params or FlownAfckfParams()
     out["ranges"] = {
         k: [{"value": v, "source": src} for v, src in r] for k, r in SPIN_RANGES.get(base.vehicle, {}).items()
     }
