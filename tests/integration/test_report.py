@@ -7,6 +7,7 @@ Chromium or Playwright is absent (.ci/run installs Chromium)."""
 import json
 import os
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,6 +18,9 @@ from quadest.evaluation.runner import estimate, score
 from quadest.plot.report import decimate
 from quadest.readers import read_recording
 from quadest.sim import simulate
+
+DATA = Path(os.environ.get("QUADEST_DATA", Path(__file__).resolve().parents[3] / "shared" / "data"))
+SITL_LOSS = DATA / "ardupilot" / "sitl_quadx_motor1_loss.bin"
 
 CHROMIUM = os.environ.get("QUADEST_CHROMIUM") or shutil.which("chromium") or shutil.which("chromium-browser")
 
@@ -367,3 +371,37 @@ def test_report_defaults_span_and_vibration(reports, tmp_path):
     own = {"source": "the log's VIBE messages", "rms_m_s2": [0.1, 0.2, 0.3], "max_m_s2": [1, 1, 1], "clips": 0}
     fast.meta["vibration"] = own
     assert summary(fast)["vibration_rms_m_s2"] == [0.1, 0.2, 0.3]
+
+
+@pytest.fixture(scope="module")
+def log_report(tmp_path_factory):
+    """quadest report of the ArduPilot SITL log of a loss of motor 1 (HTML and JSON)."""
+    if not SITL_LOSS.is_file():
+        pytest.skip(f"the ArduPilot SITL log is not at {SITL_LOSS} (set QUADEST_DATA)")
+    d = tmp_path_factory.mktemp("log")
+    argv = ["report", str(SITL_LOSS), "--filters", "madgwick", "-o", str(d / "log.html"), "--json", str(d / "l.json")]
+    assert main(argv) == 0
+    return d
+
+
+def test_a_logs_report_has_its_diagnosis(log_report, tmp_path, capsys):
+    """The page's JSON holds what quadest diagnose finds: the loss of motor 1 within 150 ms of its
+    logged SERVO1_FUNCTION change, in the log's own time and the autopilot's numbering; diagnose
+    --report writes the same section."""
+    diag = json.loads((log_report / "l.json").read_text())["diagnosis"]
+    cut = [c["time_s"] for c in diag["parameter_changes"] if c["name"] == "SERVO1_FUNCTION" and c["value"] == 1]
+    found = diag["failures"]
+    assert len(found) == 1 and found[0]["motor"] == 1 and 0 <= found[0]["time_s"] - cut[0] <= 0.15
+    assert main(["diagnose", str(SITL_LOSS), "--report", str(tmp_path / "d.html")]) == 0
+    text = (tmp_path / "d.html").read_text()
+    assert "Motors and failures" in text and "diagnose-failures" in text and f"{found[0]['time_s']:.3f}" in text
+    capsys.readouterr()
+
+
+def test_a_logs_report_in_a_browser(browser, log_report):
+    """The log's page draws without a console error, with the motors' outputs and the failure."""
+    page, errors = _open(browser, log_report / "log.html")
+    assert errors == []
+    names = page.evaluate("() => Array.from(Bokeh.documents[0].all_models).filter(m => m.name).map(m => m.name)")
+    assert "diagnose-outputs" in names and "Motors and failures" in page.content()
+    page.close()

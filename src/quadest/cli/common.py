@@ -271,18 +271,25 @@ def read(args, path):
     return rec
 
 
-def write_report_for(rec, names, params, path, title, json_path=None, recovery=None, recovery_model="", rotors=None):
+def write_report_for(
+    rec, names, params, path, title, json_path=None, recovery=None, recovery_model="", rotors=None, diagnosis=None
+):
     """``quadest report`` and every ``--report PATH``: the HTML page for ``rec`` with the
-    estimators ``names`` and a throw's ``recovery`` (docs/report.md)."""
+    estimators ``names``, a throw's ``recovery`` and a log's ``diagnosis``
+    (:meth:`~quadest.evaluation.diagnose.Diagnosis.for_report`; docs/report.md)."""
     need("bokeh", "the HTML report")
     from quadest.plot.report import write_report  # bokeh: only when a report is written
 
     summ, att = report_data(rec, names, params, recovery)
     att["recovery_model"] = recovery_model
     att["rotors"] = rotors
+    att["diagnosis"] = diagnosis
     out = write_report(rec, summ, att, path, title)
     if json_path:
-        write_json(json_path, report_json(summ, att))
+        table = report_json(summ, att)
+        if diagnosis is not None:
+            table["diagnosis"] = diagnosis["json"]
+        write_json(json_path, table)
     say(f"wrote {out} (open it in a browser)")
     return out
 

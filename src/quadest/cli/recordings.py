@@ -30,6 +30,8 @@ from quadest.evaluation.runner import estimate, estimator_names, filter_notes
 from quadest.extras import need
 from quadest.filters import ESTIMATORS, filter_name
 from quadest.models.aero import AeroModel
+from quadest.readers import ReaderError
+from quadest.readers.motors import MOTOR_LOG_SUFFIXES
 from quadest.recovery import recover
 from quadest.rotation import quat_to_euler
 from quadest.sim import aero_model_of
@@ -60,6 +62,10 @@ def cmd_diagnose(args):
     say(format_diagnosis(d))
     if args.json:
         write_json(args.json, d.as_json())
+    if args.report:
+        rec = read(args, args.file)
+        title = f"quadest diagnose: {args.file.name}"
+        write_report_for(rec, [], {}, args.report, title, diagnosis=d.for_report())
     return 0
 
 
@@ -188,8 +194,21 @@ def cmd_report(args):
         recovery=recovery,
         recovery_model=source,
         rotors=rotors,
+        diagnosis=_log_diagnosis(args.file),
     )
     return 0
+
+
+def _log_diagnosis(path) -> dict | None:
+    """An autopilot log's diagnosis for its report page (quadest diagnose), or None for a file
+    that is not one or has no motor outputs (said in one line)."""
+    if Path(path).suffix.lower() not in MOTOR_LOG_SUFFIXES:
+        return None
+    try:
+        return diagnose_log(path, DiagnoseParams()).for_report()
+    except ReaderError as exc:
+        say(f"no motor diagnosis on the page: {exc}")
+        return None
 
 
 def _rotor_speeds(path, explicit: bool):
@@ -264,6 +283,14 @@ def _add_diagnose(sub):
         type=Path,
         default=None,
         help='also write {"failures": [{time_s, motor, effectiveness}], "damaged": [{motor, excess}], "motors": [...]}',
+    )
+    d.add_argument(
+        "--report",
+        type=Path,
+        metavar="PATH",
+        default=None,
+        help="also write the HTML page of the log with the diagnosis: the failures, the motors' shares and "
+        "their outputs over time (quadest report LOG shows the same beside the estimators; docs/report.md)",
     )
     d.add_argument(
         "--moment-gain",

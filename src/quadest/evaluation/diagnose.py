@@ -79,6 +79,11 @@ class Diagnosis:
             "notes": self.notes,
         }
 
+    def for_report(self) -> dict:
+        """What the report page draws: the findings (:meth:`as_json`) and each motor's output
+        over time as a fraction of its full thrust, in the log's own time."""
+        return {"json": self.as_json(), "t_out": self.log.t_out, "thrust": self.log.thrust, "motors": self.log.motors}
+
 
 def flying_mask(t, spans, settle=0.0, before_landing=0.0) -> np.ndarray:
     """Samples inside the flying spans, ``settle`` s after each take-off and ``before_landing`` s

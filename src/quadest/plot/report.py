@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 from bokeh.embed import file_html
 from bokeh.layouts import column
-from bokeh.models import Div, LinearColorMapper, Range1d
+from bokeh.models import Div, LinearColorMapper, Range1d, Span
 from bokeh.palettes import Category10_10, Viridis256
 from bokeh.plotting import figure
 from bokeh.resources import INLINE
@@ -213,8 +213,46 @@ def report_layout(rec, summ: dict, att: dict, title: str):
         f = _figure("rotor speeds [rad/s]", xr, "rad/s", "rotor-speeds")
         _lines(f, tr, {k.replace("_speed", ""): v for k, v in speeds.items()})
         parts.append(f)
+    if att.get("diagnosis") is not None:
+        parts += _diagnosis_section(att["diagnosis"], xr)
     parts.append(_spectrogram(rec, xr))
     return column(*parts, sizing_mode="stretch_width")
+
+
+def _diagnosis_text(j: dict) -> str:
+    """quadest diagnose's findings as the page's tables (docs/diagnose.md)."""
+    head = (
+        f"<h2>Motors and failures (quadest diagnose)</h2><p class='q'>{html.escape(j['autopilot'])}, "
+        f"{html.escape(j['frame'])}; IMU {j['imu_rate_hz']:g} Hz, motor outputs {j['output_rate_hz']:g} Hz; "
+        "times in the log's own time base, motors in the autopilot's numbering.</p>"
+    )
+    if j["failures"]:
+        rows = [[f"{f['time_s']:.3f}", f["motor"], f"{f['effectiveness']:.2f}"] for f in j["failures"]]
+        found = _table(["time [s]", "motor", "effectiveness left"], rows, "diagnose-failures")
+    else:
+        found = "<p class='q'>No rotor failure found.</p>"
+    flagged = {d["motor"] for d in j["damaged"]}
+    rows = [
+        [m["motor"], f"{m['output']:.0f}", f"{m['output_excess']:+.1f}", f"{100 * m['excess']:+.1f} %",
+         "works harder than intact vehicles spread" if m["motor"] in flagged else ""]
+        for m in j["motors"]
+    ]  # fmt: skip
+    shares = (
+        _table(["motor", "median output", "above the others' mean", "thrust share above the others", ""], rows,
+               "diagnose-motors")
+        if rows else "<p class='q'>No motor shares (a flight with a failure, or shorter than 10 s).</p>"
+    )  # fmt: skip
+    notes = "".join(f"<p class='q'>note: {html.escape(n)}</p>" for n in j["notes"])
+    return STYLE + head + found + shares + notes
+
+
+def _diagnosis_section(dg: dict, xr) -> list:
+    """The diagnosis's tables, and each motor's output over time with the failures found marked."""
+    f = _figure("motor outputs [fraction of full thrust]; dashed: a failure found", xr, "thrust", "diagnose-outputs")
+    _lines(f, dg["t_out"], {f"motor {m}": dg["thrust"][:, i] for i, m in enumerate(dg["motors"])})
+    for fail in dg["json"]["failures"]:
+        f.add_layout(Span(location=fail["time_s"], dimension="height", line_color="red", line_dash="dashed"))
+    return [Div(text=_diagnosis_text(dg["json"]), sizing_mode="stretch_width"), f]
 
 
 def _failure_sections(rec, att, xr) -> list:

@@ -90,6 +90,10 @@ def pwm_thrust(pwm, pwm_min, pwm_max, spin_min, spin_max, expo) -> np.ndarray:
     return (1.0 - expo) * x + expo * x * x
 
 
+MOTOR_LOG_SUFFIXES = (".bin", ".ulg")
+"""The logs whose motors quadest reads: ArduPilot DataFlash and PX4 ULog."""
+
+
 def read_motor_log(path: str | Path) -> MotorLog:
     """An ArduPilot DataFlash (.bin) or PX4 ULog (.ulg) log's motors (module doc)."""
     p = Path(path)
