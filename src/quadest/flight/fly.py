@@ -129,9 +129,10 @@ def fly(
     throw: ThrowParams | None = None,
     detection: str | DetectorParams = "oracle",
 ) -> Flight:
-    """Fly ``scenario`` with ``estimator`` in the loop: a quadest filter by name (with the
-    preset's declination), an :class:`~quadest.filters.Estimator` (it continues from its state),
-    or ``truth`` (an oracle: the controller reads the true state).
+    """Fly ``scenario`` with ``estimator`` in the loop: a quadest filter or peer by name (with the
+    preset's declination; started converged at the start attitude, ``params.estimator_start_s``:
+    an oracle of the start), an :class:`~quadest.filters.Estimator` (it continues from its
+    state), or ``truth`` (an oracle: the controller reads the true state).
 
     Scenarios: ``hover`` (hold the origin from a disturbed start), ``trajectory`` (a 1 m circle
     at 0.2 Hz), ``aggressive`` (a figure eight drawn from the seed, 1-1.5 m by 0.3-0.45 m at
