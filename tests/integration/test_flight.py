@@ -11,8 +11,10 @@ from scipy.optimize import least_squares
 
 from quadest.control import Failure, FtcParams, relaxed_hover
 from quadest.errors import UsageError
+from quadest.evaluation.detection import case_failure, case_flight_kwargs, failure_case
 from quadest.filters import Madgwick, make_filter
-from quadest.flight import fly
+from quadest.flight import FlightParams, fly
+from quadest.flight.common import angle_errors
 from quadest.models import MultirotorParams, vehicle_preset
 from quadest.sim.flown import flown_recording
 
@@ -165,8 +167,7 @@ def test_the_loop_reads_the_sensor_model_and_the_check_can_fail():
 def test_estimators_in_the_loop_hold_a_hover():
     """Madgwick's filter and the Kalman filter in the loop hold the hover from a disturbed start
     (settled within 0.3 m and near the setpoint after; the tilt error the controller flew with
-    below 5° RMS: the estimators start from an accelerometer sample taken while the vehicle is
-    thrown off, so the first instants carry more)."""
+    below 5° RMS)."""
     for name in ("madgwick", "roetenberg"):
         s = fly("hover", estimator=name, seed=4).summary
         assert s["status"] == "survived" and s["time_to_settle_s"] is not None, s
@@ -175,6 +176,31 @@ def test_estimators_in_the_loop_hold_a_hover():
         # gains): the offset it holds, plus 5 cm for the position sensor and the settling
         offset = 9.80665 * np.tan(np.radians(s["tilt_error_rms_deg"])) / 6.5
         assert s["position_rms_settled_m"] < offset + 0.05, s
+
+
+def _hover_loss(seed, **params):
+    """The campaign's hover loss of ``seed`` (a training seed) with robust in the loop."""
+    case = failure_case(seed, "oracle")
+    kw = case_flight_kwargs(case)
+    kw["params"] = replace(kw["params"], **params)
+    return fly("hover", estimator="robust", seed=seed, duration=case["duration"], vehicle="bebop2",
+               failure=case_failure(case), controller="ftc", **kw)  # fmt: skip
+
+
+def test_the_estimator_in_the_loop_starts_converged_at_the_start_attitude():
+    """A start in flight, tilted 11.6° in a wind: the accelerometer reads the thrust and the
+    drag, not gravity. Started from the flight's first samples robust takes them for gravity
+    (7° of tilt error at the first sample, 48° within 2 s: the field's heading through the wrong
+    tilt) and the vehicle crashes before the rotor goes (the truth keeps it up); started
+    converged at the start attitude (``FlightParams.estimator_start_s``, the default) it is
+    within its sensors' biases from the first sample and the loss is flown."""
+    cold = _hover_loss(180, estimator_start_s=0.0)
+    _, tilt = angle_errors(cold.states[:, 6:10], cold.q_est)
+    assert cold.summary["status"] == "crashed" and tilt[0] > 5.0 and tilt.max() > 30.0, cold.summary
+    assert FlightParams().estimator_start_s > 0.0
+    f = _hover_loss(180)
+    _, tilt = angle_errors(f.states[:, 6:10], f.q_est)
+    assert f.summary["status"] == "survived" and tilt[0] < 1.0 and tilt.max() < 3.0, f.summary
 
 
 @njit
@@ -358,7 +384,7 @@ def test_peers_fly_in_the_loop_through_their_streaming_api(peer):
     batch adapter gives over the flown recording afterwards (the same frames and declination),
     and holds a hover."""
     pytest.importorskip(peer)
-    f = fly("trajectory", estimator=peer, seed=1, duration=4.0)
+    f = fly("trajectory", estimator=peer, seed=1, duration=4.0, params=FlightParams(estimator_start_s=0.0))
     q = make_filter(peer, declination=f.recording.declination).run(f.recording).q
     assert np.abs(np.abs((q * f.q_est).sum(axis=1)) - 1.0).max() < 1e-6
     s = fly("hover", estimator=peer, seed=4).summary

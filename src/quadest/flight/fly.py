@@ -54,6 +54,7 @@ from quadest.flight.loop import (
     flown_arrays,
     sense_sample,
 )
+from quadest.flight.start import converge, rest_readings
 from quadest.flight.throw import ThrowParams, fly_throw
 from quadest.models.multirotor import MultirotorParams, vehicle_preset
 from quadest.recovery import RecoveryParams
@@ -128,9 +129,10 @@ def fly(
     throw: ThrowParams | None = None,
     detection: str | DetectorParams = "oracle",
 ) -> Flight:
-    """Fly ``scenario`` with ``estimator`` in the loop: a quadest filter by name (with the
-    preset's declination), an :class:`~quadest.filters.Estimator` (it continues from its state),
-    or ``truth`` (an oracle: the controller reads the true state).
+    """Fly ``scenario`` with ``estimator`` in the loop: a quadest filter or peer by name (with the
+    preset's declination; started converged at the start attitude, ``params.estimator_start_s``:
+    an oracle of the start), an :class:`~quadest.filters.Estimator` (it continues from its
+    state), or ``truth`` (an oracle: the controller reads the true state).
 
     Scenarios: ``hover`` (hold the origin from a disturbed start), ``trajectory`` (a 1 m circle
     at 0.2 Hz), ``aggressive`` (a figure eight drawn from the seed, 1-1.5 m by 0.3-0.45 m at
@@ -180,6 +182,8 @@ def fly(
         ref = landing_reference(ref, t, params.landing_m_s, params.height_m)
     processes, sm = sensors_for(cfg, n, seed, vehicle)  # the generators and order of flown_recording's
     nav, est = _in_loop(estimator, cfg, rate, estimator_params)
+    if not isinstance(estimator, Estimator):  # one given continues from its state
+        _start_converged(est, sm, x0[6:10], cfg, params.estimator_start_s)
     ftc, gains = ftc or FtcParams(), (se3 or SE3Params()).gains(vehicle)
     detection, detector = (detection, None) if isinstance(detection, str) else (_mode(detection), detection)
     oracle = detection == "oracle"
@@ -437,6 +441,17 @@ def _in_loop(estimator, cfg, rate, estimator_params):
     else:
         est = make_filter(estimator, declination=declination, **(estimator_params or {}))
     return "filter", InLoop(est.name, None if est.peer else tuple(est.compiled()), est if est.peer else None, est)
+
+
+def _start_converged(est: InLoop, sm, q0, cfg, seconds: float) -> None:
+    """The estimator in the loop fed ``seconds`` of its sensors' readings at rest at the start
+    attitude ``q0`` (:func:`~quadest.flight.start.rest_readings`): started as a flying vehicle's
+    is, converged (an oracle of the start; none for the truth)."""
+    if est.instance is None or seconds <= 0.0:
+        return
+    rate = cfg.imu.rate_hz
+    readings = rest_readings(sm, q0, int(round(seconds * rate)), rate, cfg.mag.rate_hz)
+    converge(est.instance, est.peer is not None, readings, rate)
 
 
 def _mode(detector: DetectorParams) -> str:
