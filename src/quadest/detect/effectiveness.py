@@ -191,7 +191,8 @@ class DetectorParams(Params):
         0.1,
         "s",
         "the tests hold this long after a thrust cut",
-        "chosen: about three motor time constants; not varied",
+        "chosen on training seeds: of 0.05 and 0.1, the shorter without an alarm where a landing starts "
+        "(at the edge for one flight: docs/detection.md)",
         "[0, 100]",
     )
     lost_drift: float = param(0.6, "-", "deficit the 'lost' test ignores (ν)", "chosen: above a 50 % loss", "(0, 1]")
