@@ -183,10 +183,48 @@ def test_a_saturated_start_with_a_vibrating_gyroscope_raises_no_alarm():
 def test_a_hard_landing_raises_no_alarm(seed):
     """A circle ending in a touchdown at 1-2 m/s: the legs' push is a force the rotor model has
     not; the accelerometer reading more than the rotors can make holds the tests (and keeps
-    them held while the vehicle stands), without which the touchdown raised an alarm."""
+    them held while the vehicle stands), without which the touchdown raised an alarm (the
+    thrust-cut hold off too: the bounce's cut holds the tests on these seeds as well)."""
     from quadest.evaluation.detection import crossings
 
     case = _case(seed, 8.0, ("landing_m_s",))
     assert crossings(case, (0.004,))["first"]["0.004"] is None
-    alarm = crossings(case, (0.004,), replace(DetectorParams(), contact_margin=0.0))["first"]["0.004"]
+    neither = replace(DetectorParams(), contact_margin=0.0, cut_rotors=0.0)
+    alarm = crossings(case, (0.004,), neither)["first"]["0.004"]
     assert alarm is not None and abs(alarm[0] - 7.0) < 0.1
+
+
+@pytest.mark.parametrize("mode", ["rotor-speeds", "commands"])
+def test_a_landing_start_raises_no_alarm(mode):
+    """A training nominal flight (seed 6043: the circle in a 4.7 m/s wind, then a 1 m/s landing):
+    where the landing starts the controller cuts the thrust, two rotors commanded to idle, and
+    the vehicle rolls at 8 rad/s; the rotors far from their operating point (near idle,
+    decelerating, in the inflow of the vehicle's own motion and the aliased blade-pass tone)
+    made rotor 0's sum reach 0.025 deficit-seconds. Holding the tests during the thrust cut, no
+    alarm; without the hold, the alarm."""
+    from quadest.evaluation.detection import crossings, nominal_case
+
+    case = nominal_case(6043, mode, 60.0)
+    assert crossings(case, (0.008,))["first"]["0.008"] is None
+    alarm = crossings(case, (0.008,), replace(DetectorParams(), cut_rotors=0.0))["first"]["0.008"]
+    assert alarm is not None and alarm[0] > 55.0, alarm
+
+
+def test_a_thrust_cut_is_read_from_the_commands_streaming_or_batch():
+    """With measured speeds the commands are given beside them (the autopilot knows what it
+    sends): the hold is the same streaming and in batch, and two rotors commanded to idle hold
+    the tests (their sums stay at zero) for ``cut_hold_s``."""
+    f = fly("rotor-loss", seed=3, duration=3.0, vehicle="bebop2", controller="se3", detection="rotor-speeds")
+    rec = f.recording
+    speeds, cmds = f.states[:, 13:], _detector_inputs(f, "commands").copy()
+    free = Detector(BEBOP).run(rec.t, rec.gyr, rec.acc, speeds)
+    cut = int(np.searchsorted(rec.t, free.lost_t)) - 10  # a thrust cut 20 ms before the alarm
+    cmds[cut : cut + 5, :2] = 0.0
+    batch = Detector(BEBOP).run(rec.t, rec.gyr, rec.acc, speeds, cmds)
+    det = Detector(BEBOP)
+    dt = np.diff(rec.t, prepend=rec.t[0] - (rec.t[1] - rec.t[0]))
+    for k in range(len(rec)):
+        det.update(rec.gyr[k], rec.acc[k], speeds[k], dt=dt[k], commands=cmds[k])
+    assert (det.result().lost, det.result().lost_t) == (batch.lost, batch.lost_t)
+    assert free.lost == 0
+    assert batch.lost_t > rec.t[cut] + DetectorParams().cut_hold_s > free.lost_t

@@ -59,6 +59,7 @@ STATE = layout(
     ("samples", 1),
     ("contact_t", 1),  # when the accelerometer last read a push the rotors cannot make (-inf: never)
     ("landed", 1),  # 1 from a contact until the rotors carry the weight again
+    ("cut_t", 1),  # when rotors were last commanded at their lowest speed together (-inf: never)
     ("h_lp", MAX_ROTORS),  # each rotor's angular momentum I_p s_i Ω_i, low-passed over H_TAU
     ("B", 3 * MAX_ROTORS),  # scratch of one step: the input matrix, F P's rows, P h, h
     ("FP", 3 * NS),
@@ -174,6 +175,24 @@ class DetectorParams(Params):
         "s",
         "the tests hold this long after a contact",
         "chosen: a touchdown's bounce settles within it",
+        "[0, 100]",
+    )
+    cut_rotors: float = param(
+        2.0,
+        "-",
+        "a thrust cut: the tests hold while at least this many rotors are commanded at their lowest speed, "
+        "and cut_hold_s after (0: never)",
+        "measured on training seeds: each alarm where a landing started (nominal 6000-6599) came within 50 ms "
+        "of two or three rotors commanded to idle; the hold moved no alarm of a complete loss (0-399) "
+        "(docs/detection.md)",
+        "[0, 8]",
+    )
+    cut_hold_s: float = param(
+        0.1,
+        "s",
+        "the tests hold this long after a thrust cut",
+        "chosen on training seeds: of 0.05 and 0.1, the shorter without an alarm where a landing starts "
+        "(at the edge for one flight: docs/detection.md)",
         "[0, 100]",
     )
     lost_drift: float = param(0.6, "-", "deficit the 'lost' test ignores (ν)", "chosen: above a 50 % loss", "(0, 1]")
@@ -422,8 +441,9 @@ def _test(x, p, c, dt):
         var_min = min(var_min, x[STATE.P + (3 + i) * (3 + n) + 3 + i])
     sd_max = p[PARAM.deficit_sd_ratio] * np.sqrt(var_min)
     touching = x[STATE.landed] != 0.0 or x[STATE.time] - x[STATE.contact_t] <= p[PARAM.contact_hold_s]
+    touching = touching or x[STATE.time] - x[STATE.cut_t] <= p[PARAM.cut_hold_s]
     for i in range(n):
-        if touching:  # forces the rotor model has not: no evidence either way
+        if touching:  # forces the rotor model has not, or a thrust cut: no evidence either way
             x[STATE.s_lost + i] = 0.0
             x[STATE.s_damaged + i] = 0.0
             continue
@@ -472,6 +492,22 @@ def _deficit_variance(x, i, n):
     return total
 
 
+@njit(cache=True, inline="always")
+def note_commands(x, p, c, cmd):
+    """The speeds commanded over the interval that ends at the next step (rad/s): a thrust cut,
+    ``cut_rotors`` or more at the lowest speed, holds the tests (the rotors are then far from the
+    regime the model holds in: near idle, decelerating, in the inflow of the vehicle's own motion)."""
+    need = p[PARAM.cut_rotors]
+    if need <= 0.0:
+        return
+    at_min = 0
+    for i in range(int(c[MODEL.rotors])):
+        if cmd[i] <= c[MODEL.omega_min]:
+            at_min += 1
+    if at_min >= need:
+        x[STATE.cut_t] = x[STATE.time]
+
+
 @njit(cache=True, **NO_ALLOCATION)
 def detect_step(x, p, c, gyr, acc, rotors, dt, diag):
     """One sample: gyroscope (rad/s), accelerometer (m/s²), each rotor's measured speed or the
@@ -490,6 +526,8 @@ def detect_step(x, p, c, gyr, acc, rotors, dt, diag):
             diag[STAT + j] = 0.0
         return -1
     measured = p[PARAM.rotor_speeds] != 0.0
+    if not measured:
+        note_commands(x, p, c, rotors)
     for i in range(n):  # the speeds over the interval: √(½(Ω²_begin + Ω²_end)), Ω² being what thrust needs
         begin = x[STATE.omega_end + i]
         end = rotors[i] if measured else motor_step(begin, rotors[i], c, dt)
@@ -512,9 +550,13 @@ def detect_step(x, p, c, gyr, acc, rotors, dt, diag):
 
 
 @njit(cache=True, **NO_ALLOCATION)
-def detect_run(x, p, c, dt, gyr, acc, rotors, diag_out):
-    """Batch: the same step over every sample."""
+def detect_run(x, p, c, dt, gyr, acc, rotors, diag_out, commands):
+    """Batch: the same step over every sample; ``commands`` the speeds commanded over each
+    interval (:func:`note_commands`), or no rows."""
+    noted = commands.shape[0] == len(dt)
     for k in range(len(dt)):
+        if noted:
+            note_commands(x, p, c, commands[k])
         detect_step(x, p, c, gyr[k], acc[k], rotors[k], dt[k], diag_out[k])
 
 
@@ -556,14 +598,20 @@ class Detector:
     def reset(self) -> None:
         """Back to the start: every rotor intact, nothing found."""
         self._state = np.zeros(STATE.end)
+        self._state[STATE.cut_t] = -np.inf
         self._out = np.zeros(DIAG)
 
     def compiled(self) -> tuple:
         """The live arrays of the compiled step ``detect_step(x, p, c, ...)`` for a compiled loop."""
         return self._state, self._values, self._model, self._out
 
-    def update(self, gyr: ArrayLike, acc: ArrayLike, rotors: ArrayLike, *, dt: float) -> int | None:
-        """One sample (rotor speeds or commands, rad/s, one per rotor): the rotor found lost, or None."""
+    def update(
+        self, gyr: ArrayLike, acc: ArrayLike, rotors: ArrayLike, *, dt: float, commands: ArrayLike | None = None
+    ) -> int | None:
+        """One sample (rotor speeds or commands, rad/s, one per rotor; with measured speeds, the
+        ``commands`` over the interval too, for the thrust cut's hold): the rotor found lost, or None."""
+        if commands is not None:
+            note_commands(self._state, self._values, self._model, _vec(commands, self.rotors))
         lost = detect_step(
             self._state,
             self._values,
@@ -599,18 +647,23 @@ class Detector:
             None if damaged is None else float(x[STATE.damaged_eta]),
         )
 
-    def run(self, t: ArrayLike, gyr: ArrayLike, acc: ArrayLike, rotors: ArrayLike) -> Detection:
-        """Over whole arrays (rows of samples), from the current state. Times in the result are
-        seconds from the first sample the detector saw."""
+    def run(
+        self, t: ArrayLike, gyr: ArrayLike, acc: ArrayLike, rotors: ArrayLike, commands: ArrayLike | None = None
+    ) -> Detection:
+        """Over whole arrays (rows of samples; ``commands`` as in :meth:`update`), from the current
+        state. Times in the result are seconds from the first sample the detector saw."""
         t = np.asarray(t, float)
         n = len(t)
         gyr, acc = (np.ascontiguousarray(a, dtype=float) for a in (gyr, acc))
         rotors = np.ascontiguousarray(rotors, dtype=float)
+        cmds = np.ascontiguousarray(np.zeros((0, self.rotors)) if commands is None else commands, dtype=float)
         if gyr.shape != (n, 3) or acc.shape != (n, 3) or rotors.shape != (n, self.rotors):
             raise ValueError(f"detector: gyr and acc must be ({n}, 3) and rotors ({n}, {self.rotors})")
+        if commands is not None and cmds.shape != (n, self.rotors):
+            raise ValueError(f"detector: commands must be ({n}, {self.rotors})")
         dt = np.diff(t, prepend=t[0] - (np.median(np.diff(t)) if n > 1 else 0.0))
         diag = np.zeros((n, DIAG))
-        detect_run(self._state, self._values, self._model, dt, gyr, acc, rotors, diag)
+        detect_run(self._state, self._values, self._model, dt, gyr, acc, rotors, diag, cmds)
         res = self.result(t, diag[:, : self.rotors])
         res.statistics = diag[:, STAT : STAT + 4]
         return res

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from quadest._jit import njit
 from quadest.detect import detect_step
-from quadest.detect.effectiveness import STAT, STATE
+from quadest.detect.effectiveness import STAT, STATE, note_commands
 from quadest.flight.phases import FAULT, FLYING
 from quadest.records import compiled_record
 
@@ -54,6 +54,8 @@ def notice_failure(k, x, loop):
             det.reading[i] = x[13 + i] * (1.0 + det.noise[k, i])
         else:
             det.reading[i] = loop.control.cmd[i]  # the command over the interval just ended
+    if det.mode == ROTOR_SPEEDS:  # the autopilot knows what it commands, the speeds read or not
+        note_commands(det.x, det.p, det.c, loop.control.cmd)
     sensing = loop.sensing
     lost = detect_step(det.x, det.p, det.c, sensing.gyr, sensing.acc, det.reading, sensing.dt, det.diag)
     for i in range(n):
