@@ -120,18 +120,19 @@ def transition_matrix(F, U, w, v, gb, g, dt):
 
 
 @njit(cache=True, inline="always")
-def predict_covariance(Pi, F, T, q_vel, q_att, dt):
-    """P̄ = F P Fᵀ + Q in place (``T`` scratch)."""
-    for r in range(NX):
-        for c in range(NX):
+def predict_covariance(Pi, F, T, q_vel, q_att, dt, nx):
+    """P̄ = F P Fᵀ + Q in place (``T`` scratch) on the first ``nx`` states (5: the height's
+    row and column left as they are, for a bank that does not read the barometer)."""
+    for r in range(nx):
+        for c in range(nx):
             s = 0.0
-            for k in range(NX):
+            for k in range(nx):
                 s += F[r, k] * Pi[k, c]
             T[r, c] = s
-    for r in range(NX):
-        for c in range(r, NX):
+    for r in range(nx):
+        for c in range(r, nx):
             s = 0.0
-            for k in range(NX):
+            for k in range(nx):
                 s += T[r, k] * F[c, k]
             Pi[r, c] = s
             Pi[c, r] = s
@@ -159,13 +160,14 @@ def inverse_3x3(Wm, Wi):
 
 
 @njit(cache=True, inline="always")
-def update_covariance(Pi, T, K, PH):
-    """P = (I − K H) P̄ = P̄ − K (P Hᵀ)ᵀ, symmetrised, in place (``T`` scratch)."""
-    for r in range(NX):
-        for c in range(NX):
+def update_covariance(Pi, T, K, PH, nx):
+    """P = (I − K H) P̄ = P̄ − K (P Hᵀ)ᵀ, symmetrised, in place (``T`` scratch), on the first
+    ``nx`` states."""
+    for r in range(nx):
+        for c in range(nx):
             T[r, c] = Pi[r, c] - (K[r, 0] * PH[c, 0] + K[r, 1] * PH[c, 1] + K[r, 2] * PH[c, 2])
-    for r in range(NX):
-        for c in range(NX):
+    for r in range(nx):
+        for c in range(nx):
             Pi[r, c] = 0.5 * (T[r, c] + T[c, r])
 
 
@@ -240,6 +242,7 @@ def advance_bank(V, Qr, P, L, Z, w_prev, sample, prm, model, work):
     n = V.shape[0]
     f, U, gb, F, T, PH, Wm, Wi, K, vbar, dx = work
     w = w_prev
+    nx = NX if prm.baro_var > 0.0 else NX - 1  # the height's covariance only when read
     read = prm.baro_var > 0.0 and np.isfinite(baro)
     for i in range(n):
         v = V[i]
@@ -253,10 +256,10 @@ def advance_bank(V, Qr, P, L, Z, w_prev, sample, prm, model, work):
         Z[i] += dt * (gb[0] * v[0] + gb[1] * v[1] + gb[2] * v[2]) / g
         qexp_right(Qr[i], w[0] * dt, w[1] * dt, w[2] * dt)  # eq 23
         transition_matrix(F, U, w, v, gb, g, dt)
-        predict_covariance(Pi, F, T, prm.q_vel, prm.q_att, dt)
+        predict_covariance(Pi, F, T, prm.q_vel, prm.q_att, dt, nx)
         v[0], v[1], v[2] = vbar[0], vbar[1], vbar[2]
         if update:
-            L[i] += accelerometer_term(v, Qr[i], Pi, Z, i, gyr, acc, prm, model, work)
+            L[i] += accelerometer_term(v, Qr[i], Pi, Z, i, (gyr, acc, nx), prm, model, work)
         if read:
             L[i] += barometer_term(v, Qr[i], Pi, Z, i, baro, prm.baro_var, dx)
     top = L[0]
@@ -269,15 +272,17 @@ def advance_bank(V, Qr, P, L, Z, w_prev, sample, prm, model, work):
 
 
 @njit(cache=True, inline="always")
-def accelerometer_term(v, q, Pi, Z, i, gyr, acc, prm, model, work):
+def accelerometer_term(v, q, Pi, Z, i, reading, prm, model, work):
     """The posterior (eqs 26-30) of one hypothesis in place from its prior ``v``, ``q``, ``Pi``,
-    ``Z[i]``; returns its log-likelihood term (eq 33 in the log domain)."""
+    ``Z[i]`` and the ``reading`` ``(gyr, acc, nx)`` (the first ``nx`` states updated); returns
+    its log-likelihood term (eq 33 in the log domain)."""
+    gyr, acc, nx = reading
     A, B, C = model
     f, U, gb, F, T, PH, Wm, Wi, K, vbar, dx = work
     _aero(v, gyr, A, B, C, prm.mass, f, U)
     r0, r1, r2 = acc[0] - f[0], acc[1] - f[1], acc[2] - f[2]
     # PHᵀ = P[:, 0:3] Uᵀ (H = [U, 0, 0])
-    for r in range(NX):
+    for r in range(nx):
         for c in range(3):
             PH[r, c] = Pi[r, 0] * U[c, 0] + Pi[r, 1] * U[c, 1] + Pi[r, 2] * U[c, 2]
     for r in range(3):
@@ -285,14 +290,15 @@ def accelerometer_term(v, q, Pi, Z, i, gyr, acc, prm, model, work):
             Wm[r, c] = U[r, 0] * PH[0, c] + U[r, 1] * PH[1, c] + U[r, 2] * PH[2, c]
         Wm[r, r] += prm.acc_var
     det = inverse_3x3(Wm, Wi)
-    for r in range(NX):
+    for r in range(nx):
         for c in range(3):
             K[r, c] = PH[r, 0] * Wi[0, c] + PH[r, 1] * Wi[1, c] + PH[r, 2] * Wi[2, c]
-    for r in range(NX):
+    for r in range(nx):
         dx[r] = K[r, 0] * r0 + K[r, 1] * r1 + K[r, 2] * r2
     v[0], v[1], v[2] = v[0] + dx[0], v[1] + dx[1], v[2] + dx[2]
-    Z[i] += dx[5]
-    update_covariance(Pi, T, K, PH)
+    if nx == NX:
+        Z[i] += dx[5]
+    update_covariance(Pi, T, K, PH, nx)
     qexp_right(q, dx[3], dx[4], 0.0)  # eq 30; δ back to zero
     maha = mahalanobis_3(r0, r1, r2, Wi)
     return -0.5 * maha - 0.5 * (3.0 * LOG_2PI + np.log(det))
