@@ -1,11 +1,12 @@
 """The nominal estimator after the handover (the recovery paper's section V-B): one EKF of the
-bank's kind (:mod:`quadest.recovery.bank`: body velocity and a two-component error rotation,
-the aerodynamic model, the accelerometer update) whose state also carries the height, so that a
-barometer reading corrects the velocity it integrates. The paper's nominal estimator has a
-barometer too; without it the velocity's error (the aerodynamic model's, fitted at the throw's
-rotor speed) goes uncorrected and a height loop that reads it settles off its height.
+bank's kind (:mod:`quadest.recovery.bank`: body velocity, a two-component error rotation and
+the height, the aerodynamic model, the accelerometer update) that always reads the barometer
+(the bank only with ``bank_baro``), so that a reading corrects the velocity it integrates. The
+paper's nominal estimator has a barometer too; without it the velocity's error (the aerodynamic
+model's, fitted at the throw's rotor speed) goes uncorrected and a height loop that reads it
+settles off its height.
 
-State ``x = (v_b, δx, δy, z)``: the bank's, and ``z`` the height (NED, m down). With ``ĝ`` the
+State ``x = (v_b, δx, δy, z)``: the bank's, ``z`` the height (NED, m down). With ``ĝ`` the
 gravity direction in the body (row 2 of ``R_nb``) and ``R_nb = R_ref (I + [δ]×)``:
 
     ż = e_zᵀ R_nb v_b = ĝᵀ v + δ · (v × ĝ)      so   ∂ż/∂v = ĝᵀ,  ∂ż/∂(δx, δy) = (v × ĝ)_{x, y}
