@@ -121,10 +121,10 @@ def hold(k, yaw, z, loop):
 
 @njit(cache=True)
 def wait_for_throw(k, x, loop):
-    """``waiting``: count the samples below β1 (eq 37); at the detection start converging (with
-    the truth: hand over at once, holding the true yaw and height; the bank's heights from the
-    latest barometer reading, if any). Events: the latest detection, the detections so far, the
-    first."""
+    """``waiting``: count the samples below β1 (eq 37); at the detection start converging, the
+    bank's heights from the latest barometer reading (NaN: none yet), or with the truth hand over
+    at once, holding the true yaw and height. Events: the latest detection, the detections so
+    far, the first."""
     bank, sensing, events = loop.bank, loop.sensing, loop.record.events
     gyr = sensing.gyr
     loop.state[BELOW] = count_samples(loop.state[BELOW], sensing.acc, bank.beta1, True)
