@@ -362,13 +362,13 @@ def test_the_bank_without_its_update_keeps_the_prior():
     m = aero_model(build_config("fma"))
     prm = RecoveryParams().bank_record(0.5)
     q = np.array([[1.0, 0.0, 0.0, 0.0]])
-    args = lambda: (np.array([[1.0, 0.0, 0.0]]), q.copy(), np.eye(5)[None] * 0.1, np.zeros(1))  # noqa: E731
+    args = lambda: (np.array([[1.0, 0.0, 0.0]]), q.copy(), np.eye(6)[None] * 0.1, np.zeros(1))  # noqa: E731
     w = np.array([0.1, 0.0, 0.0])
     acc = np.array([0.0, 0.0, -3.0])
     Va, Qa, Pa, La = args()
-    bank_step(Va, Qa, Pa, La, w.copy(), w, acc, 1e-3, prm, m.A, m.B, m.C, False)
+    bank_step(Va, Qa, Pa, La, np.zeros(1), w.copy(), w, acc, 1e-3, prm, m.A, m.B, m.C, False)
     Vb, Qb, Pb, Lb = args()
-    bank_step(Vb, Qb, Pb, Lb, w.copy(), w, acc, 1e-3, prm, m.A, m.B, m.C, True)
+    bank_step(Vb, Qb, Pb, Lb, np.zeros(1), w.copy(), w, acc, 1e-3, prm, m.A, m.B, m.C, True)
     assert La[0] == 0.0 and np.trace(Pa[0]) > np.trace(Pb[0]) and not np.allclose(Va, Vb)
     # the prior by hand: v + dt (−ω × v + f_c(v, ω)/m + g_b), g_b = [0, 0, g] level
     from quadest.models.aero import aero_force

@@ -126,12 +126,66 @@ def test_transition_matrix_eqs40_44_against_finite_differences():
     # F is the first-order transition; the exact discrete map differs by O((|ω|ΔT)²)
     np.testing.assert_allclose(F, fd, atol=2 * (np.linalg.norm(w) * dt) ** 2 + 1e-9)
     # and the compiled propagation of P agrees with F P Fᵀ + Q (no measurement: infinite noise)
-    P0 = np.diag([1.0, 2.0, 3.0, 0.1, 0.2])
+    P0 = np.diag([1.0, 2.0, 3.0, 0.1, 0.2, 0.5])
     V, Qr, P, L = v[None].copy(), q_ref[None].copy(), P0[None].copy(), np.zeros(1)
-    prm = BankRecord(gravity=9.80665, mass=MODEL.mass_kg, acc_var=1e30, q_vel=0.0, q_att=0.0)
-    bank_step(V, Qr, P, L, w.copy(), w, np.zeros(3), dt, prm, MODEL.A, MODEL.B, MODEL.C)
-    np.testing.assert_allclose(P[0], F @ P0 @ F.T, rtol=1e-9, atol=1e-12)
+    prm = BankRecord(gravity=9.80665, mass=MODEL.mass_kg, acc_var=1e30, q_vel=0.0, q_att=0.0, baro_var=0.0)
+    bank_step(V, Qr, P, L, np.zeros(1), w.copy(), w, np.zeros(3), dt, prm, MODEL.A, MODEL.B, MODEL.C)
+    np.testing.assert_allclose(P[0, :5, :5], F @ P0[:5, :5] @ F.T, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(V[0], _prior(v, q_ref, np.zeros(2), w, dt)[:3], atol=1e-12)
+
+
+def test_bank_height_row_against_finite_differences():
+    """The bank's height row ż = ĝᵀ v + δ · (v × ĝ) against finite differences of the exact prior,
+    and its propagation of the whole 6x6 P is F P Fᵀ (no noise, no update)."""
+    rng = np.random.default_rng(6)
+    v, w, dt = rng.normal(size=3) * 2, rng.normal(size=3) * 4, 1e-3
+    q_ref = quat_from_rotvec(rng.normal(size=3))
+
+    def prior(x):
+        q = quat_mul(q_ref, quat_from_rotvec([x[3], x[4], 0.0]))
+        z = x[5] + dt * quat_rotate(q, x[:3])[2]  # NED down: the body velocity in the navigation frame
+        return np.concatenate([_prior(x[:3], q_ref, x[3:5], w, dt), [z]])
+
+    x0 = np.concatenate([v, [0.0, 0.0, 1.5]])
+    fd = np.column_stack([(prior(x0 + h) - prior(x0 - h)) / 2e-6 for h in np.eye(6) * 1e-6])
+    P0 = np.diag([1.0, 2.0, 3.0, 0.1, 0.2, 0.5])
+    V, Qr, P, L, Z = v[None].copy(), q_ref[None].copy(), P0[None].copy(), np.zeros(1), np.array([1.5])
+    prm = BankRecord(gravity=9.80665, mass=MODEL.mass_kg, acc_var=1.0, q_vel=0.0, q_att=0.0, baro_var=0.09)
+    bank_step(V, Qr, P, L, Z, w.copy(), w, np.zeros(3), dt, prm, MODEL.A, MODEL.B, MODEL.C, False)
+    tol = 2 * (np.linalg.norm(w) * dt) ** 2 + 1e-9
+    np.testing.assert_allclose(P[0], fd @ P0 @ fd.T, atol=10 * tol)
+    assert Z[0] == pytest.approx(prior(x0)[5], abs=1e-12)
+
+
+def _level_fall(baro_var, ms=1000):
+    """Two hypotheses of a level vehicle falling from rest under its rotors' constant thrust: the
+    true attitude and upside down (which predicts a fall faster by twice the thrust per mass).
+    The accelerometer made uninformative (its variance 1e30): only the barometer, read every
+    20 ms from the true height, can tell them apart. Returns the log-likelihoods."""
+    dt, g = 1e-3, 9.80665
+    prm = BankRecord(gravity=g, mass=MODEL.mass_kg, acc_var=1e30, q_vel=0.0, q_att=0.0, baro_var=baro_var)
+    V, L, Z = np.zeros((2, 3)), np.zeros(2), np.full(2, np.nan)
+    Qr = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
+    P = np.repeat(np.diag([9.0, 9, 9, 1, 1, 0.09])[None], 2, axis=0)
+    v, z, w = np.zeros(3), -10.0, np.zeros(3)
+    for k in range(ms):
+        acc = MODEL.specific_force(v, w)
+        v = v + dt * (acc + [0.0, 0.0, g])
+        z += dt * v[2]
+        baro = -z if k % 20 == 0 else np.nan
+        bank_step(V, Qr, P, L, Z, w.copy(), w, acc, dt, prm, MODEL.A, MODEL.B, MODEL.C, True, baro)
+    return L
+
+
+def test_the_barometer_rules_out_a_hypothesis_that_falls_wrong():
+    """With the barometer in the likelihood the upside-down hypothesis loses (its probability
+    below 1e-3 after 1 s: 2 × 3 m/s² of thrust is 3 m of height by then, a tenth of that at 0.3
+    s, when the readings hardly tell them apart); without it the two stay alike."""
+    thrust = -MODEL.specific_force(np.zeros(3), np.zeros(3))[2]
+    assert thrust > 1.0  # m/s², the rotors' constant thrust per mass along body −z
+    with_baro, without = _level_fall(0.09), _level_fall(0.0)
+    assert with_baro[0] == 0.0 and with_baro[1] < np.log(1e-3)
+    assert abs(without[1] - without[0]) < 1e-6
 
 
 # -- the bank --------------------------------------------------------------------------------------------
@@ -177,7 +231,7 @@ def test_probabilities_stay_normalised_and_finite_over_a_million_steps():
     from quadest.recovery.bank import summarize
 
     @njit
-    def run(V, Qr, P, L, w, steps, prm, A, B, C, seed):
+    def run(V, Qr, P, L, Z, w, steps, prm, A, B, C, seed):
         np.random.seed(seed)
         prob = np.empty(V.shape[0])
         gd = np.empty((V.shape[0], 3))
@@ -189,7 +243,7 @@ def test_probabilities_stay_normalised_and_finite_over_a_million_steps():
                 gyr[j] = 0.5 + 0.01 * np.random.randn()
                 acc[j] = 0.1 * np.random.randn()
             acc[2] -= 3.0
-            bank_step(V, Qr, P, L, w, gyr, acc, 1e-3, prm, A, B, C)
+            bank_step(V, Qr, P, L, Z, w, gyr, acc, 1e-3, prm, A, B, C)
             if k % 1000 == 0:
                 summarize(Qr, L, prm.gravity, prob, gd)
                 worst = max(worst, abs(prob.sum() - 1.0))
@@ -199,9 +253,10 @@ def test_probabilities_stay_normalised_and_finite_over_a_million_steps():
     dirs = spread_points(H)
     V = np.zeros((H, 3))
     Qr = np.array([shortest_arc(d) for d in dirs])
-    P = np.repeat(np.diag([9.0, 9, 9, 1, 1])[None], H, axis=0)
+    P = np.repeat(np.diag([9.0, 9, 9, 1, 1, 0.09])[None], H, axis=0)
     L = np.zeros(H)
-    worst = run(V, Qr, P, L, np.zeros(3), 1_000_000, RecoveryParams().bank_record(0.5), MODEL.A, MODEL.B, MODEL.C, 3)
+    prm = RecoveryParams().bank_record(0.5)
+    worst = run(V, Qr, P, L, np.zeros(H), np.zeros(3), 1_000_000, prm, MODEL.A, MODEL.B, MODEL.C, 3)
     assert worst < 1e-12
     assert np.isfinite(L).all() and L.max() == 0.0 and np.isfinite(P).all() and np.isfinite(V).all()
 
@@ -268,7 +323,7 @@ def test_nominal_ekf_height_row_against_finite_differences():
     fd = np.column_stack([(prior(x0 + h) - prior(x0 - h)) / 2e-6 for h in np.eye(6) * 1e-6])
     P0 = np.diag([1.0, 2.0, 3.0, 0.1, 0.2, 0.5])
     V, Q, P, Z = v.copy(), q_ref.copy(), P0.copy(), np.array([1.5])
-    prm = BankRecord(gravity=9.80665, mass=MODEL.mass_kg, acc_var=1.0, q_vel=0.0, q_att=0.0)
+    prm = BankRecord(gravity=9.80665, mass=MODEL.mass_kg, acc_var=1.0, q_vel=0.0, q_att=0.0, baro_var=0.0)
     sample = (w, np.zeros(3), dt, False)
     nominal_step(V, Q, P, Z, w.copy(), sample, prm, (MODEL.A, MODEL.B, MODEL.C), np.nan, 0.0)
     # P = F P0 Fᵀ with F the finite differences (the first-order F is O((|ω|ΔT)²) off the exact map)
@@ -291,7 +346,7 @@ def test_nominal_ekf_barometer_corrects_height_and_velocity():
     assert -3.0 < z[0] < -2.0 and v[2] < 0.0  # NED: higher and climbing
     np.testing.assert_allclose(P, P.T, atol=1e-15)
     assert np.all(np.linalg.eigvalsh(P) > 0) and P[5, 5] < 0.04
-    prm = BankRecord(gravity=9.80665, mass=MODEL.mass_kg, acc_var=1.0, q_vel=0.0, q_att=0.0)
+    prm = BankRecord(gravity=9.80665, mass=MODEL.mass_kg, acc_var=1.0, q_vel=0.0, q_att=0.0, baro_var=0.0)
     sample = (np.zeros(3), np.zeros(3), 1e-3, False)
     for baro, var in ((np.nan, 0.09), (3.0, 0.0)):
         v1, z1 = np.zeros(3), np.array([-2.0])

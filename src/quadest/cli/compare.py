@@ -602,7 +602,8 @@ def _add_reproduce(sub):
         help="afckf: also the ablation table on the flown rotor loss (each row one sensor change: gyro "
         "range and scale, magnetometer latency, motor interference, indoor field, lever arm, "
         "vibration, a damaged propeller; docs/estimators.md); recovery: the same flown throws again "
-        "without the re-arm, without the dwell, without the barometer, and with none (docs/recovery.md)",
+        "without the re-arm, without the dwell, without the barometer, with none, and with the barometer "
+        "in the bank's likelihood (off by default; docs/recovery.md)",
     )
     r.add_argument(
         "--any-direction",

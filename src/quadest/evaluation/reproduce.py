@@ -603,8 +603,10 @@ RECOVERY_ABLATIONS = {
     "without the dwell": {"dwell_s": 0.0},
     "without the barometer": {"baro_std": 0.0},
     "the paper's logic, no barometer": {"rearm_samples": 0, "dwell_s": 0.0, "baro_std": 0.0},
+    "with the barometer in the bank": {"bank_baro": True},
 }
-"""The flown throws' ablations: each row one addition to the paper's recovery left out."""
+"""The flown throws' ablations: each row one addition to the paper's recovery left out, and the
+last one added that is off by default (the barometer in the bank's likelihood)."""
 
 
 def reproduce_recovery_flown(

@@ -235,10 +235,10 @@ def time_bank(n_hypotheses: int = 40, duration: float = 20.0, seed: int = 1) -> 
         dirs = spread_points(n_hypotheses)
         V = np.zeros((n_hypotheses, 3))
         Qr = np.array([shortest_arc(d) for d in dirs])
-        P = np.repeat(np.diag([9.0, 9, 9, 1, 1])[None], n_hypotheses, axis=0)
+        P = np.repeat(np.diag([9.0, 9, 9, 1, 1, 0.09])[None], n_hypotheses, axis=0)
         t0 = time.perf_counter()
         run_bank(
-            (V, Qr, P, np.zeros(n_hypotheses), rec.gyr[0].copy()),
+            (V, Qr, P, np.zeros(n_hypotheses), np.zeros(n_hypotheses), rec.gyr[0].copy()),
             (rec.t, rec.gyr, rec.acc),
             1,
             p.bank_record(model.mass_kg),

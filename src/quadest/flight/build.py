@@ -150,7 +150,7 @@ def bank(model=None, rp: RecoveryParams | None = None, *, mass=1.0, t_throw=0.0)
     a bank of one hypothesis that never runs, for a flight without a throw)."""
     rp = rp or RecoveryParams()
     H = rp.n_hypotheses if model is not None else 1
-    Vb, Qr, Pb, Lb = initial_bank(rp, spread_points(H) if model is not None else np.array([[0.0, 0.0, 1.0]]))
+    Vb, Qr, Pb, Lb, Zb = initial_bank(rp, spread_points(H) if model is not None else np.array([[0.0, 0.0, 1.0]]))
     A, B, C = (
         (model.A, model.B, model.C) if model is not None else (np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 10)))
     )
@@ -165,6 +165,7 @@ def bank(model=None, rp: RecoveryParams | None = None, *, mass=1.0, t_throw=0.0)
         Qr=Qr,
         Pb=Pb,
         Lb=Lb,
+        Zb=Zb,
         Qr0=Qr.copy(),
         Pb0=Pb.copy(),
         prob=np.empty(H),

@@ -56,7 +56,7 @@ YAW, HOLD_Z = 0, 1  # what a recovery holds (Loop.held)
 Bank = compiled_record(
     "Bank",
     "A throw's recovery: the bank's parameters, aerodynamic model (A, B, C; Cn its nominal "
-    "copy), hypotheses (velocity, attitude, covariance, log likelihood) and their start "
+    "copy), hypotheses (velocity, attitude, covariance 6x6, log likelihood, height) and their start "
     "(attitude, covariance), their probabilities and gravity directions, the nominal EKF (V1, "
     "Q1, P1 6x6, Z1 its height), the previous gyro reading, the thresholds of eqs 37-39, the "
     "re-arm and dwell of the logic, the barometer variance the nominal EKF assumes (0: not "
@@ -70,6 +70,7 @@ Bank = compiled_record(
     Qr="f8[:, :]",
     Pb="f8[:, :, :]",
     Lb="f8[:]",
+    Zb="f8[:]",
     Qr0="f8[:, :]",
     Pb0="f8[:, :, :]",
     prob="f8[:]",
@@ -120,9 +121,10 @@ def hold(k, yaw, z, loop):
 
 @njit(cache=True)
 def wait_for_throw(k, x, loop):
-    """``waiting``: count the samples below β1 (eq 37); at the detection start converging (with
-    the truth: hand over at once, holding the true yaw and height). Events: the latest
-    detection, the detections so far, the first."""
+    """``waiting``: count the samples below β1 (eq 37); at the detection start converging, the
+    bank's heights from the latest barometer reading (NaN: none yet), or with the truth hand over
+    at once, holding the true yaw and height. Events: the latest detection, the detections so
+    far, the first."""
     bank, sensing, events = loop.bank, loop.sensing, loop.record.events
     gyr = sensing.gyr
     loop.state[BELOW] = count_samples(loop.state[BELOW], sensing.acc, bank.beta1, True)
@@ -133,6 +135,8 @@ def wait_for_throw(k, x, loop):
         events[2] = max(events[2], 0) + 1
         if events[3] < 0:
             events[3] = k
+        for i in range(bank.Zb.shape[0]):
+            bank.Zb[i] = -sensing.baro[0]
         if reads_truth(loop.nav.kind):
             hold(k, quat_yaw(x[6:10]), x[2], loop)
     else:
@@ -151,7 +155,7 @@ def rearmed(loop):
         return False
     loop.state[PHASE] = WAITING
     loop.state[BELOW] = 0
-    restart_bank(bank.Vb, bank.Qr, bank.Pb, bank.Lb, bank.Qr0, bank.Pb0)
+    restart_bank(bank.Vb, bank.Qr, bank.Pb, bank.Lb, bank.Zb, bank.Qr0, bank.Pb0)
     gyr = sensing.gyr
     bank.w_prev[0], bank.w_prev[1], bank.w_prev[2] = gyr[0], gyr[1], gyr[2]
     return True
@@ -159,9 +163,10 @@ def rearmed(loop):
 
 @njit(cache=True)
 def converge(k, x, loop):
-    """``converging``: one step of the bank (eqs 38-39) unless re-armed; below β2, once the dwell
-    has passed, its most likely hypothesis starts the nominal EKF (the height from the latest
-    barometer reading) and the controller holds the measured height."""
+    """``converging``: one step of the bank (eqs 38-39, the barometer's reading of sample ``k``
+    fused when the bank reads it) unless re-armed; below β2, once the dwell has passed, its most
+    likely hypothesis starts the nominal EKF (the height its own, else from the latest barometer
+    reading) and the controller holds the measured height."""
     if rearmed(loop):
         return
     bank, sensing, record = loop.bank, loop.sensing, loop.record
@@ -172,6 +177,7 @@ def converge(k, x, loop):
         bank.Qr,
         bank.Pb,
         bank.Lb,
+        bank.Zb,
         bank.w_prev,
         sensing.gyr,
         sensing.acc,
@@ -181,6 +187,7 @@ def converge(k, x, loop):
         bank.B,
         bank.Cn if loop.watch.on else bank.C,
         True,
+        baro_reading(k, sensing),
     )
     best, sg = summarize(bank.Qr, bank.Lb, bank.prm.gravity, bank.prob, bank.gd)
     record.sg[k] = sg
@@ -189,14 +196,25 @@ def converge(k, x, loop):
     if handover_due(sg, bank.beta2, (k - record.events[0]) * sensing.dt, bank.dwell_s):
         bank.V1[0] = bank.Vb[best]
         bank.Q1[0] = bank.Qr[best]
+        own = bank.prm.baro_var > 0.0 and np.isfinite(bank.Zb[best])  # the bank read the barometer
         P1 = bank.P1[0]
         for r in range(P1.shape[0]):
             for c in range(P1.shape[1]):
-                P1[r, c] = bank.Pb[best, r, c] if r < 5 and c < 5 else 0.0
-        P1[5, 5] = bank.baro_var
-        bank.Z1[0] = -sensing.baro[0] if np.isfinite(sensing.baro[0]) else sensing.reading[2]
+                P1[r, c] = bank.Pb[best, r, c] if own or (r < 5 and c < 5) else 0.0
+        if own:
+            bank.Z1[0] = bank.Zb[best]
+        else:
+            P1[5, 5] = bank.baro_var
+            bank.Z1[0] = -sensing.baro[0] if np.isfinite(sensing.baro[0]) else sensing.reading[2]
         hold(k, quat_yaw(bank.Q1[0]), sensing.reading[2], loop)
         loop.state[GATE] = 0
+
+
+@njit(cache=True, inline="always")
+def baro_reading(k, sensing):
+    """The barometer's reading of sample ``k`` (m up), NaN when it reads none."""
+    noise = sensing.baro_noise
+    return sensing.baro[0] if k < noise.shape[0] and np.isfinite(noise[k]) else np.nan
 
 
 @njit(cache=True)
@@ -223,8 +241,6 @@ def nominal_estimate(k, x, loop):
             xh[j] = x[j]
         return
     measured_thrust(loop, x)
-    noise = sensing.baro_noise
-    baro = sensing.baro[0] if k < noise.shape[0] and np.isfinite(noise[k]) else np.nan
     nominal_step(
         bank.V1[0],
         bank.Q1[0],
@@ -234,7 +250,7 @@ def nominal_estimate(k, x, loop):
         (sensing.gyr, sensing.acc, sensing.dt, loop.state[GATE] != 0),
         bank.prm,
         (bank.A, bank.B, bank.Cn),
-        baro,
+        baro_reading(k, sensing),
         bank.baro_var,
     )
     rot = rot_matrix(bank.Q1[0])

@@ -41,7 +41,7 @@ if TYPE_CHECKING:
     from quadest.data.recording import Recording
 
 _P = param
-REARM_SAMPLES, DWELL_S, BARO_STD = 3, 0.5, 0.3  # defaults (RecoveryParams' fields say why)
+REARM_SAMPLES, DWELL_S, BARO_STD, BANK_BARO = 3, 0.5, 0.3, False  # defaults (RecoveryParams' fields say why)
 
 
 @dataclass(frozen=True)
@@ -80,6 +80,13 @@ class RecoveryParams:
         "chosen: the sensor's 0.1 m noise and what its 50 ms lag makes of a few m/s of climb",
         bounds="[0, 100]",
     )
+    bank_baro: bool = _P(
+        BANK_BARO,
+        "-",
+        "the bank reads the barometer too: each hypothesis carries the height, each reading updates "
+        "it and adds its term to the likelihood (noise baro_std; none when baro_std is 0)",
+        "measured on flown throws 101-150 (docs/recovery.md)",
+    )
     sigma_v0: float = _P(3.0, "m/s", "initial velocity std per axis (eq 20)", "chosen: the speeds of a hand throw")
     sigma_delta0: float = _P(
         1.0, "rad", "initial error-rotation std (eq 20)", "chosen on simulated throws 5000-5079 (not evaluated ones)"
@@ -112,6 +119,7 @@ class RecoveryParams:
             acc_var=float(self.acc_std**2),
             q_vel=float(self.q_vel),
             q_att=float(self.q_att),
+            baro_var=float(self.baro_std**2) if self.bank_baro else 0.0,
         )
 
     @classmethod
@@ -133,10 +141,12 @@ def shortest_arc(d) -> np.ndarray:
 
 def initial_bank(p: RecoveryParams, dirs):
     """The bank at the detection (eq 20): one hypothesis per gravity direction ``dirs`` (body),
-    at rest, with the initial covariance; equal likelihoods. Returns ``(V, Q_ref, P, L)``."""
+    at rest, with the initial covariance (the height's: the barometer's variance); equal
+    likelihoods; the heights not yet read (NaN). Returns ``(V, Q_ref, P, L, Z)``."""
     H = len(dirs)
-    P0 = np.diag([p.sigma_v0**2] * 3 + [p.sigma_delta0**2] * 2)
-    return (np.zeros((H, 3)), np.array([shortest_arc(d) for d in dirs]), np.repeat(P0[None], H, axis=0), np.zeros(H))
+    P0 = np.diag([p.sigma_v0**2] * 3 + [p.sigma_delta0**2] * 2 + [p.baro_std**2])
+    Q = np.array([shortest_arc(d) for d in dirs])
+    return np.zeros((H, 3)), Q, np.repeat(P0[None], H, axis=0), np.zeros(H), np.full(H, np.nan)
 
 
 @njit(cache=True)
@@ -154,11 +164,12 @@ def handover_due(sg, beta2, elapsed_s, dwell_s):
 
 
 @njit(cache=True)
-def restart_bank(V, Qr, P, L, Qr0, P0):
+def restart_bank(V, Qr, P, L, Z, Qr0, P0):
     """The bank back to its start (eq 20): every hypothesis at rest, at its reference attitude
-    ``Qr0`` with the covariance ``P0``, equal likelihoods."""
+    ``Qr0`` with the covariance ``P0``, equal likelihoods, the height not yet read."""
     for i in range(V.shape[0]):
         L[i] = 0.0
+        Z[i] = np.nan
         for j in range(3):
             V[i, j] = 0.0
         for j in range(4):
@@ -171,13 +182,13 @@ def restart_bank(V, Qr, P, L, Qr0, P0):
 @njit(cache=True, fastmath=FASTMATH)
 def run_logic(bank, start, data, prm, model, logic, out, record_all):
     """The recovery logic over the recording ``(t, gyr, acc)`` (module doc): waiting, the bank
-    ``(V, Qr, P, L, w_prev)`` from each detection, back to waiting on a re-arm (the bank back to
+    ``(V, Qr, P, L, Z, w_prev)`` from each detection, back to waiting on a re-arm (the bank back to
     ``start`` ``(Qr0, P0)``), until the handover. ``logic``: ``(β1, detect_samples,
     rearm_samples, β2, dwell_s)``; ``model`` ``(A, B, C)``; per sample of the bank into ``out``
     ``(best, S_g, probabilities, gravity directions, velocity)`` (every hypothesis's with
     ``record_all``, else the best one's). Returns ``(latest detection, handover, detections,
     first detection)`` (−1: none)."""
-    V, Qr, P, L, w_prev = bank
+    V, Qr, P, L, Z, w_prev = bank
     Qr0, P0 = start
     t, gyr, acc = data
     beta1, detect_samples, rearm_samples, beta2, dwell_s = logic
@@ -197,7 +208,7 @@ def run_logic(bank, start, data, prm, model, logic, out, record_all):
             count = count_samples(count, acc[k], beta1, False)
             if count >= rearm_samples:
                 converging, count = False, 0
-                restart_bank(V, Qr, P, L, Qr0, P0)
+                restart_bank(V, Qr, P, L, Z, Qr0, P0)
                 w_prev[0], w_prev[1], w_prev[2] = gyr[k, 0], gyr[k, 1], gyr[k, 2]
                 continue
         sg = bank_sample(bank, data, k, prm, model, out, record_all, prob, gd)
@@ -208,7 +219,7 @@ def run_logic(bank, start, data, prm, model, logic, out, record_all):
 
 @njit(cache=True, fastmath=FASTMATH)
 def run_bank(bank, data, k0, prm, model, beta2, out, record_all):
-    """The bank ``(V, Qr, P, L, w_prev)`` over the recording ``(t, gyr, acc)`` from sample k0
+    """The bank ``(V, Qr, P, L, Z, w_prev)`` over the recording ``(t, gyr, acc)`` from sample k0
     until S_g < β2 (returns that index) or the end (returns −1), with the aerodynamic ``model``
     ``(A, B, C)``; per sample into ``out`` ``(best, S_g, probabilities, gravity directions,
     velocity)`` (every hypothesis's with ``record_all``, else the best one's)."""
@@ -225,12 +236,12 @@ def run_bank(bank, data, k0, prm, model, beta2, out, record_all):
 def bank_sample(bank, data, k, prm, model, out, record_all, prob, gd):
     """One sample ``k`` of the bank (eqs 20-36) recorded into ``out`` (:func:`run_bank`);
     returns S_g. ``prob`` and ``gd`` are its work arrays."""
-    V, Qr, P, L, w_prev = bank
+    V, Qr, P, L, Z, w_prev = bank
     t, gyr, acc = data
     A, B, C = model
     best_out, sg_out, prob_out, gd_out, v_out = out
     dt = t[k] - t[k - 1] if k > 0 else t[1] - t[0]
-    bank_step(V, Qr, P, L, w_prev, gyr[k], acc[k], dt, prm, A, B, C)
+    bank_step(V, Qr, P, L, Z, w_prev, gyr[k], acc[k], dt, prm, A, B, C)
     best, sg = summarize(Qr, L, prm.gravity, prob, gd)
     best_out[k] = best
     sg_out[k] = sg
@@ -251,9 +262,10 @@ def bank_sample(bank, data, k, prm, model, out, record_all, prob, gd):
 def _run_single(V, Qr, P, L, w_prev, t, gyr, acc, k0, prm, A, B, C, gd_out, v_out):
     """The nominal estimator: one EKF of the bank's kind, from k0 to the end."""
     gd = np.empty(3)
+    Z = np.full(1, np.nan)  # no barometer in a recording
     for k in range(k0, len(t)):
         dt = t[k] - t[k - 1]
-        bank_step(V, Qr, P, L, w_prev, gyr[k], acc[k], dt, prm, A, B, C)
+        bank_step(V, Qr, P, L, Z, w_prev, gyr[k], acc[k], dt, prm, A, B, C)
         gravity_body(Qr[0], 1.0, gd)
         for j in range(3):
             gd_out[k, j] = gd[j]
@@ -327,11 +339,11 @@ def recover(
     gd_all = np.full((n, H, 3), np.nan) if record_all else np.full((n, 1, 3), np.nan)
     events = [("waiting", float(t[0]))]
     prm = p.bank_record(model.mass_kg)
-    V, Qr, P, L = initial_bank(p, spread_points(H) if dirs is None else dirs)
+    V, Qr, P, L, Z = initial_bank(p, spread_points(H) if dirs is None else dirs)
     w_prev = gyr[0].copy()
     k_det, kc, detections, first = (
         run_logic(
-            (V, Qr, P, L, w_prev),
+            (V, Qr, P, L, Z, w_prev),
             (Qr.copy(), P.copy()),
             (t, gyr, acc),
             prm,

@@ -1,17 +1,18 @@
 """The nominal estimator after the handover (the recovery paper's section V-B): one EKF of the
-bank's kind (:mod:`quadest.recovery.bank`: body velocity and a two-component error rotation,
-the aerodynamic model, the accelerometer update) whose state also carries the height, so that a
-barometer reading corrects the velocity it integrates. The paper's nominal estimator has a
-barometer too; without it the velocity's error (the aerodynamic model's, fitted at the throw's
-rotor speed) goes uncorrected and a height loop that reads it settles off its height.
+bank's kind (:mod:`quadest.recovery.bank`: body velocity, a two-component error rotation and
+the height, the aerodynamic model, the accelerometer update) that always reads the barometer
+(the bank only with ``bank_baro``), so that a reading corrects the velocity it integrates. The
+paper's nominal estimator has a barometer too; without it the velocity's error (the aerodynamic
+model's, fitted at the throw's rotor speed) goes uncorrected and a height loop that reads it
+settles off its height.
 
-State ``x = (v_b, δx, δy, z)``: the bank's, and ``z`` the height (NED, m down). With ``ĝ`` the
+State ``x = (v_b, δx, δy, z)``: the bank's, ``z`` the height (NED, m down). With ``ĝ`` the
 gravity direction in the body (row 2 of ``R_nb``) and ``R_nb = R_ref (I + [δ]×)``:
 
     ż = e_zᵀ R_nb v_b = ĝᵀ v + δ · (v × ĝ)      so   ∂ż/∂v = ĝᵀ,  ∂ż/∂(δx, δy) = (v × ĝ)_{x, y}
 
-and the transition matrix is the bank's with the row ``dt (ĝᵀ, (v × ĝ)_{x, y}, 1)`` below it (no
-process noise on z: its error comes from the velocity's). The accelerometer does not see z
+and the transition matrix is the bank's, which carries the same height (no process noise on z:
+its error comes from the velocity's). The accelerometer does not see z
 (``H = [Υ/m, 0, 0]``). A barometer reading ``b`` (m up) is ``−z`` plus white noise of variance
 ``baro_var``: ``y = b + z``, ``H = [0 0 0 0 0 −1]``, ``S = P_zz + baro_var``,
 ``K = −P[:, z]/S``, ``P ← P − P[:, z] P[z, :]/S``. The estimator models neither the sensor's
@@ -42,16 +43,12 @@ def nominal_step(v, q, P, z, w_prev, sample, prm, model, baro, baro_var):
     A, B, C = model
     g, m = prm.gravity, prm.mass
     f, U, gb = np.empty(3), np.empty((3, 3)), np.empty(3)
-    F, T = np.zeros((NS, NS)), np.empty((NS, NS))
+    F, T = np.empty((NS, NS)), np.empty((NS, NS))
     w = w_prev
     # -- prior: the bank's (eqs 22-25), and ż = ĝᵀ v ---------------------------------------------
     gravity_body(q, g, gb)
     _aero(v, w, A, B, C, m, f, U)
-    transition_matrix(F, U, w, gb, dt)  # the (v, δ) block
-    F[5, 0], F[5, 1], F[5, 2] = dt * gb[0] / g, dt * gb[1] / g, dt * gb[2] / g
-    F[5, 3] = dt * (v[1] * gb[2] - v[2] * gb[1]) / g  # (v × ĝ)_x
-    F[5, 4] = dt * (v[2] * gb[0] - v[0] * gb[2]) / g  # (v × ĝ)_y
-    F[5, 5] = 1.0
+    transition_matrix(F, U, w, v, gb, g, dt)  # the bank's, height row included
     z[0] += dt * (gb[0] * v[0] + gb[1] * v[1] + gb[2] * v[2]) / g
     v0 = v[0] + dt * (-(w[1] * v[2] - w[2] * v[1]) + f[0] + gb[0])
     v1 = v[1] + dt * (-(w[2] * v[0] - w[0] * v[2]) + f[1] + gb[1])
