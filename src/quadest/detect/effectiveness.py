@@ -197,10 +197,11 @@ class DetectorParams(Params):
     )
     lost_drift: float = param(0.6, "-", "deficit the 'lost' test ignores (ν)", "chosen: above a 50 % loss", "(0, 1]")
     lost_threshold: float = param(
-        0.008,
+        0.004,
         "s",
         "the 'lost' test's threshold (h, deficit-seconds)",
-        "chosen on training seeds 0-399 and nominal 0-119 (the smallest without an alarm; docs/detection.md)",
+        "chosen on training seeds 0-399 and nominal 0-119 (the smallest without an alarm in either mode, with the "
+        "thrust-cut hold; 0.008 before it; docs/detection.md)",
         "(0, 10]",
     )
     damaged_drift: float = param(
