@@ -134,10 +134,11 @@ def test_transition_matrix_eqs40_44_against_finite_differences():
     np.testing.assert_allclose(V[0], _prior(v, q_ref, np.zeros(2), w, dt)[:3], atol=1e-12)
 
 
-def test_bank_height_row_against_finite_differences():
-    """The bank's height row ż = ĝᵀ v + δ · (v × ĝ) against finite differences of the exact prior,
-    and its propagation of the whole 6x6 P is F P Fᵀ (no noise, no update)."""
-    rng = np.random.default_rng(6)
+def _height_prior_case(seed: int):
+    """A random (v, ω, q_ref) and the finite-difference Jacobian of the exact prior of
+    (v, δx, δy, z) at δ = 0, z = 1.5 (the height row ż = the body velocity's down component), and
+    the exact prior's height."""
+    rng = np.random.default_rng(seed)
     v, w, dt = rng.normal(size=3) * 2, rng.normal(size=3) * 4, 1e-3
     q_ref = quat_from_rotvec(rng.normal(size=3))
 
@@ -148,13 +149,20 @@ def test_bank_height_row_against_finite_differences():
 
     x0 = np.concatenate([v, [0.0, 0.0, 1.5]])
     fd = np.column_stack([(prior(x0 + h) - prior(x0 - h)) / 2e-6 for h in np.eye(6) * 1e-6])
+    return v, w, dt, q_ref, fd, prior(x0)[5]
+
+
+def test_bank_height_row_against_finite_differences():
+    """The bank's height row ż = ĝᵀ v + δ · (v × ĝ) against finite differences of the exact prior,
+    and its propagation of the whole 6x6 P is F P Fᵀ (no noise, no update)."""
+    v, w, dt, q_ref, fd, z1 = _height_prior_case(6)
     P0 = np.diag([1.0, 2.0, 3.0, 0.1, 0.2, 0.5])
     V, Qr, P, L, Z = v[None].copy(), q_ref[None].copy(), P0[None].copy(), np.zeros(1), np.array([1.5])
     prm = BankRecord(gravity=9.80665, mass=MODEL.mass_kg, acc_var=1.0, q_vel=0.0, q_att=0.0, baro_var=0.09)
     bank_step(V, Qr, P, L, Z, w.copy(), w, np.zeros(3), dt, prm, MODEL.A, MODEL.B, MODEL.C, False)
     tol = 2 * (np.linalg.norm(w) * dt) ** 2 + 1e-9
     np.testing.assert_allclose(P[0], fd @ P0 @ fd.T, atol=10 * tol)
-    assert Z[0] == pytest.approx(prior(x0)[5], abs=1e-12)
+    assert Z[0] == pytest.approx(z1, abs=1e-12)
 
 
 def _level_fall(baro_var, ms=1000):
@@ -310,17 +318,7 @@ def test_nominal_ekf_height_row_against_finite_differences():
     propagation of P is F P Fᵀ (no noise, no update)."""
     from quadest.recovery.nominal import nominal_step
 
-    rng = np.random.default_rng(5)
-    v, w, dt = rng.normal(size=3) * 2, rng.normal(size=3) * 4, 1e-3
-    q_ref = quat_from_rotvec(rng.normal(size=3))
-
-    def prior(x):
-        q = quat_mul(q_ref, quat_from_rotvec([x[3], x[4], 0.0]))
-        z = x[5] + dt * quat_rotate(q, x[:3])[2]  # NED down: the body velocity in the navigation frame
-        return np.concatenate([_prior(x[:3], q_ref, x[3:5], w, dt), [z]])
-
-    x0 = np.concatenate([v, [0.0, 0.0, 1.5]])
-    fd = np.column_stack([(prior(x0 + h) - prior(x0 - h)) / 2e-6 for h in np.eye(6) * 1e-6])
+    v, w, dt, q_ref, fd, z1 = _height_prior_case(5)
     P0 = np.diag([1.0, 2.0, 3.0, 0.1, 0.2, 0.5])
     V, Q, P, Z = v.copy(), q_ref.copy(), P0.copy(), np.array([1.5])
     prm = BankRecord(gravity=9.80665, mass=MODEL.mass_kg, acc_var=1.0, q_vel=0.0, q_att=0.0, baro_var=0.0)
@@ -329,7 +327,7 @@ def test_nominal_ekf_height_row_against_finite_differences():
     # P = F P0 Fᵀ with F the finite differences (the first-order F is O((|ω|ΔT)²) off the exact map)
     tol = 2 * (np.linalg.norm(w) * dt) ** 2 + 1e-9
     np.testing.assert_allclose(P, fd @ P0 @ fd.T, atol=10 * tol)
-    assert Z[0] == pytest.approx(prior(x0)[5], abs=1e-12)
+    assert Z[0] == pytest.approx(z1, abs=1e-12)
 
 
 def test_nominal_ekf_barometer_corrects_height_and_velocity():
