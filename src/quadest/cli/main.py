@@ -7,7 +7,9 @@ one library function and prints; the library does the work.
 from __future__ import annotations
 
 import os
+import signal
 import sys
+import threading
 
 INTERRUPTED = 130
 """The exit code after Ctrl-C (128 + SIGINT), whenever it comes."""
@@ -22,9 +24,21 @@ def interrupted() -> None:
         os._exit(INTERRUPTED)
 
 
-try:  # Ctrl-C while the command line loads (numpy, numba, ...: about a second) ends in one line too
+def _while_loading(signum, frame) -> None:
+    """Ctrl-C while the command line loads (numpy, scipy, numba, ...: about a second): a C
+    extension's initialisation turns the KeyboardInterrupt into an ImportError, which ends in a
+    traceback or, in a library's optional import, is swallowed and the Ctrl-C lost; nothing is
+    written yet, so the process ends here."""
+    interrupted()
+
+
+_LOADING = threading.current_thread() is threading.main_thread() and (
+    signal.getsignal(signal.SIGINT) is signal.default_int_handler  # Python's own: Ctrl-C not ignored
+)
+if _LOADING:
+    signal.signal(signal.SIGINT, _while_loading)
+try:  # Ctrl-C while the command line loads ends in one line too
     import argparse
-    import signal
     import traceback
     import warnings
     from pathlib import Path
@@ -38,6 +52,9 @@ try:  # Ctrl-C while the command line loads (numpy, numba, ...: about a second) 
     from quadest.extras import MissingExtra, need
 except KeyboardInterrupt:
     interrupted()
+finally:
+    if _LOADING:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 GROUPS = (sim, fly, recordings, compare, recovery, sweep, data)
 ORDER = (
