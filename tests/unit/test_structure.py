@@ -132,7 +132,7 @@ def test_parameters_are_read_by_name_not_position(copied):
 
 # -- layers --------------------------------------------------------------------------------------------
 LAYERS = [  # the first four are the layer 0, in the order they build on each other
-    {"errors", "extras"},
+    {"errors", "extras", "progress"},
     {"_jit", "conventions", "records"},
     {"rotation"},
     {"data", ""},  # "": the package itself (its __init__ exposes Recording and the version)

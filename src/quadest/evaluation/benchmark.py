@@ -8,10 +8,10 @@ import json
 from pathlib import Path
 
 import numpy as np
-from tqdm.auto import tqdm
 
 from quadest.evaluation.runner import estimate, score
 from quadest.filters import FILTERS, available_peers
+from quadest.progress import bar as progress_bar
 from quadest.readers import detect_format, read_recording
 
 
@@ -50,7 +50,7 @@ def benchmark_broad(data_dir, names=None, *, trials: str = "*", nav: str = "none
     if tj.is_file():
         groups_of = {k: v["groups"] for k, v in json.loads(tj.read_text())["trials"].items()}
     out = {"trials": {}, "groups": {}, "filters": names, "alignment": nav}
-    bar = tqdm(total=len(files) * len(names), unit="run", desc="benchmark broad", disable=not progress)
+    bar = progress_bar(total=len(files) * len(names), unit="run", desc="benchmark broad", disable=not progress)
     for f in files:
         rec = read_recording(f, "broad")
         trial = f.stem
@@ -99,7 +99,7 @@ def benchmark_flights(data_dir, names=None, *, nav: str = "heading", progress: b
             "blackbird_clover puts the Blackbird flights in the cache; DIDO: quadest data list)"
         )
     out = {"flights": {}, "mean": {}, "filters": names, "alignment": nav}
-    bar = tqdm(total=len(flights) * len(names), unit="run", desc="benchmark flights", disable=not progress)
+    bar = progress_bar(total=len(flights) * len(names), unit="run", desc="benchmark flights", disable=not progress)
     for f in flights:
         rec = read_recording(f)
         folder = f.parent.name + "/" if f.is_dir() else ""
@@ -150,7 +150,7 @@ def benchmark_repoimu(data_dir, names=None, *, progress: bool = False) -> dict:
         "alignment": "heading and body rotation (the reader's)",
         "without_truth": [],
     }
-    bar = tqdm(total=len(trials) * len(names), unit="run", desc="benchmark repoimu", disable=not progress)
+    bar = progress_bar(total=len(trials) * len(names), unit="run", desc="benchmark repoimu", disable=not progress)
     for f in trials:
         rec = read_recording(f)
         key = f"{f.parent.name}/{f.stem}"

@@ -12,6 +12,7 @@ from contextlib import contextmanager
 from typing import Any
 
 from quadest.extras import need
+from quadest.progress import bar as progress_bar
 
 
 def _connect(scheduler: str, timeout_s: float):
@@ -117,12 +118,10 @@ def execute(
     (a lost worker, a failing function) are passed on as values, never raised. ``stats`` gets
     ``compute_s``: the time from the first task to the last result, without the cluster's
     start-up. ``weights``: how many runs each item holds (for the progress bar)."""
-    from tqdm.auto import tqdm
-
     items = list(items)
     results: list = [None] * len(items)
     failed = 0
-    bar = tqdm(
+    bar = progress_bar(
         total=sum(weights) if weights else len(items), unit="run", desc=desc, disable=not progress, smoothing=0.1
     )
 

@@ -20,10 +20,9 @@ import urllib.request
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from tqdm import tqdm
-
 from quadest.errors import UsageError
 from quadest.extras import need
+from quadest.progress import bar as progress_bar
 
 
 @dataclass(frozen=True)
@@ -370,7 +369,7 @@ class ResumingDownloader:
             raise self._too_large(url, start + int(length), part)
         with (
             open(part, "ab" if start else "wb") as out,
-            tqdm(
+            progress_bar(
                 total=self.f.size,
                 initial=start,
                 unit="B",

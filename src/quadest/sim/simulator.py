@@ -11,6 +11,7 @@ import numpy as np
 from quadest.data.recording import Recording
 from quadest.models.aero import AeroModel
 from quadest.models.multirotor import MultirotorParams
+from quadest.progress import bar as progress_bar
 from quadest.rotation import quat_continuous
 from quadest.sim import sensors
 from quadest.sim.params import SimConfig, load_toml_overrides, preset_config
@@ -112,9 +113,7 @@ def simulate(
     motion = make_motion(scenario, cfg, rng_motion, duration)
     chunk = max(1, int(CHUNK_S * rate))
     parts = []
-    from tqdm.auto import tqdm
-
-    with tqdm(
+    with progress_bar(
         total=len(t), unit="sample", desc=f"simulate {scenario}", delay=1.0, disable=not progress, leave=False
     ) as bar:
         for i in range(0, len(t), chunk):
