@@ -101,26 +101,6 @@ def test_a_hard_landing_is_an_impact(speed):
     assert expected / 2 < peak < 2 * expected, (peak, expected)
 
 
-def test_a_landing_speeds_up_its_descent_as_an_autopilot_does():
-    """A 2 m/s landing whose descent speeds up at 3 m/s² (PX4's MPC_ACC_DOWN_MAX) asks for 0.3 g
-    less thrust: no rotor's command falls below 60 % of the hover's (√0.7 ≈ 0.84 at the ramp's
-    start, less for the pitch and yaw control on top); a step to 2 m/s cuts them to idle. Both
-    touch down at the speed asked, within 5 %, about 1 s before the end."""
-    for accel, low in ((3.0, 0.6), (0.0, None)):
-        f = fly(
-            "hover",
-            seed=5,
-            duration=8.0,
-            vehicle="bebop2",
-            params=FlightParams(landing_m_s=2.0, landing_accel_m_s2=accel),
-        )
-        t, c = f.recording.t, f.commands
-        share = c[(t > 3.0) & (t < 6.8)].min(axis=0) / np.median(c[(t > 2.0) & (t < 3.0)])
-        assert (share.min() > low) if low else (share.max() < 0.1), share
-        k = int(np.argmin(f.recording.acc[:, 2]))
-        assert abs(t[k] - 7.0) < 0.1 and abs(f.states[k - 5, 5] - 2.0) < 0.1
-
-
 def test_cases_draw_their_disturbances_from_the_seed():
     """Each case's wind, sensors and landing follow from its seed (the same twice, another
     seed another), failures without a landing; a case's rotor and time are unchanged by them."""

@@ -109,8 +109,7 @@ def case_flight_kwargs(case: dict, overrides: dict | None = None) -> dict:
     """What :func:`~quadest.flight.fly` takes for a case's disturbances (its sensors' parameters
     changed by ``overrides`` first)."""
     wind = case.get("wind")
-    landing = {k: case[k] for k in ("landing_m_s", "landing_accel_m_s2") if k in case}
-    params = FlightParams(wind=None if wind is None else WindParams(**wind), **landing)
+    params = FlightParams(wind=None if wind is None else WindParams(**wind), landing_m_s=case.get("landing_m_s", 0.0))
     return {"config": case_config(case, overrides), "params": params}
 
 
@@ -317,11 +316,7 @@ def benchmark_tradeoff(
                 raise RuntimeError(f"{len(bad)} flight(s) failed; the first: {bad[0]!r}")
             tables[name] = tradeoff(rows)
             tables[f"{name}_runs"] = rows
-        out["modes"][m] = {
-            **tables,
-            "chosen": choose_threshold(tables["train"]),
-            "default": DetectorParams().lost_threshold,
-        }
+        out["modes"][m] = {**tables, "chosen": choose_threshold(tables["train"])}
     return out
 
 
@@ -334,9 +329,7 @@ def format_tradeoff(result: dict) -> str:
         for name in ("train", "test"):
             for row in r[name]:
                 d = row["delay_ms"]
-                mark = (" <" if row["threshold"] == r["chosen"] else "") + (
-                    " default" if row["threshold"] == r["default"] else ""
-                )
+                mark = " <" if row["threshold"] == r["chosen"] else ""
                 lines.append(
                     f"{name:<6}{row['threshold']:>7}{row['found']:>5}/{row['complete']:<3}{row['isolated']:>7}"
                     f"{_fmt_ms(d['median']):>8}{_fmt_ms(d['p90']):>7}{_fmt_ms(d['p99']):>7}{_fmt_ms(d['max']):>7}"
