@@ -181,13 +181,14 @@ def test_a_saturated_start_with_a_vibrating_gyroscope_raises_no_alarm():
 
 @pytest.mark.parametrize("seed", [4, 7])
 def test_a_hard_landing_raises_no_alarm(seed):
-    """A circle ending in a touchdown at 1-2 m/s: the legs' push is a force the rotor model has
-    not; the accelerometer reading more than the rotors can make holds the tests (and keeps
-    them held while the vehicle stands), without which the touchdown raised an alarm (the
-    thrust-cut hold off too: the bounce's cut holds the tests on these seeds as well)."""
+    """A circle ending in a touchdown at 1-2 m/s, its reference stepping to the landing at once:
+    the legs' push is a force the rotor model has not; the accelerometer reading more than the
+    rotors can make holds the tests (and keeps them held while the vehicle stands), without
+    which the touchdown raised an alarm (the thrust-cut hold off too: the bounce's cut holds the
+    tests on these seeds as well)."""
     from quadest.evaluation.detection import crossings
 
-    case = _case(seed, 8.0, ("landing_m_s",))
+    case = {**_case(seed, 8.0, ("landing_m_s",)), "landing_accel_m_s2": 0.0}
     assert crossings(case, (0.004,))["first"]["0.004"] is None
     neither = replace(DetectorParams(), contact_margin=0.0, cut_rotors=0.0)
     alarm = crossings(case, (0.004,), neither)["first"]["0.004"]
@@ -196,15 +197,16 @@ def test_a_hard_landing_raises_no_alarm(seed):
 
 @pytest.mark.parametrize("mode", ["rotor-speeds", "commands"])
 def test_a_landing_start_raises_no_alarm(mode):
-    """A training nominal flight (seed 6043: the circle in a 4.7 m/s wind, then a 1 m/s landing):
-    where the landing starts the controller cuts the thrust, two rotors commanded to idle, and
+    """A training nominal flight (seed 6043: the circle in a 4.7 m/s wind, then a 1 m/s landing
+    whose reference steps to its speed at once): where the landing starts the controller cuts
+    the thrust, two rotors commanded to idle, and
     the vehicle rolls at 8 rad/s; the rotors far from their operating point (near idle,
     decelerating, in the inflow of the vehicle's own motion and the aliased blade-pass tone)
     made rotor 0's sum reach 0.025 deficit-seconds. Holding the tests during the thrust cut, no
     alarm; without the hold, the alarm."""
     from quadest.evaluation.detection import crossings, nominal_case
 
-    case = nominal_case(6043, mode, 60.0)
+    case = {**nominal_case(6043, mode, 60.0), "landing_accel_m_s2": 0.0}
     assert crossings(case, (0.008,))["first"]["0.008"] is None
     alarm = crossings(case, (0.008,), replace(DetectorParams(), cut_rotors=0.0))["first"]["0.008"]
     assert alarm is not None and alarm[0] > 55.0, alarm

@@ -5,6 +5,7 @@ vehicle, a hard landing on sprung legs, and each case's sensors and wind drawn f
 import numpy as np
 import pytest
 
+from quadest.control.reference import circle_reference, figure_eight_reference
 from quadest.evaluation.detection import case_config, disturbances, failure_case, nominal_case
 from quadest.flight import FlightParams, fly
 from quadest.flight.common import sensors_for
@@ -101,6 +102,26 @@ def test_a_hard_landing_is_an_impact(speed):
     assert expected / 2 < peak < 2 * expected, (peak, expected)
 
 
+def test_a_landing_speeds_up_its_descent_as_an_autopilot_does():
+    """A 2 m/s landing whose descent speeds up at 3 m/s² (PX4's MPC_ACC_DOWN_MAX) asks for 0.3 g
+    less thrust: no rotor's command falls below 60 % of the hover's (√0.7 ≈ 0.84 at the ramp's
+    start, less for the pitch and yaw control on top); a step to 2 m/s cuts them to idle. Both
+    touch down at the speed asked, within 5 %, about 1 s before the end."""
+    for accel, low in ((3.0, 0.6), (0.0, None)):
+        f = fly(
+            "hover",
+            seed=5,
+            duration=8.0,
+            vehicle="bebop2",
+            params=FlightParams(landing_m_s=2.0, landing_accel_m_s2=accel),
+        )
+        t, c = f.recording.t, f.commands
+        share = c[(t > 3.0) & (t < 6.8)].min(axis=0) / np.median(c[(t > 2.0) & (t < 3.0)])
+        assert (share.min() > low) if low else (share.max() < 0.1), share
+        k = int(np.argmin(f.recording.acc[:, 2]))
+        assert abs(t[k] - 7.0) < 0.15 and abs(f.states[k - 5, 5] - 2.0) < 0.1
+
+
 def test_cases_draw_their_disturbances_from_the_seed():
     """Each case's wind, sensors and landing follow from its seed (the same twice, another
     seed another), failures without a landing; a case's rotor and time are unchanged by them."""
@@ -113,3 +134,48 @@ def test_cases_draw_their_disturbances_from_the_seed():
     assert (f["rotor"], f["time_s"]) == (plain["rotor"], plain["time_s"])
     cfg = case_config(n)
     assert cfg.gyro.vibration_amp[0] > 0 and cfg.acc.noise_std != case_config(plain).acc.noise_std
+
+
+def _landed(ref, t, speed=1.5, height=3.0):
+    from quadest.flight.fly import landing_reference
+
+    p, v, a, _ = landing_reference(ref, t, speed, height)
+    k = int(np.flatnonzero(np.any(np.abs(p - ref[0]) > 1e-9, axis=1))[0])  # where the landing starts
+    return p, v, a, k
+
+
+@pytest.mark.parametrize(
+    "name, ref_of",
+    [
+        ("circle at 8 m/s²", lambda t: circle_reference(t, radius=8.0, freq_hz=1.0 / (2 * np.pi))),
+        ("figure eight at 12 m/s²", lambda t: figure_eight_reference(t, size=(1.5, 0.45), freq_hz=0.35)),
+    ],
+)
+def test_a_landing_stops_then_descends_as_an_autopilot_does(name, ref_of):
+    """From a fast circle and the campaign's sharpest figure eight: the landing's reference takes
+    over from the flight's with no jump in position, speed or acceleration; its speed and
+    acceleration are its position's and speed's rates (within a sample's change); its jerk is
+    at most ``max(4, |a₀|/0.5 s)``, its acceleration at most ``max(3 m/s², |a₀|)``; it stops
+    within what braking at 3 m/s² from the flight's speed takes (plus the unwinding), and
+    touches down vertically (under 5 cm/s sideways) at the speed asked, about 1 s before the
+    end, then holds 0.2 m below the ground."""
+    rate, speed, height = 500.0, 1.5, 3.0
+    t = np.arange(int(30.0 * rate)) / rate
+    ref = ref_of(t)
+    p, v, a, k = _landed(ref, t, speed, height)
+    p0, v0, a0 = ref[0][k], ref[1][k], ref[2][k]
+    dt = 1.0 / rate
+    assert np.abs(p[k] - p0).max() < 0.02 and np.abs(v[k] - v0).max() < 0.05 and np.abs(a[k] - a0).max() < 0.1
+    air = slice(k, int(np.flatnonzero(p[:, 2] >= height + 0.2)[0]) - 1)
+    np.testing.assert_allclose(np.diff(p[air], axis=0) / dt, v[air][1:], atol=0.02)
+    np.testing.assert_allclose(np.diff(v[air], axis=0) / dt, a[air][1:], atol=0.05)
+    jerk = np.linalg.norm(np.diff(a[air], axis=0), axis=1) / dt
+    assert jerk.max() <= max(4.0, np.linalg.norm(a0) / 0.5) * 1.01, name
+    assert np.linalg.norm(a[air], axis=1).max() <= max(3.0, np.linalg.norm(a0)) + 1e-6, name
+    stop = np.linalg.norm(p[air][:, :2] - p0[:2], axis=1).max()
+    brake = np.linalg.norm(v0) ** 2 / (2 * 3.0) + np.linalg.norm(v0) * 1.5
+    assert stop < brake, (name, stop, brake)
+    down = int(np.flatnonzero(p[:, 2] >= height)[0])
+    assert np.hypot(*v[down, :2]) < 0.05 and abs(v[down, 2] - speed) < 0.01, (name, v[down])
+    assert abs(t[down] - (t[-1] - 1.0)) < 0.15, (name, t[down])
+    assert np.all(p[-10:, 2] == height + 0.2) and np.abs(v[-10:]).max() < 1e-3

@@ -109,7 +109,8 @@ def case_flight_kwargs(case: dict, overrides: dict | None = None) -> dict:
     """What :func:`~quadest.flight.fly` takes for a case's disturbances (its sensors' parameters
     changed by ``overrides`` first)."""
     wind = case.get("wind")
-    params = FlightParams(wind=None if wind is None else WindParams(**wind), landing_m_s=case.get("landing_m_s", 0.0))
+    landing = {k: case[k] for k in ("landing_m_s", "landing_accel_m_s2") if k in case}
+    params = FlightParams(wind=None if wind is None else WindParams(**wind), **landing)
     return {"config": case_config(case, overrides), "params": params}
 
 
@@ -316,7 +317,11 @@ def benchmark_tradeoff(
                 raise RuntimeError(f"{len(bad)} flight(s) failed; the first: {bad[0]!r}")
             tables[name] = tradeoff(rows)
             tables[f"{name}_runs"] = rows
-        out["modes"][m] = {**tables, "chosen": choose_threshold(tables["train"])}
+        out["modes"][m] = {
+            **tables,
+            "chosen": choose_threshold(tables["train"]),
+            "default": DetectorParams().lost_threshold,
+        }
     return out
 
 
@@ -329,7 +334,9 @@ def format_tradeoff(result: dict) -> str:
         for name in ("train", "test"):
             for row in r[name]:
                 d = row["delay_ms"]
-                mark = " <" if row["threshold"] == r["chosen"] else ""
+                mark = (" <" if row["threshold"] == r["chosen"] else "") + (
+                    " default" if row["threshold"] == r["default"] else ""
+                )
                 lines.append(
                     f"{name:<6}{row['threshold']:>7}{row['found']:>5}/{row['complete']:<3}{row['isolated']:>7}"
                     f"{_fmt_ms(d['median']):>8}{_fmt_ms(d['p90']):>7}{_fmt_ms(d['p99']):>7}{_fmt_ms(d['max']):>7}"

@@ -166,10 +166,20 @@ class FlightParams:
     landing_m_s: float = param(
         0.0,
         "m/s",
-        "the flight ends with a hard landing: the reference holds its point and descends at this speed onto "
-        "the ground height_m below, touching down about 1 s before the end, the vehicle on sprung legs (0: none)",
+        "the flight ends with a hard landing: the reference stops and descends at this speed onto the ground "
+        "height_m below, touching down about 1 s before the end, the vehicle on sprung legs (0: none)",
         "chosen: none unless asked; 1-2 m/s is a hard landing",
         bounds="[0, 10]",
+    )
+    landing_accel_m_s2: float = param(
+        3.0,
+        "m/s²",
+        "the landing's reference first stops, then speeds its descent up to landing_m_s, changing its "
+        "speed at most this fast and its acceleration at most 4 m/s³, or as fast as unwinds the flight's "
+        "own acceleration within 0.5 s when that is more (0: at once, steps in speed that cut the thrust)",
+        "PX4's defaults: MPC_ACC_DOWN_MAX and MPC_ACC_HOR 3 m/s², MPC_JERK_AUTO 4 m/s³ (its trajectory "
+        "generator's limits); the 0.5 s chosen (flight.fly.UNWIND_S)",
+        bounds="[0, 100]",
     )
     settle_m: float = param(
         0.3,
