@@ -178,7 +178,7 @@ class FlightParams:
         "speed at most this fast and its acceleration at most 4 m/s³, or as fast as unwinds the flight's "
         "own acceleration within 0.5 s when that is more (0: at once, steps in speed that cut the thrust)",
         "PX4's defaults: MPC_ACC_DOWN_MAX and MPC_ACC_HOR 3 m/s², MPC_JERK_AUTO 4 m/s³ (its trajectory "
-        "generator's limits); the 0.5 s chosen (flight.fly.UNWIND_S)",
+        "generator's limits); the 0.5 s chosen (flight.landing.UNWIND_S)",
         bounds="[0, 100]",
     )
     settle_m: float = param(

@@ -45,6 +45,7 @@ from quadest.flight.common import (
     sensors_for,
 )
 from quadest.flight.detection import DETECTION_MODES, found_damaged
+from quadest.flight.landing import landing_reference
 from quadest.flight.loop import (
     OK,
     STATUS,
@@ -277,77 +278,6 @@ def _plant(vehicle, params, failure, t, rates, oracle, seed, event):
         wind=wind,
         legs=params.landing_m_s > 0.0,
     )
-
-
-def landing_reference(ref, t, speed: float, height: float, after_s: float = 1.0, accel: float = 3.0):
-    """``ref`` ending in a landing: from ``t_d`` the reference, starting from the flight's own
-    position, velocity and acceleration, stops, then descends at ``speed`` (m/s) to ``height``
-    below the origin (touching down about ``after_s`` before the end) and 0.2 m further (pressing
-    the vehicle down on its legs), with at most ``accel`` (m/s²) and a bounded jerk, as an
-    autopilot's trajectory generator does (:func:`_landing`); ``accel`` 0: all at once, steps
-    in speed that cut the thrust."""
-    if not (np.isfinite(speed) and 0.0 < speed <= 10.0):
-        raise UsageError(f"landing speed must be within (0, 10] m/s, got {speed}")
-    if not (np.isfinite(accel) and 0.0 <= accel <= 100.0):
-        raise UsageError(f"landing acceleration must be within [0, 100] m/s², got {accel}")
-    p, v, a, yaw = (np.array(x, dtype=float) for x in ref)
-    k = max(int(np.searchsorted(t, t[-1] - after_s - (height - p[0, 2]) / speed)), 0)
-    tried = []  # (how late it touches down, start): the stop's length depends on where it starts
-    for _ in range(8):
-        lp, lv, la = _landing(p[k], v[k], a[k], t[k:] - t[k], speed, height + 0.2, accel)
-        down = np.flatnonzero(lp[:, 2] >= height)
-        late = (t[k + down[0]] if len(down) else t[-1] + 1.0) - (t[-1] - after_s)
-        tried.append((abs(late), k))
-        k = int(np.clip(np.searchsorted(t, t[k] - late), 0, len(t) - 1))
-    k = min(tried)[1]
-    lp, lv, la = _landing(p[k], v[k], a[k], t[k:] - t[k], speed, height + 0.2, accel)
-    p[k:], v[k:], a[k:], yaw[k:] = lp, lv, la, yaw[k]
-    return p, v, a, yaw
-
-
-LANDING_JERK = 4.0
-"""m/s³: the landing reference's jerk once the flight's acceleration is unwound (PX4's default,
-MPC_JERK_AUTO)."""
-
-UNWIND_S = 0.5
-"""s: the longest the landing takes to unwind the flight's own acceleration (the jerk raised to
-``|a0| / UNWIND_S`` when that is more than :data:`LANDING_JERK`); chosen: at 4 m/s³ a figure
-eight's 7-12 m/s² took 2-3 s to unwind and the reference ran on sideways (20 m from a circle at
-8 m/s²)."""
-
-
-def _landing(p0, v0, a0, tau, speed: float, floor: float, accel: float):
-    """Position, velocity and acceleration ``tau`` s into a landing from ``(p0, v0, a0)``: first
-    to a standstill, then to ``speed`` down, the acceleration steered towards the speed error's
-    direction, of size ``min(accel, √(2 j |Δv|))`` (what the jerk ``j`` can still bring to zero
-    as the error closes) and changed by at most ``j`` = max(:data:`LANDING_JERK`, ``|a0|`` /
-    :data:`UNWIND_S`); held at ``floor`` once reached. ``accel`` 0: the target speed at once."""
-    n = len(tau)
-    p, v, a = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
-    target = np.array([0.0, 0.0, speed])
-    if accel <= 0.0:
-        v[:] = target
-        p[:] = p0 + np.outer(tau, target)
-        p[:, :2] = p0[:2]
-    else:
-        pk, vk, ak = p0.copy(), v0.copy(), a0.copy()
-        dt = np.diff(tau, prepend=tau[0])
-        jerk = max(LANDING_JERK, float(np.linalg.norm(a0)) / UNWIND_S)
-        stopped = False
-        for i in range(n):
-            stopped = stopped or (np.hypot(vk[0], vk[1]) < 0.05 and np.linalg.norm(ak) < 0.5)
-            goal = target if stopped else np.zeros(3)
-            err = goal - vk
-            size = max(np.linalg.norm(err), 1e-12)
-            want = err / size * min(accel, math.sqrt(2.0 * jerk * size))
-            step = want - ak
-            ak += step * min(1.0, jerk * dt[i] / max(np.linalg.norm(step), 1e-12))
-            vk += ak * dt[i]
-            pk += vk * dt[i]
-            p[i], v[i], a[i] = pk, vk, ak
-    hold = p[:, 2] >= floor
-    p[hold, 2], v[hold, 2], a[hold, 2] = floor, 0.0, 0.0
-    return p, v, a
 
 
 def _add_detection(flight: Flight, det, mode: str, failure: Failure | None, flown: int) -> None:
