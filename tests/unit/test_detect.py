@@ -160,7 +160,7 @@ def _case(seed, duration, keep):
     case = nominal_case(seed, "rotor-speeds", duration)
     for key in ("wind", "sensors", "landing_m_s"):
         if key not in keep:
-            case.pop(key)
+            case.pop(key, None)
     return case
 
 

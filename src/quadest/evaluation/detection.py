@@ -62,7 +62,8 @@ def disturbances(seed: int, duration: float, *, landing: bool) -> dict:
       constant biases' spread by 0.5-3, the accelerometer's rotor tone by 0.5-2, and a gyroscope
       tone of 0.15-0.3 rad/s per m/s² of it on roll and pitch, 0.02-0.04 on yaw (real flights of
       the DIDO dataset show 0.16-0.30 and 0.03: docs/detection.md);
-    - ``landing_m_s``: with ``landing``, the flight ends with a touchdown at 1-2 m/s."""
+    - ``landing_m_s``: with ``landing``, the flight ends with a touchdown at 1-2 m/s (a flight
+      shorter than :data:`LANDING_ROOM_S` without one: no room to stop and descend)."""
     rng = np.random.default_rng([int(seed), 41])
     acc_tone = float(rng.uniform(0.5, 2.0))
     out = {
@@ -85,9 +86,15 @@ def disturbances(seed: int, duration: float, *, landing: bool) -> dict:
             ],  # fmt: skip
         },
     }
-    if landing:
-        out["landing_m_s"] = float(rng.uniform(1.0, 2.0))
+    speed = float(rng.uniform(1.0, 2.0)) if landing else None
+    if speed is not None and duration >= LANDING_ROOM_S:
+        out["landing_m_s"] = speed
     return out
+
+
+LANDING_ROOM_S = 8.0
+"""s: the shortest nominal flight that ends in a landing (a stop of 1-2 s, 3 m down at 1 m/s
+and the second on the ground; shorter ones would be a usage error of the landing)."""
 
 
 def case_config(case: dict, overrides: dict | None = None) -> SimConfig:
