@@ -2,8 +2,11 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from quadest.control import SE3Params, allocation, circle_reference, hover_reference
+from quadest.control.se3 import TILT_MAX, limited_thrust
 from quadest.flight.truth import fly_se3
 from quadest.models.multirotor import MultirotorParams
 from quadest.rotation import angle_between, euler_to_quat
@@ -154,3 +157,25 @@ def test_figure_eight_reference_is_consistent():
     np.testing.assert_allclose(np.gradient(p, t, axis=0)[1:-1], v[1:-1], atol=1e-3)
     np.testing.assert_allclose(np.gradient(v, t, axis=0)[1:-1], a[1:-1], atol=1e-2)
     assert np.abs(p[0]).max() == 0 and np.abs(v[0]).max() == 0 and yaw[0] == 0
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.floats(-40.0, 40.0),
+    st.floats(-40.0, 40.0),
+    st.floats(-40.0, 40.0),
+)
+def test_the_limited_thrust_is_never_upside_down(f0, f1, f2):
+    """PX4's thrust limits (a landing's descent): for any desired force the axis leans at most
+    45° from the vertical, never up, and the thrust is at least the floor; where the vertical
+    force is the weight and the lean within 45° it is the SE(3) controller's own (``−F/‖F‖``,
+    ``‖F‖``)."""
+    weight, floor = 3.7, 1.3
+    thrust, zd = limited_thrust((f0, f1, f2), weight, floor)
+    assert np.isclose(np.linalg.norm(zd), 1.0) and zd[2] >= np.cos(TILT_MAX) - 1e-12
+    assert thrust >= floor
+    level = limited_thrust((f0, f1, -weight), weight, floor)
+    if np.hypot(f0, f1) < weight * 0.999:
+        f = np.array([f0, f1, -weight])
+        np.testing.assert_allclose(level[1], -f / np.linalg.norm(f), atol=1e-12)
+        assert level[0] == pytest.approx(np.linalg.norm(f))

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from quadest.control.reference import circle_reference, figure_eight_reference
+from quadest.control.se3 import thrust_floor
 from quadest.evaluation.detection import case_config, disturbances, failure_case, nominal_case
 from quadest.flight import FlightParams, fly
 from quadest.flight.common import sensors_for
@@ -120,9 +121,10 @@ def test_a_landing_that_does_not_fit_is_a_usage_error():
 def test_a_landing_speeds_up_its_descent_as_an_autopilot_does():
     """A 2 m/s landing whose descent speeds up at 3 m/s² (PX4's MPC_ACC_DOWN_MAX) asks for 0.3 g
     less thrust: no rotor's command falls below 60 % of the hover's (√0.7 ≈ 0.84 at the ramp's
-    start, less for the pitch and yaw control on top); a step to 2 m/s cuts them to idle. Both
-    touch down at the speed asked, within 5 %, about 1 s before the end."""
-    for accel, low in ((3.0, 0.6), (0.0, None)):
+    start, less for the pitch and yaw control on top); a step to 2 m/s cuts the collective
+    thrust to the controller's floor in the descent (PX4's MPC_THR_MIN, 0.12 of the rotors'
+    most). Both touch down at the speed asked, within 5 %, about 1 s before the end."""
+    for accel in (3.0, 0.0):
         f = fly(
             "hover",
             seed=5,
@@ -130,9 +132,15 @@ def test_a_landing_speeds_up_its_descent_as_an_autopilot_does():
             vehicle="bebop2",
             params=FlightParams(landing_m_s=2.0, landing_accel_m_s2=accel),
         )
-        t, c = f.recording.t, f.commands
-        share = c[(t > 3.0) & (t < 6.8)].min(axis=0) / np.median(c[(t > 2.0) & (t < 3.0)])
-        assert (share.min() > low) if low else (share.max() < 0.1), share
+        t, c, v = f.recording.t, f.commands, f.vehicle
+        descent = (t > 3.0) & (t < 6.8)
+        share = c[descent].min(axis=0) / np.median(c[(t > 2.0) & (t < 3.0)])
+        floor = thrust_floor(v.mass_kg * v.gravity, v.rotors * v.k_f * v.omega_max**2)
+        thrust = (v.k_f * c[descent] ** 2).sum(axis=1).min() / floor
+        if accel > 0.0:
+            assert share.min() > 0.6 and thrust > 1.5, (share, thrust)
+        else:
+            assert thrust == pytest.approx(1.0, abs=0.01), thrust
         k = int(np.argmin(f.recording.acc[:, 2]))
         assert abs(t[k] - 7.0) < 0.15 and abs(f.states[k - 5, 5] - 2.0) < 0.1
 
@@ -178,8 +186,8 @@ def test_a_landing_stops_then_descends_as_an_autopilot_does(name, ref_of):
     within what unwinding ``a₀`` in 0.5 s, ramping to 3 m/s² at 4 m/s³ and braking take, and
     touches down vertically (under 5 cm/s sideways) at the speed asked, 1 s before the end
     (within 0.05 s, wherever in the figure eight it starts: the touchdown's time is not
-    monotonic in the start), its acceleration steady in the descent, then holds 0.2 m below
-    the ground."""
+    monotonic in the start), its acceleration steady in the descent, and descends on at that
+    speed into the ground (an autopilot's landing does, until its land detector says landed)."""
     rate, speed, height = 500.0, 1.5, 3.0
     t = np.arange(int(30.0 * rate)) / rate
     ref = ref_of(t)
@@ -187,7 +195,7 @@ def test_a_landing_stops_then_descends_as_an_autopilot_does(name, ref_of):
     p0, v0, a0 = ref[0][k], ref[1][k], ref[2][k]
     dt = 1.0 / rate
     assert np.abs(p[k] - p0).max() < 0.02 and np.abs(v[k] - v0).max() < 0.05 and np.abs(a[k] - a0).max() < 0.1
-    air = slice(k, int(np.flatnonzero(p[:, 2] >= height + 0.2)[0]) - 1)
+    air = slice(k, int(np.flatnonzero(p[:, 2] >= height)[0]) - 1)
     np.testing.assert_allclose(np.diff(p[air], axis=0) / dt, v[air][1:], atol=0.02)
     np.testing.assert_allclose(np.diff(v[air], axis=0) / dt, a[air][1:], atol=0.05)
     jerk = np.linalg.norm(np.diff(a[air], axis=0), axis=1) / dt
@@ -202,6 +210,51 @@ def test_a_landing_stops_then_descends_as_an_autopilot_does(name, ref_of):
     down = int(np.flatnonzero(p[:, 2] >= height)[0])
     assert np.hypot(*v[down, :2]) < 0.05 and abs(v[down, 2] - speed) < 0.01, (name, v[down])
     assert abs(t[down] - (t[-1] - 1.0)) < 0.05, (name, t[down])
-    assert np.all(p[-10:, 2] == height + 0.2) and np.abs(v[-10:]).max() < 1e-3
+    assert np.allclose(v[down:, 2], speed) and np.abs(v[down:, :2]).max() < 0.05, name
     descent = slice(down - int(0.5 * rate), down)  # at the landing's speed: no chatter
     assert np.ptp(a[descent], axis=0).max() < 1e-6 and np.allclose(v[descent, 2], speed), name
+
+
+@pytest.mark.parametrize("speed", [1.0, 2.0])
+def test_the_land_detector_idles_the_rotors_after_a_touchdown(speed):
+    """A hover landing at 1 and 2 m/s, the reference descending on into the ground: in the
+    descent the SE(3) controller keeps PX4's limits (never upside down, at least 0.12 of the
+    rotors' thrust), so on the ground the rotors keep that thrust until the land detector
+    (PX4's) finds the ground contact, its conditions (a commanded descent, thrust under 0.3 of
+    the way to the hover's, under 0.25 m/s up or down, 1.5 m/s sideways) held 0.35 s after the
+    touchdown, never in the air, and the vehicle maybe landed 0.25 s later (under 0.1 of that
+    way, rolling and pitching under 20 °/s): from then every rotor is commanded to idle and the
+    vehicle stands level on its legs. Without the land detector the thrust stays at the floor."""
+    flights = {
+        on: fly(
+            "hover", seed=5, duration=8.0, vehicle="bebop2", params=FlightParams(landing_m_s=speed, land_detector=on)
+        )
+        for on in (True, False)
+    }
+    f = flights[True]
+    t, c = f.recording.t, f.commands
+    touch = t[int(np.argmin(f.recording.acc[:, 2]))]
+    landing = f.summary["landing"]
+    assert touch + 0.35 <= landing["ground_contact_s"] < touch + 0.8, (touch, landing)
+    assert landing["maybe_landed_s"] == pytest.approx(landing["ground_contact_s"] + 0.25, abs=0.01)
+    idle = t >= landing["maybe_landed_s"] - 1e-9
+    assert np.all(c[idle] == 0.0) and abs(f.states[-1, 2] - (3.0 - 0.05)) < 0.01
+    assert np.abs(f.states[-1, 10:13]).max() < 0.1 and f.summary["status"] == "survived"
+    free = flights[False]
+    assert "landing" not in free.summary and free.summary["status"] == "survived"
+    vehicle = f.vehicle
+    floor = thrust_floor(vehicle.mass_kg * vehicle.gravity, vehicle.rotors * vehicle.k_f * vehicle.omega_max**2)
+    on_ground = t > touch + 0.05
+    assert (vehicle.k_f * free.commands[on_ground] ** 2).sum(axis=1).min() > 0.95 * floor
+    assert (vehicle.k_f * c[on_ground & ~idle] ** 2).sum(axis=1).min() > 0.95 * floor
+
+
+def test_a_vehicle_of_high_thrust_to_weight_lands_too():
+    """The Hummingbird (thrust-to-weight 10): the descent's least thrust is half its weight, not
+    0.12 of its rotors' most (1.2 times its weight, which would climb away), so it touches down,
+    the land detector finds the contact and idles its rotors, and it stands on its legs."""
+    f = fly("hover", seed=5, duration=8.0, vehicle="hummingbird", params=FlightParams(landing_m_s=1.0))
+    v = f.vehicle
+    assert thrust_floor(v.mass_kg * v.gravity, v.rotors * v.k_f * v.omega_max**2) == 0.5 * v.mass_kg * v.gravity
+    assert f.summary["status"] == "survived" and f.summary["landing"]["maybe_landed_s"] is not None
+    assert abs(f.states[-1, 2] - (3.0 - 0.05)) < 0.02 and np.all(f.commands[-1] == 0.0)

@@ -58,7 +58,8 @@ Control = compiled_record(
     "What the controllers read and carry: the controller of each flight phase, the SE(3) and "
     "fault-tolerant gains (one set for each rotor that may be lost), the reference per sample, "
     "the fault (the sample from which the fault-tolerant controller flies, -1: never; the rotor "
-    "it gives up), and the recovery's thresholds.",
+    "it gives up), the recovery's thresholds, and the sample from which the SE(3) controller's "
+    "thrust keeps within an autopilot's limits (se3.limited_thrust; -1: never).",
     by_phase="i8[:]",
     gains="any",
     ftc="any",
@@ -71,6 +72,7 @@ Control = compiled_record(
     cmd="f8[:]",
     beta3="f8",
     upright_rad="f8",
+    limited_k="i8",
 )
 
 
@@ -80,9 +82,11 @@ def command(kind, k, xh, control, vehicle, dt):
     state ``xh`` into ``control.cmd``; returns whether the attitude control error allows the
     accelerometer update (always, but for the recovery: :func:`recovery_command`)."""
     if kind == SE3:
+        limited = 0 <= control.limited_k <= k
         se3_command(
-            xh, control.p_d[k], control.v_d[k], control.a_d[k], control.yaw_d[k], control.gains, vehicle, control.cmd
-        )
+            xh, control.p_d[k], control.v_d[k], control.a_d[k], control.yaw_d[k], control.gains, vehicle, control.cmd,
+            limited,
+        )  # fmt: skip
     elif kind == FTC:
         ftc_command(
             xh,

@@ -20,6 +20,10 @@ in sense ``s_i``, ``T = Σ t_i``, ``M_x = −Σ r_i,y t_i``, ``M_y = Σ r_i,x t_
 then ``Ω_i = √(max(t_i, 0)/k_f)``. ``A⁻¹`` is computed once (:func:`allocation`). When the
 rotors cannot give all of it, the yaw moment yields first: ``M_z`` is scaled down (to zero if
 need be) until every rotor's thrust lies within ``[0, k_f Ω_max²]``.
+
+In a landing's descent (``limited``) the thrust keeps PX4's limits instead
+(:func:`limited_thrust`): never upside down, tilted at most 45°, at least 0.12 of the rotors' most
+(at most half the weight).
 """
 
 from __future__ import annotations
@@ -109,11 +113,20 @@ def attitude_error(R, xd, yd, zd):
     return 0.5 * e0, 0.5 * e1, 0.5 * e2
 
 
+THRUST_MIN = 0.12
+"""The least collective thrust of :func:`limited_thrust`, as a share of the rotors' most (PX4's
+MPC_THR_MIN), at most half the weight (:func:`thrust_floor`)."""
+
+TILT_MAX = np.radians(45.0)
+"""The largest tilt :func:`limited_thrust` asks for (PX4's MPC_TILTMAX_AIR)."""
+
+
 @njit(cache=True, **NO_ALLOCATION)
-def se3_command(x, p_d, v_d, a_d, yaw_d, gains, vehicle, cmd):
+def se3_command(x, p_d, v_d, a_d, yaw_d, gains, vehicle, cmd, limited=False):
     """Rotor speed commands (rad/s) into ``cmd`` for state ``x`` (true or estimated) and the
     reference position, velocity, acceleration (NED) and heading (no allocation: it runs every
-    sample of every flight)."""
+    sample of every flight); ``limited``: the thrust's direction and size within an autopilot's
+    limits (:func:`limited_thrust`)."""
     R = rot_entries(x[6], x[7], x[8], x[9])
     f = (
         vehicle.mass * (-gains.k_p[0] * (x[0] - p_d[0]) - gains.k_v[0] * (x[3] - v_d[0]) + a_d[0]),
@@ -121,10 +134,14 @@ def se3_command(x, p_d, v_d, a_d, yaw_d, gains, vehicle, cmd):
         vehicle.mass * (-gains.k_p[2] * (x[2] - p_d[2]) - gains.k_v[2] * (x[5] - v_d[2]) + a_d[2])
         - vehicle.mass * vehicle.gravity,
     )
-    thrust = -(f[0] * R[0][2] + f[1] * R[1][2] + f[2] * R[2][2])
-    # desired attitude: body z down along −F_d
-    nF = np.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
-    zd = (-f[0] / nF, -f[1] / nF, -f[2] / nF) if nF > 1e-9 else (0.0, 0.0, 1.0)
+    if limited:
+        weight = vehicle.mass * vehicle.gravity
+        thrust, zd = limited_thrust(f, weight, thrust_floor(weight, gains.alloc_inv.shape[0] * gains.t_max))
+    else:
+        thrust = -(f[0] * R[0][2] + f[1] * R[1][2] + f[2] * R[2][2])
+        # desired attitude: body z down along −F_d
+        nF = np.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
+        zd = (-f[0] / nF, -f[1] / nF, -f[2] / nF) if nF > 1e-9 else (0.0, 0.0, 1.0)
     xc0, xc1 = np.cos(yaw_d), np.sin(yaw_d)
     y0, y1, y2 = zd[1] * 0.0 - zd[2] * xc1, zd[2] * xc0 - zd[0] * 0.0, zd[0] * xc1 - zd[1] * xc0
     ny = np.sqrt(y0 * y0 + y1 * y1 + y2 * y2)
@@ -139,6 +156,32 @@ def se3_command(x, p_d, v_d, a_d, yaw_d, gains, vehicle, cmd):
     M1 = J1 * (-gains.k_R * eR1 - gains.k_w * w1) + (w2 * J0 * w0 - w0 * J2 * w2)
     M2 = J2 * (-gains.k_R * eR2 - gains.k_w * w2) + (w0 * J1 * w1 - w1 * J0 * w0)
     mix(thrust, M0, M1, M2, gains, cmd)
+
+
+@njit(cache=True, inline="always")
+def thrust_floor(weight, most):
+    """The least collective thrust (N) of :func:`limited_thrust` for a vehicle of ``weight`` whose
+    rotors make at most ``most`` (N): :data:`THRUST_MIN` of ``most``, at most half the weight (PX4
+    asks for MPC_THR_MIN below the hover's thrust; a vehicle of thrust-to-weight 10 would be set up
+    with a lower one, else it could not descend)."""
+    return min(THRUST_MIN * most, 0.5 * weight)
+
+
+@njit(cache=True, inline="always")
+def limited_thrust(f, weight, thrust_min):
+    """The collective thrust and desired body z axis for the desired force ``f`` (NED) as PX4's
+    position controller makes them (PositionControl::_accelerationControl): the axis from the
+    horizontal force and the weight, never from a downward demand (so never upside down), tilted
+    at most :data:`TILT_MAX`; the thrust the vertical force asks for along it, at least
+    ``thrust_min``."""
+    z0, z1, z2 = -f[0], -f[1], weight
+    tilt = np.arctan2(np.sqrt(z0 * z0 + z1 * z1), z2)
+    if tilt > TILT_MAX:
+        scale = z2 * np.tan(TILT_MAX) / np.sqrt(z0 * z0 + z1 * z1)
+        z0, z1 = z0 * scale, z1 * scale
+    n = np.sqrt(z0 * z0 + z1 * z1 + z2 * z2)
+    zd = (z0 / n, z1 / n, z2 / n)
+    return max(-f[2] / zd[2], thrust_min), zd
 
 
 @njit(cache=True)

@@ -12,6 +12,7 @@ from quadest.detect import Detector, DetectorParams
 from quadest.detect.effectiveness import DIAG, STATE
 from quadest.flight.collision import watch as watch_record
 from quadest.flight.detection import DETECTION_MODES, Detection
+from quadest.flight.landing import land_detector
 from quadest.flight.loop import MAX_RATE, MAX_SPEED, Loop, Navigation, Plant, Record, Sensing, record_arrays
 from quadest.flight.phases import NAV, PHASES, Bank
 from quadest.flight.rate import clip_rate
@@ -114,11 +115,14 @@ def navigation(kind: str, x0, gain=None, clip=None, reset=None):
     )
 
 
-def control(controllers: dict, *, gains, ftc, reference, fault=(-1, -1), cmd0, beta3=0.0, upright_rad=0.0):
+def control(
+    controllers: dict, *, gains, ftc, reference, fault=(-1, -1), cmd0, beta3=0.0, upright_rad=0.0, limited_k=-1
+):  # fmt: skip
     """The :data:`~quadest.control.registry.Control` flying ``controllers`` (phase name →
     controller name) along ``reference`` ``(p_d, v_d, a_d, yaw_d)``, the rotors first at ``cmd0``;
     ``ftc`` the fault-tolerant gains for each rotor, ``fault`` ``(sample, rotor)`` when the loss is
-    known beforehand (an oracle; else found in flight)."""
+    known beforehand (an oracle; else found in flight); from sample ``limited_k`` on (-1: never)
+    the SE(3) controller's thrust within an autopilot's limits (a landing's descent)."""
     by_phase = np.full(len(PHASES), controller_id("idle"), np.int64)
     for phase, name in controllers.items():
         by_phase[PHASES.index(phase)] = controller_id(name)
@@ -136,6 +140,7 @@ def control(controllers: dict, *, gains, ftc, reference, fault=(-1, -1), cmd0, b
         cmd=np.array(cmd0, float),
         beta3=beta3,
         upright_rad=upright_rad,
+        limited_k=limited_k,
     )
 
 
@@ -209,9 +214,10 @@ def detection(mode="oracle", *, vehicle=None, params=None, n=1, noise=None):
     )
 
 
-def loop(*, plant, sensing, nav, bank, control, detection, n, rotors, phase, watch=None):
+def loop(*, plant, sensing, nav, bank, control, detection, n, rotors, phase, watch=None, landing=None):
     """The :data:`~quadest.flight.loop.Loop` of ``n`` samples starting in ``phase``, with its
-    record; ``watch`` the divergence checks (:func:`~quadest.flight.collision.watch`; none: off)."""
+    record; ``watch`` the divergence checks (:func:`~quadest.flight.collision.watch`; none: off);
+    ``landing`` the land detector (:func:`~quadest.flight.landing.land_detector`; none: no landing)."""
     record = Record.make(**record_arrays(n, rotors))
     state = np.array([PHASES.index(phase), 0, 0], np.int64)
     return Loop.make(
@@ -221,6 +227,7 @@ def loop(*, plant, sensing, nav, bank, control, detection, n, rotors, phase, wat
         bank=bank,
         control=control,
         detection=detection,
+        landing=land_detector() if landing is None else landing,
         watch=watch_record() if watch is None else watch,
         record=record,
         state=state,

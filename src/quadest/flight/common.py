@@ -167,7 +167,7 @@ class FlightParams:
         0.0,
         "m/s",
         "the flight ends with a hard landing: the reference stops and descends at this speed onto the ground "
-        "height_m below, touching down about 1 s before the end, the vehicle on sprung legs (0: none)",
+        "height_m below and on, touching down about 1 s before the end, the vehicle on sprung legs (0: none)",
         "chosen: none unless asked; 1-2 m/s is a hard landing",
         bounds="[0, 10]",
     )
@@ -180,6 +180,14 @@ class FlightParams:
         "PX4's defaults: MPC_ACC_DOWN_MAX and MPC_ACC_HOR 3 m/s², MPC_JERK_AUTO 4 m/s³ (its trajectory "
         "generator's limits); the 0.5 s chosen (flight.landing.UNWIND_S)",
         bounds="[0, 100]",
+    )
+    land_detector: bool = param(
+        True,
+        "-",
+        "after a landing's touchdown the autopilot's land detector turns the thrust off: horizontal once "
+        "a ground contact holds 0.35 s, all of it once maybe landed 0.25 s later (false: the controller "
+        "flies the descending reference to the end)",
+        "PX4's multicopter land detector and position controller, their defaults (flight.landing)",
     )
     settle_m: float = param(
         0.3,

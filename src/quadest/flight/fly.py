@@ -45,7 +45,7 @@ from quadest.flight.common import (
     sensors_for,
 )
 from quadest.flight.detection import DETECTION_MODES, found_damaged
-from quadest.flight.landing import landing_reference
+from quadest.flight.landing import descent_start, land_detector, landing_reference, landing_summary
 from quadest.flight.loop import (
     OK,
     STATUS,
@@ -90,7 +90,9 @@ simulator's default rate: the estimator in the loop needs a heading before the c
 DEFAULT_PRESET = {"throw": "fma"}  # the recovery paper's sensors (IMU 1 kHz, no magnetometer); else bebop2
 
 
-def _reference(scenario, t, rng, vehicle):
+def _reference(scenario, t, rng, vehicle, params):
+    """The start and the reference ``(p_d, v_d, a_d, yaw_d)`` of ``scenario`` at ``t``, ending in
+    ``params``' landing when it asks for one (:func:`landing_reference`)."""
     x0 = vehicle.hover_state()
     if scenario == "hover":
         ref = hover_reference(len(t))
@@ -109,6 +111,8 @@ def _reference(scenario, t, rng, vehicle):
         )
     else:
         ref = hover_reference(len(t))
+    if params.landing_m_s > 0.0:
+        ref = landing_reference(ref, t, params.landing_m_s, params.height_m, accel=params.landing_accel_m_s2)
     return x0, ref
 
 
@@ -178,9 +182,7 @@ def fly(
         )  # fmt: skip
     t = np.arange(n := int(round(duration * rate))) / rate
     rng_ref, rng_mocap = (np.random.default_rng(s) for s in np.random.SeedSequence([int(seed), 13]).spawn(2))
-    x0, ref = _reference(scenario, t, rng_ref, vehicle)
-    if params.landing_m_s > 0.0:
-        ref = landing_reference(ref, t, params.landing_m_s, params.height_m, accel=params.landing_accel_m_s2)
+    x0, ref = _reference(scenario, t, rng_ref, vehicle, params)
     processes, sm = sensors_for(cfg, n, seed, vehicle)  # the generators and order of flown_recording's
     nav, est = _in_loop(estimator, cfg, rate, estimator_params)
     if not isinstance(estimator, Estimator):  # one given continues from its state
@@ -207,9 +209,11 @@ def fly(
             reference=ref,
             fault=_known_fault(controller, failure, params, rate, n) if oracle else (-1, -1),
             cmd0=x0[13:].copy(),  # what the rotors were doing (a detector reads it before the first command)
+            limited_k=descent_start(ref[1][:, 2], params.landing_m_s),  # a landing's descent: PX4's thrust limits
             **inflight.recovery_control(watching),
         ),
         detection=_detection(detection, detector, vehicle, params, seed, n),
+        landing=land_detector(vehicle, rate, ref[1][:, 2], params.landing_m_s * params.land_detector),
         n=n,
         rotors=vehicle.rotors,
         phase="flying",
@@ -228,6 +232,7 @@ def fly(
     )  # fmt: skip
     if detection != "oracle":
         _add_detection(flight, loop.detection, detection, failure, flown)
+    flight.summary.update(landing_summary(loop.landing, t[:flown]))
     if watching is not None or event is not None:
         flight.summary.update(inflight.summary(flight, out, loop, event, status, rate))
     return flight

@@ -12,7 +12,8 @@ simulation rate, ``substeps`` RK4 steps per sample):
 3. the estimate: an estimator's compiled step (the function its batch run calls) and the
    position fusion, the truth (an oracle, labelled), or a throw's recovery (:mod:`quadest.flight.phases`);
 4. the controller of the flight's phase (:data:`PHASES`, :mod:`quadest.control.registry`)
-   commands the rotors;
+   commands the rotors, after the rotor-failure detector (:mod:`quadest.flight.detection`) and,
+   in a landing, the land detector (:mod:`quadest.flight.landing`) have had their say;
 5. the vehicle flies to the next sample (in the hand it is carried).
 
 A collision adds its velocity and body rate over its impact (:func:`strike`: the sensors see it);
@@ -31,6 +32,7 @@ from quadest._jit import NO_ALLOCATION, copy_into, njit
 from quadest.control.registry import command
 from quadest.flight.collision import diverged, start_recovery
 from quadest.flight.detection import notice_failure
+from quadest.flight.landing import detect_landing, idle_when_landed
 from quadest.flight.phases import FAULT, FLYING, NAV_FILTER, NAV_TRUE_STATE, PHASE, recovery_phase
 from quadest.flight.rate import predict_rate
 from quadest.models.multirotor import derivative_ws, rk4_ws
@@ -156,8 +158,9 @@ Record = compiled_record(
 
 Loop = compiled_record(
     "Loop",
-    "One flight: its plant, sensing, navigation, recovery bank, control, rotor-failure detection "
-    "and record, the divergence checks that start a recovery in flight (flight.collision.Watch), "
+    "One flight: its plant, sensing, navigation, recovery bank, control, rotor-failure detection, "
+    "land detector (flight.landing.LandDetector) and record, the divergence checks that start a "
+    "recovery in flight (flight.collision.Watch), "
     "and what it carries from sample to sample (state: phase, samples below the throw threshold, the "
     "accelerometer gate; held: the yaw and height a recovery holds).",
     plant="any",
@@ -166,6 +169,7 @@ Loop = compiled_record(
     bank="any",
     control="any",
     detection="any",
+    landing="any",
     watch="any",
     record="any",
     state="i8[:]",
@@ -390,7 +394,9 @@ def fly_sample(k, x, loop, q_est):
     if status != OK:
         return status
     notice_failure(k, x, loop)
+    detect_landing(k, loop)
     control_flight(k, loop)
+    idle_when_landed(loop)
     record, nav = loop.record, loop.nav
     copy_into(record.q[k], nav.xh[6:10])
     copy_into(record.pv[k, 0:3], nav.ph)
