@@ -175,10 +175,9 @@ def limited_thrust(f, weight, thrust_min):
     at most :data:`TILT_MAX`; the thrust the vertical force asks for along it, at least
     ``thrust_min``."""
     z0, z1, z2 = -f[0], -f[1], weight
-    tilt = np.arctan2(np.sqrt(z0 * z0 + z1 * z1), z2)
-    if tilt > TILT_MAX:
-        scale = z2 * np.tan(TILT_MAX) / np.sqrt(z0 * z0 + z1 * z1)
-        z0, z1 = z0 * scale, z1 * scale
+    lean, most = np.sqrt(z0 * z0 + z1 * z1), weight * np.tan(TILT_MAX)
+    if lean > most:
+        z0, z1 = z0 * most / lean, z1 * most / lean
     n = np.sqrt(z0 * z0 + z1 * z1 + z2 * z2)
     zd = (z0 / n, z1 / n, z2 / n)
     return max(-f[2] / zd[2], thrust_min), zd

@@ -176,7 +176,8 @@ class FlightParams:
         "m/s²",
         "the landing's reference first stops, then speeds its descent up to landing_m_s, changing its "
         "speed at most this fast and its acceleration at most 4 m/s³, or as fast as unwinds the flight's "
-        "own acceleration within 0.5 s when that is more (0: at once, steps in speed that cut the thrust)",
+        "own acceleration within 0.5 s when that is more (0: at once, steps in speed that cut the thrust, in "
+        "the descent to the controller's least)",
         "PX4's defaults: MPC_ACC_DOWN_MAX and MPC_ACC_HOR 3 m/s², MPC_JERK_AUTO 4 m/s³ (its trajectory "
         "generator's limits); the 0.5 s chosen (flight.landing.UNWIND_S)",
         bounds="[0, 100]",

@@ -209,11 +209,11 @@ def fly(
             reference=ref,
             fault=_known_fault(controller, failure, params, rate, n) if oracle else (-1, -1),
             cmd0=x0[13:].copy(),  # what the rotors were doing (a detector reads it before the first command)
-            limited_k=descent_start(ref[1][:, 2], params.landing_m_s),  # a landing's descent: PX4's thrust limits
+            limited_k=(descent := descent_start(ref[1][:, 2], params.landing_m_s)),  # PX4's thrust limits
             **inflight.recovery_control(watching),
         ),
         detection=_detection(detection, detector, vehicle, params, seed, n),
-        landing=land_detector(vehicle, rate, ref[1][:, 2], params.landing_m_s * params.land_detector),
+        landing=land_detector(vehicle, rate, descent, params.landing_m_s * params.land_detector),
         n=n,
         rotors=vehicle.rotors,
         phase="flying",

@@ -22,6 +22,7 @@ from quadest.control.se3 import thrust_floor
 from quadest.errors import UsageError
 from quadest.flight.phases import FLYING, PHASE
 from quadest.records import compiled_record
+from quadest.rotation.kernels import rot_entries
 
 LANDING_JERK = 4.0
 """m/s³: the landing's largest jerk once the flight's acceleration is unwound (PX4's default,
@@ -179,13 +180,14 @@ LandDetector = compiled_record(
 )
 
 
-def land_detector(vehicle=None, rate: float = 1.0, v_down=None, speed: float = 0.0):
-    """The :data:`LandDetector` of a flight flown at ``rate`` (Hz) whose reference descends at
-    ``v_down`` (NED z speed per sample) and ends in a landing at ``speed`` (m/s; 0: none, the
-    detector off): PX4's multicopter land detector with its defaults (module doc); its least
-    thrust the SE(3) controller's in the descent (PX4's MPC_THR_MIN, :func:`~quadest.control.se3.limited_thrust`)."""
-    on = speed > 0.0 and vehicle is not None
-    descend_k = descent_start(v_down, speed) if on else -1
+def land_detector(vehicle=None, rate: float = 1.0, descend_k: int = -1, speed: float = 0.0):
+    """The :data:`LandDetector` of a flight flown at ``rate`` (Hz) whose reference's final
+    descent starts at sample ``descend_k`` (:func:`descent_start`) and lands at ``speed`` (m/s;
+    0 or ``descend_k`` -1: the detector off): PX4's multicopter land detector with its defaults
+    (module doc); its least thrust the SE(3) controller's in the descent (PX4's MPC_THR_MIN,
+    :func:`~quadest.control.se3.limited_thrust`)."""
+    on = speed > 0.0 and descend_k >= 0 and vehicle is not None
+    descend_k = descend_k if on else -1
     hover = vehicle.mass_kg * vehicle.gravity if on else 0.0
     idle = thrust_floor(hover, vehicle.rotors * vehicle.k_f * vehicle.omega_max**2) if on else 0.0
     return LandDetector.make(
@@ -249,8 +251,8 @@ def _no_horizontal_force(k, xh, control):
     contact and sets the heading's setpoint to the present one)."""
     for j in range(2):
         control.p_d[k, j], control.v_d[k, j], control.a_d[k, j] = xh[j], xh[3 + j], 0.0
-    w, x, y, z = xh[6], xh[7], xh[8], xh[9]
-    control.yaw_d[k] = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    R = rot_entries(xh[6], xh[7], xh[8], xh[9])
+    control.yaw_d[k] = math.atan2(R[1][0], R[0][0])
 
 
 @njit(cache=True, inline="always")
