@@ -766,6 +766,12 @@ def results_clip_rate(name: str = "clip-rate") -> str:
     )
 
 
+def _nutation_cell(model: dict) -> str:
+    """The relaxed hover's gyroscopic coupling of roll and pitch (results written before it: -)."""
+    rates = model.get("nutation_rates_rad_s")
+    return "-" if rates is None else " / ".join(f"{v:.1f}" for v in rates)
+
+
 def results_spin_range(name: str = "spin-range") -> str:
     """docs/vehicle.md: the flown rotor loss at the ends of the Bebop 2's spin range."""
     r = _load(name)
@@ -779,6 +785,7 @@ def results_spin_range(name: str = "spin-range") -> str:
                 f"{e['vehicle']['k_h']:.3g}",
                 f"{e['vehicle']['rotor_inertia']:.3g}",
                 f"{m['spin_rate_rad_s']:.1f} / {m['tilt_deg']:.1f}",
+                _nutation_cell(m),
                 f"{t['survived']}/{t['runs']}",
                 "-" if t["spin_rate_rad_s"] is None else f"{t['spin_rate_rad_s']:.1f} / {t['tilt_deg']:.1f}",
                 "-" if share is None else f"{100 * share:.0f} %",
@@ -798,6 +805,7 @@ def results_spin_range(name: str = "spin-range") -> str:
         "k_h (N s²/m)",
         "I_p (kg m²)",
         "model: spin (rad/s) / tilt (°)",
+        "model: coupling Λ_x / Λ_y (rad/s)",
         "truth up",
         "flown: spin / tilt",
         "clipped (±1000 °/s)",

@@ -20,7 +20,7 @@ from dataclasses import asdict, replace
 import numpy as np
 
 from quadest.calibration import calibrate_centrifugal
-from quadest.control.ftc import relaxed_hover
+from quadest.control.ftc import nutation_rates, relaxed_hover
 from quadest.evaluation import flown
 from quadest.evaluation.flown import FlownAfckfParams
 from quadest.evaluation.metrics import AXES
@@ -261,7 +261,11 @@ def _spin_range_end(p, seeds, progress, workers, scheduler) -> dict:
     )
     return {
         "vehicle": {"k_h": v.k_h, "rotor_inertia": v.rotor_inertia},
-        "relaxed_hover_model": {"spin_rate_rad_s": abs(hover.spin), "tilt_deg": hover.tilt_deg},
+        "relaxed_hover_model": {
+            "spin_rate_rad_s": abs(hover.spin),
+            "tilt_deg": hover.tilt_deg,
+            "nutation_rates_rad_s": list(nutation_rates(ftc.model(v), hover)),
+        },
         "calibration": cal,
         "truth_flights": {
             "survived": len(up),
