@@ -144,6 +144,27 @@ def test_the_drain_empties_a_tumble_no_rotor_can_brake(lam):
     assert abs(_drained(g, lam, g.k_u)) < 0.2 * 10.0
 
 
+def test_the_drain_reads_the_coupling_of_the_relaxed_hover_and_brakes_one_sense_only():
+    """At the Bebop 2's relaxed hover (its spin, its rotors' momentum) the coupling the drain
+    divides by lies between the Euler equations' Λ_x and Λ_y (it takes the mean of J_x and J_y);
+    a rate about the unbrakeable axis the rotors can brake (``e_u > 0``: the opposite rotor
+    pulls) is left to the rate loop, the desired rates unchanged."""
+    ftc = FtcParams()
+    model = ftc.model(BEBOP)
+    hover = relaxed_hover(model, 0, ftc.rho)
+    g = ftc.gains(BEBOP, 0, model)
+    h = BEBOP.rotor_inertia * float(np.dot(BEBOP.spin, np.sqrt(hover.thrusts / BEBOP.k_f)))
+    w2 = hover.spin * hover.axis[2]
+    au = np.asarray(g.unbrakeable)
+    e_u = -0.1  # a small brake asked: v_d = k_u · 0.1 / Λ, within drain_max
+    od = drain_unbrakeable(g, 0.0, 0.0, w2, e_u * au[0], e_u * au[1], h)
+    v_d = (od[0] - e_u * au[0]) * -au[1] + (od[1] - e_u * au[1]) * au[0]
+    lam = -g.k_u * e_u / v_d
+    lx, ly = nutation_rates(model, hover)
+    assert min(lx, ly) - 1e-9 <= lam <= max(lx, ly) + 1e-9
+    assert drain_unbrakeable(g, 0.0, 0.0, w2, 0.1 * au[0], 0.1 * au[1], h) == pytest.approx((0.1 * au[0], 0.1 * au[1]))
+
+
 @pytest.mark.parametrize("seed", [20, 65, 74])
 def test_the_drain_keeps_up_figure_eight_losses_that_fell_without_it(seed):
     """Training figure-eight losses (failure_case, the truth and the detector from rotor speeds in
