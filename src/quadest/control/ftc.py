@@ -201,7 +201,7 @@ class FtcParams:
         10.0,
         "deg",
         "the drain acts while the primary axis is at least this far from the desired up direction "
-        "(the tumble); nearer, the relaxed hover settles as without it",
+        "(the tumble); nearer it is off, so that the relaxed hover settles",
         "chosen on training seeds: without it the relaxed hover wobbled (3-27° of tilt 4-7 s after a "
         "hover loss, seed 0); 10° and 20° keep 86 and 84 of the 100 figure eights up",
         bounds="[0, 180]",
@@ -361,7 +361,7 @@ def relaxed_hover(model: FtcModel, failed: int, rho: float) -> RelaxedHover:
         t = t_a * share
         w = wbar * n
         M = np.array([-(pos[:, 1] * t).sum(), (pos[:, 0] * t).sum(), -(spin * model.kappa * t).sum()]) - d * w
-        h = model.rotor_inertia * (spin * np.sqrt(np.maximum(t, 0.0) / model.k_f)).sum()
+        h = _hover_momentum(model, t)
         gyro = np.cross(w, J * w + np.array([0.0, 0.0, h]))
         return np.concatenate([[t.sum() * -nz - model.mass * model.gravity], M - gyro])
 
@@ -381,6 +381,12 @@ def relaxed_hover(model: FtcModel, failed: int, rho: float) -> RelaxedHover:
     return RelaxedHover(n, float(wbar), t_a * share, float(np.degrees(np.arccos(-n[2]))))
 
 
+def _hover_momentum(model: FtcModel, thrusts) -> float:
+    """The rotors' angular momentum about body z (N m s) at ``thrusts`` (N): ``I_p Σ s_j Ω_j``."""
+    omega = np.sqrt(np.maximum(np.asarray(thrusts, float), 0.0) / model.k_f)
+    return model.rotor_inertia * float((np.asarray(model.spin, float) * omega).sum())
+
+
 def nutation_rates(model: FtcModel, hover: RelaxedHover) -> tuple[float, float]:
     """The gyroscopic coupling of the roll and pitch rates at ``hover`` (rad/s): linearised about
     the spin ``ω_z = ω̄ n_z`` with the rotors' momentum ``h``, ``ṗ = −Λ_x q`` and ``q̇ = Λ_y p``
@@ -389,9 +395,7 @@ def nutation_rates(model: FtcModel, hover: RelaxedHover) -> tuple[float, float]:
     (Λ near zero: the body's and the rotors' gyroscopic moments cancel; docs/vehicle.md)."""
     J = np.asarray(model.inertia, float)
     w_z = hover.spin * hover.axis[2]
-    h = model.rotor_inertia * float(
-        (np.asarray(model.spin) * np.sqrt(np.maximum(hover.thrusts, 0.0) / model.k_f)).sum()
-    )
+    h = _hover_momentum(model, hover.thrusts)
     return float(((J[2] - J[1]) * w_z + h) / J[0]), float(((J[2] - J[0]) * w_z + h) / J[1])
 
 

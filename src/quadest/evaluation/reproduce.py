@@ -236,7 +236,8 @@ def afckf_spin_range(
 def _spin_range_end(p, seeds, progress, workers, scheduler) -> dict:
     v = flown.range_vehicle(p.vehicle, p.vehicle_range)
     ftc = flown.flown_ftc(p)
-    hover = relaxed_hover(ftc.model(v), p.rotor, ftc.rho)
+    model = ftc.model(v)
+    hover = relaxed_hover(model, p.rotor, ftc.rho)
     cal, fparams = None, {}  # where the calibration flight does not stay up the AFCKF runs uncalibrated
     if flown.flown_flight("damaged-rotor", p.calibration_seed, p).summary["status"] == "survived":
         cal = flown.afckf_calibration_flown(p)
@@ -264,7 +265,7 @@ def _spin_range_end(p, seeds, progress, workers, scheduler) -> dict:
         "relaxed_hover_model": {
             "spin_rate_rad_s": abs(hover.spin),
             "tilt_deg": hover.tilt_deg,
-            "nutation_rates_rad_s": list(nutation_rates(ftc.model(v), hover)),
+            "nutation_rates_rad_s": list(nutation_rates(model, hover)),
         },
         "calibration": cal,
         "truth_flights": {
