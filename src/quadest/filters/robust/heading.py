@@ -35,21 +35,21 @@ def heading_time_constant(x, p, h20, h21, h22, spin, nclip):
     """Eq R7: ``τ_ψ / (1 + max(0, |lp(ω_D)| − spin_min) / spin_rate)``, and while an axis clips at
     most ``clip_heading_tau`` over the clipped axes' squared share about down (a spin's vertical
     axis fully, a stick's horizontal one not at all: there it is the tilt that errs, and the
-    field's heading with it). Returns τ and the shares."""
+    field's heading with it)."""
     tau = p[PARAM.tau_mag] / (1.0 + max(0.0, spin - p[PARAM.spin_min]) / p[PARAM.spin_rate])
     s0, s1, s2 = h20 * h20 * x[STATE.clipped], h21 * h21 * x[STATE.clipped + 1], h22 * h22 * x[STATE.clipped + 2]
     if nclip:
         share = s0 + s1 + s2
         if share > 0.0:
             tau = min(tau, p[PARAM.clip_heading_tau] / min(1.0, share))
-    return tau, s0, s1, s2
+    return tau
 
 
 @njit(cache=True, inline="always")
-def heading_drift_variance(x, p, h20, h21, h22, spin, s0, s1, s2, nclip):
+def heading_drift_variance(x, p, h20, h21, h22, spin, nclip):
     """Eq R6: the heading's drift rate has the variance of the vertical bias (``h P_b hᵀ``), of
-    the scale-factor error times the spin, and of a clipped axis's rate from the field (eq R4b)
-    seen about down."""
+    the scale-factor error times the spin, and of the clipped axes' rates from the field (eq
+    R4f, their covariance) seen about down."""
     pbv = (
         h20 * (x[STATE.Pb] * h20 + x[STATE.Pb + 1] * h21 + x[STATE.Pb + 2] * h22)
         + h21 * (x[STATE.Pb + 3] * h20 + x[STATE.Pb + 4] * h21 + x[STATE.Pb + 5] * h22)
@@ -57,7 +57,12 @@ def heading_drift_variance(x, p, h20, h21, h22, spin, s0, s1, s2, nclip):
     )
     drift2 = pbv + (p[PARAM.scale_max] * spin) ** 2
     if nclip:
-        drift2 += s0 * x[STATE.Pw] + s1 * x[STATE.Pw + 1] + s2 * x[STATE.Pw + 2]
+        g0, g1, g2 = h20 * x[STATE.clipped], h21 * x[STATE.clipped + 1], h22 * x[STATE.clipped + 2]
+        drift2 += (
+            g0 * (x[STATE.Pc] * g0 + x[STATE.Pc + 1] * g1 + x[STATE.Pc + 2] * g2)
+            + g1 * (x[STATE.Pc + 6] * g0 + x[STATE.Pc + 7] * g1 + x[STATE.Pc + 8] * g2)
+            + g2 * (x[STATE.Pc + 12] * g0 + x[STATE.Pc + 13] * g1 + x[STATE.Pc + 14] * g2)
+        )
     return drift2
 
 
@@ -170,10 +175,10 @@ def heading(x, p, c, m0, m1, m2, have_mag, u0, u1, u2, at_rest, nclip, clip_b, d
     wd = h20 * u0 + h21 * u1 + h22 * u2  # rate about down
     x[STATE.spin] += (1.0 - math.exp(-dt / p[PARAM.spin_tau])) * (wd - x[STATE.spin])
     spin = abs(x[STATE.spin])
-    tau, s0, s1, s2 = heading_time_constant(x, p, h20, h21, h22, spin, nclip)
+    tau = heading_time_constant(x, p, h20, h21, h22, spin, nclip)
     ph = x[STATE.Ph]
     if x[STATE.ref] > 0.0 or have_mag:
-        ph += (c[COEF.sg2] + tau * heading_drift_variance(x, p, h20, h21, h22, spin, s0, s1, s2, nclip)) * dt
+        ph += (c[COEF.sg2] + tau * heading_drift_variance(x, p, h20, h21, h22, spin, nclip)) * dt
     delta = x[STATE.delta]
     mupd = 0.0
     if have_mag:

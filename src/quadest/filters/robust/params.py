@@ -51,8 +51,16 @@ STATE = layout(
     ("mprev", 3),  # previous magnetometer sample (body), NaN: none
     ("gsum", 3),  # the gyro integrated since the last magnetometer sample (rad)
     ("gclip", 3),  # 1 if the axis clipped since the last magnetometer sample
-    ("rate", 3),
-    ("Pw", 3),  # eq R4: a clipped axis's rate (rad/s) and its variance
+    ("rate", 3),  # eq R4: a clipped axis's rate (rad/s)
+    ("accel", 3),  # eq R4d: its angular acceleration (rad/s²)
+    ("Pc", 36),  # eq R4f: the joint covariance of (ω_x, ω_y, ω_z, α_x, α_y, α_z), row-major
+    ("fresh", 3),  # 1 while an axis's (ω, α) is its reading's, uncorrelated with the others'
+    ("sd2", 1),  # eq R4f: the variance of a component of the field's change rate (learnt while unclipped)
+    ("sdt", 1),  # time it has been learnt, s
+    ("work", 45),  # eq R4f's workspace: P Hᵀ, the gain, S
+    ("ascale", 3),  # the slope at the clip, decaying with the acceleration (rad/s²)
+    ("wmean", 3),  # the last in-range interval's mean reading (rad/s)
+    ("wmid", 3),  # time since its midpoint, s (0: none yet)
     ("Vn", 3),  # variance of the numerator of eq R4 (the field's noise), learnt while unclipped
     ("Vt", 3),  # time it has been learnt, s
     ("peak", 3),
@@ -251,7 +259,7 @@ class RobustParams(Params):
     clip_learn_tau: float = param(
         1.0,
         "s",
-        "time constant over which the field's noise is learnt for a clipped axis's rate (eq R4b)",
+        "time constant over which the field's noise is learnt for a clipped axis's rate (eqs R4b, R4f)",
         "chosen: many magnetometer samples, yet recent",
         bounds="(0, 1e4]",
     )
@@ -300,13 +308,32 @@ class RobustParams(Params):
         bounds="(0, 1e3]",
     )
     clip_rate_q: float = param(
-        16.0,
+        2.0,
         "rad²/s³",
-        "random-walk intensity of a clipped axis's rate (eq R4b)",
-        "chosen: the rate wanders 4 rad/s in 1 s (a tumble's or a swing's changes); with the "
-        "field's noise learnt, the rate follows a clean field within a sample or two and "
-        "averages a noisy one over a fraction of a second",
+        "random-walk intensity of a clipped axis's rate (eq R4d)",
+        "chosen on the flown rotor loss, seeds 1-5, with the clipped axes corrected together (eq R4f; "
+        "docs/estimators.md): 0.25-2 within 0.5° of each other, 2 the largest (RepoIMU's clipping "
+        "trial costs more below it); 16 costs the spin clipped throughout, whose field's rate is noisy",
         bounds="(0, 1e6]",
+    )
+    clip_accel_tau: float = param(
+        0.4,
+        "s",
+        "time constant over which a clipped axis's angular acceleration decays, and the noise on it (eq R4d)",
+        "chosen on the flown rotor loss, seeds 1-5, the axes corrected one by one (0.3-0.6 s within "
+        "noise), and again with eq R4f (0.2 costs the spin clipped throughout; docs/estimators.md): "
+        "its rate climbs beyond the range for about 0.3 s and falls back",
+        bounds="(0, 1e3]",
+    )
+    clip_accel_change: float = param(
+        6.0,
+        "-",
+        "how far a clipped axis's angular acceleration may change within clip_accel_tau, in units "
+        "of the slope at which it clipped (eq R4d)",
+        "chosen on the flown rotor loss, seeds 1-5, the axes corrected one by one (√32-√64 within "
+        "noise), and again with eq R4f (3, 4, 8 and 10 cost; docs/estimators.md): a tumble's "
+        "acceleration reverses at its peak",
+        bounds="[0, 1e3]",
     )
     clip_min_rate: float = param(
         4.3,

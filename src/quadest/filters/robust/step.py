@@ -36,9 +36,9 @@ def robust_step(x, p, c, gyr, acc, mag, dt, diag):
     m0 = m1 = m2 = 0.0
     if have_mag:
         m0, m1, m2 = latency_corrected(p, mag, w0, w1, w2)
-        rates_from_field(x, p, m0, m1, m2)
+        rates_from_field(x, p, c, m0, m1, m2)
     if nclip:
-        hold_clipped(x, gyr, dt)
+        hold_clipped(x, p, gyr, dt, 0.0 if have_mag else x[STATE.mag_dt])
         w0, w1, w2 = held_rates(x, gyr, nclip)
     f0, f1, f2 = lever_arm(p, c, acc, w0, w1, w2)
     fn = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
