@@ -54,13 +54,13 @@ def rate_from_reading(x, i, wi, rg, mdt):
     """Eq R4d within range: the rate at the interval's end and the angular acceleration from the
     slope between this interval's mean reading ``wi`` and the last one's (each of variance
     ``rg``, their midpoints ``d`` apart): ``α = (wi − w̄) / d``, ``ω = wi + α Δt / 2``."""
+    first = x[STATE.wmid + i] == 0.0  # no earlier reading: no slope, α 0 and known so
     d = x[STATE.wmid + i] + 0.5 * mdt
-    a = 0.5 * mdt / d if x[STATE.wmid + i] > 0.0 else 0.0  # no earlier reading: no slope
+    a = 0.0 if first else 0.5 * mdt / d
     alpha = a * (wi - x[STATE.wmean + i]) * 2.0 / mdt
     x[STATE.rate + i] = wi + 0.5 * mdt * alpha
     x[STATE.accel + i] = alpha
     x[STATE.ascale + i] = alpha
-    first = x[STATE.wmid + i] == 0.0  # no slope: α 0 and known so (the random walk alone)
     pwa = 0.0 if first else (1.0 + 2.0 * a) * rg / d
     x[STATE.Pc + 7 * i] = ((1.0 + a) ** 2 + a * a) * rg
     x[STATE.Pc + 7 * i + 3] = pwa
@@ -117,6 +117,13 @@ def clip_rate_update(x, p, i, num, den, wi, mdt, kl, rg):
     x[STATE.wmid + i] += mdt
 
 
+@njit(cache=True, inline="always")
+def field_residual(c0, c1, c2, d0, d1, d2, w0, w1, w2):
+    """The field's change ``d`` against ``m × ω`` (``ṁ = −ω × m``; ``c`` the interval's mid-point
+    field, ``w`` its mean rates), per component."""
+    return d0 - (c1 * w2 - c2 * w1), d1 - (c2 * w0 - c0 * w2), d2 - (c0 * w1 - c1 * w0)
+
+
 CLIP_FIELD_FLOOR = 1e-3
 """Eq R4f: the least noise of the field's change, as a rate seen through the field (rad/s): a
 noise-free field and gyro would leave ``S`` singular where all three axes clip."""
@@ -170,7 +177,7 @@ def clipped_rates_from_field(x, p, c0, c1, c2, d0, d1, d2, v0, v1, v2, mdt, rg):
     w0 = v0 if x[STATE.gclip] == 0.0 else x[STATE.rate] - h * x[STATE.accel]
     w1 = v1 if x[STATE.gclip + 1] == 0.0 else x[STATE.rate + 1] - h * x[STATE.accel + 1]
     w2 = v2 if x[STATE.gclip + 2] == 0.0 else x[STATE.rate + 2] - h * x[STATE.accel + 2]
-    res = (d0 - (c1 * w2 - c2 * w1), d1 - (c2 * w0 - c0 * w2), d2 - (c0 * w1 - c1 * w0))
+    res = field_residual(c0, c1, c2, d0, d1, d2, w0, w1, w2)
     for a in range(6):  # P Hᵀ
         for r in range(3):
             acc = 0.0
@@ -349,7 +356,7 @@ def rates_from_field(x, p, c, m0, m1, m2):
         if g0 + g1 + g2 != 0.0:
             clipped_rates_from_field(x, p, c0, c1, c2, d0, d1, d2, v0, v1, v2, mdt, rg)
         else:  # eq R4f's noise: the field's change against every axis's reading, per component
-            r0, r1, r2 = d0 - (c1 * v2 - c2 * v1), d1 - (c2 * v0 - c0 * v2), d2 - (c0 * v1 - c1 * v0)
+            r0, r1, r2 = field_residual(c0, c1, c2, d0, d1, d2, v0, v1, v2)
             x[STATE.sdt] += mdt
             x[STATE.sd2] += max(kl, mdt / x[STATE.sdt]) * ((r0 * r0 + r1 * r1 + r2 * r2) / 3.0 - x[STATE.sd2])
     x[STATE.gsum], x[STATE.gsum + 1], x[STATE.gsum + 2] = 0.0, 0.0, 0.0
