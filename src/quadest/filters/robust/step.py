@@ -14,7 +14,7 @@ from quadest.filters.robust.bias import rest_and_bias
 from quadest.filters.robust.clipping import detect_clipping, held_rates, hold_clipped, rates_from_field
 from quadest.filters.robust.heading import heading, latency_corrected
 from quadest.filters.robust.params import PARAM, STATE, UNKNOWN_HEADING_VAR, Record, RobustParams, coefficients
-from quadest.filters.robust.tilt import lever_arm, step_coefficients, strapdown, tilt
+from quadest.filters.robust.tilt import lever_arm, sample_clock, step_coefficients, strapdown, tilt
 from quadest.rotation.kernels import FASTMATH
 
 
@@ -29,7 +29,8 @@ def robust_step(x, p, c, gyr, acc, mag, dt, diag):
         and not (np.isnan(mag[0]) or np.isnan(mag[1]) or np.isnan(mag[2]))
         and (mag[0] != 0.0 or mag[1] != 0.0 or mag[2] != 0.0)
     )
-    step_coefficients(x, p, dt)
+    dtc = sample_clock(x, dt)  # the low-passes run at the clock's interval, the strapdown at each sample's
+    step_coefficients(x, p, dtc)
     x[STATE.mag_dt] += dt
     nclip = detect_clipping(x, p, gyr, dt)
     w0, w1, w2 = held_rates(x, gyr, nclip)  # the latency is rotated out with the last rate held
@@ -55,7 +56,7 @@ def robust_step(x, p, c, gyr, acc, mag, dt, diag):
     u0, u1, u2 = strapdown(x, w0, w1, w2, dt)
     clip_b = p[PARAM.bias_clip] + p[PARAM.scale_max] * math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
     at_rest, rest_rate2 = rest_and_bias(x, p, gyr, acc, nclip, dt)
-    tilt(x, p, c, gyr, (f0, f1, f2), fn, (u0, u1, u2), at_rest, nclip, rest_rate2, clip_b, dt)
+    tilt(x, p, c, gyr, (f0, f1, f2), fn, (u0, u1, u2), at_rest, nclip, rest_rate2, clip_b, dtc)
     mupd = heading(x, p, c, m0, m1, m2, have_mag, u0, u1, u2, at_rest, nclip, clip_b, dt)
     diag[0] = 1.0 if at_rest else 0.0
     diag[1] = x[STATE.disturbed]
