@@ -157,6 +157,12 @@ def fuse_and_strapdown(qf, df, qb, db, yaw, dt, gyr, acc, gap, q_out, d_out, q_i
         f_i[k, 0], f_i[k, 1], f_i[k, 2] = rotate_s(gw, gx, gy, gz, a0, a1, a2)
 
 
+def _mean_interval(t, a, z, h) -> float:
+    """The mean interval of rows ``a:z`` (the sample clock robust's low-passes run at, eq R9);
+    ``h`` for a single row."""
+    return float(t[z - 1] - t[a]) / (z - 1 - a) if z - 1 > a else h
+
+
 @njit(cache=True, fastmath=FASTMATH)
 def zero_phase_lowpass(x, h, tau, out):
     """Each of the three columns of ``x`` low-passed forward and then backward by robust's Butterworth
@@ -331,7 +337,7 @@ class RobustOffline(Robust):
             bounds = [0, *np.flatnonzero(dt > gap).tolist(), n]
             y = np.empty((n, 3))
             for a, z in ((a, z) for a, z in zip(bounds[:-1], bounds[1:]) if z > a):  # each stretch between gaps
-                zero_phase_lowpass(f_i[a:z], h, self.params.tau_acc, y[a:z])
+                zero_phase_lowpass(f_i[a:z], _mean_interval(t, a, z, h), self.params.tau_acc, y[a:z])
                 tilt_without_delay(q_ib[a:z], y[a:z], q[a:z], q[a:z])
         return FilterResult(
             self.name,

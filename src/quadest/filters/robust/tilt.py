@@ -1,7 +1,8 @@
-"""Tilt (docs/estimators.md, robust, items 1, 2, 7, 10, 11, 12): the strapdown in an almost-inertial
-frame, the sample clock the low-passes run at (eq R9), the specific force low-passed there (a 4th-order share optional, eq R1c; the initial
-averaging ended by eq R8), the inclination correction (eq R1) and the bias it measures in motion
-(eqs R3-R3d), the lever arm, and the tilt's reported variance (eq R6)."""
+"""Tilt (docs/estimators.md, robust, items 1, 2, 7, 10, 11, 12): the strapdown in an
+almost-inertial frame, the sample clock the low-passes run at (eq R9), the specific force
+low-passed there (a 4th-order share optional, eq R1c; the initial averaging ended by eq R8), the
+inclination correction (eq R1) and the bias it measures in motion (eqs R3-R3d), the lever arm,
+and the tilt's reported variance (eq R6)."""
 
 from __future__ import annotations
 
