@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from quadest.cli.main import main
-from quadest.data import save_recording
+from quadest.data import Recording, save_recording
 from quadest.evaluation.runner import estimate, score
 from quadest.plot.report import decimate
 from quadest.readers import read_recording
@@ -405,3 +405,17 @@ def test_a_logs_report_in_a_browser(browser, log_report):
     names = page.evaluate("() => Array.from(Bokeh.documents[0].all_models).filter(m => m.name).map(m => m.name)")
     assert "diagnose-outputs" in names and "Motors and failures" in page.content()
     page.close()
+
+
+def test_report_summary_names_timestamps_that_jitter():
+    """The report's first table gives the timestamps' spread and, where it is large (stamps a
+    host gave on arrival), what a low-pass that followed it would do (docs/report.md)."""
+    from quadest.evaluation.inspect import summary
+    from quadest.plot.report import summary_html
+
+    rec = simulate("nominal", "bebop2", seed=1, duration=5.0)
+    k = np.arange(len(rec.t))
+    late = Recording(t=rec.t + 0.5 * (rec.t[1] - rec.t[0]) * (k % 2), gyr=rec.gyr, acc=rec.acc, mag=rec.mag)
+    regular, jittered = summary_html("x", summary(rec)), summary_html("x", summary(late))
+    assert "timestamps&#x27; jitter" in regular and "mean(dt²)/mean(dt)²" not in regular
+    assert "mean(dt²)/mean(dt)² 1.250" in jittered

@@ -140,6 +140,21 @@ def test_summary_rates_gaps_and_truth():
     assert "gaps        1" in text and "true_q" in text
 
 
+def test_summary_names_timestamps_that_jitter():
+    """Stamps alternately 0 and 0.5 periods late: their intervals spread 0.5 periods about the
+    period and ``mean(Δt²) / mean(Δt)²`` is 1 + 0.5² (docs/estimators.md, robust, item 12);
+    ``quadest info`` says so. Regular stamps are not called jittered."""
+    n = 1000
+    k = np.arange(n)
+    for t, gain in ((k * 0.01 + 0.005 * (k % 2), 1.25), (k * 0.01, 1.0)):
+        rec = Recording(t=t, gyr=np.zeros((n, 3)), acc=np.tile([0, 0, -9.81], (n, 1)), mag=np.full((n, 3), np.nan))
+        s = summarize(rec)
+        assert s["jitter_gain"] == pytest.approx(gain, rel=1e-3)
+        assert s["interval_mean_s"] == pytest.approx(0.01, rel=1e-3)
+        assert ("jitter      " in format_summary(s)) == (gain > 1.0)
+    assert s["jitter_s"] < 1e-12
+
+
 def test_select_and_between():
     rec = make()
     part = rec.between(0.5, 1.0)

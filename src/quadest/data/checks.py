@@ -49,6 +49,29 @@ BLOCK = 1 << 16
 whatever the recording's length)."""
 
 
+JITTER_NOTED = 1.01
+"""Timestamps whose intervals give ``mean(Δt²) / mean(Δt)²`` above this are called jittered."""
+
+
+def timestamp_jitter(dt, median: float) -> dict:
+    """How the intervals ``dt`` (their median ``median``) spread about their mean, the
+    estimators' gaps (:data:`GAP_FACTOR`, :data:`GAP_MIN_S`) left out: the mean and the standard
+    deviation (s), and ``mean(Δt²) / mean(Δt)²``, the factor by which a low-pass whose
+    coefficients followed each interval would pass a fast motion (docs/estimators.md, robust,
+    item 12). An IMU that samples on its own clock and is stamped by a host on arrival shows a
+    large spread (DIDO's flights: 1.4 ms about 2.5 ms, the factor 1.27-1.35)."""
+    limit = max(GAP_FACTOR * median, GAP_MIN_S)
+    n = s1 = s2 = 0.0
+    for a in range(0, len(dt), BLOCK):  # a few MB at a time, whatever the recording's length
+        d = dt[a : a + BLOCK]
+        d = d[(d > 0) & (d <= limit)]
+        n, s1, s2 = n + len(d), s1 + float(d.sum()), s2 + float((d * d).sum())
+    if n == 0:
+        return {"interval_mean_s": None, "jitter_s": None, "jitter_gain": None}
+    mean = s1 / n
+    return {"interval_mean_s": mean, "jitter_s": max(0.0, s2 / n - mean**2) ** 0.5, "jitter_gain": s2 / n / mean**2}
+
+
 def row_norms(a: np.ndarray) -> np.ndarray:
     """Each row's Euclidean norm, with no temporary the size of ``a`` (a damaged file's 1e300
     gives inf)."""

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from quadest.conventions import GRAVITY
-from quadest.data.checks import row_norms, runs
+from quadest.data.checks import row_norms, runs, timestamp_jitter
 from quadest.data.recording import Recording
 from quadest.evaluation.metrics import SUM_ROWS, ErrorSums, euler_errors
 from quadest.evaluation.runner import (
@@ -188,7 +188,8 @@ def summary(rec: Recording) -> dict:
 
 
 def _intervals(t) -> tuple[dict, float]:
-    """The IMU's rate and its gaps (intervals above 1.5 median), and the median interval."""
+    """The IMU's rate, its gaps (intervals above 1.5 median) and the timestamps' jitter, and the
+    median interval."""
     dt = np.diff(t)
     med = float(np.median(dt)) if len(dt) else float("nan")
     gaps = dt[dt > 1.5 * med] if len(dt) else np.zeros(0)
@@ -197,6 +198,7 @@ def _intervals(t) -> tuple[dict, float]:
         "gaps": len(gaps),
         "gap_time_s": float(gaps.sum() - med * len(gaps)),
         "longest_gap_s": float(gaps.max()) if len(gaps) else 0.0,
+        **timestamp_jitter(dt, med),
     }, med
 
 

@@ -418,6 +418,9 @@ class Estimator:
 
     def __setstate__(self, state):
         self.__dict__.update(state)
+        self._x = checked_state(
+            self._x, self.state_size, self.name, self.none_yet
+        )  # a state of another layout is refused
         self._call_step = self._first_step
         self._qv = self._x[Q_OUT : Q_OUT + 4]
 

@@ -20,7 +20,7 @@ from bokeh.resources import INLINE
 from scipy.signal import spectrogram
 
 from quadest import __version__
-from quadest.data.checks import median_interval, row_norms
+from quadest.data.checks import JITTER_NOTED, median_interval, row_norms
 from quadest.data.files import write_bytes
 from quadest.evaluation.inspect import decimate
 
@@ -83,6 +83,19 @@ def _f(v, fmt="{:.2f}"):
     return "-" if v is None else fmt.format(v)
 
 
+def _jitter(s: dict) -> str:
+    """The intervals' spread about their mean, and what it does to a low-pass that followed it."""
+    if s.get("jitter_gain") is None:
+        return "-"
+    text = f"{s['jitter_s'] * 1e3:.3f} ms about {s['interval_mean_s'] * 1e3:.3f} ms"
+    if s["jitter_gain"] > JITTER_NOTED:
+        text += (
+            f" (mean(dt²)/mean(dt)² {s['jitter_gain']:.3f}: stamps a host gave on arrival? robust's low-passes run"
+            " at the mean interval)"
+        )
+    return text
+
+
 def summary_html(title: str, s: dict) -> str:
     rows = [
         ["source", s["source"]],
@@ -94,8 +107,9 @@ def summary_html(title: str, s: dict) -> str:
         ["magnetometer rate", _f(s["mag_rate_hz"], "{:.1f} Hz") if s["mag_rate_hz"] else "none"],
         [
             "gaps (> 1.5 sample periods)",
-            f"{s['gaps']} ({s['gap_time_s']:.3f} s missing, longest {s['longest_gap_s']:.3f} s)",
+            f"{s['gaps']} ({s['gap_time_s']:.3f} s beyond the median interval, longest {s['longest_gap_s']:.3f} s)",
         ],
+        ["timestamps' jitter", _jitter(s)],
         ["rows dropped or skipped by the reader", _f(s["dropped_rows"], "{}")],
         ["gyroscope clipped", f"{100 * s['gyro_clipped_share']:.2f} % of rows"],
         ["accelerometer clipped", f"{100 * s['acc_clipped_share']:.2f} % of rows"],

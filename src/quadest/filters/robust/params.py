@@ -23,7 +23,7 @@ STATE = layout(
     ("lpy", 3),  # the low-pass output (f_I filtered)
     ("mean_n", 1),  # samples in the initial averaging (until τ_acc has passed)
     ("coef_dt", 1),  # Δt the cached coefficients were computed for
-    ("clock", 2),  # the sensor's sample interval (running mean of the intervals, s) and its count
+    ("clock", 4),  # eq R9: intervals counted, their running mean (s), a one-sided run's count (signed) and time (s)
     ("coef", 8),  # b0, a1, a2, k_acc, k_rest, k_mag_lp, k_init, spare
     ("bias", 3),  # gyro bias, body, rad/s
     ("Pb", 9),  # its covariance, row-major

@@ -15,24 +15,33 @@ from quadest.rotation.kernels import normalize_s, qmul_s, rot_entries, rotate_s
 
 CLOCK_SAMPLES = 1000.0
 """Samples over which the sample clock's interval is averaged (before that many, all of them)."""
-CLOCK_GAP = 5.0
-"""An interval over this many clock intervals is a gap (samples lost), not jitter."""
+CLOCK_RUN_S = 0.05
+"""A run of intervals all over 1.5 or all under 1/1.5 clock intervals lasting this long (s; and
+:data:`CLOCK_RUN_N` intervals) is a new rate: the clock starts again from the run's mean."""
+CLOCK_RUN_N = 20.0
 
 
 @njit(cache=True, inline="always")
 def sample_clock(x, dt):
-    """The interval the low-passes run at (item 12, eq R9). An IMU samples on its own clock; timestamps a
-    host gave on arrival jitter around it (DIDO: 0.2-9.9 ms around 2.5 ms), and a biquad whose
-    coefficients follow that jitter sample by sample is not a low-pass. So: the running mean of
-    the intervals (``1/n``, then exponential over :data:`CLOCK_SAMPLES`); a gap (over
-    :data:`CLOCK_GAP` of them, after the first 50 samples) and an interval within 1 ppm of the
-    mean are taken as they are."""
-    n, m = x[STATE.clock + 1], x[STATE.clock]
-    if n >= 50.0 and dt > CLOCK_GAP * m:
-        return dt
-    n += 1.0
-    m = dt if n == 1.0 else m + (dt - m) / min(n, CLOCK_SAMPLES)
-    x[STATE.clock], x[STATE.clock + 1] = m, n
+    """The interval the low-passes run at (item 12, eq R9). An IMU samples on its own clock;
+    timestamps a host gave on arrival jitter around it (DIDO: 0.2-9.9 ms around 2.5 ms) or come
+    in bursts (a FIFO read at once), and a biquad whose coefficients follow them sample by sample
+    is not a low-pass. So: the running mean of all intervals (``1/n``, then exponential over
+    :data:`CLOCK_SAMPLES`; a lost sample's long interval is in it, a few per cent at most); a new
+    rate, a run of intervals on one side of it (:data:`CLOCK_RUN_S`), starts it again; an
+    interval within 1 ppm of the mean is taken as it is (regular recordings run as before)."""
+    c = STATE.clock
+    n, m, run, rsum = x[c] + 1.0, x[c + 1], x[c + 2], x[c + 3]
+    if n == 1.0:
+        m = dt
+    else:
+        side = 1.0 if dt > 1.5 * m else (-1.0 if 1.5 * dt < m else 0.0)
+        run, rsum = (run + side, rsum + dt) if side != 0.0 and side * run >= 0.0 else (side, dt * abs(side))
+        if abs(run) >= CLOCK_RUN_N and rsum >= CLOCK_RUN_S:
+            n, m, run, rsum = abs(run), rsum / abs(run), 0.0, 0.0
+        else:
+            m += (dt - m) / min(n, CLOCK_SAMPLES)
+    x[c], x[c + 1], x[c + 2], x[c + 3] = n, m, run, rsum
     return dt if abs(dt - m) <= 1e-6 * m else m
 
 
