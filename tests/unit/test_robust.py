@@ -545,7 +545,7 @@ def test_low_pass_runs_at_the_sample_clock_not_at_the_timestamps_jitter():
     around 2.5 ms), or read from a FIFO five at a time (stamped 0.05 ms apart, every 25 ms). A
     biquad whose coefficients follow each interval weights a sample by ``Δt²`` where the signal is
     far above its cut-off, so the turning acceleration passes ``mean(Δt²) / mean(Δt)² = 1 + 0.55²
-    = 1.30`` times as strongly (0.46° → 0.59° measured so; the FIFO's: 2.6°); at the clock's
+    = 1.30`` times as strongly (0.46° → 0.59° measured so; the FIFO's: 2.4°); at the clock's
     interval the tilt error is the regular stamps' (0.46°), within 1 % (3 % for the FIFO: the
     strapdown takes each sample over its own interval, a burst's five at the last one's rate)."""
     t, gyr, acc, q = _coordinated_circle()

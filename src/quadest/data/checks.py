@@ -59,7 +59,7 @@ def timestamp_jitter(dt, median: float) -> dict:
     deviation (s), and ``mean(Δt²) / mean(Δt)²``, the factor by which a low-pass whose
     coefficients followed each interval would pass a fast motion (docs/estimators.md, robust,
     item 12). An IMU that samples on its own clock and is stamped by a host on arrival shows a
-    large spread (DIDO's flights: 1.4 ms about 2.5 ms, the factor 1.27-1.35)."""
+    large spread (DIDO's flights: 1.4 ms about 2.5 ms, the factor 1.28-1.35)."""
     limit = max(GAP_FACTOR * median, GAP_MIN_S)
     n = s1 = s2 = 0.0
     for a in range(0, len(dt), BLOCK):  # a few MB at a time, whatever the recording's length
