@@ -72,6 +72,19 @@ def timestamp_jitter(dt, median: float) -> dict:
     return {"interval_mean_s": mean, "jitter_s": max(0.0, s2 / n - mean**2) ** 0.5, "jitter_gain": s2 / n / mean**2}
 
 
+def jitter_note(stats: dict) -> str | None:
+    """What :func:`timestamp_jitter`'s ``stats`` say to a user when the stamps jitter (None when
+    they do not)."""
+    if (stats.get("jitter_gain") or 1.0) <= JITTER_NOTED:
+        return None
+    mean = stats["interval_mean_s"]
+    return (
+        f"the intervals spread {stats['jitter_s'] * 1e3:.3f} ms about their mean {mean * 1e3:.3f} ms "
+        f"({1.0 / mean:.2f} Hz; mean(dt²)/mean(dt)² {stats['jitter_gain']:.3f}): stamps a host gave on arrival? "
+        "robust's low-passes run at the mean interval (docs/estimators.md, robust, item 12)"
+    )
+
+
 def row_norms(a: np.ndarray) -> np.ndarray:
     """Each row's Euclidean norm, with no temporary the size of ``a`` (a damaged file's 1e300
     gives inf)."""

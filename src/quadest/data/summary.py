@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from quadest.data.checks import BLOCK, GAP_FACTOR, GAP_MIN_S, JITTER_NOTED, row_norms, timestamp_jitter
+from quadest.data.checks import BLOCK, GAP_FACTOR, GAP_MIN_S, jitter_note, row_norms, timestamp_jitter
 from quadest.data.recording import TRUTH_FIELDS, Recording
 
 IRREGULAR_FACTOR = 1.5  # an interval longer than this many median intervals is irregular
@@ -94,13 +94,8 @@ def format_summary(s: dict, name: str = "") -> str:
     )
     if s.get("irregular_intervals"):
         lines.append(f"irregular   {s['irregular_intervals']} intervals > {IRREGULAR_FACTOR:g}x median")
-    if (s.get("jitter_gain") or 1.0) > JITTER_NOTED:
-        lines.append(
-            f"jitter      the intervals spread {s['jitter_s'] * 1e3:.3f} ms about their mean "
-            f"{s['interval_mean_s'] * 1e3:.3f} ms ({1.0 / s['interval_mean_s']:.2f} Hz; mean(dt²)/mean(dt)² "
-            f"{s['jitter_gain']:.3f}): stamps a host gave on "
-            "arrival? robust's low-passes run at the mean interval (docs/estimators.md, robust, item 12)"
-        )
+    if note := jitter_note(s):
+        lines.append(f"jitter      {note}")
     for name, r in s["ranges"].items():
         unit = u.get(name, "")
         lo = ", ".join(f"{v:+.3g}" for v in r["min"])

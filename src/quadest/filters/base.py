@@ -418,9 +418,8 @@ class Estimator:
 
     def __setstate__(self, state):
         self.__dict__.update(state)
-        self._x = checked_state(
-            self._x, self.state_size, self.name, self.none_yet
-        )  # a state of another layout is refused
+        # a state of another layout (an older version's) is refused, as set_state refuses it
+        self._x = checked_state(self._x, self.state_size, self.name, self.none_yet)
         self._call_step = self._first_step
         self._qv = self._x[Q_OUT : Q_OUT + 4]
 

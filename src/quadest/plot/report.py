@@ -20,7 +20,7 @@ from bokeh.resources import INLINE
 from scipy.signal import spectrogram
 
 from quadest import __version__
-from quadest.data.checks import JITTER_NOTED, median_interval, row_norms
+from quadest.data.checks import jitter_note, median_interval, row_norms
 from quadest.data.files import write_bytes
 from quadest.evaluation.inspect import decimate
 
@@ -87,13 +87,7 @@ def _jitter(s: dict) -> str:
     """The intervals' spread about their mean, and what it does to a low-pass that followed it."""
     if s.get("jitter_gain") is None:
         return "-"
-    text = f"{s['jitter_s'] * 1e3:.3f} ms about {s['interval_mean_s'] * 1e3:.3f} ms"
-    if s["jitter_gain"] > JITTER_NOTED:
-        text += (
-            f" (mean(dt²)/mean(dt)² {s['jitter_gain']:.3f}: stamps a host gave on arrival? robust's low-passes run"
-            " at the mean interval)"
-        )
-    return text
+    return jitter_note(s) or f"{s['jitter_s'] * 1e3:.3f} ms about {s['interval_mean_s'] * 1e3:.3f} ms"
 
 
 def summary_html(title: str, s: dict) -> str:
