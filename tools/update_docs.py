@@ -1177,8 +1177,27 @@ def results_collisions() -> str:
     )
 
 
+def results_campaign_height() -> str:
+    """The complete losses that would have stayed up at each height of the hover point, from one
+    campaign flown high (docs/results/campaign-height.json: quadest campaign --height 30 --json)."""
+    r = _load("campaign-height")
+    groups = [g for g in r["groups"] if len(g["up_by_height"]["x"]) > 1]
+    heights = groups[0]["up_by_height"]["x"]
+    assert all(g["up_by_height"]["x"] == heights for g in groups), "campaign-height.json: one flown height"
+    rows = []
+    for g in groups:
+        up = g["up_by_height"]
+        n = up["flights"][0]
+        oracle = " (told 50 ms after: an oracle)" if g["detection"] == "oracle" else ""
+        cells = [f"{k} ({100.0 * k / n:.1f} %)" for k in up["survived"]]
+        rows.append([g["filter"], g["detection"] + oracle, n, *cells])
+    header = ["estimator", "detection", "complete losses", *(f"up at {h:g} m" for h in heights)]
+    return _table(header, rows)
+
+
 GENERATORS = {
     "results-campaign": results_campaign,
+    "results-campaign-height": results_campaign_height,
     "results-detection-tradeoff": results_detection_tradeoff,
     "results-spin-summary": results_spin_summary,
     "results-detection-scenarios": results_detection_scenarios,

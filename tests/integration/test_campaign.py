@@ -7,9 +7,9 @@ import math
 import pytest
 
 from quadest.cli.main import main
-from quadest.evaluation.detection import failure_case, fly_case
+from quadest.evaluation.detection import failure_case, fly_case, fly_case_flight
 from quadest.sweep import ResultStore
-from quadest.sweep.campaign import campaign_runs, campaign_summary, survival_curves
+from quadest.sweep.campaign import campaign_runs, campaign_summary, survival_curves, up_by_height
 
 
 def _row(**kw):
@@ -53,6 +53,37 @@ def test_the_curves_bin_every_flight_once():
     assert line["x"] == sorted(line["x"])
 
 
+def test_a_loss_flown_lower_stays_up_where_its_drop_says():
+    """A figure eight's loss (seed 2, the truth and the detector in the loop) flown 30 m up falls
+    ``drop_m`` below the hover point and recovers; flown 0.3 m higher than that it stays up, 0.3 m
+    lower it hits the ground: the flight is the same up to the contact."""
+    case = failure_case(2, "rotor-speeds")
+    high = fly_case_flight({**case, "height_m": 30.0}).summary
+    drop = high["drop_m"]
+    assert high["status"] == "survived" and 3.0 < drop < 30.0, high
+    assert fly_case_flight({**case, "height_m": drop + 0.3}).summary["status"] == "survived"
+    low = fly_case_flight({**case, "height_m": drop - 0.3}).summary
+    assert low["status"] == "crashed" and low["reason"] == "crashed: ground contact"
+
+
+def test_up_by_height_counts_the_losses_each_height_keeps_up():
+    rows = [_row(height_m=30.0, drop_m=d) for d in (0.5, 3.0, 4.0)]  # 3.0 at 3 m: the ground is touched beyond it
+    rows += [_row(height_m=30.0, drop_m=31.0, flight="crashed"), _row(height_m=30.0, drop_m=0.1, flight="false alarm")]
+    up = up_by_height(rows)
+    assert up["x"] == [1.0, 2.0, 3.0, 5.0, 10.0, 20.0, 30.0] and up["flights"] == [5] * 7
+    assert up["survived"] == [1, 1, 2, 3, 3, 3, 3]
+    two = campaign_summary(rows + [_row(height_m=10.0, drop_m=1.5)])
+    assert set(two["curves"]["height_m"]["lines"]) == {
+        "robust / rotor-speeds / 30 m up",
+        "robust / rotor-speeds / 10 m up",
+    }
+    s = campaign_summary(rows)
+    assert s["groups"][0]["up_by_height"] == up
+    assert s["curves"]["height_m"]["lines"]["robust / rotor-speeds"]["survived"] == up["survived"]
+    before = campaign_summary([{k: v for k, v in r.items() if k not in ("height_m", "drop_m")} for r in rows])
+    assert before["groups"][0]["up_by_height"] == {"x": [3.0], "survived": [3], "flights": [5]}  # a file of before
+
+
 def test_the_oracle_flies_only_complete_losses():
     runs = campaign_runs(range(4), range(100, 102), ["truth"], gyro_ranges_dps=(None, 500.0))
     kinds = [(r["source"]["case"]["mode"], r["source"]["case"]["rotor"] is None) for r in runs]
@@ -87,6 +118,11 @@ def test_a_campaign_flies_resumes_and_draws(tmp_path, capsys):
     assert "executed 0 (skipped 10" in capsys.readouterr().out
     assert main(["report", str(out), "-o", str(tmp_path / "r.html")]) == 0
     assert "campaign-scenarios" in (tmp_path / "r.html").read_text()
+    high = tmp_path / "h.parquet"
+    assert main(["campaign", "--seeds", "0", "--nominal-seeds", "none", "--height", "10", "--filters", "truth",
+                 "--detection", "rotor-speeds", "-o", str(high), "--workers", "0"]) == 0  # fmt: skip
+    (row,) = ResultStore(high).read().to_pylist()
+    assert row["height_m"] == 10.0 and 0.0 < row["drop_m"] < 10.0 and row["flight"] == "survived"
 
 
 @pytest.mark.parametrize(
@@ -96,6 +132,9 @@ def test_a_campaign_flies_resumes_and_draws(tmp_path, capsys):
         ("--gyro-range", "-5", "--gyro-range: -5 is out of range"),
         ("--detection", "psychic", "--detection: unknown mode(s) psychic"),
         ("--filters", "nobody", "unknown estimator(s) in the loop"),
+        ("--height", "-2", "--height -2: give the hover point's height above the ground in m, 1 to 1000"),
+        ("--height", "20", "--height is for the failures: give --nominal-seeds none with it"),
+        ("--nominal-seeds", "some", "--nominal-seeds expects a range"),
     ],
 )
 def test_a_wrong_option_is_one_line(tmp_path, capsys, option, value, says):
@@ -103,6 +142,25 @@ def test_a_wrong_option_is_one_line(tmp_path, capsys, option, value, says):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and says in err[0]
     assert not (tmp_path / "c.parquet").exists()
+
+
+def test_a_results_file_of_before_is_refused_in_one_line_and_kept(tmp_path, capsys):
+    """A campaign's file written before the height's columns: refused, named, left as it was."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from quadest.sweep.campaign import CAMPAIGN_ROW_TYPES
+    from quadest.sweep.engine import CHECKSUM
+
+    old = {k: t for k, t in CAMPAIGN_ROW_TYPES.items() if k not in ("height_m", "drop_m")} | {CHECKSUM: "string"}
+    out = tmp_path / "c.parquet"
+    pq.write_table(pa.table({k: pa.array([], type=t) for k, t in old.items()}), out)
+    before = out.read_bytes()
+    args = ["campaign", "--seeds", "0", "--nominal-seeds", "none", "--filters", "truth", "--detection", "oracle"]
+    assert main([*args, "-o", str(out), "--workers", "0"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "written by an earlier quadest, without height_m, drop_m" in err[0] and str(out) in err[0]
+    assert out.read_bytes() == before
 
 
 def test_two_outputs_on_one_file_are_refused(tmp_path, capsys):

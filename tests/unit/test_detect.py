@@ -83,6 +83,27 @@ def test_a_common_thrust_error_moves_every_rotor_alike():
     assert res.lost is None and res.damaged is None
 
 
+@pytest.mark.parametrize("rotor", [0, 2])
+def test_a_common_thrust_error_slows_a_loss_found_unless_the_deficit_is_relative(rotor):
+    """A thrust coefficient 20 % too high scales every effectiveness to 1/1.2 and a lost rotor's
+    to 0: the plain deficit (0.83) accumulates past the drift 0.6 at about half the rate, 10 ms
+    and more later than with the exact model (636 ms later on rotor 2); relative to the others
+    (``relative_deficit``) it stays 1, and the loss is found within a sample of the exact
+    model's."""
+    fail = Failure(rotor=rotor, time_s=2.0)
+    f = fly("hover", seed=rotor, duration=4.0, vehicle="bebop2", failure=fail, controller="se3")
+    rec = f.recording
+
+    def found(k_f, relative):
+        det = Detector(replace(BEBOP, k_f=k_f * BEBOP.k_f), relative_deficit=relative)
+        res = det.run(rec.t, rec.gyr, rec.acc, f.states[:, 13:])
+        assert res.lost == rotor
+        return res.lost_t
+
+    assert found(1.2, False) - found(1.0, False) >= 0.01
+    assert abs(found(1.2, True) - found(1.0, True)) <= 1.01 * (rec.t[1] - rec.t[0])
+
+
 @pytest.mark.parametrize("rotor", [1, 3])
 def test_a_damaged_rotor_is_found_with_its_effectiveness(rotor):
     """A rotor at half its effectiveness on the circle (the SE(3) controller flies on): found

@@ -20,7 +20,7 @@ from quadest.cli.common import (
 from quadest.cli.fly import failure_record, parse_failure
 from quadest.extras import need
 from quadest.filters import filter_name
-from quadest.flight import CONTROLLERS, DEFAULT_DURATION, FLIGHT_SCENARIOS
+from quadest.flight import CONTROLLERS, DEFAULT_DURATION, FLIGHT_SCENARIOS, FlightParams
 from quadest.models import VEHICLE_PRESETS, vehicle_preset
 from quadest.readers.catalog import resolve_data
 from quadest.sim import PRESCRIBED_SCENARIOS, PRESETS
@@ -161,13 +161,25 @@ def _campaign_list(text: str, option: str, unit: str) -> list:
 def _campaign_runs(args):
     filters = flown_names(args.filters, "rotor-loss")
     detections = [d.strip() for d in args.detection.split(",") if d.strip()]
-    seeds, nominal = parse_seeds(args.seeds), parse_seeds(args.nominal_seeds, "--nominal-seeds")
+    if args.height is not None and not 1.0 <= args.height <= 1000.0:
+        raise CliError(f"--height {args.height:g}: give the hover point's height above the ground in m, 1 to 1000")
+    seeds = parse_seeds(args.seeds)
+    none = args.nominal_seeds.strip().lower() == "none"
+    try:
+        nominal = [] if none else parse_seeds(args.nominal_seeds, "--nominal-seeds")
+    except CliError as exc:
+        raise CliError(f"{exc}, or none (no nominal flight)") from None
+    if args.height is not None and args.height != FlightParams().height_m and nominal:
+        raise CliError(
+            "--height is for the failures: give --nominal-seeds none with it (a nominal flight lands from the hover "
+            "point, so the height would change its landing and the alarms counted)"
+        )
     gyro = _campaign_list(args.gyro_range, "--gyro-range", "°/s")
     lat = [v or 0.0 for v in _campaign_list(args.mag_latency, "--mag-latency", "s")]
     per_case = len(filters) * len(detections) * len(gyro) * len(lat)
     check_runs(args, per_case * (len(seeds) + len(nominal)), f"{len(seeds) + len(nominal):,} cases x {per_case} set(s)")
     return campaign_runs(seeds, nominal, filters, detections=detections, gyro_ranges_dps=gyro, mag_latencies_s=lat,
-                         duration=args.duration)  # fmt: skip
+                         duration=args.duration, height_m=args.height)  # fmt: skip
 
 
 def cmd_campaign(args):
@@ -195,8 +207,21 @@ def _add_campaign_args(p):
         help="the failures' seeds: each decides the scenario (hover, "
         "circle, figure eight in turn), the rotor, the time, and for one in four a partial loss (default: 0-99)",
     )
-    p.add_argument("--nominal-seeds", default="1000-1019", help="the nominal flights' seeds (default: 1000-1019)")
+    p.add_argument(
+        "--nominal-seeds",
+        default="1000-1019",
+        help="the nominal flights' seeds (none: no nominal flight; default: 1000-1019)",
+    )
     p.add_argument("--duration", type=float, default=60.0, help="seconds of each nominal flight (default: 60)")
+    p.add_argument(
+        "--height",
+        type=float,
+        default=None,
+        metavar="M",
+        help="the hover point's height above the ground in m, 1 to 1000, for the failures (with --nominal-seeds "
+        "none); each loss's deepest point is recorded, so the losses that would have stayed up flown lower are "
+        "counted too (default: 3)",
+    )
     p.add_argument(
         "--filters",
         default="robust",

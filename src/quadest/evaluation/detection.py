@@ -116,8 +116,8 @@ def case_flight_kwargs(case: dict, overrides: dict | None = None) -> dict:
     """What :func:`~quadest.flight.fly` takes for a case's disturbances (its sensors' parameters
     changed by ``overrides`` first)."""
     wind = case.get("wind")
-    landing = {k: case[k] for k in ("landing_m_s", "landing_accel_m_s2", "land_detector") if k in case}
-    params = FlightParams(wind=None if wind is None else WindParams(**wind), **landing)
+    given = {k: case[k] for k in ("landing_m_s", "landing_accel_m_s2", "land_detector", "height_m") if k in case}
+    params = FlightParams(wind=None if wind is None else WindParams(**wind), **given)
     return {"config": case_config(case, overrides), "params": params}
 
 

@@ -630,6 +630,7 @@ def summarize(
     s["tilt_error_rms_deg"] = rms(tilt[ok])
     s["tilt_error_max_deg"] = float(tilt[ok].max())
     if failure is not None:
+        s["drop_m"] = float(x[t >= start, 2].max()) if (t >= start).any() else None  # below the hover point
         after = (t >= start) & ok
         s["attitude_error_after_failure_rms_deg"] = rms(total[after])
         s["tilt_error_after_failure_rms_deg"] = rms(tilt[after])

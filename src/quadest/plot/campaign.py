@@ -20,9 +20,9 @@ from quadest import __version__
 from quadest.data.files import write_bytes
 from quadest.plot.report import STYLE, _f, _table
 
-HEADER = ["estimator", "detection", "gyro range (°/s)", "mag latency (s)", "losses", "survived", "found", "named",
-          "median (ms)", "p90", "p99", "max", "partial named", "partial effectiveness error", "nominal hours",
-          "false alarms", "nominal crashed"]  # fmt: skip
+HEADER = ["estimator", "detection", "gyro range (°/s)", "mag latency (s)", "height (m)", "losses", "survived",
+          "found", "named", "median (ms)", "p90", "p99", "max", "partial named", "partial effectiveness error",
+          "nominal hours", "false alarms", "nominal crashed"]  # fmt: skip
 
 
 def _group_row(g: dict) -> list:
@@ -33,6 +33,7 @@ def _group_row(g: dict) -> list:
         g["detection"] + (" (told)" if oracle else ""),
         "none" if math.isinf(g["gyro_range_dps"]) else f"±{g['gyro_range_dps']:.0f}",
         f"{g['mag_latency_s']:g}",
+        f"{g['height_m']:g}",
         f["complete"],
         f"{f['survived']} ({100.0 * f['survived'] / f['complete']:.1f} %)" if f["complete"] else "-",
         f["found"],
@@ -58,8 +59,8 @@ def _scenario_rows(summary: dict) -> tuple[list, list]:
             for a, b in (g["survival_by_scenario"].get(s, (None, None)) for s in scenarios)
         ]
         gyro = "none" if math.isinf(g["gyro_range_dps"]) else f"±{g['gyro_range_dps']:.0f}"
-        rows.append([g["filter"], g["detection"], gyro, f"{g['mag_latency_s']:g}", *cells])
-    return ["estimator", "detection", "gyro range (°/s)", "mag latency (s)", *scenarios], rows
+        rows.append([g["filter"], g["detection"], gyro, f"{g['mag_latency_s']:g}", f"{g['height_m']:g}", *cells])
+    return ["estimator", "detection", "gyro range (°/s)", "mag latency (s)", "height (m)", *scenarios], rows
 
 
 def _curve(var: str, curve: dict):

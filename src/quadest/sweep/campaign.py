@@ -2,7 +2,8 @@
 flights flown with each estimator, each detection mode and each gyroscope range in the loop, on
 the sweep engine (Dask, one resumable results file), and what they show: survival, detection
 delay and isolation, false alarms per hour of nominal flight, survival against the spin, the
-clipping share, the detection delay and the magnetometer's latency.
+clipping share, the detection delay, the magnetometer's latency and the hover point's height
+(from each loss's deepest point: :func:`up_by_height`).
 
 A run is a case of :mod:`quadest.evaluation.detection` (its seed decides the scenario, the rotor,
 the time and how much effectiveness is left) with the detection mode, the estimator in the
@@ -67,6 +68,8 @@ CAMPAIGN_ROW_TYPES = {
     "peak_rate_rad_s": "double",
     "gyro_clipped_share": "double",
     "tilt_error_rms_deg": "double",
+    "height_m": "double",
+    "drop_m": "double",
 }
 """A campaign run's row: the run (as a sweep's), the case, and what happened. Integers are −1
 where they do not apply (no rotor failed, none found); numbers NaN."""
@@ -76,16 +79,19 @@ CASE_KEYS = ("scenario", "kind", "detection", "gyro_range_dps", "mag_latency_s",
 
 def campaign_runs(
     seeds, nominal_seeds, filters, *, detections=DETECTIONS, gyro_ranges_dps=(None,), mag_latencies_s=(0.0,),
-    duration: float = 60.0, failure_duration: float = 6.0,
+    duration: float = 60.0, failure_duration: float = 6.0, height_m: float | None = None,
 ) -> list[dict]:  # fmt: skip
     """Every (failure seed or nominal seed, estimator, detection mode, gyroscope range,
-    magnetometer latency) as a run spec. The oracle flies only the complete losses (it knows
-    nothing of a partial one, and has nothing to alarm on in nominal flight)."""
+    magnetometer latency) as a run spec, the hover point ``height_m`` above the ground (None:
+    ``FlightParams``'); the oracle flies only the complete losses (it knows nothing of a
+    partial one, and has nothing to alarm on in nominal flight)."""
     bad = [d for d in detections if d not in DETECTIONS]
     if bad:
         raise UsageError(f"--detection: unknown mode(s) {', '.join(bad)}; known: {', '.join(DETECTIONS)}")
     cases = [failure_case(s, "x", failure_duration) for s in seeds]
     cases += [nominal_case(s, "x", duration) for s in nominal_seeds]
+    if height_m is not None and height_m != FlightParams().height_m:  # the default's runs keep their ids
+        cases = [{**c, "height_m": float(height_m)} for c in cases]
     runs = []
     for case in cases:
         for mode in detections:
@@ -139,6 +145,7 @@ def fly_campaign(spec: dict, row: dict) -> None:
             "damaged_s": _num(det.get("damaged_s")),
             "damaged_effectiveness": _num(det.get("damaged_effectiveness")),
             "tilt_error_rms_deg": _num(s.get("tilt_error_after_failure_rms_deg", s.get("tilt_error_rms_deg"))),
+            "drop_m": _num(s.get("drop_m")),
         }
     )
     if case["mode"] == "oracle":
@@ -165,6 +172,7 @@ def _case_columns(src: dict, cfg) -> dict:
         "rotor": _int(c["rotor"]),
         "failure_s": _num(c.get("time_s")),
         "efficiency": _num(c.get("efficiency")),
+        "height_m": float(c.get("height_m", FlightParams().height_m)),
     }
 
 
@@ -218,25 +226,26 @@ def _as_case_row(r: dict) -> dict:
     }
 
 
-GROUP = ("filter", "detection", "gyro_range_dps", "mag_latency_s")
+GROUP = ("filter", "detection", "gyro_range_dps", "mag_latency_s", "height_m")
 
 
 def campaign_summary(rows: list[dict]) -> dict:
     """Per (estimator, detection, gyroscope range, magnetometer latency): the losses' survival,
     detection and isolation (:func:`summarize_failures`), survival by scenario, the nominal
     flights' hours and alarms; and survival against spin, clipping, delay and latency."""
-    ok = [r for r in rows if r["status"] == "ok"]
+    ok = [{"height_m": FlightParams().height_m, **r} for r in rows if r["status"] == "ok"]  # files of before: 3 m
     groups: dict = {}
     for r in ok:
         groups.setdefault(tuple(r[k] for k in GROUP), []).append(r)
     out = {"runs": len(rows), "ok": len(ok), "failed": len(rows) - len(ok), "groups": []}
-    for key in sorted(groups, key=lambda k: (k[0], DETECTIONS.index(k[1]), -k[2], k[3])):
+    for key in sorted(groups, key=lambda k: (k[0], DETECTIONS.index(k[1]), -k[2], k[3], k[4])):
         mine = groups[key]
         failures = [_as_case_row(r) for r in mine if r["kind"] != "nominal"]
         nominal = [r for r in mine if r["kind"] == "nominal"]
         g = dict(zip(GROUP, key))
         g["failures"] = summarize_failures(failures)
         g["survival_by_scenario"] = _by_scenario([r for r in mine if r["kind"] == "loss"])
+        g["up_by_height"] = up_by_height([r for r in mine if r["kind"] == "loss"])
         g["nominal"] = {
             "flights": len(nominal),
             "hours": sum(r["flown_s"] for r in nominal) / 3600.0,
@@ -246,7 +255,41 @@ def campaign_summary(rows: list[dict]) -> dict:
         }
         out["groups"].append(g)
     out["curves"] = survival_curves([r for r in ok if r["kind"] == "loss"])
+    heights = {group_label(g, out["groups"]): g["up_by_height"] for g in out["groups"]}
+    heights = {k: v for k, v in heights.items() if len(v["x"]) > 1}
+    if heights:
+        out["curves"]["height_m"] = {"label": "height of the hover point above the ground (m)", "lines": heights}
     return out
+
+
+def group_label(g: dict, groups: list[dict]) -> str:
+    """``estimator / detection``, with the gyroscope's range, the latency and the height where
+    the groups differ in them."""
+    parts = [g["filter"], g["detection"]]
+    for key, fmt in (("gyro_range_dps", "±{:g} °/s"), ("mag_latency_s", "latency {:g} s"), ("height_m", "{:g} m up")):
+        if len({h[key] for h in groups}) > 1:
+            parts.append(fmt.format(g[key]))
+    return " / ".join(parts)
+
+
+HEIGHTS_M = (1.0, 2.0, 3.0, 5.0, 10.0, 20.0, 30.0, 50.0, 100.0)
+"""The heights at which :func:`up_by_height` says how many losses would have stayed up."""
+
+
+def up_by_height(rows: list[dict]) -> dict:
+    """How many complete losses would have stayed up had the hover point been each of
+    :data:`HEIGHTS_M` (up to the lowest flown) above the ground: those whose deepest point after
+    the failure (``drop_m``) stays above it: flown lower, the flight is the same up to the contact
+    (no ground effect is modelled). A flight that did not stay up at its own height (the ground,
+    lost control, a false alarm) stays up at none. ``{"x", "survived", "flights"}``."""
+    if not rows:
+        return {"x": [], "survived": [], "flights": []}
+    flown = min(r["height_m"] for r in rows)
+    up = [r.get("drop_m", math.nan) for r in rows if r["flight"] == "survived"]
+    known = np.isfinite(up).all()  # files of before have no drop: their flown height only
+    xs = sorted({h for h in HEIGHTS_M if h < flown} | {flown}) if known else [flown]
+    kept = [sum(not d > h for d in up) for h in xs]  # the ground is touched at z > h
+    return {"x": xs, "survived": kept, "flights": [len(rows)] * len(xs)}
 
 
 def _by_scenario(rows: list[dict]) -> dict:
@@ -303,7 +346,7 @@ def _binned(rows: list[dict], var: str, bins: int | None) -> dict:
 def format_campaign(summary: dict) -> str:
     """The campaign's table for a person: a line per group."""
     head = (
-        f"{'estimator':<10}{'detection':<13}{'gyro °/s':>9}{'mag lat':>8}{'losses':>8}{'survived':>10}"
+        f"{'estimator':<10}{'detection':<13}{'gyro °/s':>9}{'mag lat':>8}{'height':>7}{'losses':>8}{'survived':>10}"
         f"{'found':>7}{'named':>7}{'median':>8}{'p99':>7}{'max':>7}{'partial':>9}{'nominal h':>10}{'alarms':>7}"
     )
     lines = [head]
@@ -314,11 +357,18 @@ def format_campaign(summary: dict) -> str:
         alarms = "-" if g["detection"] == "oracle" else f"{n['lost_alarms']}"
         gyro = "none" if math.isinf(g["gyro_range_dps"]) else f"{g['gyro_range_dps']:.0f}"
         lines.append(
-            f"{g['filter']:<10}{g['detection']:<13}{gyro:>9}{g['mag_latency_s']:>8g}{f['complete']:>8}{share:>10}"
+            f"{g['filter']:<10}{g['detection']:<13}{gyro:>9}{g['mag_latency_s']:>8g}{g['height_m']:>7g}{f['complete']:>8}"
+            f"{share:>10}"
             f"{f['found']:>7}{f['isolated']:>7}{_ms(d['median']):>8}{_ms(d['p99']):>7}{_ms(d['max']):>7}{part:>9}"
             f"{n['hours']:>10.2f}{alarms:>7}"
         )
     lines.append("delays in ms; the oracle's is what it is told (50 ms), not found; 'partial': named as damaged")
+    for g in summary["groups"]:
+        up = g.get("up_by_height", {"x": []})
+        if len(up["x"]) > 1:
+            kept = ", ".join(f"{h:g} m: {n}" for h, n in zip(up["x"], up["survived"]))
+            lines.append(f"{group_label(g, summary['groups'])}: of {up['flights'][0]} complete losses, up with the "
+                         f"hover point at {kept} above the ground")  # fmt: skip
     return "\n".join(lines)
 
 

@@ -164,6 +164,9 @@ class ResultStore:
         wrong = [f"{c} ({have.get(c, 'missing')}, not {t})" for c, t in want.items() if have.get(c) != t]
         if not wrong:
             return None
+        missing = [c for c in want if c not in have]
+        if len(wrong) == len(missing) and set(have) <= set(want):  # columns added since: nothing is wrong in it
+            return False, f"written by an earlier quadest, without {', '.join(missing)} (quadest report reads it)"
         damaged = len(have) == len(want) and len(wrong) <= 2  # a sweep's file, a few names or types changed
         what = "columns damaged" if damaged else "not a results file of this quadest's sweeps"
         return damaged, f"{what} ({', '.join(wrong[:4])}{' ...' if len(wrong) > 4 else ''})"
