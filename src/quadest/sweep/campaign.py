@@ -230,9 +230,10 @@ GROUP = ("filter", "detection", "gyro_range_dps", "mag_latency_s", "height_m")
 
 
 def campaign_summary(rows: list[dict]) -> dict:
-    """Per (estimator, detection, gyroscope range, magnetometer latency): the losses' survival,
-    detection and isolation (:func:`summarize_failures`), survival by scenario, the nominal
-    flights' hours and alarms; and survival against spin, clipping, delay and latency."""
+    """Per (estimator, detection, gyroscope range, magnetometer latency, height): the losses'
+    survival, detection and isolation (:func:`summarize_failures`), survival by scenario and at
+    each lower height (:func:`up_by_height`), the nominal flights' hours and alarms; and survival
+    against spin, clipping, delay, latency and height."""
     ok = [{"height_m": FlightParams().height_m, **r} for r in rows if r["status"] == "ok"]  # files of before: 3 m
     groups: dict = {}
     for r in ok:
