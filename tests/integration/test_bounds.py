@@ -258,9 +258,9 @@ def test_ctrl_c_at_any_moment_is_one_line(tmp_path, delay):
     """SIGINT while Python starts, while quadest loads, while it simulates: exit code 130 (or the
     signal's own end before Python handles it) and at most one line, never a traceback. (Not at
     0 s: in the few milliseconds in which Python finds quadest's first modules, before any of
-    quadest's code runs, a traceback of one frame is still possible; nor while numba compiles,
-    where llvmlite's callback swallows the interrupt: the program is run once first so that its
-    code is compiled; docs/reliability.md.) While scipy's C extensions load, a Ctrl-C once made
+    quadest's code runs, a traceback of one frame is still possible. The program is run once
+    first so that its code is compiled: a Ctrl-C in llvmlite's callbacks, as numba compiles or
+    loads, is the next test's; docs/reliability.md.) While scipy's C extensions load, a Ctrl-C once made
     an ImportError's traceback and once was swallowed by an optional import (exit 0)."""
     warm = [sys.executable, "-c", PROGRAM, "simulate", "--duration", "1", "-o", str(tmp_path / "warm.csv")]
     subprocess.run(warm, capture_output=True, env=_env(), timeout=600, check=True)
@@ -270,6 +270,33 @@ def test_ctrl_c_at_any_moment_is_one_line(tmp_path, delay):
     lines = [line for line in err.splitlines() if line.strip() and "simulate hover" not in line]
     assert len(lines) <= 1 and (not lines or lines[0] == "quadest: interrupted"), err
     assert not (tmp_path / "x.csv").exists()
+
+
+CALLBACK = """
+import ctypes, sys
+from quadest.cli import main as m
+def boom():
+    raise {error}
+def command(argv):
+    ctypes.CFUNCTYPE(None)(boom)()  # a C library calling back into Python, as llvmlite does for numba
+    print("went on")
+    return 0
+m.run_command = command
+sys.exit(m.main())
+"""
+
+
+def test_ctrl_c_inside_a_c_librarys_callback_is_one_line():
+    """A KeyboardInterrupt in a callback from C cannot be raised there (Python prints it as
+    "Exception ignored ..." with a traceback and goes on, the Ctrl-C lost: found when a Ctrl-C
+    landed while numba loaded its cached code): the program ends in one line, exit code 130.
+    Another error there is still Python's own report, and the program goes on."""
+    run = subprocess.run([sys.executable, "-c", CALLBACK.format(error="KeyboardInterrupt")],
+                         capture_output=True, text=True, env=_env(), timeout=120)  # fmt: skip
+    assert (run.returncode, run.stderr, run.stdout) == (130, "quadest: interrupted\n", "")
+    run = subprocess.run([sys.executable, "-c", CALLBACK.format(error="ValueError('x')")],
+                         capture_output=True, text=True, env=_env(), timeout=120)  # fmt: skip
+    assert run.returncode == 0 and "went on" in run.stdout and "ValueError: x" in run.stderr
 
 
 # -- the compiled cache --------------------------------------------------------------------------------------

@@ -24,6 +24,16 @@ def interrupted() -> None:
         os._exit(INTERRUPTED)
 
 
+def _interrupt_in_a_callback(unraisable) -> None:
+    """A Ctrl-C inside a C library's callback into Python (llvmlite's, as numba loads or saves
+    compiled code) cannot be raised there: Python would print it as "Exception ignored ..." with
+    a traceback and go on without it. It ends the program as any Ctrl-C does; anything else is
+    Python's own report."""
+    if issubclass(unraisable.exc_type, KeyboardInterrupt):
+        interrupted()
+    sys.__unraisablehook__(unraisable)
+
+
 def _while_loading(signum, frame) -> None:
     """Ctrl-C while the command line loads (numpy, scipy, numba, ...: about a second): a C
     extension's initialisation turns the KeyboardInterrupt into an ImportError, which ends in a
@@ -198,6 +208,8 @@ def main(argv=None):
     """The command line; ``argv`` None: the program itself (``quadest``), whose Ctrl-C at any
     moment, its end included, is one line and exit code 130."""
     entry = argv is None
+    if entry:
+        sys.unraisablehook = _interrupt_in_a_callback
     try:
         return run_command(list(sys.argv[1:] if entry else argv))
     except KeyboardInterrupt:  # while the parser is built, or an error is being said
