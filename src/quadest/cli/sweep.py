@@ -20,7 +20,7 @@ from quadest.cli.common import (
 from quadest.cli.fly import failure_record, parse_failure
 from quadest.extras import need
 from quadest.filters import filter_name
-from quadest.flight import CONTROLLERS, DEFAULT_DURATION, FLIGHT_SCENARIOS, FlightParams
+from quadest.flight import CONTROLLERS, DEFAULT_DURATION, FLIGHT_SCENARIOS
 from quadest.models import VEHICLE_PRESETS, vehicle_preset
 from quadest.readers.catalog import resolve_data
 from quadest.sim import PRESCRIBED_SCENARIOS, PRESETS
@@ -35,7 +35,7 @@ from quadest.sweep import (
     sim_sources,
     tune,
 )
-from quadest.sweep.campaign import DETECTIONS, campaign_runs, campaign_summary, format_campaign
+from quadest.sweep.campaign import DETECTIONS, HEIGHT_M, campaign_runs, campaign_summary, format_campaign
 from quadest.sweep.engine import ResultStore
 from quadest.sweep.runs import flown_names
 
@@ -169,7 +169,7 @@ def _campaign_runs(args):
         nominal = [] if none else parse_seeds(args.nominal_seeds, "--nominal-seeds")
     except CliError as exc:
         raise CliError(f"{exc}, or none (no nominal flight)") from None
-    if args.height is not None and args.height != FlightParams().height_m and nominal:
+    if args.height is not None and args.height != HEIGHT_M and nominal:
         raise CliError(
             "--height is for the failures: give --nominal-seeds none with it (a nominal flight lands from the hover "
             "point, so the height would change its landing and the alarms counted)"

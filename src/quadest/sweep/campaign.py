@@ -25,6 +25,9 @@ from quadest.evaluation.detection import (
 )
 from quadest.flight import FlightParams
 
+HEIGHT_M = FlightParams().height_m
+"""m: the hover point's height above the ground a campaign flies at unless told otherwise."""
+
 DETECTIONS = ("rotor-speeds", "commands", "oracle")
 """The ways the fault-tolerant controller learns of a loss: the detector from measured rotor
 speeds or from the commands, or the oracle (told 50 ms after the loss: not what a vehicle knows)."""
@@ -90,7 +93,7 @@ def campaign_runs(
         raise UsageError(f"--detection: unknown mode(s) {', '.join(bad)}; known: {', '.join(DETECTIONS)}")
     cases = [failure_case(s, "x", failure_duration) for s in seeds]
     cases += [nominal_case(s, "x", duration) for s in nominal_seeds]
-    if height_m is not None and height_m != FlightParams().height_m:  # the default's runs keep their ids
+    if height_m is not None and height_m != HEIGHT_M:  # the default's runs keep their ids
         cases = [{**c, "height_m": float(height_m)} for c in cases]
     runs = []
     for case in cases:
@@ -172,7 +175,7 @@ def _case_columns(src: dict, cfg) -> dict:
         "rotor": _int(c["rotor"]),
         "failure_s": _num(c.get("time_s")),
         "efficiency": _num(c.get("efficiency")),
-        "height_m": float(c.get("height_m", FlightParams().height_m)),
+        "height_m": float(c.get("height_m", HEIGHT_M)),
     }
 
 
@@ -234,7 +237,7 @@ def campaign_summary(rows: list[dict]) -> dict:
     survival, detection and isolation (:func:`summarize_failures`), survival by scenario and at
     each lower height (:func:`up_by_height`), the nominal flights' hours and alarms; and survival
     against spin, clipping, delay, latency and height."""
-    ok = [{"height_m": FlightParams().height_m, **r} for r in rows if r["status"] == "ok"]  # files of before: 3 m
+    ok = [{"height_m": HEIGHT_M, **r} for r in rows if r["status"] == "ok"]  # files of before: 3 m
     groups: dict = {}
     for r in ok:
         groups.setdefault(tuple(r[k] for k in GROUP), []).append(r)
@@ -245,8 +248,9 @@ def campaign_summary(rows: list[dict]) -> dict:
         nominal = [r for r in mine if r["kind"] == "nominal"]
         g = dict(zip(GROUP, key))
         g["failures"] = summarize_failures(failures)
-        g["survival_by_scenario"] = _by_scenario([r for r in mine if r["kind"] == "loss"])
-        g["up_by_height"] = up_by_height([r for r in mine if r["kind"] == "loss"])
+        losses = [r for r in mine if r["kind"] == "loss"]
+        g["survival_by_scenario"] = _by_scenario(losses)
+        g["up_by_height"] = up_by_height(losses)
         g["nominal"] = {
             "flights": len(nominal),
             "hours": sum(r["flown_s"] for r in nominal) / 3600.0,
