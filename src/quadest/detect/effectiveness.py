@@ -39,9 +39,7 @@ if TYPE_CHECKING:
 
 MAX_ROTORS = 8
 H_TAU = 0.004  # s: the low-pass of the rotors' momentum whose change the model reads (chosen: two samples at 500 Hz)
-F_TAU = (
-    0.02  # s: the low-pass of the accelerometer's x and y for the rotors' drag (chosen: above the vibration's periods)
-)
+F_TAU = 0.02  # s: the low-pass of the accelerometer's x and y for the rotors' drag (chosen: above vibration)
 NS = 3 + MAX_ROTORS  # the filter's largest state: rate and effectiveness
 STATE = layout(
     ("w", 3),
