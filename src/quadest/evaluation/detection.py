@@ -254,11 +254,11 @@ THRESHOLDS = (0.002, 0.003, 0.004, 0.006, 0.008, 0.012, 0.016, 0.024)
 
 
 def crossings(case: dict, thresholds=THRESHOLDS, detector: DetectorParams | None = None) -> dict:
-    """One case flown with the SE(3) controller and the 'lost' test unable to fire: the detector
-    then changes nothing, and the first sample at which its largest 'lost' sum passes each
-    threshold (time, rotor; None if never) is what a detector with that threshold would say,
-    up to its alarm."""
-    det = replace(detector or DetectorParams(), lost_threshold=10.0)
+    """One case flown with the SE(3) controller, the 'lost' test unable to fire and the fast test
+    off (the trade-off is the 'lost' test's): the detector then changes nothing, and the first
+    sample at which its largest 'lost' sum passes each threshold (time, rotor; None if never) is
+    what a detector with that threshold would say, up to its alarm."""
+    det = replace(detector or DetectorParams(), lost_threshold=10.0, glr=False)
     failure = case_failure(case)
     f = fly(case["scenario"], seed=case["seed"], duration=case["duration"], vehicle="bebop2", failure=failure,
             controller="se3", detection=_detection(case["mode"], det), **case_flight_kwargs(case))  # fmt: skip

@@ -40,6 +40,9 @@ class DiagnoseParams:
     in-flight setting) or their plain mean."""
     contact_margin: float = 0.0
     """The in-flight detector's contact gate (m/s²; 0: none): the log is cut to its flying spans."""
+    glr: bool = False
+    """The in-flight detector's fast test: off, its model of a window's rate change needs the
+    rotors' outputs at the IMU's rate, which logs hold at 10-50 Hz."""
     settle_s: float = 2.0
     """Seconds after take-off before the detector starts (leaving the ground)."""
     before_landing_s: float = 1.5
@@ -178,6 +181,7 @@ def find_failures(log: MotorLog, vehicle: MultirotorParams, params: DiagnosePara
         noise_window_s=params.noise_window_s,
         weighted_others=params.weighted_others,
         contact_margin=params.contact_margin,
+        glr=params.glr,
         **noise,
     )
     failures = []
@@ -277,6 +281,7 @@ IN_FLIGHT = {
     "noise_window_s": "gyroscope noise window",
     "weighted_others": "deficit against the better-known rotors",
     "contact_margin": "contact gate",
+    "glr": "fast test",
 }
 """The detector's settings the log mode sets apart from the in-flight detector's defaults."""
 
