@@ -44,7 +44,7 @@ H_TAU = 0.004  # s: the low-pass of the rotors' momentum whose change the model 
 F_TAU = 0.02  # s: the low-pass of the accelerometer's x and y for the rotors' drag (chosen: above vibration)
 NS = 3 + MAX_ROTORS  # the filter's largest state: rate and effectiveness
 GLR_MAX = 32  # samples: the longest window of the fast test
-GLR_ROW = 8 + 5 * MAX_ROTORS  # per sample: gyro (3), the rate change without the rotors (3), the
+GLR_ROW = 7 + 5 * MAX_ROTORS  # per sample: gyro (3), the rate change without the rotors (3), the
 # rate change per unit effectiveness (3 per rotor), thrust per mass (per rotor), accelerometer z, η
 STATE = layout(
     ("w", 3),
@@ -73,7 +73,6 @@ STATE = layout(
     ("glr", GLR_MAX * GLR_ROW),  # the fast test's ring of the last samples
     ("glr_n", 1),  # samples in it
     ("glr_head", 1),  # the slot of the next one
-    ("glr_stat", 1),  # the fast test's largest ratio at the last sample (0: no window near its threshold)
     ("glr_r", 4),  # scratch of the fast test: sums over its window (below)
     ("glr_sig", 4 * MAX_ROTORS),
     ("B", 3 * MAX_ROTORS),  # scratch of one step: the input matrix, F P's rows, P h, h
@@ -649,7 +648,6 @@ def _glr_test(x, p, c, dt):
     of that against none (Willsky & Jones 1976), the largest over windows and rotors."""
     n = int(c[MODEL.rotors])
     w_max = min(int(round(p[PARAM.glr_window_s] / dt)), GLR_MAX - 1, int(x[STATE.glr_n]) - 1)
-    x[STATE.glr_stat] = 0.0
     if w_max < 3 or x[STATE.lost] >= 0.0:
         return
     if x[STATE.landed] != 0.0 or x[STATE.time] - x[STATE.contact_t] <= p[PARAM.contact_hold_s]:
@@ -687,7 +685,6 @@ def _glr_test(x, p, c, dt):
         stat, rotor, runner_up, mu = _glr_rotors(x, p, n, w, dt, count, last, first, eta0, rel, g)
         if stat > best and mu > p[PARAM.glr_min_loss] and stat > p[PARAM.glr_margin] * runner_up:
             best, who, share = stat, rotor, mu
-    x[STATE.glr_stat] = best
     if who >= 0 and best > p[PARAM.glr_threshold]:
         x[STATE.lost], x[STATE.lost_t] = who, x[STATE.time]
         x[STATE.lost_eta] = max(0.0, 1.0 - share)
