@@ -560,6 +560,9 @@ def results_speed() -> str:
         stream = "-" if v["stream_us"] is None else f"{v['stream_us']:.2f}"
         rows.append([n, f"{v['batch_us']:.2f}", met, stream])
     rows.append(["recovery bank, 40 EKFs", f"{speed['recovery_bank_40_us']:.1f}", "20", "-"])
+    against = speed.get("detector_per_vqf")
+    detector = f"{speed['detector_us']:.2f}" + (f" ({against:.2f} × vqf)" if against else "")
+    rows.append(["rotor-failure detector", detector, "1", "-"])
     return (
         _table(["filter", "batch", "batch target", "streaming"], rows)
         + f"\n\n{speed['samples']} simulated samples (docs/results/speed.json)."

@@ -659,8 +659,8 @@ def _glr_test(x, p, c, dt):
     R, S = STATE.glr_r, STATE.glr_sig  # sums over the window: see below
     for j in range(4):
         x[R + j] = 0.0  # the rate change without the rotors (3), the accelerometer's z (1)
-        for i in range(n):
-            x[S + 4 * i + j] = 0.0  # per rotor: its rate change (3) and thrust per mass (1) per unit η
+    for k in range(4 * MAX_ROTORS):  # per unit η of each rotor: its rate change (3), its thrust per mass
+        x[S + k] = 0.0  # (as the ring's rows: ``S + j·MAX_ROTORS + i``)
     count = 0
     rel = (p[PARAM.model_error], p[PARAM.model_error], p[PARAM.yaw_model_error])
     g2 = p[PARAM.gyro_noise] ** 2
@@ -672,14 +672,14 @@ def _glr_test(x, p, c, dt):
         eta0 = first + 6 + 4 * MAX_ROTORS
         for j in range(3):
             x[R + j] += x[row + 3 + j]
-            for i in range(n):
-                x[S + 4 * i + j] += x[row + 6 + j * MAX_ROTORS + i]
+        for k in range(3 * MAX_ROTORS):  # every slot, the absent rotors' zeros too: a fixed-length loop
+            x[S + k] += x[row + 6 + k]  # the compiler vectorises (the fast test's cost: 0.35 -> 0.23 µs)
         a = x[row + 6 + 5 * MAX_ROTORS]
         if np.isfinite(a):
             count += 1
             x[R + 3] += a
-            for i in range(n):
-                x[S + 4 * i + 3] += x[row + 6 + 3 * MAX_ROTORS + i]
+            for k in range(3 * MAX_ROTORS, 4 * MAX_ROTORS):
+                x[S + k] += x[row + 6 + k]
         if w < 3:
             continue
         stat, rotor, runner_up, mu = _glr_rotors(x, p, n, w, dt, count, last, first, eta0, rel, g)
@@ -706,9 +706,9 @@ def _glr_rotors(x, p, n, w, dt, count, last, first, eta0, rel, g):
     R, S = STATE.glr_r, STATE.glr_sig
     p0 = p1 = p2 = 0.0  # the rotors' rate change over the window at the effectiveness before it
     for i in range(n):
-        p0 += x[S + 4 * i] * x[eta0 + i]
-        p1 += x[S + 4 * i + 1] * x[eta0 + i]
-        p2 += x[S + 4 * i + 2] * x[eta0 + i]
+        p0 += x[S + i] * x[eta0 + i]
+        p1 += x[S + MAX_ROTORS + i] * x[eta0 + i]
+        p2 += x[S + 2 * MAX_ROTORS + i] * x[eta0 + i]
     best, second, who, mu = 0.0, 0.0, -1, 0.0
     r0 = x[last] - x[first] - x[R] - p0
     r1 = x[last + 1] - x[first + 1] - x[R + 1] - p1
@@ -721,7 +721,7 @@ def _glr_rotors(x, p, n, w, dt, count, last, first, eta0, rel, g):
     if count > 0:
         pred = 0.0
         for i in range(n):
-            pred += x[S + 4 * i + 3] * x[eta0 + i]
+            pred += x[S + 3 * MAX_ROTORS + i] * x[eta0 + i]
         r3 = (x[R + 3] + pred) / count
         i3 = count / p[PARAM.acc_noise] ** 2
     bound = r0 * r0 * i0 + r1 * r1 * i1 + r2 * r2 * i2 + r3 * r3 * i3
@@ -730,7 +730,8 @@ def _glr_rotors(x, p, n, w, dt, count, last, first, eta0, rel, g):
     per = 1.0 / max(count, 1)
     for i in range(n):
         e = x[eta0 + i]
-        s0, s1, s2, s3 = -x[S + 4 * i] * e, -x[S + 4 * i + 1] * e, -x[S + 4 * i + 2] * e, x[S + 4 * i + 3] * e * per
+        s0, s1, s2 = -x[S + i] * e, -x[S + MAX_ROTORS + i] * e, -x[S + 2 * MAX_ROTORS + i] * e
+        s3 = x[S + 3 * MAX_ROTORS + i] * e * per
         a0, a1, a2, a3 = s0 * i0, s1 * i1, s2 * i2, s3 * i3
         num = a0 * r0 + a1 * r1 + a2 * r2 + a3 * r3
         den = a0 * s0 + a1 * s1 + a2 * s2 + a3 * s3
