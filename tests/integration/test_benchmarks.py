@@ -171,7 +171,8 @@ def test_benchmark_speed_json(tmp_path, capsys):
         assert 0 < v["batch_us"] < 1e4 and 0 < v["stream_us"] < 1e4
     assert 0 < res["recovery_bank_40_us"] < 1e5
     assert 0 < res["detector_us"] < 1e3
-    assert res["detector_per_vqf"] == res["detector_us"] / res["filters"]["vqf"]["batch_us"]
+    v = res["detector_vs_vqf"]  # the detector against VQF on the same samples, interleaved
+    assert v["pairs"] == 10 and 0 < v["min"] <= v["p10"] <= v["median"] <= v["p90"] <= v["max"] < 1e3
     pair = res["paired"]["madgwick/vqf"]  # the filter against the peer, timed in interleaved pairs
     assert set(res["paired"]) == {"madgwick/vqf"} and res["pair_samples"] == 2001
     for r in (pair["batch"], pair["stream"]):

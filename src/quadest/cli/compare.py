@@ -457,10 +457,11 @@ def cmd_benchmark(args):
         for line in format_paired(res["paired"], res["pair_samples"]):
             say(line)
         say(f"{'recovery bank of 40 EKFs':<27}{res['recovery_bank_40_us']:>8.2f} µs per IMU sample (whole bank, batch)")
-        against = res["detector_per_vqf"]
+        v = res["detector_vs_vqf"]
         say(
-            f"{'rotor-failure detector':<27}{res['detector_us']:>8.2f} µs per IMU sample (batch, rotor speeds"
-            + (f"; {against:.2f} times VQF's batch in this run)" if against else ")")
+            f"{'rotor-failure detector':<27}{res['detector_us']:>8.2f} µs per IMU sample (batch, rotor speeds; "
+            f"against VQF's batch, interleaved over {v['pairs']} pairs: {v['median']:.3g} "
+            f"[{v['p10']:.3g}-{v['p90']:.3g}])"
         )
     else:
         if not args.data:
