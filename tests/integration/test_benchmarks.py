@@ -179,6 +179,14 @@ def test_benchmark_speed_json(tmp_path, capsys):
         assert r["pairs"] == 10 and 0 < r["min"] <= r["p10"] <= r["median"] <= r["p90"] <= r["max"] < 1e3
 
 
+def test_the_detectors_time_is_paired_with_vqf_only_when_vqf_is_timed():
+    """Without VQF among the filters (a slim install has no peers) the detector is timed alone."""
+    from quadest.evaluation.speed import time_detector
+
+    res = time_detector(duration=2.0, repeat=1, vqf=False)
+    assert 0 < res["us"] < 1e3 and res["vqf"] is None
+
+
 def test_paired_ratio_alternates_the_order_and_takes_the_median():
     from quadest.evaluation.speed import paired_ratio
 

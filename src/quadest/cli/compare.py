@@ -458,10 +458,14 @@ def cmd_benchmark(args):
             say(line)
         say(f"{'recovery bank of 40 EKFs':<27}{res['recovery_bank_40_us']:>8.2f} µs per IMU sample (whole bank, batch)")
         v = res["detector_vs_vqf"]
+        against = (
+            f"; against VQF's batch, interleaved over {v['pairs']} pairs: "
+            f"{v['median']:.3g} [{v['p10']:.3g}-{v['p90']:.3g}]"
+            if v
+            else ""
+        )
         say(
-            f"{'rotor-failure detector':<27}{res['detector_us']:>8.2f} µs per IMU sample (batch, rotor speeds; "
-            f"against VQF's batch, interleaved over {v['pairs']} pairs: {v['median']:.3g} "
-            f"[{v['p10']:.3g}-{v['p90']:.3g}])"
+            f"{'rotor-failure detector':<27}{res['detector_us']:>8.2f} µs per IMU sample (batch, rotor speeds{against})"
         )
     else:
         if not args.data:
