@@ -44,8 +44,15 @@ H_TAU = 0.004  # s: the low-pass of the rotors' momentum whose change the model 
 F_TAU = 0.02  # s: the low-pass of the accelerometer's x and y for the rotors' drag (chosen: above vibration)
 NS = 3 + MAX_ROTORS  # the filter's largest state: rate and effectiveness
 GLR_MAX = 32  # samples: the longest window of the fast test
-GLR_ROW = 7 + 5 * MAX_ROTORS  # per sample: gyro (3), the rate change without the rotors (3), the
-# rate change per unit effectiveness (3 per rotor), thrust per mass (per rotor), accelerometer z, η
+ROW = layout(  # one sample in the fast test's ring
+    ("gyr", 3),
+    ("base", 3),  # the rate change without the rotors
+    ("b", 3 * MAX_ROTORS),  # the rate change per unit effectiveness, ``b + j·MAX_ROTORS + i``
+    ("thrust", MAX_ROTORS),  # thrust per mass per unit effectiveness (right after ``b``: its fourth row)
+    ("eta", MAX_ROTORS),
+    ("acc_z", 1),
+)
+GLR_ROW = ROW.end
 STATE = layout(
     ("w", 3),
     ("eta", MAX_ROTORS),
@@ -627,15 +634,15 @@ def _glr_store(x, p, c, gyr, acc, dt):
     J = (c[MODEL.inertia], c[MODEL.inertia + 1], c[MODEL.inertia + 2])
     m = body_moments(c, gyr[0], gyr[1], gyr[2])
     for j in range(3):
-        x[row + j] = gyr[j]
-        x[row + 3 + j] = dt * (m[j] - c[MODEL.damping + j] * gyr[j]) / J[j]
+        x[row + ROW.gyr + j] = gyr[j]
+        x[row + ROW.base + j] = dt * (m[j] - c[MODEL.damping + j] * gyr[j]) / J[j]
         for i in range(n):
-            x[row + 6 + j * MAX_ROTORS + i] = x[STATE.B + j * MAX_ROTORS + i]
+            x[row + ROW.b + j * MAX_ROTORS + i] = x[STATE.B + j * MAX_ROTORS + i]
     for i in range(n):
         gx, gy = c[MODEL.g + 3 * i], c[MODEL.g + 3 * i + 1]
-        x[row + 6 + 3 * MAX_ROTORS + i] = _thrust(c, x[STATE.omega + i], gyr[0], gyr[1], gx, gy) / c[MODEL.mass]
-        x[row + 6 + 4 * MAX_ROTORS + i] = x[STATE.eta + i]
-    x[row + 6 + 5 * MAX_ROTORS] = acc[2] if np.isfinite(acc[2]) else np.nan
+        x[row + ROW.thrust + i] = _thrust(c, x[STATE.omega + i], gyr[0], gyr[1], gx, gy) / c[MODEL.mass]
+        x[row + ROW.eta + i] = x[STATE.eta + i]
+    x[row + ROW.acc_z] = acc[2] if np.isfinite(acc[2]) else np.nan
     x[STATE.glr_head] = (x[STATE.glr_head] + 1.0) % GLR_MAX
     x[STATE.glr_n] = min(x[STATE.glr_n] + 1.0, GLR_MAX)
 
@@ -670,17 +677,17 @@ def _glr_test(x, p, c, dt):
     for w in range(1, w_max + 1):  # the window of the last w samples
         row = STATE.glr + _ring(head - w) * GLR_ROW
         first = STATE.glr + _ring(head - w - 1) * GLR_ROW  # the sample before it
-        eta0 = first + 6 + 4 * MAX_ROTORS
+        eta0 = first + ROW.eta
         for j in range(3):
-            x[R + j] += x[row + 3 + j]
+            x[R + j] += x[row + ROW.base + j]
         for k in range(3 * MAX_ROTORS):  # every slot, the absent rotors' zeros too: a fixed-length loop
-            x[S + k] += x[row + 6 + k]  # the compiler vectorises (docs/detection.md, the fast test's cost)
-        a = x[row + 6 + 5 * MAX_ROTORS]
+            x[S + k] += x[row + ROW.b + k]  # the compiler vectorises (docs/detection.md, the fast test's cost)
+        a = x[row + ROW.acc_z]
         if np.isfinite(a):
             count += 1
             x[R + 3] += a
             for k in range(3 * MAX_ROTORS, 4 * MAX_ROTORS):
-                x[S + k] += x[row + 6 + k]
+                x[S + k] += x[row + ROW.b + k]  # ROW.thrust
         if w < 3:
             continue
         stat, rotor, runner_up, mu = _glr_rotors(x, p, n, w, dt, count, last, first, eta0, rel, g)
@@ -711,9 +718,9 @@ def _glr_rotors(x, p, n, w, dt, count, last, first, eta0, rel, g):
         p1 += x[S + MAX_ROTORS + i] * x[eta0 + i]
         p2 += x[S + 2 * MAX_ROTORS + i] * x[eta0 + i]
     best, second, who, mu = 0.0, 0.0, -1, 0.0
-    r0 = x[last] - x[first] - x[R] - p0
-    r1 = x[last + 1] - x[first + 1] - x[R + 1] - p1
-    r2 = x[last + 2] - x[first + 2] - x[R + 2] - p2
+    r0 = x[last + ROW.gyr] - x[first + ROW.gyr] - x[R] - p0
+    r1 = x[last + ROW.gyr + 1] - x[first + ROW.gyr + 1] - x[R + 1] - p1
+    r2 = x[last + ROW.gyr + 2] - x[first + ROW.gyr + 2] - x[R + 2] - p2
     m2 = (p[PARAM.moment_noise] * w * dt) ** 2
     i0 = 1.0 / (g[0] + m2 + (rel[0] * p0) ** 2)  # one over each residual's variance
     i1 = 1.0 / (g[1] + m2 + (rel[1] * p1) ** 2)
