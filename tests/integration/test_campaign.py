@@ -10,6 +10,7 @@ from quadest.cli.main import main
 from quadest.evaluation.detection import failure_case, fly_case, fly_case_flight
 from quadest.sweep import ResultStore
 from quadest.sweep.campaign import campaign_runs, campaign_summary, survival_curves, up_by_height
+from quadest.sweep.runs import run_id
 
 
 def _row(**kw):
@@ -135,12 +136,44 @@ def test_a_campaign_flies_resumes_and_draws(tmp_path, capsys):
         ("--height", "-2", "--height -2: give the hover point's height above the ground in m, 1 to 1000"),
         ("--height", "20", "--height is for the failures: give --nominal-seeds none with it"),
         ("--nominal-seeds", "some", "--nominal-seeds expects a range"),
+        ("--set", "gyro.range=3", "--set gyro.range: campaign takes detector.*"),
+        ("--set", "detector.rotor_speeds=0", "the detection mode decides it"),
+        ("--set", "detector.lost_threshold=-1", "lost_threshold must be in (0, 10]"),
+        ("--set", "detector.nope=1", "detector has no parameter 'nope'"),
     ],
 )
 def test_a_wrong_option_is_one_line(tmp_path, capsys, option, value, says):
     assert main(["campaign", option, value, "-o", str(tmp_path / "c.parquet"), "--workers", "0"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and says in err[0]
+    assert not (tmp_path / "c.parquet").exists()
+
+
+def test_the_detectors_parameters_are_flown_and_told_apart(tmp_path, capsys):
+    """--set detector.*: a loss the default detector finds (seed 0, a hover) is not found with the
+    'lost' test's threshold beyond reach and the fast test off; both settings' runs live in one
+    results file, each with its own row and group; the defaults' run keeps its id."""
+    out = tmp_path / "c.parquet"
+    args = ["campaign", "--seeds", "0", "--nominal-seeds", "none", "--filters", "truth", "--detection",
+            "rotor-speeds", "-o", str(out), "--workers", "0"]  # fmt: skip
+    assert main(args) == 0
+    assert main([*args, "--set", "detector.lost_threshold=10", "--set", "detector.glr=false"]) == 0
+    rows = {r["detector"]: r for r in ResultStore(out).read().to_pylist()}
+    assert set(rows) == {"", "glr=False,lost_threshold=10.0"}
+    assert rows[""]["lost_rotor"] == rows[""]["rotor"] and rows["glr=False,lost_threshold=10.0"]["lost_rotor"] == -1
+    assert rows[""]["run_id"] == run_id(campaign_runs([0], [], ["truth"], detections=("rotor-speeds",))[0])
+    groups = campaign_summary(list(rows.values()))["groups"]
+    assert [g["detection_label"] for g in groups] == ["rotor-speeds", "rotor-speeds (glr=False,lost_threshold=10.0)"]
+    assert [g["failures"]["found"] for g in groups] == [1, 0]
+    text = capsys.readouterr().out
+    assert "glr=False,lost_threshold=10.0" in text and "defaults" in text
+
+
+def test_the_oracle_alone_takes_no_detector_parameter(tmp_path, capsys):
+    args = ["campaign", "--detection", "oracle", "--set", "detector.lost_threshold=0.01"]
+    assert main([*args, "-o", str(tmp_path / "c.parquet"), "--workers", "0"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the oracle flies no detector" in err[0]
     assert not (tmp_path / "c.parquet").exists()
 
 

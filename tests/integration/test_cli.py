@@ -318,6 +318,10 @@ def test_fly_writes_runs_that_every_command_reads(tmp_path, capsys):
         (["--set", "throw.speed_max=3"], "--set throw.*"),
         (["--controller", "se3", "--set", "ftc.rho=0.5"], "--set ftc.*"),
         (["--set", "gyro.range"], "--set expects key=value"),
+        (["--set", "detector.lost_threshold=0.01"], "the oracle flies no detector"),
+        (["--detection", "commands", "--set", "detector.rotor_speeds=1"], "the detection mode decides it"),
+        (["--detection", "commands", "--set", "detector.lost_threshold=0"], "lost_threshold must be in (0, 10]"),
+        (["--seeds", "0-3,2"], "--seeds 0-3,2: a seed is given twice"),
     ],
 )
 def test_fly_refuses_bad_options_in_one_line(tmp_path, capsys, argv, match):
@@ -359,6 +363,29 @@ def test_fly_set_reaches_the_sensors_the_vehicle_and_the_controller(tmp_path, ca
     assert clipped.any() and (np.abs(rate[clipped]) >= 8.73 * 0.995).all()
     np.testing.assert_allclose(rate[~clipped], rec.gyr[~clipped], rtol=1e-9, atol=1e-12)
     assert "gyro_clipped_share" in run0 and run0["clip_rate_error_rms_rad_s"][2] < 1.0
+
+
+def test_fly_set_reaches_the_detector(tmp_path, capsys):
+    """quadest fly --set detector.*: with the 'lost' test's threshold beyond reach and the fast
+    test off, the loss the default detector finds at once is never found (the controller is never
+    switched, and the vehicle falls); the summary keeps what was set."""
+    args = ["fly", "--scenario", "rotor-loss", "--estimator", "truth", "--detection", "rotor-speeds",
+            "--duration", "3", "--failure", "0@1", "--no-plot"]  # fmt: skip
+    code, text, _ = run(capsys, *args, "-o", str(tmp_path / "a"))
+    found = json.loads((tmp_path / "a" / "summary.json").read_text())["runs"][0]
+    assert code == 0 and found["detection"]["lost_rotor"] == 0 and found["status"] == "survived", text
+    sets = ["--set", "detector.lost_threshold=10", "--set", "detector.glr=false"]
+    code, text, _ = run(capsys, *args, *sets, "-o", str(tmp_path / "b"))
+    blind = json.loads((tmp_path / "b" / "summary.json").read_text())["runs"][0]
+    assert code == 0 and blind["detection"]["lost_rotor"] is None and blind["status"] == "crashed", text
+    assert blind["set"] == {"detector.lost_threshold": "10", "detector.glr": "false"}
+
+
+def test_seeds_take_ranges_and_lists_together():
+    from quadest.cli.common import parse_seeds
+
+    assert parse_seeds("3-5") == range(3, 6) and parse_seeds("4") == [4] and parse_seeds("1,2") == [1, 2]
+    assert parse_seeds("0-2,10-11,20") == [0, 1, 2, 10, 11, 20]
 
 
 def test_fly_a_throw_with_the_recovery_and_the_oracle(tmp_path, capsys):

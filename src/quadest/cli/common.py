@@ -62,21 +62,41 @@ def with_sets(cfg, overrides: dict):
 
 
 def parse_seeds(text, option: str = "--seeds") -> Sequence[int]:
-    """``1-5`` (a ``range``, never made into a list: its size is known at once) or ``1,2,3``; seeds
-    are whole numbers 0 or more."""
+    """``1-5`` (a ``range``, never made into a list: its size is known at once), ``1,2,3`` or
+    ranges and seeds together, ``0-119,6000-6599`` (at most :data:`LISTED_SEEDS`, none twice);
+    seeds are whole numbers 0 or more."""
     text = str(text).strip()
-    a, dash, b = text.partition("-")
     try:
-        seeds = range(int(a), int(b) + 1) if dash and "," not in text else [int(v) for v in text.split(",")]
+        parts = [_seed_range(item) for item in text.split(",")]
     except ValueError:
         raise CliError(
-            f"{option} expects a range like 1-5 or a list like 1,2,3 of seeds 0 or more, got {text!r}"
+            f"{option} expects a range like 1-5, a list like 1,2,3 or both like 0-9,20-29 of seeds 0 or more, "
+            f"got {text!r}"
         ) from None
+    if len(parts) == 1 and "-" in text:
+        seeds = parts[0]
+    else:
+        total = sum(len(p) for p in parts)
+        if total > LISTED_SEEDS:
+            raise CliError(f"{option} {text}: {total:,} seeds in a list; give at most {LISTED_SEEDS:,} (or one range)")
+        seeds = [s for p in parts for s in p]
+        if len(set(seeds)) != len(seeds):
+            raise CliError(f"{option} {text}: a seed is given twice; give each once")
     if not len(seeds):
         raise CliError(f"{option} {text} selects no seed")
     if min(seeds) < 0:
         raise CliError(f"{option}: seeds are 0 or more, got {min(seeds)}")
     return seeds
+
+
+LISTED_SEEDS = 10_000_000
+"""The most seeds a list of ranges may hold (one range may hold any number)."""
+
+
+def _seed_range(item: str) -> range:
+    """``5`` or ``3-7`` as a range (ValueError for anything else)."""
+    a, dash, b = item.strip().partition("-")
+    return range(int(a), int(b) + 1) if dash else range(int(a), int(a) + 1)
 
 
 def add_max_runs_arg(p):

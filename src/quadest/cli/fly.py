@@ -16,6 +16,8 @@ from quadest.cli.common import (
 )
 from quadest.control import Failure, FtcParams, SE3Params
 from quadest.data import save_recording, write_table
+from quadest.detect import DetectorParams
+from quadest.errors import UsageError
 from quadest.filters import ESTIMATORS, FILTERS, filter_name
 from quadest.flight import (
     CONTROLLERS,
@@ -32,7 +34,7 @@ from quadest.flight.fly import DEFAULT_PRESET
 from quadest.flight.throw import ThrowParams
 from quadest.models import VEHICLE_PRESETS
 from quadest.models.multirotor import vehicle_preset
-from quadest.records import with_fields
+from quadest.records import check, with_fields
 from quadest.recovery.divergence import CHECKS
 from quadest.sim import PRESETS, build_config
 
@@ -95,16 +97,18 @@ def flight_table(flight) -> dict:
 
 SENSOR_SECTIONS = ("environment", "imu", "gyro", "acc", "mag")
 """The simulator's sections a flight samples its sensors with (``--set gyro.range=8.73``)."""
-RECORD_PREFIXES = ("vehicle", "flight", "se3", "ftc", "throw")
+RECORD_PREFIXES = ("vehicle", "flight", "se3", "ftc", "throw", "detector")
 """``--set PREFIX.FIELD``: the flown vehicle (MultirotorParams), the flight (FlightParams), the
-nominal and fault-tolerant controllers (SE3Params, FtcParams) and a throw (ThrowParams)."""
+nominal and fault-tolerant controllers (SE3Params, FtcParams), a throw (ThrowParams) and the
+rotor-failure detector (DetectorParams)."""
 SET_HELP = (
     "override a parameter, e.g. --set gyro.range=8.73 --set acc.lever_arm=[0,0,0.01] --set vehicle.mass_kg=0.6 "
     "(repeatable): the sensors' environment.*, imu.*, gyro.*, acc.*, mag.* (as quadest simulate --set; "
     "quadest simulate --list-params lists them), the flown vehicle's vehicle.* (after --vehicle), the "
     "flight's flight.* (after --position-sensor), the controllers' se3.* (k_p, k_v, k_R, k_w) and ftc.*, "
-    "a throw's throw.* (docs/vehicle.md lists the fields); each checked against its bounds, kept in the "
-    "recording's meta and the summary"
+    "a throw's throw.* (docs/vehicle.md lists the fields), the detector's detector.* with --detection "
+    "rotor-speeds or commands (e.g. detector.lost_threshold=0.008; docs/detection.md lists them); each "
+    "checked against its bounds, kept in the recording's meta and the summary"
 )
 
 
@@ -134,6 +138,26 @@ def _check_sets_fly(groups: dict, scenario: str, controller: str | None) -> None
         raise CliError("--set ftc.*: this flight does not fly the fault-tolerant controller (--controller ftc does)")
 
 
+def detector_changes(texts: dict, modes) -> dict:
+    """``--set detector.*`` (``{"lost_threshold": "0.008"}``) as ``{name: value}``, checked against
+    the detector's bounds. Refused where no detector flies (every one of ``modes`` the oracle) and
+    for ``rotor_speeds``, which the detection mode decides."""
+    if not texts:
+        return {}
+    if "rotor_speeds" in texts:
+        raise CliError(
+            "--set detector.rotor_speeds: the detection mode decides it (--detection rotor-speeds or commands)"
+        )
+    if all(m == "oracle" for m in modes):
+        raise CliError("--set detector.*: the oracle flies no detector; give --detection rotor-speeds or commands")
+    record = with_fields(DetectorParams(), texts, "detector")
+    try:
+        check(record, "detector")
+    except UsageError as exc:
+        raise CliError(f"--set {exc}") from None
+    return {name: getattr(record, name) for name in texts}
+
+
 def _sensor_config(preset: str, texts: dict):
     """The preset's sensors with ``--set``'s overrides, checked as simulate checks them."""
     return with_sets(build_config(preset), texts)
@@ -158,6 +182,9 @@ def fly_settings(args, sets: dict) -> dict:
     for prefix, record in (("se3", SE3Params), ("ftc", FtcParams), ("throw", ThrowParams)):
         if prefix in groups:
             out[prefix] = with_fields(record(), groups[prefix], prefix)
+    if "detector" in groups:
+        changes = detector_changes(groups["detector"], [args.detection])
+        out["detection"] = DetectorParams(rotor_speeds=args.detection == "rotor-speeds", **changes)
     return out
 
 
@@ -275,8 +302,7 @@ def cmd_fly(args):
         duration=args.duration,
         preset=args.preset,
         failure=failure,
-        detection=args.detection,
-        **settings,
+        **{"detection": args.detection, **settings},
     )
     runs = []
     if len(estimators) == 1:

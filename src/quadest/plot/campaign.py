@@ -30,7 +30,7 @@ def _group_row(g: dict) -> list:
     oracle = g["detection"] == "oracle"
     return [
         g["filter"],
-        g["detection"] + (" (told)" if oracle else ""),
+        g.get("detection_label", g["detection"]) + (" (told)" if oracle else ""),
         "none" if math.isinf(g["gyro_range_dps"]) else f"±{g['gyro_range_dps']:.0f}",
         f"{g['mag_latency_s']:g}",
         f"{g['height_m']:g}",
@@ -59,7 +59,16 @@ def _scenario_rows(summary: dict) -> tuple[list, list]:
             for a, b in (g["survival_by_scenario"].get(s, (None, None)) for s in scenarios)
         ]
         gyro = "none" if math.isinf(g["gyro_range_dps"]) else f"±{g['gyro_range_dps']:.0f}"
-        rows.append([g["filter"], g["detection"], gyro, f"{g['mag_latency_s']:g}", f"{g['height_m']:g}", *cells])
+        rows.append(
+            [
+                g["filter"],
+                g.get("detection_label", g["detection"]),
+                gyro,
+                f"{g['mag_latency_s']:g}",
+                f"{g['height_m']:g}",
+                *cells,
+            ]
+        )
     return ["estimator", "detection", "gyro range (°/s)", "mag latency (s)", "height (m)", *scenarios], rows
 
 

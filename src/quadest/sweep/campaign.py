@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 
+from quadest.detect import DetectorParams
 from quadest.errors import UsageError
 from quadest.evaluation.detection import (
     case_config,
@@ -51,6 +52,7 @@ CAMPAIGN_ROW_TYPES = {
     "scenario": "string",
     "kind": "string",
     "detection": "string",
+    "detector": "string",
     "gyro_range_dps": "double",
     "mag_latency_s": "double",
     "rotor": "int64",
@@ -77,16 +79,16 @@ CAMPAIGN_ROW_TYPES = {
 """A campaign run's row: the run (as a sweep's), the case, and what happened. Integers are −1
 where they do not apply (no rotor failed, none found); numbers NaN."""
 
-CASE_KEYS = ("scenario", "kind", "detection", "gyro_range_dps", "mag_latency_s", "rotor", "failure_s", "efficiency")
-
 
 def campaign_runs(
     seeds, nominal_seeds, filters, *, detections=DETECTIONS, gyro_ranges_dps=(None,), mag_latencies_s=(0.0,),
     duration: float = 60.0, failure_duration: float = 6.0, height_m: float | None = None,
+    detector: dict | None = None,
 ) -> list[dict]:  # fmt: skip
     """Every (failure seed or nominal seed, estimator, detection mode, gyroscope range,
     magnetometer latency) as a run spec, the hover point ``height_m`` above the ground (None:
-    ``FlightParams``'); the oracle flies only the complete losses (it knows nothing of a
+    ``FlightParams``'), the detector's parameters changed by ``detector`` (``{name: value}``;
+    the oracle flies none); the oracle flies only the complete losses (it knows nothing of a
     partial one, and has nothing to alarm on in nominal flight)."""
     bad = [d for d in detections if d not in DETECTIONS]
     if bad:
@@ -104,6 +106,8 @@ def campaign_runs(
                 for lat in mag_latencies_s:
                     src = {"kind": "campaign", "case": {**case, "mode": mode}, "gyro_range_dps": g,
                            "mag_latency_s": float(lat)}  # fmt: skip
+                    if detector and mode != "oracle":  # the defaults' runs keep their ids
+                        src["detector"] = dict(detector)
                     runs += [{"filter": f, "params": {}, "source": src, "align": None} for f in filters]
     return runs
 
@@ -113,7 +117,13 @@ def campaign_label(src: dict) -> str:
     what = "nominal" if c["rotor"] is None else f"rotor{c['rotor']}@{c['time_s']:.3f}:{c['efficiency']:.2f}"
     g = "" if src["gyro_range_dps"] is None else f"/gyro{src['gyro_range_dps']:g}"
     lat = f"/maglat{src['mag_latency_s']:g}" if src["mag_latency_s"] else ""
-    return f"campaign {c['scenario']}/{what}/{c['mode']}{g}{lat}/seed{c['seed']}"
+    det = f"/{detector_label(src.get('detector'))}" if src.get("detector") else ""
+    return f"campaign {c['scenario']}/{what}/{c['mode']}{det}{g}{lat}/seed{c['seed']}"
+
+
+def detector_label(changes: dict | None) -> str:
+    """The detector's parameters a run changed, ``lost_threshold=0.008,glr=False`` ("" for none)."""
+    return ",".join(f"{k}={v}" for k, v in sorted((changes or {}).items()))
 
 
 def _overrides(src: dict) -> dict:
@@ -130,7 +140,8 @@ def fly_campaign(spec: dict, row: dict) -> None:
     case = src["case"]
     over = _overrides(src)
     cfg = case_config(case, over)
-    f = fly_case_flight(case, estimator=spec["filter"], overrides=over)
+    detector = DetectorParams(**src["detector"]) if src.get("detector") else None
+    f = fly_case_flight(case, detector, estimator=spec["filter"], overrides=over)
     s, det = f.summary, f.summary.get("detection", {})
     row.update(_case_columns(src, cfg))
     row.update(
@@ -170,6 +181,7 @@ def _case_columns(src: dict, cfg) -> dict:
         "scenario": c["scenario"],
         "kind": kind,
         "detection": c["mode"],
+        "detector": detector_label(src.get("detector")),
         "gyro_range_dps": round(math.degrees(cfg.gyro.range), 6) if np.isfinite(cfg.gyro.range) else math.inf,
         "mag_latency_s": src["mag_latency_s"],
         "rotor": _int(c["rotor"]),
@@ -229,24 +241,25 @@ def _as_case_row(r: dict) -> dict:
     }
 
 
-GROUP = ("filter", "detection", "gyro_range_dps", "mag_latency_s", "height_m")
+GROUP = ("filter", "detection", "detector", "gyro_range_dps", "mag_latency_s", "height_m")
 
 
 def campaign_summary(rows: list[dict]) -> dict:
-    """Per (estimator, detection, gyroscope range, magnetometer latency, height): the losses'
-    survival, detection and isolation (:func:`summarize_failures`), survival by scenario and at
-    each lower height (:func:`up_by_height`), the nominal flights' hours and alarms; and survival
-    against spin, clipping, delay, latency and height."""
-    ok = [{"height_m": HEIGHT_M, **r} for r in rows if r["status"] == "ok"]  # files of before: 3 m
+    """Per (estimator, detection, the detector's changed parameters, gyroscope range, magnetometer
+    latency, height): the losses' survival, detection and isolation (:func:`summarize_failures`),
+    survival by scenario and at each lower height (:func:`up_by_height`), the nominal flights'
+    hours and alarms; and survival against spin, clipping, delay, latency and height."""
+    ok = [{"height_m": HEIGHT_M, "detector": "", **r} for r in rows if r["status"] == "ok"]  # files of before
     groups: dict = {}
     for r in ok:
         groups.setdefault(tuple(r[k] for k in GROUP), []).append(r)
     out = {"runs": len(rows), "ok": len(ok), "failed": len(rows) - len(ok), "groups": []}
-    for key in sorted(groups, key=lambda k: (k[0], DETECTIONS.index(k[1]), -k[2], k[3], k[4])):
+    for key in sorted(groups, key=lambda k: (k[0], DETECTIONS.index(k[1]), k[2], -k[3], k[4], k[5])):
         mine = groups[key]
         failures = [_as_case_row(r) for r in mine if r["kind"] != "nominal"]
         nominal = [r for r in mine if r["kind"] == "nominal"]
         g = dict(zip(GROUP, key))
+        g["detection_label"] = detection_cell(g)
         g["failures"] = summarize_failures(failures)
         losses = [r for r in mine if r["kind"] == "loss"]
         g["survival_by_scenario"] = _by_scenario(losses)
@@ -271,10 +284,17 @@ def group_label(g: dict, groups: list[dict]) -> str:
     """``estimator / detection``, with the gyroscope's range, the latency and the height where
     the groups differ in them."""
     parts = [g["filter"], g["detection"]]
+    if len({h["detector"] for h in groups}) > 1:
+        parts.append(f"detector {g['detector'] or 'defaults'}")
     for key, fmt in (("gyro_range_dps", "±{:g} °/s"), ("mag_latency_s", "latency {:g} s"), ("height_m", "{:g} m up")):
         if len({h[key] for h in groups}) > 1:
             parts.append(fmt.format(g[key]))
     return " / ".join(parts)
+
+
+def detection_cell(g: dict) -> str:
+    """A group's detection mode, with the detector's parameters it changed."""
+    return g["detection"] + (f" ({g['detector']})" if g.get("detector") else "")
 
 
 HEIGHTS_M = (1.0, 2.0, 3.0, 5.0, 10.0, 20.0, 30.0, 50.0, 100.0)
@@ -322,13 +342,17 @@ def survival_curves(rows: list[dict]) -> dict:
     out = {}
     for var, (label, bins) in CURVES.items():
         lines = {}
-        for name in sorted({(r["filter"], r["detection"]) for r in rows}):
-            mine = [r for r in rows if (r["filter"], r["detection"]) == name and np.isfinite(r[var])]
+        for name in sorted({_curve_key(r) for r in rows}):
+            mine = [r for r in rows if _curve_key(r) == name and np.isfinite(r[var])]
             if mine:
-                lines[" / ".join(name)] = _binned(mine, var, bins)
+                lines[" / ".join(n for n in name if n)] = _binned(mine, var, bins)
         if lines:
             out[var] = {"label": label, "lines": lines}
     return out
+
+
+def _curve_key(r: dict) -> tuple:
+    return r["filter"], r["detection"], r.get("detector", "")  # files of before: the defaults
 
 
 def _binned(rows: list[dict], var: str, bins: int | None) -> dict:
@@ -354,7 +378,8 @@ def format_campaign(summary: dict) -> str:
         f"{'estimator':<10}{'detection':<13}{'gyro °/s':>9}{'mag lat':>8}{'height':>7}{'losses':>8}{'survived':>10}"
         f"{'found':>7}{'named':>7}{'median':>8}{'p99':>7}{'max':>7}{'partial':>9}{'nominal h':>10}{'alarms':>7}"
     )
-    lines = [head]
+    changed = any(g.get("detector") for g in summary["groups"])
+    lines = [head + ("  detector" if changed else "")]
     for g in summary["groups"]:
         f, n, d = g["failures"], g["nominal"], g["failures"]["delay_ms"]
         share = f"{f['survived']}/{f['complete']}" if f["complete"] else "-"
@@ -365,7 +390,7 @@ def format_campaign(summary: dict) -> str:
             f"{g['filter']:<10}{g['detection']:<13}{gyro:>9}{g['mag_latency_s']:>8g}{g['height_m']:>7g}{f['complete']:>8}"
             f"{share:>10}"
             f"{f['found']:>7}{f['isolated']:>7}{_ms(d['median']):>8}{_ms(d['p99']):>7}{_ms(d['max']):>7}{part:>9}"
-            f"{n['hours']:>10.2f}{alarms:>7}"
+            f"{n['hours']:>10.2f}{alarms:>7}" + (f"  {g['detector'] or 'defaults'}" if changed else "")
         )
     lines.append("delays in ms; the oracle's is what it is told (50 ms), not found; 'partial': named as damaged")
     for g in summary["groups"]:
