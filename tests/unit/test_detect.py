@@ -220,6 +220,31 @@ def test_benchmark_detection_command(tmp_path, capsys):
     assert "complete losses" in capsys.readouterr().out
 
 
+def test_benchmark_detection_flies_the_detector_set(tmp_path, capsys):
+    """``--set detector.*``: with the 'lost' test's threshold beyond reach and the fast test off,
+    the hover's loss the default detector finds (seed 0) is found in neither mode; what was set is
+    in the figures. A key the benchmark does not fly is refused in one line."""
+    import json
+
+    from quadest.cli.main import main
+
+    out = tmp_path / "det.json"
+    args = ["benchmark", "detection", "--seeds", "0", "--nominal-seeds", "10", "--duration", "2"]
+    assert main([*args, "--set", "detector.lost_threshold=10", "--set", "detector.glr=false", "--json", str(out)]) == 0
+    res = json.loads(out.read_text())
+    assert res["detector"] == {"lost_threshold": 10.0, "glr": False}
+    assert [res["modes"][m]["failures"]["found"] for m in ("rotor-speeds", "commands")] == [0, 0]
+    capsys.readouterr()
+    for bad, says in (("detector.rotor_speeds=1", "both modes are flown"), ("gyro.range=1", "takes detector.*")):
+        assert main([*args, "--set", bad]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and says in err[0]
+    assert main(["benchmark", "detection-tradeoff", "--set", "detector.lost_threshold=0.01"]) == 2
+    assert "reads the 'lost' test's statistic at every threshold" in capsys.readouterr().err
+    assert main(["benchmark", "broad", "--set", "detector.glr=false"]) == 2
+    assert "for detection and detection-tradeoff" in capsys.readouterr().err
+
+
 def test_the_tradeoff_reads_each_thresholds_first_alarm():
     """A higher threshold finds no more and no sooner; the chosen one is the smallest without an
     alarm in nominal flight or before a failure."""

@@ -26,6 +26,8 @@ from quadest.cli.common import (
     write_json,
     write_report_for,
 )
+from quadest.cli.fly import detector_sets
+from quadest.detect import DetectorParams
 from quadest.evaluation import benchmark, collisions, detection, diagnose, flown, reproduce
 from quadest.evaluation.compare import compare, format_tables, parse_params
 from quadest.evaluation.runner import estimator_names, filter_notes
@@ -340,9 +342,13 @@ def _benchmark_sim(args):
     return res
 
 
+BOTH_MODES = " (both modes are flown)"
+
+
 def _benchmark_detection(args):
     seeds, nominal = parse_seeds(args.seeds), parse_seeds(args.nominal_seeds, "--nominal-seeds")
     check_runs(args, len(seeds) + len(nominal), f"--seeds {args.seeds} and --nominal-seeds {args.nominal_seeds}")
+    changes = detector_sets(args.set, ("rotor-speeds",), "benchmark detection", BOTH_MODES)
     say(
         f"the rotor-failure detector in the loop (bebop2): {len(seeds)} failures (a random rotor at a random "
         "time, complete or partial, from a hover, on a circle or on a figure eight) and "
@@ -353,10 +359,13 @@ def _benchmark_detection(args):
     say(
         f"the estimator in the loop: {est}"
         + (" (an oracle: the controller reads the true state)" if est == "truth" else "")
+        + "".join(f", detector.{k}={v}" for k, v in changes.items())
     )
     res = detection.benchmark_detection(
-        seeds, nominal, nominal_s=args.duration, estimator=est, workers=args.workers, progress=True
-    )
+        seeds, nominal, nominal_s=args.duration, estimator=est, workers=args.workers, progress=True,
+        detector=DetectorParams(**changes) if changes else None,
+    )  # fmt: skip
+    res["detector"] = changes
     say(detection.format_detection(res))
     return res
 
@@ -385,6 +394,11 @@ def _benchmark_tradeoff(args):
     train_nominal = parse_seeds(args.train_nominal_seeds, "--train-nominal-seeds")
     test_nominal = parse_seeds(args.nominal_seeds, "--nominal-seeds")
     check_runs(args, len(train) + len(test) + len(train_nominal) + len(test_nominal), "the seeds")
+    changes = detector_sets(args.set, ("rotor-speeds",), "benchmark detection-tradeoff", BOTH_MODES)
+    swept = [k for k in changes if k == "lost_threshold" or k.startswith("glr")]
+    if swept:
+        raise CliError(f"--set detector.{swept[0]}: the trade-off reads the 'lost' test's statistic at every "
+                       "threshold, with the fast test off; set the detector's other parameters")  # fmt: skip
     say(
         "the 'lost' test's threshold against delay and false alarms: every case flown once with the "
         "SE(3) controller and the test unable to fire (the detector then changes nothing), each "
@@ -393,8 +407,10 @@ def _benchmark_tradeoff(args):
         f"the test seeds ({len(test)}, {len(test_nominal)})"
     )
     res = detection.benchmark_tradeoff(
-        train, test, train_nominal, test_nominal, nominal_s=args.duration, workers=args.workers, progress=True
-    )
+        train, test, train_nominal, test_nominal, nominal_s=args.duration, workers=args.workers, progress=True,
+        detector=DetectorParams(**changes) if changes else None,
+    )  # fmt: skip
+    res["detector"] = changes
     say(detection.format_tradeoff(res))
     return res
 
@@ -422,6 +438,8 @@ def _benchmark_diagnose(args):
 
 
 def cmd_benchmark(args):
+    if args.set and args.what not in ("detection", "detection-tradeoff"):
+        raise CliError(f"--set: benchmark {args.what} takes none (it is for detection and detection-tradeoff)")
     if args.what == "diagnose":
         res = _benchmark_diagnose(args)
         if args.json:
@@ -754,6 +772,14 @@ def _add_benchmark(sub):
     )
     b.add_argument(
         "--workers", type=int, default=0, help="detection, collisions: Dask workers (0: this process; default: 0)"
+    )
+    b.add_argument(
+        "--set",
+        action="append",
+        metavar="detector.KEY=VALUE",
+        help="detection, detection-tradeoff: change a parameter of the detector, e.g. --set "
+        "detector.relative_deficit=false (repeatable; checked against its bounds; docs/detection.md); the "
+        "trade-off sweeps lost_threshold with the fast test off, so it takes neither",
     )
     add_max_runs_arg(b)
     b.add_argument("--json", metavar="OUT", help="write the figures as JSON")

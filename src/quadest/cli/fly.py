@@ -138,16 +138,18 @@ def _check_sets_fly(groups: dict, scenario: str, controller: str | None) -> None
         raise CliError("--set ftc.*: this flight does not fly the fault-tolerant controller (--controller ftc does)")
 
 
-def detector_changes(texts: dict, modes) -> dict:
+MODE_HINT = " (--detection rotor-speeds or commands)"
+"""How fly and campaign choose the detection mode, for their messages."""
+
+
+def detector_changes(texts: dict, modes, hint: str = MODE_HINT) -> dict:
     """``--set detector.*`` (``{"lost_threshold": "0.008"}``) as ``{name: value}``, checked against
     the detector's bounds. Refused where no detector flies (every one of ``modes`` the oracle) and
-    for ``rotor_speeds``, which the detection mode decides."""
+    for ``rotor_speeds``, which the detection mode decides (``hint``: how the command decides it)."""
     if not texts:
         return {}
     if "rotor_speeds" in texts:
-        raise CliError(
-            "--set detector.rotor_speeds: the detection mode decides it (--detection rotor-speeds or commands)"
-        )
+        raise CliError(f"--set detector.rotor_speeds: the detection mode decides it{hint}")
     if all(m == "oracle" for m in modes):
         raise CliError("--set detector.*: the oracle flies no detector; give --detection rotor-speeds or commands")
     record = with_fields(DetectorParams(), texts, "detector")
@@ -156,6 +158,18 @@ def detector_changes(texts: dict, modes) -> dict:
     except UsageError as exc:
         raise CliError(f"--set {exc}") from None
     return {name: getattr(record, name) for name in texts}
+
+
+def detector_sets(items, modes, command: str, hint: str = MODE_HINT) -> dict:
+    """``--set detector.KEY=VALUE`` items, the only ``--set`` ``command`` takes, as the detector's
+    changed parameters (:func:`detector_changes`)."""
+    texts = {}
+    for key, text in parse_sets(items).items():
+        prefix, _, name = key.partition(".")
+        if prefix != "detector" or not name:
+            raise CliError(f"--set {key}: {command} takes detector.* (e.g. --set detector.lost_threshold=0.008)")
+        texts[name] = text
+    return detector_changes(texts, modes, hint)
 
 
 def _sensor_config(preset: str, texts: dict):

@@ -17,7 +17,7 @@ from quadest.cli.common import (
     sim_config,
     write_json,
 )
-from quadest.cli.fly import detector_changes, failure_record, parse_failure
+from quadest.cli.fly import detector_sets, failure_record, parse_failure
 from quadest.extras import need
 from quadest.filters import filter_name
 from quadest.flight import CONTROLLERS, DEFAULT_DURATION, FLIGHT_SCENARIOS
@@ -176,23 +176,11 @@ def _campaign_runs(args):
         )
     gyro = _campaign_list(args.gyro_range, "--gyro-range", "°/s")
     lat = [v or 0.0 for v in _campaign_list(args.mag_latency, "--mag-latency", "s")]
-    detector = _campaign_detector(args.set, detections)
+    detector = detector_sets(args.set, detections, "campaign")
     per_case = len(filters) * len(detections) * len(gyro) * len(lat)
     check_runs(args, per_case * (len(seeds) + len(nominal)), f"{len(seeds) + len(nominal):,} cases x {per_case} set(s)")
     return campaign_runs(seeds, nominal, filters, detections=detections, gyro_ranges_dps=gyro, mag_latencies_s=lat,
                          duration=args.duration, height_m=args.height, detector=detector)  # fmt: skip
-
-
-def _campaign_detector(items, detections) -> dict:
-    """``--set detector.KEY=VALUE`` as the detector's changed parameters (the only ``--set`` a
-    campaign takes: its sensors and flights are the cases')."""
-    texts = {}
-    for key, text in parse_sets(items).items():
-        prefix, _, name = key.partition(".")
-        if prefix != "detector" or not name:
-            raise CliError(f"--set {key}: campaign takes detector.* (e.g. --set detector.lost_threshold=0.008)")
-        texts[name] = text
-    return detector_changes(texts, detections)
 
 
 def cmd_campaign(args):

@@ -308,17 +308,20 @@ def choose_threshold(table: list[dict]) -> float:
 
 def benchmark_tradeoff(
     train, test, train_nominal, test_nominal, *, modes=("rotor-speeds", "commands"), nominal_s: float = 60.0,
-    workers: int | None = 0, progress: bool = False,
+    workers: int | None = 0, progress: bool = False, detector: DetectorParams | None = None,
 ) -> dict:  # fmt: skip
-    """The trade-off of the 'lost' test's threshold: per mode, the table on the training seeds,
-    the threshold chosen there (:func:`choose_threshold`) and the table on the test seeds."""
+    """The trade-off of the 'lost' test's threshold (the detector's other parameters ``detector``'s,
+    the defaults' when None): per mode, the table on the training seeds, the threshold chosen
+    there (:func:`choose_threshold`) and the table on the test seeds."""
     out = {"modes": {}}
     for m in modes:
         tables = {}
         for name, seeds, nominal in (("train", train, train_nominal), ("test", test, test_nominal)):
             cases = [failure_case(s, m) for s in seeds]
             cases += [nominal_case(s, m, nominal_s) for s in nominal]
-            rows = execute(crossings, cases, workers=workers, progress=progress, desc=f"{m} {name}")
+            rows = execute(
+                lambda c: crossings(c, detector=detector), cases, workers=workers, progress=progress, desc=f"{m} {name}"
+            )
             bad = [r for r in rows if isinstance(r, BaseException)]
             if bad:
                 raise RuntimeError(f"{len(bad)} flight(s) failed; the first: {bad[0]!r}")
