@@ -140,6 +140,7 @@ def test_a_campaign_flies_resumes_and_draws(tmp_path, capsys):
         ("--set", "detector.rotor_speeds=0", "the detection mode decides it"),
         ("--set", "detector.lost_threshold=-1", "lost_threshold must be in (0, 10]"),
         ("--set", "detector.nope=1", "detector has no parameter 'nope'"),
+        ("--detection", ",", "--detection: give one or more of"),
     ],
 )
 def test_a_wrong_option_is_one_line(tmp_path, capsys, option, value, says):
@@ -159,14 +160,16 @@ def test_the_detectors_parameters_are_flown_and_told_apart(tmp_path, capsys):
     assert main(args) == 0
     assert main([*args, "--set", "detector.lost_threshold=10", "--set", "detector.glr=false"]) == 0
     rows = {r["detector"]: r for r in ResultStore(out).read().to_pylist()}
-    assert set(rows) == {"", "glr=False,lost_threshold=10.0"}
-    assert rows[""]["lost_rotor"] == rows[""]["rotor"] and rows["glr=False,lost_threshold=10.0"]["lost_rotor"] == -1
+    assert set(rows) == {"", "glr=false,lost_threshold=10.0"}
+    assert rows[""]["lost_rotor"] == rows[""]["rotor"] and rows["glr=false,lost_threshold=10.0"]["lost_rotor"] == -1
     assert rows[""]["run_id"] == run_id(campaign_runs([0], [], ["truth"], detections=("rotor-speeds",))[0])
     groups = campaign_summary(list(rows.values()))["groups"]
-    assert [g["detection_label"] for g in groups] == ["rotor-speeds", "rotor-speeds (glr=False,lost_threshold=10.0)"]
+    assert [g["detection_label"] for g in groups] == ["rotor-speeds", "rotor-speeds (glr=false,lost_threshold=10.0)"]
     assert [g["failures"]["found"] for g in groups] == [1, 0]
     text = capsys.readouterr().out
-    assert "glr=False,lost_threshold=10.0" in text and "defaults" in text
+    assert "glr=false,lost_threshold=10.0" in text and "defaults" in text
+    assert main([*args, "--set", "detector.lost_threshold=0.004"]) == 0  # the default's value: its run, flown before
+    assert "executed 0 (skipped 1" in capsys.readouterr().out
 
 
 def test_the_oracle_alone_takes_no_detector_parameter(tmp_path, capsys):

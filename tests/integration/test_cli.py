@@ -322,6 +322,9 @@ def test_fly_writes_runs_that_every_command_reads(tmp_path, capsys):
         (["--detection", "commands", "--set", "detector.rotor_speeds=1"], "the detection mode decides it"),
         (["--detection", "commands", "--set", "detector.lost_threshold=0"], "lost_threshold must be in (0, 10]"),
         (["--seeds", "0-3,2"], "--seeds 0-3,2: a seed is given twice"),
+        (["--seeds", "5-3,7"], "5-3 selects no seed"),
+        (["--seeds", "0-99999999999999999999999"], "seeds are at most"),
+        (["--scenario", "throw", "--detection", "commands", "--set", "detector.glr=0"], "a throw flies no"),
     ],
 )
 def test_fly_refuses_bad_options_in_one_line(tmp_path, capsys, argv, match):

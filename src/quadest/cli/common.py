@@ -64,7 +64,7 @@ def with_sets(cfg, overrides: dict):
 def parse_seeds(text, option: str = "--seeds") -> Sequence[int]:
     """``1-5`` (a ``range``, never made into a list: its size is known at once), ``1,2,3`` or
     ranges and seeds together, ``0-119,6000-6599`` (at most :data:`LISTED_SEEDS`, none twice);
-    seeds are whole numbers 0 or more."""
+    seeds are whole numbers from 0 to :data:`MAX_SEED`."""
     text = str(text).strip()
     try:
         parts = [_seed_range(item) for item in text.split(",")]
@@ -73,29 +73,35 @@ def parse_seeds(text, option: str = "--seeds") -> Sequence[int]:
             f"{option} expects a range like 1-5, a list like 1,2,3 or both like 0-9,20-29 of seeds 0 or more, "
             f"got {text!r}"
         ) from None
-    if len(parts) == 1 and "-" in text:
-        seeds = parts[0]
-    else:
-        total = sum(len(p) for p in parts)
-        if total > LISTED_SEEDS:
-            raise CliError(f"{option} {text}: {total:,} seeds in a list; give at most {LISTED_SEEDS:,} (or one range)")
-        seeds = [s for p in parts for s in p]
-        if len(set(seeds)) != len(seeds):
-            raise CliError(f"{option} {text}: a seed is given twice; give each once")
-    if not len(seeds):
-        raise CliError(f"{option} {text} selects no seed")
-    if min(seeds) < 0:
-        raise CliError(f"{option}: seeds are 0 or more, got {min(seeds)}")
-    return seeds
+    for item, part in zip(text.split(","), parts):
+        if part.stop <= part.start:
+            raise CliError(f"{option} {text}: {item.strip()} selects no seed (give ranges as low-high)")
+        if part.stop - 1 > MAX_SEED:
+            raise CliError(f"{option} {text}: seeds are at most {MAX_SEED}")
+    if len(parts) == 1:
+        return parts[0] if "-" in text else list(parts[0])
+    total = sum(p.stop - p.start for p in parts)
+    if total > LISTED_SEEDS:
+        raise CliError(f"{option} {text}: {total:,} seeds in a list; give at most {LISTED_SEEDS:,} (or one range)")
+    ordered = sorted(parts, key=lambda p: p.start)
+    if any(b.start < a.stop for a, b in zip(ordered, ordered[1:])):
+        raise CliError(f"{option} {text}: a seed is given twice; give each once")
+    return [s for p in parts for s in p]
 
 
-LISTED_SEEDS = 10_000_000
+LISTED_SEEDS = 1_000_000
 """The most seeds a list of ranges may hold (one range may hold any number)."""
+MAX_SEED = 2**62
+"""The largest seed (a results file keeps seeds as 64-bit integers)."""
 
 
 def _seed_range(item: str) -> range:
-    """``5`` or ``3-7`` as a range (ValueError for anything else)."""
+    """``5`` or ``3-7`` as a range of seeds 0 or more (ValueError for anything else: a sign, a
+    space inside a number, digits other than 0-9)."""
     a, dash, b = item.strip().partition("-")
+    a, b = a.strip(), b.strip()
+    if not (a.isascii() and a.isdigit()) or (dash and not (b.isascii() and b.isdigit())):
+        raise ValueError(item)
     return range(int(a), int(b) + 1) if dash else range(int(a), int(a) + 1)
 
 

@@ -133,6 +133,8 @@ def _check_sets_fly(groups: dict, scenario: str, controller: str | None) -> None
     """Refuse settings of what this flight does not fly (never ignored)."""
     if "throw" in groups and scenario != "throw":
         raise CliError("--set throw.*: a throw's parameters are for --scenario throw")
+    if "detector" in groups and scenario == "throw":
+        raise CliError("--set detector.*: a throw flies no rotor-failure detector")
     flies_ftc = scenario != "throw" and (controller or ("ftc" if scenario == "rotor-loss" else "se3")) == "ftc"
     if "ftc" in groups and not flies_ftc:
         raise CliError("--set ftc.*: this flight does not fly the fault-tolerant controller (--controller ftc does)")
@@ -144,8 +146,9 @@ MODE_HINT = " (--detection rotor-speeds or commands)"
 
 def detector_changes(texts: dict, modes, hint: str = MODE_HINT) -> dict:
     """``--set detector.*`` (``{"lost_threshold": "0.008"}``) as ``{name: value}``, checked against
-    the detector's bounds. Refused where no detector flies (every one of ``modes`` the oracle) and
-    for ``rotor_speeds``, which the detection mode decides (``hint``: how the command decides it)."""
+    the detector's bounds, those equal to the defaults left out. Refused where no detector flies
+    (every one of ``modes`` the oracle) and for ``rotor_speeds``, which the detection mode decides
+    (``hint``: how the command decides it)."""
     if not texts:
         return {}
     if "rotor_speeds" in texts:
@@ -157,7 +160,8 @@ def detector_changes(texts: dict, modes, hint: str = MODE_HINT) -> dict:
         check(record, "detector")
     except UsageError as exc:
         raise CliError(f"--set {exc}") from None
-    return {name: getattr(record, name) for name in texts}
+    default = DetectorParams()
+    return {name: getattr(record, name) for name in texts if getattr(record, name) != getattr(default, name)}
 
 
 def detector_sets(items, modes, command: str, hint: str = MODE_HINT) -> dict:
@@ -398,7 +402,7 @@ def add_parsers(sub):
         "the flight with truth in the loop first and each estimator also run over that flight "
         "afterwards (default: madgwick; recovery for a throw)",
     )
-    s.add_argument("--seeds", default="0", help="seeds: 0-4 or 0,3,7 (default: 0)")
+    s.add_argument("--seeds", default="0", help="seeds: 0-4, 0,3,7 or both, 0-4,10-14 (default: 0)")
     add_max_runs_arg(s)
     s.add_argument(
         "--duration",

@@ -161,6 +161,8 @@ def _campaign_list(text: str, option: str, unit: str) -> list:
 def _campaign_runs(args):
     filters = flown_names(args.filters, "rotor-loss")
     detections = [d.strip() for d in args.detection.split(",") if d.strip()]
+    if not detections:
+        raise CliError(f"--detection: give one or more of {', '.join(DETECTIONS)}, comma-separated")
     if args.height is not None and not 1.0 <= args.height <= 1000.0:
         raise CliError(f"--height {args.height:g}: give the hover point's height above the ground in m, 1 to 1000")
     seeds = parse_seeds(args.seeds)

@@ -123,7 +123,7 @@ def campaign_label(src: dict) -> str:
 
 def detector_label(changes: dict | None) -> str:
     """The detector's parameters a run changed, ``lost_threshold=0.008,glr=False`` ("" for none)."""
-    return ",".join(f"{k}={v}" for k, v in sorted((changes or {}).items()))
+    return ",".join(f"{k}={str(v).lower() if isinstance(v, bool) else v}" for k, v in sorted((changes or {}).items()))
 
 
 def _overrides(src: dict) -> dict:
@@ -281,11 +281,12 @@ def campaign_summary(rows: list[dict]) -> dict:
 
 
 def group_label(g: dict, groups: list[dict]) -> str:
-    """``estimator / detection``, with the gyroscope's range, the latency and the height where
-    the groups differ in them."""
+    """``estimator / detection``, with the detector's changed parameters (as the curves name
+    their lines), and the gyroscope's range, the latency and the height where the groups differ
+    in them."""
     parts = [g["filter"], g["detection"]]
-    if len({h["detector"] for h in groups}) > 1:
-        parts.append(f"detector {g['detector'] or 'defaults'}")
+    if g["detector"]:
+        parts.append(f"detector {g['detector']}")
     for key, fmt in (("gyro_range_dps", "±{:g} °/s"), ("mag_latency_s", "latency {:g} s"), ("height_m", "{:g} m up")):
         if len({h[key] for h in groups}) > 1:
             parts.append(fmt.format(g[key]))
@@ -390,7 +391,7 @@ def format_campaign(summary: dict) -> str:
             f"{g['filter']:<10}{g['detection']:<13}{gyro:>9}{g['mag_latency_s']:>8g}{g['height_m']:>7g}{f['complete']:>8}"
             f"{share:>10}"
             f"{f['found']:>7}{f['isolated']:>7}{_ms(d['median']):>8}{_ms(d['p99']):>7}{_ms(d['max']):>7}{part:>9}"
-            f"{n['hours']:>10.2f}{alarms:>7}" + (f"  {g['detector'] or 'defaults'}" if changed else "")
+            f"{n['hours']:>10.2f}{alarms:>7}" + (f"  {_detector_cell(g)}" if changed else "")
         )
     lines.append("delays in ms; the oracle's is what it is told (50 ms), not found; 'partial': named as damaged")
     for g in summary["groups"]:
@@ -400,6 +401,10 @@ def format_campaign(summary: dict) -> str:
             lines.append(f"{group_label(g, summary['groups'])}: of {up['flights'][0]} complete losses, up with the "
                          f"hover point at {kept} above the ground")  # fmt: skip
     return "\n".join(lines)
+
+
+def _detector_cell(g: dict) -> str:
+    return "-" if g["detection"] == "oracle" else (g["detector"] or "defaults")
 
 
 def _ms(v) -> str:
