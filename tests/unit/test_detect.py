@@ -1,7 +1,7 @@
 """Rotor-failure detection and isolation (quadest.detect): the detector's model against the
 vehicle's, a loss found and isolated in the loop, no alarm in nominal flight with the model
-off by the campaign's ±10 %, a partial loss found with its effectiveness, streaming equal to
-batch, a bad sample skipped."""
+off by the campaign's ±10 %, the rotors' moment learnt in flight, a partial loss found with its
+effectiveness, streaming equal to batch, a bad sample skipped."""
 
 from dataclasses import replace
 
@@ -155,13 +155,67 @@ def test_the_airs_drag_on_the_rotors_is_read_from_the_accelerometer():
 def test_a_gust_in_a_fast_manoeuvre_raises_no_alarm_with_the_airs_drag():
     """Training flight 6401 (figure eight, a gust near 9.6 m/s at 12.4 s): the yaw moment of the
     rotors' drag in the air, which the detector's model lacked, raised an alarm; read from the
-    accelerometer (``air_drag``), nothing passes even half the threshold."""
+    accelerometer (``air_drag``), nothing passes even half the threshold (without it, the moment
+    learnt in flight is taken away too: it removes that alarm as well)."""
     from quadest.evaluation.detection import crossings, nominal_case
 
     case = nominal_case(6401, "rotor-speeds", 60.0)
     assert crossings(case, (0.002, 0.004), DetectorParams())["first"] == {"0.002": None, "0.004": None}
-    off = crossings(case, (0.004,), DetectorParams(air_drag=False))["first"]["0.004"]
+    off = crossings(case, (0.004,), DetectorParams(air_drag=False, moment_scale_s=0.0))["first"]["0.004"]
     assert off is not None and 12.0 < off[0] < 13.0
+
+
+def test_the_moment_learnt_in_flight_is_the_vehicles():
+    """A figure eight. With the detector's model exact the rotors' moment it learns per axis stays
+    within 1 % of 1. With its inertia off by +15 / −12 / +10 %, its mass by +8 % and its thrust
+    coefficient by +5 %, the moment to learn is ``(J_model / J)(m / m_model)`` about roll and
+    pitch, times ``k_f,model / k_f`` about yaw (the common effectiveness takes the thrust's error;
+    the yaw moment is the drag torque's, not ``k_f``'s): 6 / 23 / 7 % from the model's; what it
+    learns is within 11 %, and the largest error less than half what it was (the inertia's error
+    also in the body's own moments, which it does not scale, leaves the rest: docs/detection.md).
+    Learning off, it stays 1."""
+    f = fly("aggressive", seed=1, duration=20.0, vehicle="bebop2")
+    rec, speeds = f.recording, f.states[:, 13:]
+    exact = Detector(BEBOP)
+    exact.run(rec.t, rec.gyr, rec.acc, speeds)
+    assert np.abs(exact.moment_scale - 1.0).max() < 0.01, exact.moment_scale
+    J, m, kf = np.array([1.15, 0.88, 1.10]), 1.08, 1.05
+    model = replace(BEBOP, inertia=tuple(J * BEBOP.inertia), mass_kg=m * BEBOP.mass_kg, k_f=kf * BEBOP.k_f)
+    expected = J / m * np.array([1.0, 1.0, kf])
+    det = Detector(model)
+    det.run(rec.t, rec.gyr, rec.acc, speeds)
+    error, before = np.abs(det.moment_scale / expected - 1.0), np.abs(1.0 / expected - 1.0)
+    assert error.max() < 0.11 and error[1] < 0.5 * before[1], (det.moment_scale, expected)
+    off = Detector(model, moment_scale_s=0.0)
+    off.run(rec.t, rec.gyr, rec.acc, speeds)
+    assert np.all(off.moment_scale == 1.0)
+
+
+def test_a_hovers_own_corrections_do_not_move_the_moment_learnt():
+    """A hover from a disturbed start in a gusty wind, the detector's model exact: the rate loop's
+    answers to its own disturbances are correlated with them (a closed loop's identification
+    bias), and below the prior's excitation the moment learnt stays within 3 % of the model's."""
+    from quadest.sim.wind import WindParams
+
+    wind = WindParams(mean_m_s=4.0, turbulence_m_s=1.5, gusts=1, gust_m_s=6.0)
+    f = fly("hover", seed=2, duration=20.0, vehicle="bebop2", params=FlightParams(wind=wind))
+    rec = f.recording
+    det = Detector(BEBOP)
+    det.run(rec.t, rec.gyr, rec.acc, f.states[:, 13:])
+    assert np.abs(det.moment_scale - 1.0).max() < 0.03, det.moment_scale
+
+
+def test_a_manoeuvre_with_the_model_off_raises_no_alarm_with_the_moment_learnt():
+    """Training flight 6503 (a figure eight in a 4.9 m/s wind, the detector's mass −7.9 %, inertia
+    +8.4 / −8.1 / +6.4 %): with the model as given its largest 'lost' sum passes the default
+    threshold at 42.3 s (and 0.018 at 51.3 s); with the moment learnt in flight nothing passes a
+    tenth of it."""
+    from quadest.evaluation.detection import crossings, nominal_case
+
+    case = nominal_case(6503, "rotor-speeds", 60.0)
+    assert crossings(case, (0.0004,), DetectorParams())["first"] == {"0.0004": None}
+    off = crossings(case, (0.004,), DetectorParams(moment_scale_s=0.0))["first"]["0.004"]
+    assert off is not None and 42.0 < off[0] < 42.5
 
 
 @pytest.mark.parametrize("rotor", [1, 3])

@@ -14,7 +14,9 @@ rotor speeds and the measured rate, so the filter is a linear Kalman filter, upd
 at a time.
 
 The yaw moment of the rotors' drag as the vehicle moves through the air is read from the
-accelerometer's x and y (``air_drag``). Each rotor's deficit ``d_i`` is the mean effectiveness
+accelerometer's x and y (``air_drag``). The rotors' moment about each axis is scaled by what
+the flight shows of it against the model (``moment_scale_s``: inertia, mass and thrust
+coefficient are never known exactly). Each rotor's deficit ``d_i`` is the mean effectiveness
 of the others minus its own, relative to theirs (a common error of ``k_f`` or of the mass
 moves every ``η`` alike and cancels). Two CUSUM tests
 (Page 1954) accumulate it: ``S_i ← max(0, S_i + Δt (d_i − ν))``; the rotor whose sum first
@@ -86,7 +88,15 @@ STATE = layout(
     ("FP", 3 * NS),
     ("ph", NS),
     ("h", NS),
+    ("scale", 3),  # the rotors' moment per axis against the model's, learnt in flight (1: the model's)
+    ("scale_y", 6),  # per axis, the measured rate change less the model's without the rotors, low-passed
+    ("scale_u", 6),  # over SCALE_LP and that over SCALE_HP; the rotors' modelled rate change, the same
+    ("scale_sums", 6),  # Σ y u, then Σ u u, per axis, over the scale's memory
 )
+SCALE_LP = 0.02  # s: above the gyroscope's noise and the rotors' tone (chosen)
+SCALE_HP = 1.0  # s: below the manoeuvres; what the model misses steadily (wind, trim) is left out (chosen)
+SCALE_RANGE = 0.3  # the learnt scale stays within 1 ± this: the model within 30 %
+SCALE_RATE = 0.03  # 1/s: the fastest it moves (a loss's moments before it is found move it 0.3 % in 0.1 s)
 MODEL = layout(
     ("rotors", 1),
     ("mass", 1),
@@ -267,6 +277,23 @@ class DetectorParams(Params):
         "chosen",
         "[1, 1e12]",
     )
+    moment_scale_s: float = param(
+        10.0,
+        "s",
+        "memory of the rotors' moment per axis learnt in flight against the detector's model (inertia, mass, "
+        "thrust coefficient off), by least squares on the band-passed rate change (0: the model as given)",
+        "chosen on training seeds: alarms in 12 h of nominal flight 1 / 0 (rotor speeds / commands) against 2 / 1 "
+        "without, the losses' delay the same or shorter (docs/detection.md, The moment learnt in flight)",
+        "[0, 1e4]",
+    )
+    moment_scale_prior: float = param(
+        5.0,
+        "rad/s²",
+        "the learnt moment stays near the model's until the modelled angular acceleration, band-passed, passes "
+        "about this RMS over the memory (a hover's corrections of its own disturbances would bias it low)",
+        "chosen on five training flights: 2 biased the hovers' scale low by 5-10 %",
+        "[0, 1e4]",
+    )
     lost_drift: float = param(0.6, "-", "deficit the 'lost' test ignores (ν)", "chosen: above a 50 % loss", "(0, 1]")
     lost_threshold: float = param(
         0.004,
@@ -371,6 +398,8 @@ def _start(x, p, c, gyr, rotors):
         x[STATE.s_damaged + i] = 0.0
     x[STATE.lost] = x[STATE.damaged] = -1.0
     x[STATE.contact_t] = -np.inf
+    for j in range(3):
+        x[STATE.scale + j] = 1.0
 
 
 @njit(cache=True, inline="always")
@@ -425,6 +454,8 @@ def _predict(x, p, c, gyr, dt):
         x[B + 2 * MAX_ROTORS + i] = dt * yaw / J2 - (x[STATE.h_lp + i] - h_before) / J2
     a = (1.0 - dt * c[MODEL.damping] / J0, 1.0 - dt * c[MODEL.damping + 1] / J1, 1.0 - dt * c[MODEL.damping + 2] / J2)
     base = (dt * m0 / J0, dt * m1 / J1, dt * m2 / J2)
+    if p[PARAM.moment_scale_s] > 0.0:
+        _learn_moment_scale(x, p, c, gyr, a, base, dt)
     rel = (p[PARAM.model_error], p[PARAM.model_error], p[PARAM.yaw_model_error])
     floor = (p[PARAM.moment_noise] * dt) ** 2
     for j in range(3):
@@ -457,6 +488,58 @@ def _predict(x, p, c, gyr, dt):
     x[P + 2 * ns + 2] += q2
     for i in range(n):
         x[P + (3 + i) * ns + 3 + i] += qe
+
+
+@njit(cache=True, inline="always")
+def _learn_moment_scale(x, p, c, gyr, a, base, dt):
+    """The rotors' moment per axis against the model's (docs/detection.md, The moment learnt in
+    flight): the measured rate change less the model's without the rotors against the rotors'
+    modelled change at their common effectiveness, both band-passed, by least squares with a
+    fading memory and a prior at 1; the rows of ``B`` (unscaled on entry) scaled by it."""
+    n = int(c[MODEL.rotors])
+    common = 0.0
+    for i in range(n):
+        common += x[STATE.eta + i]
+    common = min(max(common / n, 0.5), 1.5)
+    fast, slow = min(dt / SCALE_LP, 1.0), min(dt / SCALE_HP, 1.0)
+    keep = 1.0 - min(dt / p[PARAM.moment_scale_s], 1.0)
+    prior = (p[PARAM.moment_scale_prior] * dt) ** 2 * p[PARAM.moment_scale_s] / dt
+    valid = x[STATE.samples] >= 2.0  # the last reading is there
+    learn = valid and x[STATE.lost] < 0.0 and not _holding(x, p)
+    for i in range(n):  # a deficit past the 'lost' drift: maybe a loss, whose moments are not the model's
+        learn = learn and x[STATE.s_lost + i] == 0.0
+    Y, U, S = STATE.scale_y, STATE.scale_u, STATE.scale_sums
+    for j in range(3):
+        if valid:
+            before = x[STATE.gyr_prev + 3 + j]
+            y = gyr[j] - before - (a[j] - 1.0) * before - base[j]
+            u = 0.0
+            for i in range(n):
+                u += x[STATE.B + j * MAX_ROTORS + i]
+            x[Y + j] += fast * (y - x[Y + j])
+            x[Y + 3 + j] += slow * (x[Y + j] - x[Y + 3 + j])
+            x[U + j] += fast * (common * u - x[U + j])
+            x[U + 3 + j] += slow * (x[U + j] - x[U + 3 + j])
+        if learn:
+            yb, ub = x[Y + j] - x[Y + 3 + j], x[U + j] - x[U + 3 + j]
+            x[S + j] = keep * x[S + j] + yb * ub
+            x[S + 3 + j] = keep * x[S + 3 + j] + ub * ub
+            ratio = (x[S + j] + prior) / (x[S + 3 + j] + prior)
+            step = SCALE_RATE * dt  # a model's error is steady, a loss is sudden
+            ratio = min(max(ratio, x[STATE.scale + j] - step), x[STATE.scale + j] + step)
+            x[STATE.scale + j] = min(max(ratio, 1.0 - SCALE_RANGE), 1.0 + SCALE_RANGE)
+        scale = x[STATE.scale + j]
+        for i in range(n):
+            x[STATE.B + j * MAX_ROTORS + i] *= scale
+
+
+@njit(cache=True, inline="always")
+def _holding(x, p):
+    """The tests hold: on the ground, within ``contact_hold_s`` of a contact or ``cut_hold_s``
+    of a thrust cut."""
+    if x[STATE.landed] != 0.0 or x[STATE.time] - x[STATE.contact_t] <= p[PARAM.contact_hold_s]:
+        return True
+    return x[STATE.time] - x[STATE.cut_t] <= p[PARAM.cut_hold_s]
 
 
 @njit(cache=True, inline="always")
@@ -539,8 +622,7 @@ def _test(x, p, c, dt):
         var_total += x[STATE.P + (3 + i) * (3 + n) + 3 + i]
         var_min = min(var_min, x[STATE.P + (3 + i) * (3 + n) + 3 + i])
     sd_max = p[PARAM.deficit_sd_ratio] * np.sqrt(var_min)
-    touching = x[STATE.landed] != 0.0 or x[STATE.time] - x[STATE.contact_t] <= p[PARAM.contact_hold_s]
-    touching = touching or x[STATE.time] - x[STATE.cut_t] <= p[PARAM.cut_hold_s]
+    touching = _holding(x, p)
     for i in range(n):
         if touching:  # forces the rotor model has not, or a thrust cut: no evidence either way
             x[STATE.s_lost + i] = 0.0
@@ -658,9 +740,7 @@ def _glr_test(x, p, c, dt):
     w_max = min(int(round(p[PARAM.glr_window_s] / dt)), GLR_MAX - 1, int(x[STATE.glr_n]) - 1)
     if w_max < 3 or x[STATE.lost] >= 0.0:
         return
-    if x[STATE.landed] != 0.0 or x[STATE.time] - x[STATE.contact_t] <= p[PARAM.contact_hold_s]:
-        return
-    if x[STATE.time] - x[STATE.cut_t] <= p[PARAM.cut_hold_s]:
+    if _holding(x, p):
         return
     head = int(x[STATE.glr_head])  # the slot of the next sample: the last is head − 1, wrapped
     last = STATE.glr + _ring(head - 1) * GLR_ROW
@@ -849,6 +929,7 @@ class Detector:
         """Back to the start: every rotor intact, nothing found."""
         self._state = np.zeros(STATE.end)
         self._state[STATE.cut_t] = -np.inf
+        self._state[STATE.scale : STATE.scale + 3] = 1.0
         self._out = np.zeros(DIAG)
 
     def compiled(self) -> tuple:
@@ -877,6 +958,11 @@ class Detector:
     @property
     def effectiveness(self) -> np.ndarray:
         return self._state[STATE.eta : STATE.eta + self.rotors].copy()
+
+    @property
+    def moment_scale(self) -> np.ndarray:
+        """The rotors' moment about x, y and z against the model's, learnt so far (1: the model's)."""
+        return self._state[STATE.scale : STATE.scale + 3].copy()
 
     def result(self, t: ArrayLike | None = None, effectiveness: ArrayLike | None = None) -> Detection:
         """What was found so far (with the per-sample times and effectiveness given, if any)."""

@@ -43,6 +43,10 @@ class DiagnoseParams:
     glr: bool = False
     """The in-flight detector's fast test: off, its model of a window's rate change needs the
     rotors' outputs at the IMU's rate, which logs hold at 10-50 Hz."""
+    moment_scale_s: float = 0.0
+    """The in-flight detector's moment learnt in flight (its memory, s; 0: off): a log's motor
+    outputs at 10-50 Hz, mapped to speeds through a generic motor, leave its model's rate change
+    coarse (docs/diagnose.md)."""
     settle_s: float = 2.0
     """Seconds after take-off before the detector starts (leaving the ground)."""
     before_landing_s: float = 1.5
@@ -182,6 +186,7 @@ def find_failures(log: MotorLog, vehicle: MultirotorParams, params: DiagnosePara
         weighted_others=params.weighted_others,
         contact_margin=params.contact_margin,
         glr=params.glr,
+        moment_scale_s=params.moment_scale_s,
         **noise,
     )
     failures = []
@@ -282,6 +287,7 @@ IN_FLIGHT = {
     "weighted_others": "deficit against the better-known rotors",
     "contact_margin": "contact gate",
     "glr": "fast test",
+    "moment_scale_s": "learnt moment",
 }
 """The detector's settings the log mode sets apart from the in-flight detector's defaults."""
 
