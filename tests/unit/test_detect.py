@@ -105,7 +105,8 @@ def test_a_common_thrust_error_moves_every_rotor_alike():
 def test_a_common_thrust_error_slows_a_loss_found_unless_the_deficit_is_relative(rotor):
     """A thrust coefficient 20 % too high scales every effectiveness to 1/1.2 and a lost rotor's
     to 0: the plain deficit (0.83) accumulates past the drift 0.6 at about half the rate, 10 ms
-    and more later than with the exact model (636 ms later on rotor 2); relative to the others
+    and more later than with the exact model (636 ms later on rotor 2 with the moment as given,
+    0.42 s with it learnt); relative to the others
     (``relative_deficit``) it stays 1, and the loss is found within a sample of the exact
     model's. The air's drag is off: in this windless hover it only moves the delays by a few
     samples either way."""
@@ -155,13 +156,14 @@ def test_the_airs_drag_on_the_rotors_is_read_from_the_accelerometer():
 def test_a_gust_in_a_fast_manoeuvre_raises_no_alarm_with_the_airs_drag():
     """Training flight 6401 (figure eight, a gust near 9.6 m/s at 12.4 s): the yaw moment of the
     rotors' drag in the air, which the detector's model lacked, raised an alarm; read from the
-    accelerometer (``air_drag``), nothing passes even half the threshold (without it, the moment
-    learnt in flight is taken away too: it removes that alarm as well)."""
+    accelerometer (``air_drag``), nothing passes even half the threshold (both checked without
+    the moment learnt in flight, which removes that alarm as well)."""
     from quadest.evaluation.detection import crossings, nominal_case
 
     case = nominal_case(6401, "rotor-speeds", 60.0)
-    assert crossings(case, (0.002, 0.004), DetectorParams())["first"] == {"0.002": None, "0.004": None}
-    off = crossings(case, (0.004,), DetectorParams(air_drag=False, moment_scale_s=0.0))["first"]["0.004"]
+    alone = DetectorParams(moment_scale_s=0.0)  # the air's drag alone: the moment learnt removes that alarm too
+    assert crossings(case, (0.002, 0.004), alone)["first"] == {"0.002": None, "0.004": None}
+    off = crossings(case, (0.004,), replace(alone, air_drag=False))["first"]["0.004"]
     assert off is not None and 12.0 < off[0] < 13.0
 
 
@@ -170,10 +172,10 @@ def test_the_moment_learnt_in_flight_is_the_vehicles():
     within 1 % of 1. With its inertia off by +15 / −12 / +10 %, its mass by +8 % and its thrust
     coefficient by +5 %, the moment to learn is ``(J_model / J)(m / m_model)`` about roll and
     pitch, times ``k_f,model / k_f`` about yaw (the common effectiveness takes the thrust's error;
-    the yaw moment is the drag torque's, not ``k_f``'s): 6 / 23 / 7 % from the model's; what it
-    learns is within 11 %, and the largest error less than half what it was (the inertia's error
-    also in the body's own moments, which it does not scale, leaves the rest: docs/detection.md).
-    Learning off, it stays 1."""
+    the yaw moment is the drag torque's, not ``k_f``'s); a scale of 1 is 6 / 23 / 7 % off it. What
+    it learns is within 11 % of it on every axis, and nearer than three quarters of the model's
+    error on every axis (the inertia's error also in the body's own moments, which it does not
+    scale, leaves the rest: docs/detection.md). Learning off, it stays 1."""
     f = fly("aggressive", seed=1, duration=20.0, vehicle="bebop2")
     rec, speeds = f.recording, f.states[:, 13:]
     exact = Detector(BEBOP)
@@ -185,24 +187,33 @@ def test_the_moment_learnt_in_flight_is_the_vehicles():
     det = Detector(model)
     det.run(rec.t, rec.gyr, rec.acc, speeds)
     error, before = np.abs(det.moment_scale / expected - 1.0), np.abs(1.0 / expected - 1.0)
-    assert error.max() < 0.11 and error[1] < 0.5 * before[1], (det.moment_scale, expected)
+    assert error.max() < 0.11 and np.all(error < 0.75 * before), (det.moment_scale, expected)
     off = Detector(model, moment_scale_s=0.0)
     off.run(rec.t, rec.gyr, rec.acc, speeds)
     assert np.all(off.moment_scale == 1.0)
 
 
 def test_a_hovers_own_corrections_do_not_move_the_moment_learnt():
-    """A hover from a disturbed start in a gusty wind, the detector's model exact: the rate loop's
-    answers to its own disturbances are correlated with them (a closed loop's identification
-    bias), and below the prior's excitation the moment learnt stays within 3 % of the model's."""
+    """A hover in a gusty wind, the detector's model exact: the rate loop's answers to its own
+    disturbances are correlated with them (a closed loop's identification bias). With the prior
+    the moment learnt stays within 4 % of the model's over the whole flight (its largest
+    excursion 2.9 %); with a prior of 1 rad/s² instead of 5 it leaves by 5 %."""
     from quadest.sim.wind import WindParams
 
     wind = WindParams(mean_m_s=4.0, turbulence_m_s=1.5, gusts=1, gust_m_s=6.0)
     f = fly("hover", seed=2, duration=20.0, vehicle="bebop2", params=FlightParams(wind=wind))
     rec = f.recording
-    det = Detector(BEBOP)
-    det.run(rec.t, rec.gyr, rec.acc, f.states[:, 13:])
-    assert np.abs(det.moment_scale - 1.0).max() < 0.03, det.moment_scale
+
+    def largest_excursion(**params):
+        det, worst = Detector(BEBOP, **params), 0.0
+        for k in range(0, len(rec.t), 250):  # half a second at a time
+            part = slice(k, k + 250)
+            det.run(rec.t[part], rec.gyr[part], rec.acc[part], f.states[part, 13:])
+            worst = max(worst, np.abs(det.moment_scale - 1.0).max())
+        return worst
+
+    assert largest_excursion() < 0.04
+    assert largest_excursion(moment_scale_prior=1.0) > 0.04
 
 
 def test_a_manoeuvre_with_the_model_off_raises_no_alarm_with_the_moment_learnt():

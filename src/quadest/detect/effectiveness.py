@@ -283,7 +283,7 @@ class DetectorParams(Params):
         "memory of the rotors' moment per axis learnt in flight against the detector's model (inertia, mass, "
         "thrust coefficient off), by least squares on the band-passed rate change (0: the model as given)",
         "chosen on training seeds: alarms in 12 h of nominal flight 1 / 0 (rotor speeds / commands) against 2 / 1 "
-        "without, the losses' delay the same or shorter (docs/detection.md, The moment learnt in flight)",
+        "without, the losses' delays alike (docs/detection.md, The moment learnt in flight)",
         "[0, 1e4]",
     )
     moment_scale_prior: float = param(
@@ -291,8 +291,8 @@ class DetectorParams(Params):
         "rad/s²",
         "the learnt moment stays near the model's until the modelled angular acceleration, band-passed, passes "
         "about this RMS over the memory (a hover's corrections of its own disturbances would bias it low)",
-        "chosen on five training flights: 2 biased the hovers' scale low by 5-10 %",
-        "[0, 1e4]",
+        "chosen on five training flights: 2 biased the hovers' scale 3-9 % lower",
+        "(0, 1e4]",
     )
     lost_drift: float = param(0.6, "-", "deficit the 'lost' test ignores (ν)", "chosen: above a 50 % loss", "(0, 1]")
     lost_threshold: float = param(
