@@ -504,6 +504,7 @@ def _learn_moment_scale(x, p, c, gyr, a, base, dt):
     fast, slow = min(dt / SCALE_LP, 1.0), min(dt / SCALE_HP, 1.0)
     keep = 1.0 - min(dt / p[PARAM.moment_scale_s], 1.0)
     prior = (p[PARAM.moment_scale_prior] * dt) ** 2 * p[PARAM.moment_scale_s] / dt
+    step = SCALE_RATE * dt  # the most it moves in a sample: a model's error is steady, a loss is sudden
     valid = x[STATE.samples] >= 2.0  # the last reading is there
     learn = valid and x[STATE.lost] < 0.0 and not _holding(x, p)
     for i in range(n):  # a deficit past the 'lost' drift: maybe a loss, whose moments are not the model's
@@ -524,10 +525,9 @@ def _learn_moment_scale(x, p, c, gyr, a, base, dt):
             yb, ub = x[Y + j] - x[Y + 3 + j], x[U + j] - x[U + 3 + j]
             x[S + j] = keep * x[S + j] + yb * ub
             x[S + 3 + j] = keep * x[S + 3 + j] + ub * ub
-            ratio = (x[S + j] + prior) / (x[S + 3 + j] + prior)
-            step = SCALE_RATE * dt  # a model's error is steady, a loss is sudden
-            ratio = min(max(ratio, x[STATE.scale + j] - step), x[STATE.scale + j] + step)
-            x[STATE.scale + j] = min(max(ratio, 1.0 - SCALE_RANGE), 1.0 + SCALE_RANGE)
+            slope = (x[S + j] + prior) / (x[S + 3 + j] + prior)
+            paced = min(max(slope, x[STATE.scale + j] - step), x[STATE.scale + j] + step)
+            x[STATE.scale + j] = min(max(paced, 1.0 - SCALE_RANGE), 1.0 + SCALE_RANGE)
         scale = x[STATE.scale + j]
         for i in range(n):
             x[STATE.B + j * MAX_ROTORS + i] *= scale
