@@ -107,6 +107,16 @@ def synthetic_log(thrust_scale) -> MotorLog:
     )  # fmt: skip
 
 
+def test_the_imus_place_is_the_autopilots_parameter():
+    """ArduPilot's INS_POS1_X/Y/Z and PX4's EKF2_IMU_POS_X/Y/Z, in metres and body FRD as the
+    detector takes them; 0 where the log has none."""
+    from quadest.readers.motors import _imu_position
+
+    assert _imu_position({"INS_POS1_X": 0.02, "INS_POS1_Z": -0.01}, "INS_POS1_") == (0.02, 0.0, -0.01)
+    assert _imu_position({"EKF2_IMU_POS_Y": 0.015}, "EKF2_IMU_POS_") == (0.0, 0.015, 0.0)
+    assert _imu_position({}, "INS_POS1_") == (0.0, 0.0, 0.0)
+
+
 def test_a_motor_working_harder_is_its_excess():
     shares = motor_shares(synthetic_log([1.0, 1.25, 1.0, 1.0]))
     excess = [r["excess"] for r in shares]

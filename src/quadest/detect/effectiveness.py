@@ -11,7 +11,8 @@ with ``Ω_i`` the rotor speeds (measured, or from the commands through the detec
 model), and the effectiveness walks randomly. The gyroscope measures ``ω``; the
 accelerometer's z measures ``−Σ η_i k_f Ω_i² / m``. Both are linear in the state given the
 rotor speeds and the measured rate, so the filter is a linear Kalman filter, updated one scalar
-at a time.
+at a time. The accelerometer is read at the centre of mass: what its lever arm adds is taken out
+first (``lever_arm``, the IMU's position given).
 
 The yaw moment of the rotors' drag as the vehicle moves through the air is read from the
 accelerometer's x and y (``air_drag``). The rotors' moment about each axis is scaled by what
@@ -92,6 +93,8 @@ STATE = layout(
     ("scale_y", 6),  # per axis, the measured rate change less the model's without the rotors, low-passed
     ("scale_u", 6),  # over SCALE_LP and that over SCALE_HP; the rotors' modelled rate change, the same
     ("scale_sums", 6),  # Σ y u, then Σ u u, per axis, over the scale's memory
+    ("alpha", 3),  # scratch of one step: the model's angular acceleration over the interval
+    ("acc_cg", 3),  # and the accelerometer's reading moved to the centre of mass
 )
 SCALE_LP = 0.02  # s: above the gyroscope's noise and the rotors' tone (chosen)
 SCALE_HP = 1.0  # s: below the manoeuvres; what the model misses steadily (wind, trim) is left out (chosen)
@@ -113,6 +116,7 @@ MODEL = layout(
     ("g", 3 * MAX_ROTORS),  # per rotor: the moment per unit thrust
     ("ip_s", MAX_ROTORS),  # per rotor: its inertia times its sense, I_p s_i (the rotors' momentum per speed)
     ("body_drag", 2),  # the body's quadratic drag along x and y
+    ("imu", 3),  # the accelerometer's position from the centre of mass (body, m)
 )
 
 
@@ -294,6 +298,13 @@ class DetectorParams(Params):
         "chosen on five training flights: 2 biased the hovers' scale 3-9 % lower",
         "(0, 1e4]",
     )
+    lever_arm: bool = param(
+        True,
+        "-",
+        "remove from the accelerometer's reading what its place off the centre of mass adds (the IMU's position "
+        "given to the detector; off: the reading taken as the centre of mass's)",
+        "measured: docs/detection.md, The accelerometer's place",
+    )
     lost_drift: float = param(0.6, "-", "deficit the 'lost' test ignores (ν)", "chosen: above a 50 % loss", "(0, 1]")
     lost_threshold: float = param(
         0.004,
@@ -322,9 +333,10 @@ DIAG = MAX_ROTORS + 4
 STAT = MAX_ROTORS
 
 
-def model_coefficients(vehicle) -> np.ndarray:
+def model_coefficients(vehicle, imu_position=(0.0, 0.0, 0.0)) -> np.ndarray:
     """The detector's model of a vehicle (a :class:`~quadest.models.multirotor.MultirotorParams`:
-    the detector's own, never the simulated truth's) packed for the compiled step."""
+    the detector's own, never the simulated truth's) and of where its accelerometer sits
+    (``imu_position``, m from the centre of mass, body axes) packed for the compiled step."""
     pos, spin = np.asarray(vehicle.rotor_pos, float), np.asarray(vehicle.spin, float)
     n = len(pos)
     if not 2 <= n <= MAX_ROTORS:
@@ -336,7 +348,10 @@ def model_coefficients(vehicle) -> np.ndarray:
     values += [vehicle.omega_max, vehicle.omega_dot_max, *vehicle.damping, *vehicle.rot_drag, *g.ravel()]
     ip_s = np.zeros(MAX_ROTORS)
     ip_s[:n] = vehicle.rotor_inertia * spin
-    return pack(values + list(ip_s) + list(vehicle.body_drag[:2]))
+    imu = np.asarray(imu_position, float)
+    if imu.shape != (3,) or not np.isfinite(imu).all():
+        raise ValueError(f"detector: imu_position must be three finite values (m), got {imu_position!r}")
+    return pack(values + list(ip_s) + list(vehicle.body_drag[:2]) + list(imu))
 
 
 @njit(cache=True, inline="always")
@@ -462,7 +477,9 @@ def _predict(x, p, c, gyr, dt):
         rotors_part = 0.0
         for i in range(n):
             rotors_part += x[B + j * MAX_ROTORS + i] * x[STATE.eta + i]
-        x[STATE.w + j] = a[j] * x[STATE.w + j] + base[j] + rotors_part
+        change = (a[j] - 1.0) * x[STATE.w + j] + base[j] + rotors_part
+        x[STATE.w + j] += change
+        x[STATE.alpha + j] = change / dt
         x[FP + j] = floor + (rel[j] * rotors_part) ** 2  # the model's error grows with the moment
     # F = [[diag(a), B], [0, I]]: rows 0-2 of F P, then (F P) Fᵀ
     q0, q1, q2 = x[FP], x[FP + 1], x[FP + 2]
@@ -566,12 +583,13 @@ def _update(x, ns, z, r):
 
 @njit(cache=True, inline="always")
 def _correct(x, p, c, gyr, acc):
-    """The gyroscope's three rates and the accelerometer's z."""
+    """The gyroscope's three rates and the accelerometer's z, moved to the centre of mass."""
     n = int(c[MODEL.rotors])
     ns = 3 + n
     h = STATE.h
     for a in range(ns):
         x[h + a] = 0.0
+    acc = _at_centre_of_mass(x, p, c, acc)
     rg = p[PARAM.gyro_noise] ** 2
     for j in range(3):
         x[h + j] = 1.0
@@ -590,6 +608,27 @@ def _correct(x, p, c, gyr, acc):
         elif intact > 0.9 * GRAVITY:  # the rotors carry the weight again (lifted off)
             x[STATE.landed] = 0.0
         _update(x, ns, acc[2], p[PARAM.acc_noise] ** 2)
+
+
+@njit(cache=True, inline="always")
+def _at_centre_of_mass(x, p, c, acc):
+    """The accelerometer's reading less what its place ``r`` off the centre of mass adds,
+    ``α × r + ω × (ω × r)``, with the model's rate and angular acceleration over the interval
+    (a gyroscope's difference would carry its rotors' tone, tens of rad/s² at a sample's
+    spacing). Kept in ``STATE.acc_cg``: every later use reads it."""
+    out = STATE.acc_cg
+    if p[PARAM.lever_arm] == 0.0:
+        for j in range(3):
+            x[out + j] = acc[j]
+        return x[out : out + 3]
+    w0, w1, w2 = x[STATE.w], x[STATE.w + 1], x[STATE.w + 2]
+    a0, a1, a2 = x[STATE.alpha], x[STATE.alpha + 1], x[STATE.alpha + 2]
+    r0, r1, r2 = c[MODEL.imu], c[MODEL.imu + 1], c[MODEL.imu + 2]
+    v0, v1, v2 = w1 * r2 - w2 * r1, w2 * r0 - w0 * r2, w0 * r1 - w1 * r0  # ω × r
+    x[out] = acc[0] - (a1 * r2 - a2 * r1) - (w1 * v2 - w2 * v1)
+    x[out + 1] = acc[1] - (a2 * r0 - a0 * r2) - (w2 * v0 - w0 * v2)
+    x[out + 2] = acc[2] - (a0 * r1 - a1 * r0) - (w0 * v1 - w1 * v0)
+    return x[out : out + 3]
 
 
 @njit(cache=True, inline="always")
@@ -862,6 +901,7 @@ def detect_step(x, p, c, gyr, acc, rotors, dt, diag):
     gyro_noise_estimate(x, p, gyr, dt)
     _predict(x, p, c, gyr, dt)
     _correct(x, p, c, gyr, acc)
+    acc = x[STATE.acc_cg : STATE.acc_cg + 3]
     _air_lowpass(x, c, acc, gyr[2], dt)
     x[STATE.time] += dt
     _test(x, p, c, dt)
@@ -911,17 +951,25 @@ class Detection:
 class Detector:
     """Rotor-failure detection and isolation for one vehicle (module doc): ``vehicle`` is the
     detector's model (a :class:`~quadest.models.multirotor.MultirotorParams`), ``params`` a
-    :class:`DetectorParams` (or keyword overrides). Streaming :meth:`update` and batch
-    :meth:`run` call one compiled step."""
+    :class:`DetectorParams` (or keyword overrides), ``imu_position`` the accelerometer's place
+    from the centre of mass (m, body FRD; an autopilot's ``INS_POS`` / ``EKF2_IMU_POS``).
+    Streaming :meth:`update` and batch :meth:`run` call one compiled step."""
 
-    def __init__(self, vehicle: MultirotorParams, params: DetectorParams | None = None, **overrides):
+    def __init__(
+        self,
+        vehicle: MultirotorParams,
+        params: DetectorParams | None = None,
+        *,
+        imu_position=(0.0, 0.0, 0.0),
+        **overrides,
+    ):
         params = params if params is not None else DetectorParams()
         if overrides:
             params = replace(params, **overrides)
         check(params, "detector")
         self.params, self.vehicle = params, vehicle
         self._values = pack(params.values()[f] for f in PARAM._fields)
-        self._model = model_coefficients(vehicle)
+        self._model = model_coefficients(vehicle, imu_position)
         self.rotors = vehicle.rotors
         self.reset()
 

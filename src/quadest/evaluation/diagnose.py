@@ -191,7 +191,7 @@ def find_failures(log: MotorLog, vehicle: MultirotorParams, params: DiagnosePara
     )
     failures = []
     for start, end in runs(mask, shortest=11):
-        det = Detector(vehicle, detector_params)
+        det = Detector(vehicle, detector_params, imu_position=log.imu_position)
         sl = slice(start, end)
         found = det.run(log.t[sl], log.gyr[sl], log.acc[sl], OMEGA_REF * np.sqrt(rotors[sl]))
         if found.lost is not None:

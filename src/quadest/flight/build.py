@@ -190,7 +190,7 @@ def bank(model=None, rp: RecoveryParams | None = None, *, mass=1.0, t_throw=0.0)
     )
 
 
-def detection(mode="oracle", *, vehicle=None, params=None, n=1, noise=None):
+def detection(mode="oracle", *, vehicle=None, params=None, n=1, noise=None, imu_position=(0.0, 0.0, 0.0)):
     """The loop's :data:`~quadest.flight.detection.Detection`: the detector (``params``, a
     :class:`~quadest.detect.DetectorParams`) with ``vehicle`` as its model of the vehicle (the
     detector's own), the rotor speed readings' relative ``noise`` per sample; ``oracle``: none."""
@@ -198,7 +198,9 @@ def detection(mode="oracle", *, vehicle=None, params=None, n=1, noise=None):
     if mode == "oracle":
         x, p, c = np.zeros(STATE.end), np.zeros(1), np.zeros(1)
     else:
-        det = Detector(vehicle, params or DetectorParams(rotor_speeds=mode == "rotor-speeds"))
+        det = Detector(
+            vehicle, params or DetectorParams(rotor_speeds=mode == "rotor-speeds"), imu_position=imu_position
+        )
         x, p, c, _ = det.compiled()
     return Detection.make(
         mode=DETECTION_MODES.index(mode),

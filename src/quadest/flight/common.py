@@ -114,6 +114,15 @@ class FlightParams:
         "chosen: a vehicle weighed and its propellers measured within 10 %",
         bounds="[0, 0.9]",
     )
+    detector_imu_error: float = param(
+        0.005,
+        "m",
+        "the IMU's position from the centre of mass the detector is given (an autopilot's INS_POS / "
+        "EKF2_IMU_POS): the sensors' lever arm, each axis off by a distance drawn uniformly within ±this per flight",
+        "chosen: the centre of mass found by balancing the vehicle and the IMU's place on the board each within "
+        "a few millimetres",
+        bounds="[0, 0.1]",
+    )
     clip_rate: str = param(
         "commands",
         "-",

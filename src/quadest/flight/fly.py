@@ -212,7 +212,7 @@ def fly(
             limited_k=(descent := descent_start(ref[1][:, 2], params.landing_m_s)),  # PX4's thrust limits
             **inflight.recovery_control(watching),
         ),
-        detection=_detection(detection, detector, vehicle, params, seed, n),
+        detection=_detection(detection, detector, vehicle, params, seed, n, cfg.acc.lever_arm),
         landing=land_detector(vehicle, rate, descent, params.landing_m_s * params.land_detector),
         n=n,
         rotors=vehicle.rotors,
@@ -463,23 +463,26 @@ def _ftc_gains(ftc, vehicle, controller, failure, oracle):
     return (ftc.gains(vehicle, failure.rotor if controller == "ftc" else 0),) * vehicle.rotors
 
 
-def _detection(mode, detector, vehicle, params, seed, n):
+def _detection(mode, detector, vehicle, params, seed, n, imu_position):
     """The detector in the loop, with its own model of the vehicle (the flight's, each of mass,
-    inertia and thrust coefficient off by a factor drawn per flight) and the rotor speed
-    readings' noise, both from the flight's seed."""
+    inertia and thrust coefficient off by a factor drawn per flight), the sensors' lever arm
+    ``imu_position`` off by a distance drawn per flight, and the rotor speed readings' noise,
+    all from the flight's seed."""
     if mode not in DETECTION_MODES:
         raise UsageError(f"unknown detection {mode!r}; detection: {', '.join(DETECTION_MODES)}")
     if mode == "oracle":
         return build.detection()
-    model, rng_speed = _detector_model(vehicle, params, seed)
+    model, rng_speed, imu_error = _detector_model(vehicle, params, seed)
     noise = rng_speed.standard_normal((n, vehicle.rotors)) * params.speed_noise
-    return build.detection(mode, vehicle=model, params=detector, n=n, noise=noise)
+    imu = np.asarray(imu_position, float) + imu_error
+    return build.detection(mode, vehicle=model, params=detector, n=n, noise=noise, imu_position=imu)
 
 
 def _detector_model(vehicle, params, seed):
     """The detector's model of the vehicle (the flight's, each of mass, inertia and thrust
-    coefficient off by a factor within ``params.detector_model_error`` drawn per flight) and
-    the generator of its rotor speed readings' noise, both from the flight's seed."""
+    coefficient off by a factor within ``params.detector_model_error`` drawn per flight), the
+    generator of its rotor speed readings' noise and the error of the IMU's position it is given
+    (within ``params.detector_imu_error`` per axis), all from the flight's seed."""
     rng_model, rng_speed = (np.random.default_rng(s) for s in np.random.SeedSequence([int(seed), 29]).spawn(2))
     e = params.detector_model_error
     model = replace(
@@ -488,7 +491,7 @@ def _detector_model(vehicle, params, seed):
         inertia=tuple(np.asarray(vehicle.inertia) * (1 + rng_model.uniform(-e, e, 3))),
         k_f=vehicle.k_f * (1 + rng_model.uniform(-e, e)),
     )
-    return model, rng_speed
+    return model, rng_speed, rng_model.uniform(-1.0, 1.0, 3) * params.detector_imu_error
 
 
 def _clip_rate(params, vehicle, cfg, seed, n):
@@ -496,7 +499,7 @@ def _clip_rate(params, vehicle, cfg, seed, n):
     model of the vehicle (:func:`_detector_model`) and the gyroscope's range (the sensor's
     configuration, as an autopilot knows it); its rotor speed readings' noise from a generator
     of its own."""
-    model, _ = _detector_model(vehicle, params, seed)
+    model = _detector_model(vehicle, params, seed)[0]
     noise = None
     if params.clip_rate == "rotor-speeds":
         rng = np.random.default_rng(np.random.SeedSequence([int(seed), 31]))

@@ -50,6 +50,7 @@ class MotorLog:
     output_unit: str = "us"
     notes: list[str] = field(default_factory=list)
     channels: list[int] = field(default_factory=list)  # each motor's output channel (1-based)
+    imu_position: tuple = (0.0, 0.0, 0.0)  # the IMU from the centre of mass, body FRD (m), as the log's parameters say
 
     @property
     def imu_rate(self) -> float:
@@ -176,7 +177,14 @@ def _read_ardupilot(path: Path) -> MotorLog:
         "us",
         notes,
         channels,
+        _imu_position(params, "INS_POS1_"),
     )
+
+
+def _imu_position(params, prefix) -> tuple:
+    """The IMU's position from the centre of mass the autopilot was given (m, body FRD; 0 where
+    the log has none): ArduPilot's ``INS_POS1_X/Y/Z``, PX4's ``EKF2_IMU_POS_X/Y/Z``."""
+    return tuple(float(params.get(f"{prefix}{a}", 0.0)) for a in "XYZ")
 
 
 def _motor_channels(params, n, notes) -> list[int]:
@@ -271,6 +279,7 @@ def _read_px4(path: Path) -> MotorLog:
         unit,
         notes,
         list(range(1, n + 1)),
+        _imu_position(params, "EKF2_IMU_POS_"),
     )
 
 
