@@ -157,11 +157,12 @@ def test_a_gust_in_a_fast_manoeuvre_raises_no_alarm_with_the_airs_drag():
     """Training flight 6401 (figure eight, a gust near 9.6 m/s at 12.4 s): the yaw moment of the
     rotors' drag in the air, which the detector's model lacked, raised an alarm; read from the
     accelerometer (``air_drag``), nothing passes even half the threshold (both checked without
-    the moment learnt in flight, which removes that alarm as well)."""
+    the moment learnt in flight, which removes that alarm as well, and with the accelerometer read
+    where it sits, as when the air's drag was chosen)."""
     from quadest.evaluation.detection import crossings, nominal_case
 
     case = nominal_case(6401, "rotor-speeds", 60.0)
-    alone = DetectorParams(moment_scale_s=0.0)  # the air's drag alone: the moment learnt removes that alarm too
+    alone = DetectorParams(moment_scale_s=0.0, lever_arm=False)  # the air's drag alone, as chosen
     assert crossings(case, (0.002, 0.004), alone)["first"] == {"0.002": None, "0.004": None}
     off = crossings(case, (0.004,), replace(alone, air_drag=False))["first"]["0.004"]
     assert off is not None and 12.0 < off[0] < 13.0
@@ -219,13 +220,13 @@ def test_a_hovers_own_corrections_do_not_move_the_moment_learnt():
 def test_a_manoeuvre_with_the_model_off_raises_no_alarm_with_the_moment_learnt():
     """Training flight 6503 (a figure eight in a 4.9 m/s wind, the detector's mass −7.9 %, inertia
     +8.4 / −8.1 / +6.4 %): with the model as given its largest 'lost' sum passes the default
-    threshold at 42.3 s (and 0.018 at 51.3 s); with the moment learnt in flight nothing passes a
-    tenth of it."""
+    threshold at 42.3 s (and 0.018 at 51.3 s; both with the accelerometer read where it sits, as when
+    the moment learnt was chosen); with the moment learnt in flight nothing passes a tenth of it."""
     from quadest.evaluation.detection import crossings, nominal_case
 
     case = nominal_case(6503, "rotor-speeds", 60.0)
     assert crossings(case, (0.0004,), DetectorParams())["first"] == {"0.0004": None}
-    off = crossings(case, (0.004,), DetectorParams(moment_scale_s=0.0))["first"]["0.004"]
+    off = crossings(case, (0.004,), DetectorParams(moment_scale_s=0.0, lever_arm=False))["first"]["0.004"]
     assert off is not None and 42.0 < off[0] < 42.5
 
 

@@ -960,7 +960,7 @@ class Detector:
         vehicle: MultirotorParams,
         params: DetectorParams | None = None,
         *,
-        imu_position=(0.0, 0.0, 0.0),
+        imu_position: ArrayLike = (0.0, 0.0, 0.0),
         **overrides,
     ):
         params = params if params is not None else DetectorParams()
