@@ -10,6 +10,7 @@ import pytest
 
 from quadest.control import Failure
 from quadest.detect import Detector, DetectorParams
+from quadest.detect.effectiveness import STATE, _update_rate, _update_thrust
 from quadest.flight import FlightParams, fly
 from quadest.models import vehicle_preset
 from quadest.models.multirotor import rotor_forces
@@ -38,6 +39,26 @@ def test_the_detectors_model_is_the_vehicles():
     assert np.abs(eta.mean(axis=0) - 1.0).max() < 0.02, eta.mean(axis=0)
     assert eta.std(axis=0).max() < 0.06, eta.std(axis=0)
     assert res.lost is None and res.damaged is None
+
+
+def test_the_filters_updates_are_the_kalman_filters(rotors=4):
+    """The gyroscope's and the accelerometer's scalar updates, written for their rows' zeros and
+    on P's upper triangle, against the dense Kalman update ``K = P h / (hᵀ P h + r)``."""
+    rng = np.random.default_rng(5)
+    ns = 3 + rotors
+    a = rng.normal(size=(ns, ns))
+    P0, s0, h = a @ a.T + np.eye(ns), rng.normal(size=ns), np.r_[0.0, 0.0, 0.0, rng.normal(size=rotors)]
+    rows = [(np.eye(ns)[j], 0.3 + j, lambda x, z, r, j=j: _update_rate(x, ns, j, z, r)) for j in range(3)]
+    rows.append((h, 2.0, lambda x, z, r: _update_thrust(x, ns, z, r)))
+    for row, z, update in rows:
+        x = np.zeros(STATE.end)
+        x[STATE.P : STATE.P + ns * ns], x[STATE.w : STATE.w + ns], x[STATE.h : STATE.h + ns] = P0.ravel(), s0, row
+        update(x, z, 0.05)
+        k = P0 @ row / (row @ P0 @ row + 0.05)
+        np.testing.assert_allclose(x[STATE.w : STATE.w + ns], s0 + k * (z - row @ s0), rtol=1e-12)
+        np.testing.assert_allclose(
+            x[STATE.P : STATE.P + ns * ns].reshape(ns, ns), P0 - np.outer(k, row @ P0), atol=1e-12
+        )
 
 
 @pytest.mark.parametrize("mode", ["rotor-speeds", "commands"])

@@ -95,6 +95,7 @@ STATE = layout(
     ("scale_sums", 6),  # Σ y u, then Σ u u, per axis, over the scale's memory
     ("alpha", 3),  # scratch of one step: the model's angular acceleration over the interval
     ("acc_cg", 3),  # and the accelerometer's reading moved to the centre of mass
+    ("thrust", MAX_ROTORS),  # and each intact rotor's thrust at its speed over the interval (N)
 )
 SCALE_LP = 0.02  # s: above the gyroscope's noise and the rotors' tone (chosen)
 SCALE_HP = 1.0  # s: below the manoeuvres; what the model misses steadily (wind, trim) is left out (chosen)
@@ -457,6 +458,7 @@ def _predict(x, p, c, gyr, dt):
         om = x[STATE.omega + i]
         gx, gy = c[MODEL.g + 3 * i], c[MODEL.g + 3 * i + 1]  # gx = −r_y, gy = r_x
         thrust, yaw = rotor_thrust_yaw(c, i, om, w0, w1, w2)
+        x[STATE.thrust + i] = thrust
         yaw += spread * om * (gx * fx + gy * fy)
         # the rotor's inertia: its gyroscopic moment −ω × (I_p s_i Ω_i e_z) and the reaction to its
         # acceleration, from its speed low-passed over H_TAU (speed readings with 1 % noise,
@@ -560,25 +562,48 @@ def _holding(x, p):
 
 
 @njit(cache=True, inline="always")
-def _update(x, ns, z, r):
-    """Scalar Kalman update with the measurement row ``x[STATE.h:]`` (``ns`` values), value
-    ``z``, variance ``r``. The state's rate and effectiveness are contiguous (``STATE.w``)."""
+def _update_thrust(x, ns, z, r):
+    """Scalar Kalman update with the measurement row ``x[STATE.h:]`` (``ns`` values, zero on the
+    rate: the accelerometer's z reads the effectiveness only), value ``z``, variance ``r``. The
+    state's rate and effectiveness are contiguous (``STATE.w``)."""
     P, h, ph, s0 = STATE.P, STATE.h, STATE.ph, STATE.w
-    s = r
-    pred = 0.0
     for a in range(ns):
         v = 0.0
-        for b in range(ns):
+        for b in range(3, ns):
             v += x[P + a * ns + b] * x[h + b]
         x[ph + a] = v
-        s += x[h + a] * v
+    s = r
+    pred = 0.0
+    for a in range(3, ns):
+        s += x[h + a] * x[ph + a]
         pred += x[h + a] * x[s0 + a]
-    e = (z - pred) / s
+    _apply_gain(x, ns, (z - pred) / s, s)
+
+
+@njit(cache=True, inline="always")
+def _update_rate(x, ns, j, z, r):
+    """Scalar Kalman update with the gyroscope's axis ``j``, value ``z``, variance ``r``: the
+    row is the unit vector, so ``P h`` is ``P``'s column ``j``."""
+    P, ph = STATE.P, STATE.ph
+    for a in range(ns):
+        x[ph + a] = x[P + a * ns + j]
+    s = x[P + j * ns + j] + r
+    _apply_gain(x, ns, (z - x[STATE.w + j]) / s, s)
+
+
+@njit(cache=True, inline="always")
+def _apply_gain(x, ns, e, s):
+    """The state moved by ``P h e`` and ``P ← P − (P h)(P h)ᵀ / s``, on and above the diagonal
+    and mirrored (``P`` stays symmetric)."""
+    P, ph, s0 = STATE.P, STATE.ph, STATE.w
     for a in range(ns):
         x[s0 + a] += x[ph + a] * e
     for a in range(ns):
-        for b in range(ns):
-            x[P + a * ns + b] -= x[ph + a] * x[ph + b] / s
+        pa = x[ph + a]
+        for b in range(a, ns):
+            v = x[P + a * ns + b] - pa * x[ph + b] / s
+            x[P + a * ns + b] = v
+            x[P + b * ns + a] = v
 
 
 @njit(cache=True, inline="always")
@@ -587,19 +612,14 @@ def _correct(x, p, c, gyr, acc):
     n = int(c[MODEL.rotors])
     ns = 3 + n
     h = STATE.h
-    for a in range(ns):
-        x[h + a] = 0.0
     acc = _at_centre_of_mass(x, p, c, acc)
     rg = p[PARAM.gyro_noise] ** 2
     for j in range(3):
-        x[h + j] = 1.0
-        _update(x, ns, gyr[j], max(rg, x[STATE.gyr_var + j]))
-        x[h + j] = 0.0
+        _update_rate(x, ns, j, gyr[j], max(rg, x[STATE.gyr_var + j]))
     if np.isfinite(acc[2]):
         intact = 0.0
         for i in range(n):
-            gx, gy = c[MODEL.g + 3 * i], c[MODEL.g + 3 * i + 1]
-            x[h + 3 + i] = -_thrust(c, x[STATE.omega + i], gyr[0], gyr[1], gx, gy) / c[MODEL.mass]
+            x[h + 3 + i] = -x[STATE.thrust + i] / c[MODEL.mass]
             intact -= x[h + 3 + i]
         margin = p[PARAM.contact_margin]
         if margin > 0.0 and -acc[2] > 1.3 * intact + margin:  # the ground pushes: the rotors cannot
@@ -607,7 +627,7 @@ def _correct(x, p, c, gyr, acc):
             x[STATE.landed] = 1.0
         elif intact > 0.9 * GRAVITY:  # the rotors carry the weight again (lifted off)
             x[STATE.landed] = 0.0
-        _update(x, ns, acc[2], p[PARAM.acc_noise] ** 2)
+        _update_thrust(x, ns, acc[2], p[PARAM.acc_noise] ** 2)
 
 
 @njit(cache=True, inline="always")
@@ -760,8 +780,7 @@ def _glr_store(x, p, c, gyr, acc, dt):
         for i in range(n):
             x[row + ROW.b + j * MAX_ROTORS + i] = x[STATE.B + j * MAX_ROTORS + i]
     for i in range(n):
-        gx, gy = c[MODEL.g + 3 * i], c[MODEL.g + 3 * i + 1]
-        x[row + ROW.thrust + i] = _thrust(c, x[STATE.omega + i], gyr[0], gyr[1], gx, gy) / c[MODEL.mass]
+        x[row + ROW.thrust + i] = x[STATE.thrust + i] / c[MODEL.mass]
         x[row + ROW.eta + i] = x[STATE.eta + i]
     x[row + ROW.acc_z] = acc[2] if np.isfinite(acc[2]) else np.nan
     x[STATE.glr_head] = (x[STATE.glr_head] + 1.0) % GLR_MAX
