@@ -10,7 +10,7 @@ import pytest
 
 from quadest.control import Failure
 from quadest.detect import Detector, DetectorParams
-from quadest.detect.effectiveness import STATE, _update_rate, _update_thrust
+from quadest.detect.effectiveness import MAX_ROTORS, MODEL, STATE, _predict, _update_rate, _update_thrust
 from quadest.flight import FlightParams, fly
 from quadest.models import vehicle_preset
 from quadest.models.multirotor import rotor_forces
@@ -59,6 +59,28 @@ def test_the_filters_updates_are_the_kalman_filters(rotors=4):
         np.testing.assert_allclose(
             x[STATE.P : STATE.P + ns * ns].reshape(ns, ns), P0 - np.outer(k, row @ P0), atol=1e-12
         )
+
+
+def test_the_filters_prediction_is_f_p_ft_plus_q():
+    """The covariance's prediction, written on the rate's three rows, against ``F P Fᵀ + Q`` with
+    ``F = [[diag(a), B], [0, I]]`` (``B`` as the step built it), and exactly symmetric."""
+    det = Detector(BEBOP, model_error=0.0, yaw_model_error=0.0)
+    x, p, c, _ = det.compiled()
+    det.update([0.1, -0.2, 0.3], [0.0, 0.0, -9.8], [900.0, 950.0, 1000.0, 1050.0], dt=0.002)
+    ns, dt = 7, 0.002
+    a = np.random.default_rng(2).normal(size=(ns, ns))
+    P0 = a @ a.T + np.eye(ns)
+    x[STATE.P : STATE.P + ns * ns] = P0.ravel()
+    _predict(x, p, c, np.array([0.1, -0.2, 0.3]), dt)
+    J, damping = c[MODEL.inertia : MODEL.inertia + 3], c[MODEL.damping : MODEL.damping + 3]
+    F = np.eye(ns)
+    F[:3, :3] = np.diag(1.0 - dt * damping / J)
+    F[:3, 3:] = x[STATE.B : STATE.B + 3 * MAX_ROTORS].reshape(3, MAX_ROTORS)[:, :4]
+    params = det.params
+    Q = np.diag([(params.moment_noise * dt) ** 2] * 3 + [params.eta_walk**2 * dt] * 4)
+    P1 = x[STATE.P : STATE.P + ns * ns].reshape(ns, ns)
+    np.testing.assert_allclose(P1, F @ P0 @ F.T + Q, rtol=1e-12, atol=1e-15)
+    assert np.array_equal(P1, P1.T)
 
 
 @pytest.mark.parametrize("mode", ["rotor-speeds", "commands"])

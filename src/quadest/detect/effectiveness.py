@@ -485,22 +485,28 @@ def _predict(x, p, c, gyr, dt):
         x[FP + j] = floor + (rel[j] * rotors_part) ** 2  # the model's error grows with the moment
     # F = [[diag(a), B], [0, I]]: rows 0-2 of F P, then (F P) Fᵀ
     q0, q1, q2 = x[FP], x[FP + 1], x[FP + 2]
-    for j in range(3):
-        for col in range(ns):
-            s = a[j] * x[P + j * ns + col]
+    for col in range(ns):  # the three rows together: three independent sums in flight
+        s0, s1, s2 = a[0] * x[P + col], a[1] * x[P + ns + col], a[2] * x[P + 2 * ns + col]
+        for i in range(n):
+            pc = x[P + (3 + i) * ns + col]
+            s0 += x[B + i] * pc
+            s1 += x[B + MAX_ROTORS + i] * pc
+            s2 += x[B + 2 * MAX_ROTORS + i] * pc
+        x[FP + col], x[FP + NS + col], x[FP + 2 * NS + col] = s0, s1, s2
+    for r in range(ns):  # (F P Fᵀ)[j, r] = (F P)[j, :] · F[r, :]
+        if r < 3:
+            s0, s1, s2 = a[r] * x[FP + r], a[r] * x[FP + NS + r], a[r] * x[FP + 2 * NS + r]
             for i in range(n):
-                s += x[B + j * MAX_ROTORS + i] * x[P + (3 + i) * ns + col]
-            x[FP + j * NS + col] = s
-    for j in range(3):
-        for r in range(ns):  # (F P Fᵀ)[j, r] = (F P)[j, :] · F[r, :]
-            if r < 3:
-                s = a[r] * x[FP + j * NS + r]
-                for i in range(n):
-                    s += x[FP + j * NS + 3 + i] * x[B + r * MAX_ROTORS + i]
-            else:
-                s = x[FP + j * NS + r]
-            x[P + j * ns + r] = s
-            x[P + r * ns + j] = s
+                br = x[B + r * MAX_ROTORS + i]
+                s0 += x[FP + 3 + i] * br
+                s1 += x[FP + NS + 3 + i] * br
+                s2 += x[FP + 2 * NS + 3 + i] * br
+        else:
+            s0, s1, s2 = x[FP + r], x[FP + NS + r], x[FP + 2 * NS + r]
+        for j, v in ((0, s0), (1, s1), (2, s2)):
+            if r >= 3 or j >= r:  # a pair within the rate's block: the value of the later row
+                x[P + j * ns + r] = v
+                x[P + r * ns + j] = v
     qe = p[PARAM.eta_walk] ** 2 * dt
     x[P] += q0
     x[P + ns + 1] += q1
@@ -850,11 +856,13 @@ def _glr_rotors(x, p, n, w, dt, count, last, first, eta0, rel, g):
     ratio (Cauchy-Schwarz), stays below the threshold cannot fire: it returns no rotor, and the
     decision is the same."""
     R, S = STATE.glr_r, STATE.glr_sig
-    p0 = p1 = p2 = 0.0  # the rotors' rate change over the window at the effectiveness before it
-    for i in range(n):
-        p0 += x[S + i] * x[eta0 + i]
-        p1 += x[S + MAX_ROTORS + i] * x[eta0 + i]
-        p2 += x[S + 2 * MAX_ROTORS + i] * x[eta0 + i]
+    p0 = p1 = p2 = pred = 0.0  # the rotors' rate change and thrust over the window at the effectiveness
+    for i in range(n):  # before it
+        e = x[eta0 + i]
+        p0 += x[S + i] * e
+        p1 += x[S + MAX_ROTORS + i] * e
+        p2 += x[S + 2 * MAX_ROTORS + i] * e
+        pred += x[S + 3 * MAX_ROTORS + i] * e
     best, second, who, mu = 0.0, 0.0, -1, 0.0
     r0 = x[last + ROW.gyr] - x[first + ROW.gyr] - x[R] - p0
     r1 = x[last + ROW.gyr + 1] - x[first + ROW.gyr + 1] - x[R + 1] - p1
@@ -865,9 +873,6 @@ def _glr_rotors(x, p, n, w, dt, count, last, first, eta0, rel, g):
     i2 = 1.0 / (g[2] + m2 + (rel[2] * p2) ** 2)
     r3 = i3 = 0.0
     if count > 0:
-        pred = 0.0
-        for i in range(n):
-            pred += x[S + 3 * MAX_ROTORS + i] * x[eta0 + i]
         r3 = (x[R + 3] + pred) / count
         i3 = count / p[PARAM.acc_noise] ** 2
     bound = r0 * r0 * i0 + r1 * r1 * i1 + r2 * r2 * i2 + r3 * r3 * i3
