@@ -1,6 +1,7 @@
-"""Rotor-failure detection and isolation (quadest.detect): the detector's model against the
-vehicle's, a loss found and isolated in the loop, no alarm in nominal flight with the model
-off by the campaign's ±10 %, the rotors' moment learnt in flight, a partial loss found with its
+"""Rotor-failure detection and isolation (quadest.detect): the filter's updates and prediction
+against plain loops and the dense algebra, the detector's model against the vehicle's, a loss
+found and isolated in the loop, no alarm in nominal flight with the model off by the
+campaign's ±10 %, the rotors' moment learnt in flight, a partial loss found with its
 effectiveness, streaming equal to batch, a bad sample skipped."""
 
 from dataclasses import replace
@@ -41,44 +42,97 @@ def test_the_detectors_model_is_the_vehicles():
     assert res.lost is None and res.damaged is None
 
 
-def test_the_filters_updates_are_the_kalman_filters(rotors=4):
-    """The gyroscope's and the accelerometer's scalar updates, written for their rows' zeros and
-    on P's upper triangle, against the dense Kalman update ``K = P h / (hᵀ P h + r)``."""
-    rng = np.random.default_rng(5)
-    ns = 3 + rotors
+def _row_by_row_update(P, state, h, z, r):
+    """The scalar Kalman update as a plain loop over the whole row and all of ``P`` (the filter's
+    updates skip the row's zeros and half of ``P``: the same sums in the same order)."""
+    P, state, ns = P.copy(), state.copy(), len(state)
+    ph, s, pred = np.zeros(ns), r, 0.0
+    for a in range(ns):
+        v = 0.0
+        for b in range(ns):
+            v += P[a, b] * h[b]
+        ph[a] = v
+        s += h[a] * v
+        pred += h[a] * state[a]
+    for a in range(ns):
+        state[a] += ph[a] * ((z - pred) / s)
+    for a in range(ns):
+        for b in range(ns):
+            P[a, b] -= ph[a] * ph[b] / s
+    return P, state
+
+
+def _symmetric(rng, ns):
     a = rng.normal(size=(ns, ns))
-    P0, s0, h = a @ a.T + np.eye(ns), rng.normal(size=ns), np.r_[0.0, 0.0, 0.0, rng.normal(size=rotors)]
+    m = a @ a.T + np.eye(ns)
+    return 0.5 * (m + m.T)  # exactly symmetric, as the filter's P always is
+
+
+def test_the_filters_updates_are_the_kalman_filters():
+    """The gyroscope's and the accelerometer's scalar updates, written for their rows' zeros and
+    on P's upper triangle: bit for bit the plain loop, and the dense ``K = P h / (hᵀ P h + r)``."""
+    rng, rotors = np.random.default_rng(5), 4
+    ns = 3 + rotors
+    P0, s0, h = _symmetric(rng, ns), rng.normal(size=ns), np.r_[0.0, 0.0, 0.0, rng.normal(size=rotors)]
     rows = [(np.eye(ns)[j], 0.3 + j, lambda x, z, r, j=j: _update_rate(x, ns, j, z, r)) for j in range(3)]
     rows.append((h, 2.0, lambda x, z, r: _update_thrust(x, ns, z, r)))
     for row, z, update in rows:
         x = np.zeros(STATE.end)
         x[STATE.P : STATE.P + ns * ns], x[STATE.w : STATE.w + ns], x[STATE.h : STATE.h + ns] = P0.ravel(), s0, row
         update(x, z, 0.05)
+        P1, s1 = x[STATE.P : STATE.P + ns * ns].reshape(ns, ns), x[STATE.w : STATE.w + ns]
+        P_loop, s_loop = _row_by_row_update(P0, s0, row, z, 0.05)
+        assert np.array_equal(P1, P_loop) and np.array_equal(s1, s_loop)
         k = P0 @ row / (row @ P0 @ row + 0.05)
-        np.testing.assert_allclose(x[STATE.w : STATE.w + ns], s0 + k * (z - row @ s0), rtol=1e-12)
-        np.testing.assert_allclose(
-            x[STATE.P : STATE.P + ns * ns].reshape(ns, ns), P0 - np.outer(k, row @ P0), atol=1e-12
-        )
+        np.testing.assert_allclose(s1, s0 + k * (z - row @ s0), rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(P1, P0 - np.outer(k, row @ P0), rtol=1e-12, atol=1e-15)
+
+
+def _row_by_row_prediction(P, a, B, q_rate, q_eta):
+    """``F P Fᵀ + Q`` as a plain loop, row by row of the rate (the filter sums the three rows
+    together: the same sums in the same order, and within the rate's block the later row's value)."""
+    ns, n = len(P), B.shape[1]
+    FP, out = np.zeros((3, ns)), P.copy()
+    for j in range(3):
+        for col in range(ns):
+            s = a[j] * P[j, col]
+            for i in range(n):
+                s += B[j, i] * P[3 + i, col]
+            FP[j, col] = s
+    for j in range(3):
+        for r in range(ns):
+            if r < 3:
+                s = a[r] * FP[j, r]
+                for i in range(n):
+                    s += FP[j, 3 + i] * B[r, i]
+            else:
+                s = FP[j, r]
+            out[j, r] = out[r, j] = s
+    for j in range(ns):
+        out[j, j] += q_rate if j < 3 else q_eta
+    return out
 
 
 def test_the_filters_prediction_is_f_p_ft_plus_q():
-    """The covariance's prediction, written on the rate's three rows, against ``F P Fᵀ + Q`` with
-    ``F = [[diag(a), B], [0, I]]`` (``B`` as the step built it), and exactly symmetric."""
+    """The covariance's prediction, the rate's three rows summed together: bit for bit the plain
+    row-by-row loop, and ``F P Fᵀ + Q`` with ``F = [[diag(a), B], [0, I]]`` (``B`` as the step
+    built it); exactly symmetric."""
     det = Detector(BEBOP, model_error=0.0, yaw_model_error=0.0)
     x, p, c, _ = det.compiled()
     det.update([0.1, -0.2, 0.3], [0.0, 0.0, -9.8], [900.0, 950.0, 1000.0, 1050.0], dt=0.002)
     ns, dt = 7, 0.002
-    a = np.random.default_rng(2).normal(size=(ns, ns))
-    P0 = a @ a.T + np.eye(ns)
+    P0 = _symmetric(np.random.default_rng(2), ns)
     x[STATE.P : STATE.P + ns * ns] = P0.ravel()
     _predict(x, p, c, np.array([0.1, -0.2, 0.3]), dt)
     J, damping = c[MODEL.inertia : MODEL.inertia + 3], c[MODEL.damping : MODEL.damping + 3]
-    F = np.eye(ns)
-    F[:3, :3] = np.diag(1.0 - dt * damping / J)
-    F[:3, 3:] = x[STATE.B : STATE.B + 3 * MAX_ROTORS].reshape(3, MAX_ROTORS)[:, :4]
-    params = det.params
-    Q = np.diag([(params.moment_noise * dt) ** 2] * 3 + [params.eta_walk**2 * dt] * 4)
+    a = 1.0 - dt * damping / J
+    B = x[STATE.B : STATE.B + 3 * MAX_ROTORS].reshape(3, MAX_ROTORS)[:, :4]
+    q_rate, q_eta = (det.params.moment_noise * dt) ** 2, det.params.eta_walk**2 * dt
     P1 = x[STATE.P : STATE.P + ns * ns].reshape(ns, ns)
+    assert np.array_equal(P1, _row_by_row_prediction(P0, a, B, q_rate, q_eta))
+    F = np.eye(ns)
+    F[:3, :3], F[:3, 3:] = np.diag(a), B
+    Q = np.diag([q_rate] * 3 + [q_eta] * 4)
     np.testing.assert_allclose(P1, F @ P0 @ F.T + Q, rtol=1e-12, atol=1e-15)
     assert np.array_equal(P1, P1.T)
 

@@ -447,8 +447,7 @@ def _predict(x, p, c, gyr, dt):
     """``ω`` over the interval with the mean squared speed over it (``STATE.omega`` holds
     ``√(½(Ω²_begin + Ω²_end))``); ``P ← F P Fᵀ + Q``."""
     n = int(c[MODEL.rotors])
-    ns = 3 + n
-    P, B, FP = STATE.P, STATE.B, STATE.FP  # offsets into x
+    B, FP = STATE.B, STATE.FP  # offsets into x
     w0, w1, w2 = gyr[0], gyr[1], gyr[2]  # the measured rate for the gyroscopic and drag terms
     J0, J1, J2 = c[MODEL.inertia], c[MODEL.inertia + 1], c[MODEL.inertia + 2]
     m0, m1, m2 = body_moments(c, w0, w1, w2)
@@ -483,9 +482,18 @@ def _predict(x, p, c, gyr, dt):
         x[STATE.w + j] += change
         x[STATE.alpha + j] = change / dt
         x[FP + j] = floor + (rel[j] * rotors_part) ** 2  # the model's error grows with the moment
-    # F = [[diag(a), B], [0, I]]: rows 0-2 of F P, then (F P) Fᵀ
+    _propagate_covariance(x, p, n, a, dt)
+
+
+@njit(cache=True, inline="always")
+def _propagate_covariance(x, p, n, a, dt):
+    """``P ← F P Fᵀ + Q`` with ``F = [[diag(a), B], [0, I]]`` (``B`` and the rate's process
+    noise, ``FP``'s first three values, as :func:`_predict` left them): rows 0-2 of ``F P``,
+    then ``(F P) Fᵀ``, the rate's three rows summed together (three independent sums in flight)."""
+    ns = 3 + n
+    P, B, FP = STATE.P, STATE.B, STATE.FP
     q0, q1, q2 = x[FP], x[FP + 1], x[FP + 2]
-    for col in range(ns):  # the three rows together: three independent sums in flight
+    for col in range(ns):
         s0, s1, s2 = a[0] * x[P + col], a[1] * x[P + ns + col], a[2] * x[P + 2 * ns + col]
         for i in range(n):
             pc = x[P + (3 + i) * ns + col]
@@ -504,7 +512,9 @@ def _predict(x, p, c, gyr, dt):
         else:
             s0, s1, s2 = x[FP + r], x[FP + NS + r], x[FP + 2 * NS + r]
         for j, v in ((0, s0), (1, s1), (2, s2)):
-            if r >= 3 or j >= r:  # a pair within the rate's block: the value of the later row
+            # within the rate's block both (j, r) and (r, j) are computed and differ by rounding:
+            # the one from the larger row is kept, as the row-by-row loop before left it
+            if r >= 3 or j >= r:
                 x[P + j * ns + r] = v
                 x[P + r * ns + j] = v
     qe = p[PARAM.eta_walk] ** 2 * dt
@@ -572,7 +582,7 @@ def _update_thrust(x, ns, z, r):
     """Scalar Kalman update with the measurement row ``x[STATE.h:]`` (``ns`` values, zero on the
     rate: the accelerometer's z reads the effectiveness only), value ``z``, variance ``r``. The
     state's rate and effectiveness are contiguous (``STATE.w``)."""
-    P, h, ph, s0 = STATE.P, STATE.h, STATE.ph, STATE.w
+    P, h, ph, w = STATE.P, STATE.h, STATE.ph, STATE.w
     for a in range(ns):
         v = 0.0
         for b in range(3, ns):
@@ -582,7 +592,7 @@ def _update_thrust(x, ns, z, r):
     pred = 0.0
     for a in range(3, ns):
         s += x[h + a] * x[ph + a]
-        pred += x[h + a] * x[s0 + a]
+        pred += x[h + a] * x[w + a]
     _apply_gain(x, ns, (z - pred) / s, s)
 
 
@@ -598,12 +608,13 @@ def _update_rate(x, ns, j, z, r):
 
 
 @njit(cache=True, inline="always")
-def _apply_gain(x, ns, e, s):
-    """The state moved by ``P h e`` and ``P ← P − (P h)(P h)ᵀ / s``, on and above the diagonal
-    and mirrored (``P`` stays symmetric)."""
-    P, ph, s0 = STATE.P, STATE.ph, STATE.w
+def _apply_gain(x, ns, innovation_per_s, s):
+    """The state moved by ``P h`` times the innovation over its variance ``s``, and ``P ← P −
+    (P h)(P h)ᵀ / s`` on and above the diagonal, mirrored (``P`` is exactly symmetric on entry and
+    stays so)."""
+    P, ph, w = STATE.P, STATE.ph, STATE.w
     for a in range(ns):
-        x[s0 + a] += x[ph + a] * e
+        x[w + a] += x[ph + a] * innovation_per_s
     for a in range(ns):
         pa = x[ph + a]
         for b in range(a, ns):
@@ -856,8 +867,9 @@ def _glr_rotors(x, p, n, w, dt, count, last, first, eta0, rel, g):
     ratio (Cauchy-Schwarz), stays below the threshold cannot fire: it returns no rotor, and the
     decision is the same."""
     R, S = STATE.glr_r, STATE.glr_sig
-    p0 = p1 = p2 = pred = 0.0  # the rotors' rate change and thrust over the window at the effectiveness
-    for i in range(n):  # before it
+    # the rotors' rate change and thrust over the window at the effectiveness before it
+    p0 = p1 = p2 = pred = 0.0
+    for i in range(n):
         e = x[eta0 + i]
         p0 += x[S + i] * e
         p1 += x[S + MAX_ROTORS + i] * e

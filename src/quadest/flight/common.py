@@ -120,8 +120,8 @@ class FlightParams:
         "the IMU's position from the centre of mass the detector is given (an autopilot's INS_POS / "
         "EKF2_IMU_POS): the sensors' lever arm, each axis off by a distance drawn uniformly within ±this per flight",
         "chosen: the centre of mass found by balancing the vehicle and the IMU's place on the board each within "
-        "a few millimetres; flown at 0-20 mm: no alarm within 10 mm, 2 in 1,000 disturbed starts at 20 mm "
-        "(docs/detection.md)",
+        "a few millimetres; flown at 0-20 mm (robust in the loop, rotor speeds): no alarm within 10 mm, 2 in 1,000 "
+        "disturbed starts at 20 mm (docs/detection.md)",
         bounds="[0, 0.1]",
     )
     clip_rate: str = param(
