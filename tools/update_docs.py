@@ -1073,7 +1073,9 @@ def results_spin_summary() -> str:
         v = f"k_h {e['vehicle']['k_h']:.3g}, I_p {e['vehicle']['rotor_inertia']:.3g}"
         up = f"{t['survived']}/{t['runs']} up with the true state in the loop"
         if t["spin_rate_rad_s"] is None:
-            return f"the {name} end ({v}) is not held by the fault-tolerant controller ({up})"
+            return (
+                f"the {name} end ({v}) is not held by the former fault-tolerant controller, the reproduction's ({up})"
+            )
         return f"the {name} end ({v}) spins at {t['spin_rate_rad_s']:.1f} rad/s ({up})"
 
     return (
@@ -1082,7 +1084,23 @@ def results_spin_summary() -> str:
         f"vertical; the loss's transient peaks at {f['peak_rate_rad_s']:.0f} rad/s, so its ±1000°/s gyroscope clips on "
         f"{100 * f['gyro_clipped_share']:.1f} % of the samples after the loss. Across the range from sources "
         f"([docs/vehicle.md](docs/vehicle.md#spin-range), `quadest reproduce afckf --spin-range`): "
-        f"{end_text('low')}; {end_text('high')}."
+        f"{end_text('low')}; {end_text('high')}. {_default_ftc_ends()}"
+    )
+
+
+def _default_ftc_ends() -> str:
+    """README: what the default fault-tolerant controller keeps up at each end of the spin range
+    with ``robust`` in the loop (docs/results/spin-range-default.json)."""
+    ends = _load("spin-range-default")["ends"]
+
+    def up(e, variant):
+        (row,) = [r for r in e["in_loop"] if r["variant"] == variant and r["estimator"] == "robust"]
+        return f"{row['survived']}/{row['runs']}"
+
+    cells = [f"{name} {up(e, 'gyro ±1000°/s')} (±500 °/s: {up(e, 'gyro ±500°/s')})" for name, e in ends.items()]
+    return (
+        "The default fault-tolerant controller (the level relaxed hover) with `robust` in the loop and a "
+        f"±1000 °/s gyroscope keeps up {', '.join(cells)} (`quadest reproduce afckf --spin-range --ftc default`)."
     )
 
 

@@ -428,6 +428,12 @@ def test_fit_centrifugal_recovers_the_lever_arm():
     np.testing.assert_allclose([o1, o2], [-0.015, 0.010], atol=0.0005)
     with pytest.raises(ValueError, match="spinning segment"):
         fit_centrifugal(rec.gyr[rec.t < 4], rec.acc[rec.t < 4])
+    spin = rec.t > 7.5  # a spin beyond the gyroscope's range: the error says so
+    top = float(np.abs(rec.gyr[spin]).max(axis=1).min())
+    with pytest.raises(
+        ValueError, match=rf"0 samples .* below its range \({int(spin.sum())} more with the gyroscope at its"
+    ):
+        fit_centrifugal(rec.gyr[spin], rec.acc[spin], gyro_range=top)
 
 
 # -- small linear algebra --------------------------------------------------------------------------

@@ -11,8 +11,9 @@ from quadest.control.ftc import allocate, drain_unbrakeable
 from quadest.detect import DetectorParams
 from quadest.evaluation.detection import case_failure, case_flight_kwargs, failure_case
 from quadest.evaluation.flown import range_vehicle
-from quadest.flight import fly
+from quadest.flight import FlightParams, fly
 from quadest.models import vehicle_preset
+from quadest.sim import build_config
 
 BEBOP = vehicle_preset("bebop2")
 
@@ -149,11 +150,11 @@ def test_the_drain_reads_the_coupling_of_the_relaxed_hover_and_brakes_one_sense_
     """At the Bebop 2's relaxed hover (its spin, its rotors' momentum) the coupling the drain
     divides by lies between the Euler equations' Λ_x and Λ_y (it takes the mean of J_x and J_y);
     a rate about the unbrakeable axis the rotors can brake (``e_u > 0``: the opposite rotor
-    pulls) is left to the rate loop, the desired rates unchanged."""
+    pulls) is left to the rate loop, the desired rates unchanged (without the margin)."""
     ftc = FtcParams()
     model = ftc.model(BEBOP)
     hover = relaxed_hover(model, 0, ftc.rho)
-    g = ftc.gains(BEBOP, 0, model)
+    g = ftc.gains(BEBOP, 0, model)._replace(drain_margin=0.0)  # the request as asked (the margin: below)
     h = BEBOP.rotor_inertia * float(np.dot(BEBOP.spin, np.sqrt(hover.thrusts / BEBOP.k_f)))
     w2 = hover.spin * hover.axis[2]
     au = np.asarray(g.unbrakeable)
@@ -164,6 +165,51 @@ def test_the_drain_reads_the_coupling_of_the_relaxed_hover_and_brakes_one_sense_
     lx, ly = nutation_rates(model, hover)
     assert min(lx, ly) - 1e-9 <= lam <= max(lx, ly) + 1e-9
     assert drain_unbrakeable(g, 0.0, 0.0, w2, 0.1 * au[0], 0.1 * au[1], h) == pytest.approx((0.1 * au[0], 0.1 * au[1]))
+
+
+def _split(g, od):
+    """The desired rates ``od`` about the unbrakeable axis and the brakeable one."""
+    au = np.asarray(g.unbrakeable)
+    return float(od[0] * au[0] + od[1] * au[1]), float(-od[0] * au[1] + od[1] * au[0])
+
+
+def _along(g, u, v):
+    """The body rates (x, y) of ``u`` about the unbrakeable axis and ``v`` about the brakeable one."""
+    au = np.asarray(g.unbrakeable)
+    return u * au[0] - v * au[1], u * au[1] + v * au[0]
+
+
+def test_the_drain_keeps_the_unbrakeable_rate_in_the_sense_the_opposite_rotor_brakes():
+    """The desired rate about the unbrakeable axis is kept at ``−drain_margin`` at most: a rate of
+    +2 rad/s asked there becomes −1 rad/s (the default margin), so that the rotor opposite the lost
+    one, which can only push that rate up, holds it in both senses; where the rate is already below
+    it nothing else is asked (the desired rate about the brakeable axis is kept). Margin 0 leaves the
+    request as it was."""
+    g = FtcParams().gains(BEBOP, 0)
+    assert g.drain_margin == 1.0
+    w = _along(g, -5.0, 0.0)  # turning at −5 rad/s: below the margin, no drain
+    od = drain_unbrakeable(g, w[0], w[1], 10.0, *_along(g, 2.0, 0.7), 0.0)
+    assert _split(g, od) == pytest.approx((-1.0, 0.7), abs=1e-12)
+    g0 = g._replace(drain_margin=0.0)
+    assert _split(g0, drain_unbrakeable(g0, w[0], w[1], 10.0, *_along(g0, 2.0, 0.7), 0.0)) == pytest.approx((2.0, 0.7))
+
+
+@pytest.mark.parametrize("lam", [4.0, 8.0])
+def test_the_drain_takes_the_brakeable_axis_while_the_coupling_is_large(lam):
+    """A tumble of 3 rad/s about the unbrakeable axis while the primary axis asks 2 rad/s about the
+    brakeable one: with the coupling at or above ``drain_priority`` (6 rad/s) the drain's rate
+    ``v_d = k_u e_u / Λ`` replaces that request (draining through a large coupling tilts the body
+    little, about ``e_u / Λ`` rad); below it the two are added, as before."""
+    g = FtcParams().gains(BEBOP, 0)
+    J = np.asarray(g.inertia)
+    jm = 0.5 * (J[0] + J[1])
+    w2 = lam * jm / (J[2] - jm)  # the spin that makes Λ (no rotor momentum)
+    w = _along(g, 3.0, 0.0)
+    u_d, v_d = _split(g, drain_unbrakeable(g, w[0], w[1], w2, *_along(g, 0.0, 2.0), 0.0))
+    e_u = -1.0 - 3.0  # the desired rate (at most −drain_margin) less the rate
+    drain = min(max(-g.k_u * e_u / max(lam, g.coupling_floor), -g.drain_max), g.drain_max)
+    assert u_d == pytest.approx(-1.0)
+    assert v_d == pytest.approx(drain if lam >= g.drain_priority else 2.0 + drain, rel=1e-12)
 
 
 @pytest.mark.parametrize("seed", [20, 65, 74])
@@ -185,6 +231,50 @@ def test_the_drain_keeps_up_figure_eight_losses_that_fell_without_it(seed):
     assert status(FtcParams()) == "survived"
 
 
+def test_the_high_end_of_the_spin_range_is_held():
+    """At the high end of the spin range (no rotor drag, LADAC's rotor inertia) the level relaxed
+    hover's coupling is near zero (Λ 1.0 / −0.4 rad/s): a tumble left about the unbrakeable axis
+    once the spin has built up can no longer be drained. With the drain as before (no margin,
+    always added to the axis's request) the vehicle falls; with the rate kept in the sense the
+    opposite rotor brakes and drained first while the rotors' momentum makes the coupling large,
+    it settles into the model's relaxed hover (spin within 2 %; its tilt below 15°), 10 m up,
+    the truth in the loop."""
+    v = range_vehicle("bebop2", "high")
+    kw = dict(vehicle=v, estimator="truth", seed=1, duration=8.0, failure=Failure(0, 2.0))
+    kw["params"] = FlightParams(height_m=10.0)
+    before = fly("rotor-loss", ftc=FtcParams(drain_margin=0.0, drain_priority=1e3), **kw).summary
+    now = fly("rotor-loss", ftc=FtcParams(), **kw).summary
+    assert before["status"] == "crashed", before
+    assert now["status"] == "survived", now
+    spin = abs(relaxed_hover(FtcParams().model(v), 0, 0.0).spin)
+    assert now["spin_rate_rad_s"] == pytest.approx(spin, rel=0.02) and now["tilt_deg"] < 15.0
+
+
+def test_the_drain_outside_the_tumble_only_keeps_the_margin():
+    """Outside the tumble (the primary axis within ``drain_deg`` and the rate about the
+    unbrakeable axis not positive) the drain asks nothing about the brakeable axis: only the
+    margin's cap on the desired rate about the unbrakeable one applies."""
+    g = FtcParams().gains(BEBOP, 0)
+    w = _along(g, -0.5, 0.0)
+    od = drain_unbrakeable(g, w[0], w[1], 10.0, *_along(g, 2.0, 0.7), 0.0, False)
+    assert _split(g, od) == pytest.approx((-1.0, 0.7), abs=1e-12)
+    assert _split(g, drain_unbrakeable(g, w[0], w[1], 10.0, *_along(g, 2.0, 0.7), 0.0))[1] != pytest.approx(0.7)
+
+
+def test_the_high_end_is_held_with_robust_in_the_loop():
+    """The high end of the spin range with ``robust`` in the loop and the preset's ±1000 °/s gyro,
+    whose yaw axis clips throughout the 19 rad/s spin: the estimate's few degrees of tilt error
+    keep asking a rate about the brakeable axis near the hover, which the weak coupling there
+    turns, over seconds, into a positive rate about the unbrakeable one (seed 1: from −1 to +1.5
+    rad/s 8.6-11.6 s after the loss); the drain of a positive rate at any tilt keeps it up (with
+    the drain beyond 10° only it hit the ground 17.4 s after the loss)."""
+    v = range_vehicle("bebop2", "high")
+    cfg = build_config("bebop2").with_overrides({"gyro.range": np.radians(1000.0)})
+    f = fly("rotor-loss", estimator="robust", vehicle=v, config=cfg, seed=1, duration=25.0, failure=Failure(0, 5.0),
+            params=FlightParams(height_m=10.0))  # fmt: skip
+    assert f.summary["status"] == "survived", f.summary
+
+
 @pytest.fixture(scope="module")
 def losses():
     """A Bebop 2 hovering 3 m up loses rotor 0 at 2 s (true state in the loop, told 50 ms later:
@@ -196,10 +286,10 @@ def losses():
 def test_the_loss_from_a_hover_no_longer_reaches_the_ground(losses):
     """The former controller let the loss's tumble tilt the body past 90° (measured 107°: the
     thrust then pushes down) and the vehicle hit the ground 3 m below 1.1 s after the loss; the
-    controller now keeps the tilt below 90° (measured 58°; 69° without the drain) and the height
+    controller now keeps the tilt below 90° (measured 59°; 69° without the drain) and the height
     lost below 2 m (measured 0.5 m; 1.1 m), and settles into the level relaxed hover (median tilt
-    below 10° from 4 s after the loss; measured 3°: the spin's small circle; 9° 2-3 s after the
-    loss, 6° without the drain, which settled sooner)."""
+    below 10° from 4 s after the loss; measured 5°, 3° without the drain: the spin's small
+    circle; 11° 2-3 s after the loss, 6° without the drain, which settled sooner)."""
     now, former = losses["now"], losses["former"]
     assert former.summary["reason"] == "crashed: ground contact", former.summary
     assert _tilt(former)[former.recording.t >= 2.0].max() > 90.0

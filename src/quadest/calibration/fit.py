@@ -278,11 +278,13 @@ def fit_centrifugal(gyr, acc, *, min_rate: float = 5.0, gyro_range: float = np.i
     over samples with ``|ω_z| > min_rate`` and the gyroscope below its range. Returns
     ``(omega1, omega2, rms_residual)``; raises ValueError without enough spinning samples."""
     gyr, acc = np.asarray(gyr, float), np.asarray(acc, float)
-    ok = (np.abs(gyr[:, 2]) > min_rate) & (np.abs(gyr).max(axis=1) < gyro_range) & np.isfinite(acc).all(axis=1)
+    spinning = (np.abs(gyr[:, 2]) > min_rate) & np.isfinite(acc).all(axis=1)
+    ok = spinning & (np.abs(gyr).max(axis=1) < gyro_range)
     if ok.sum() < 50:
+        clipped = f" ({int(spinning.sum() - ok.sum())} more with the gyroscope at its range)" if spinning.any() else ""
         raise ValueError(
-            f"fit_centrifugal: {int(ok.sum())} samples spin faster than {min_rate} rad/s; "
-            "need a spinning segment of at least 50 samples"
+            f"fit_centrifugal: {int(ok.sum())} samples spin faster than {min_rate} rad/s with the gyroscope "
+            f"below its range{clipped}; need a spinning segment of at least 50 samples"
         )
     A = np.column_stack([gyr[ok, 2] ** 2, np.ones(ok.sum())])
     out = []

@@ -37,9 +37,14 @@ measured rate ``ω`` and the position and velocity estimates:
 - the drain (``k_u``): the rotors left cannot brake a roll rate ``u`` about the line through the
   lost rotor's neighbours in one sense (:func:`unbrakeable_axis`); the gyroscopic coupling
   ``u̇ = −Λ v``, ``v̇ = Λ u`` (:func:`nutation_rates`) turns it into a rate ``v`` about the
-  perpendicular axis, which they can brake. Where ``ω_d`` asks that brake while the axis is more
-  than ``drain_deg`` from ``d_b`` (the tumble), a rate ``v_d = −k_u e_u / Λ`` is asked too
-  (:func:`drain_unbrakeable`);
+  perpendicular axis, which they can brake. Where ``ω_d`` asks a brake of ``u`` while the axis is
+  more than ``drain_deg`` from ``d_b`` (the tumble), a rate ``v_d = −k_u e_u / Λ`` is asked too
+  (:func:`drain_unbrakeable`). Where the rotors' momentum opposes the spin, ``Λ`` passes through
+  zero as the spin builds up, and a tumble left then cannot be drained: there the desired ``u`` is
+  kept at most ``−drain_margin`` (the sense the opposite rotor brakes, which then holds it in both
+  senses), the drain also acts wherever ``u`` is positive (the tumble's sense, at any tilt), and
+  ``v_d`` replaces ``ω_d``'s own rate about ``a_v`` while ``|Λ|`` is at least ``drain_priority``
+  (the large coupling of the rotors' momentum, used before it fades);
 - moment ``M = J k_ω (ω_d − ω)`` of which the x and y components are kept; with
   ``cancel_gyroscopic`` (the former inner loop) ``+ ω × (J ω + h e_z) + d ⊙ ω`` (``h`` from the
   last rotor commands): cancelled, the gyroscopic coupling no longer turns the tumble the lost
@@ -99,6 +104,8 @@ FtcGains = namedtuple(
         "coupling_floor",
         "drain_max",
         "drain_cos",
+        "drain_margin",
+        "drain_priority",
     ],
 )
 """What the compiled controller reads (built by :meth:`FtcParams.gains`)."""
@@ -201,10 +208,33 @@ class FtcParams:
         10.0,
         "deg",
         "the drain acts while the primary axis is at least this far from the desired up direction "
-        "(the tumble); nearer it is off, so that the relaxed hover settles",
+        "(the tumble; with drain_margin also wherever the rate about the unbrakeable axis is "
+        "positive); nearer it is off, so that the relaxed hover settles",
         "chosen on training seeds: without it the relaxed hover wobbled (3-27° of tilt 4-7 s after a "
         "hover loss, seed 0); 10° and 20° keep 86 and 84 of the 100 figure eights up",
         bounds="[0, 180]",
+    )
+    drain_margin: float = param(
+        1.0,
+        "rad/s",
+        "where the rotors' momentum opposes the spin, the desired roll rate about the unbrakeable "
+        "axis is at most minus this: in the sense the rotor opposite the lost one can brake, which "
+        "then holds it in both senses; and a positive rate there is drained at any tilt; 0: neither "
+        "(as before)",
+        "chosen on the high end of the spin range (docs/vehicle.md, seeds 1-20, the truth in the "
+        "loop): 0 keeps none up, 0.5, 1 and 2 rad/s all 20; the training seeds alike (299 of 300)",
+        bounds="[0, 1e3]",
+    )
+    drain_priority: float = param(
+        6.0,
+        "rad/s",
+        "where the rotors' momentum opposes the spin, while |Λ| is at least this the drain's rate "
+        "replaces the desired rate about the brakeable axis (the primary axis waits); below it the "
+        "two add; 1e3: always add, as before",
+        "chosen on training seeds (failure_case 0-399 complete losses: 4, 6, 8 rad/s keep 298, 299, "
+        "297 of 300 up, 1e3 297, before 292): a tumble drained through a large coupling costs "
+        "little tilt (about e_u / Λ rad)",
+        bounds="(0, 1e3]",
     )
     yaw_damping: float | None = param(
         None,
@@ -265,7 +295,15 @@ class FtcParams:
             float(self.coupling_floor),
             float(self.drain_max),
             float(np.cos(np.radians(self.drain_deg))),
+            *self._crossing_drain(model, hover),
         )
+
+    def _crossing_drain(self, model: FtcModel, hover: RelaxedHover) -> tuple[float, float]:
+        """``drain_margin`` and ``drain_priority`` where the rotors' momentum opposes the relaxed
+        hover's spin (the coupling ``Λ`` then passes through zero as the spin builds up); elsewhere
+        (no rotors' inertia: ``Λ`` grows with the spin) 0 and 1e3, the drain as before."""
+        opposed = _hover_momentum(model, hover.thrusts) * hover.spin * hover.axis[2] < 0.0
+        return (float(self.drain_margin), float(self.drain_priority)) if opposed else (0.0, 1e3)
 
     def all_gains(self, vehicle: MultirotorParams) -> tuple[FtcGains, ...]:
         """:meth:`gains` for each rotor that may be lost (one model of the vehicle for all)."""
@@ -496,8 +534,10 @@ def _moments(xh, db, ftc, dt, integral, cmd):
     od0 = ftc.k_n * e0 + ftc.k_i * integral[0] + ws * a0
     od1 = ftc.k_n * e1 + ftc.k_i * integral[1] + ws * a1
     J0, J1, J2 = ftc.inertia[0], ftc.inertia[1], ftc.inertia[2]
-    if ftc.k_u > 0.0 and n[0] * db[0] + n[1] * db[1] + n[2] * db[2] < ftc.drain_cos:
-        od0, od1 = drain_unbrakeable(ftc, w0, w1, w2, od0, od1, _rotor_momentum(ftc, cmd))
+    if ftc.k_u > 0.0:
+        u = w0 * ftc.unbrakeable[0] + w1 * ftc.unbrakeable[1]
+        tumble = n[0] * db[0] + n[1] * db[1] + n[2] * db[2] < ftc.drain_cos or (ftc.drain_margin > 0.0 and u > 0.0)
+        od0, od1 = drain_unbrakeable(ftc, w0, w1, w2, od0, od1, _rotor_momentum(ftc, cmd), tumble)
     M0 = J0 * ftc.k_w * (od0 - w0)
     M1 = J1 * ftc.k_w * (od1 - w1)
     if ftc.cancel_gyroscopic:
@@ -517,19 +557,27 @@ def _rotor_momentum(ftc, cmd):
 
 
 @njit(cache=True)
-def drain_unbrakeable(ftc, w0, w1, w2, od0, od1, h):
+def drain_unbrakeable(ftc, w0, w1, w2, od0, od1, h, tumble=True):
     """The desired roll and pitch rates with the drain of a tumble no rotor can brake (module
-    doc): where the desired rate about the unbrakeable axis ``a_u`` is below the rate there
-    (``e_u < 0``: a brake only the lost rotor could give), a rate ``v_d = −k_u e_u / Λ`` about
-    ``a_v = e_z × a_u`` is added, so that ``u̇ = −Λ v`` drains ``u`` at ``k_u``; ``Λ`` from the
-    measured spin and the rotors' momentum ``h``, at least ``coupling_floor`` in size, ``v_d``
-    at most ``drain_max``."""
+    doc): the desired rate about the unbrakeable axis ``a_u`` is kept at most ``−drain_margin``
+    (if positive). In the ``tumble`` (the primary axis beyond ``drain_deg``), where that rate is
+    below the rate there (``e_u < 0``: a brake only the lost rotor could give), a rate
+    ``v_d = −k_u e_u / Λ`` about ``a_v = e_z × a_u`` is asked, so that ``u̇ = −Λ v`` drains ``u``
+    at ``k_u``: added to the desired rate about ``a_v``, or in its place while ``|Λ|`` is at least
+    ``drain_priority``. ``Λ`` from the measured spin and the rotors' momentum ``h``, at least
+    ``coupling_floor`` in size where divided by, ``v_d`` at most ``drain_max``."""
     au0, au1 = ftc.unbrakeable[0], ftc.unbrakeable[1]
+    if ftc.drain_margin > 0.0:  # the desired u at most −drain_margin
+        cut = max(od0 * au0 + od1 * au1 + ftc.drain_margin, 0.0)
+        od0, od1 = od0 - au0 * cut, od1 - au1 * cut
     e_u = od0 * au0 + od1 * au1 - (w0 * au0 + w1 * au1)
-    if e_u >= 0.0:
+    if e_u >= 0.0 or not tumble:
         return od0, od1
     Jm = 0.5 * (ftc.inertia[0] + ftc.inertia[1])
     lam = ((ftc.inertia[2] - Jm) * w2 + h) / Jm
+    if abs(lam) >= ftc.drain_priority:  # the drain first: the desired rate about a_v is replaced
+        along = -od0 * au1 + od1 * au0
+        od0, od1 = od0 + au1 * along, od1 - au0 * along
     lam = max(abs(lam), ftc.coupling_floor) * (1.0 if lam >= 0.0 else -1.0)
     v_d = min(max(-ftc.k_u * e_u / lam, -ftc.drain_max), ftc.drain_max)
     return od0 - au1 * v_d, od1 + au0 * v_d

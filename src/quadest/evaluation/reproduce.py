@@ -238,10 +238,7 @@ def _spin_range_end(p, seeds, progress, workers, scheduler) -> dict:
     ftc = flown.flown_ftc(p)
     model = ftc.model(v)
     hover = relaxed_hover(model, p.rotor, ftc.rho)
-    cal, fparams = None, {}  # where the calibration flight does not stay up the AFCKF runs uncalibrated
-    if flown.flown_flight("damaged-rotor", p.calibration_seed, p).summary["status"] == "survived":
-        cal = flown.afckf_calibration_flown(p)
-        fparams = {"afckf": {"omega1": cal["omega1"], "omega2": cal["omega2"]}, "afckf-nocal": {}}
+    cal, fparams = _spin_range_calibration(p)
     per_seed = _map(
         flown.surviving_seed,
         [("damaged-rotor", s, p, fparams) for s in seeds],
@@ -277,6 +274,19 @@ def _spin_range_end(p, seeds, progress, workers, scheduler) -> dict:
         "offline": _aggregate([r["scores"] for r in up], flown.LABELS) if up else None,
         "in_loop": loop["table"],
     }
+
+
+def _spin_range_calibration(p) -> tuple[dict | None, dict]:
+    """The AFCKF's centrifugal calibration at an end of the spin range and the filters' parameters
+    it gives; none (the AFCKF uncalibrated) where the calibration flight does not stay up or its
+    gyroscope is at its range throughout the spin (the high end spins beyond ±1000 °/s)."""
+    if flown.flown_flight("damaged-rotor", p.calibration_seed, p).summary["status"] != "survived":
+        return None, {}
+    try:
+        cal = flown.afckf_calibration_flown(p)
+    except ValueError:  # no spinning sample within the gyroscope's range: nothing to fit
+        return None, {}
+    return cal, {"afckf": {"omega1": cal["omega1"], "omega2": cal["omega2"]}, "afckf-nocal": {}}
 
 
 def format_spin_range(result: dict) -> str:
