@@ -2,6 +2,8 @@
 fault-tolerant controller*): the allocation to the three rotors left, the level relaxed hover at
 ρ = 0, and the flown transient of a Bebop 2 with its rotors' inertia."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.optimize import lsq_linear
@@ -248,6 +250,42 @@ def test_the_high_end_of_the_spin_range_is_held():
     assert now["status"] == "survived", now
     spin = abs(relaxed_hover(FtcParams().model(v), 0, 0.0).spin)
     assert now["spin_rate_rad_s"] == pytest.approx(spin, rel=0.02) and now["tilt_deg"] < 15.0
+
+
+@pytest.mark.parametrize(
+    ("end", "kh0", "drained"),
+    [("high", False, True), ("chosen", False, True), ("chosen", True, False), ("low", False, False)],
+)
+def test_a_positive_rate_is_drained_at_any_tilt_only_where_the_hover_couples_weakly(end, kh0, drained):
+    """The drain of a positive rate about the unbrakeable axis at any tilt is on where the rotors'
+    momentum opposes the spin and the relaxed hover's coupling is weak (the smaller |Λ| below
+    ``drain_weak_coupling``): the high end (0.4 rad/s) and the preset (3.6); off on the Bebop 2
+    without rotor drag (9.1: the body's momentum well above the rotors') and at the low end (no
+    rotor inertia); off everywhere at ``drain_weak_coupling`` 0 or ``drain_margin`` 0."""
+    v = range_vehicle("bebop2", end)
+    v = replace(v, k_h=0.0) if kh0 else v
+    model = FtcParams().model(v)
+    weakest = min(abs(lam) for lam in nutation_rates(model, relaxed_hover(model, 0, 0.0)))
+    assert (weakest < FtcParams().drain_weak_coupling) == drained or end == "low"
+    assert FtcParams().gains(v, 0, model).drain_positive == drained
+    assert not FtcParams(drain_weak_coupling=0.0).gains(v, 0, model).drain_positive
+    assert not FtcParams(drain_margin=0.0).gains(v, 0, model).drain_positive
+
+
+def test_a_strongly_coupled_hover_settles_without_the_drain_of_a_positive_rate():
+    """The Bebop 2 without rotor drag (the clipping ablation's vehicle: the model's relaxed hover
+    spins at 19.2 rad/s with Λ 9.8 / 9.1 rad/s) loses rotor 0 from a hover 10 m up, the truth in
+    the loop. Draining every positive rate about the unbrakeable axis at any tilt keeps the hover
+    moving (it never stays within 0.3 m of its point); with that drain off where the coupling is
+    strong the vehicle settles (measured 6.0 s after the loss, 0.07 m RMS)."""
+    v = replace(range_vehicle("bebop2", "chosen"), k_h=0.0)
+    kw = dict(vehicle=v, estimator="truth", seed=0, duration=15.0, failure=Failure(0, 2.0))
+    kw["params"] = FlightParams(height_m=10.0)
+    always = fly("rotor-loss", ftc=FtcParams(drain_weak_coupling=1e3), **kw).summary
+    now = fly("rotor-loss", ftc=FtcParams(), **kw).summary
+    assert always["status"] == now["status"] == "survived"
+    assert always["time_to_settle_s"] is None, always
+    assert now["time_to_settle_s"] is not None and now["position_rms_settled_m"] < 0.15, now
 
 
 def test_the_drain_outside_the_tumble_only_keeps_the_margin():

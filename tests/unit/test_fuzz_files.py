@@ -4,6 +4,8 @@ hang, or a recording with NaN where a value must be. Through the command line: o
 internal error."""
 
 import json
+import signal
+from contextlib import contextmanager
 
 import h5py
 import numpy as np
@@ -15,6 +17,7 @@ from quadest.calibration import load_calibration
 from quadest.data import save_recording
 from quadest.models.aero import AeroModel
 from quadest.readers import read_recording
+from quadest.readers.motors import read_motor_log
 from quadest.sim import build_config, simulate
 
 FUZZ = settings(
@@ -106,6 +109,44 @@ def _read_or_refuse(path, fmt=None):
         return None
     assert np.isfinite(rec.t).all() and np.isfinite(rec.gyr).all() and np.isfinite(rec.acc).all()
     return rec
+
+
+@contextmanager
+def _ends_within(seconds):
+    """A read that would never end fails the test instead of holding the suite (a guard, not a
+    timing: these reads take milliseconds)."""
+
+    def stop(*_):
+        raise AssertionError(f"the read did not end within {seconds} s")
+
+    old = signal.signal(signal.SIGALRM, stop)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
+
+
+@pytest.mark.parametrize(
+    ("edits", "said"),
+    [
+        ([("insert", 1517, 176), ("delete", 171308, 26), ("insert", 42556, 128), ("insert", 93, 0)], "header"),
+        ([("flip", 128, 95), ("flip", 607, 59), ("insert", 5, 10), ("cut", 331373982, 163)], "format char"),
+    ],
+)
+def test_damaged_dataflash_logs_the_fuzz_test_found(edits, said, tmp_path):
+    """Two damaged logs this test once generated: in the first a format message declares a
+    message of length 0 with no fields, and pymavlink read that one place of the log for ever;
+    the second's error carried the damaged format name's newlines. Both are refused in one line
+    naming the file, as recordings and as motor logs."""
+    p = tmp_path / "x.bin"
+    p.write_bytes(_mutate(_originals()["bin"], edits))
+    for read in (lambda q: read_recording(q, "dataflash"), read_motor_log):
+        with _ends_within(60), pytest.raises(ValueError) as exc:
+            read(p)
+        msg = str(exc.value)
+        assert msg.startswith(str(p)) and said in msg and "\n" not in msg, msg
 
 
 @pytest.mark.parametrize("kind", ["csv", "parquet", "hdf5", "ulg", "bin"])

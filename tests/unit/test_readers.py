@@ -11,6 +11,7 @@ from logwriters import write_dataflash, write_ulog
 
 from quadest.cli.main import main
 from quadest.readers import ReaderError, detect_format, read_recording
+from quadest.readers.common import reason
 from quadest.rotation import angle_between, quat_mul, quat_rotate
 from quadest.rotation.frames import quat_ned_frd_to_enu_flu, vec_frd_to_flu, vec_ned_to_enu
 from quadest.sim import simulate
@@ -364,6 +365,14 @@ def test_a_damaged_dataflash_log_is_reported(tmp_path, flight):
     rec = read_recording(p)
     assert 0 < len(rec) < len(flight)
     assert "the log is damaged" in rec.meta["warnings"][0]
+
+
+def test_a_library_error_is_told_on_one_line():
+    """A damaged log's names reach pymavlink's errors (a format named by four newlines): the
+    reason quadest gives keeps the error's kind and words on one line."""
+    assert reason(Exception("Unsupported format char: 'F' in message \n\n\n\n")) == (
+        "Exception: Unsupported format char: 'F' in message"
+    )
 
 
 # -- broken files ---------------------------------------------------------------------------------------------

@@ -25,6 +25,12 @@ class ReaderError(ValueError):
     """A file that cannot be read; the message names the file and what is wrong."""
 
 
+def reason(exc: BaseException) -> str:
+    """What a library raised, on one line: its kind and its message with every run of
+    whitespace (a damaged name's newlines) made one space."""
+    return f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+
+
 def unit_factor(kind: str, unit: str) -> float:
     table = {"t": TIME_UNITS, "gyr": GYR_UNITS, "acc": ACC_UNITS, "mag": MAG_UNITS}[kind]
     if unit not in table:

@@ -10,7 +10,7 @@ import numpy as np
 
 from quadest.errors import UsageError
 from quadest.extras import need
-from quadest.readers.common import ReaderError, mag_on_imu_rows, make_recording, resample_quat
+from quadest.readers.common import ReaderError, mag_on_imu_rows, make_recording, reason, resample_quat
 from quadest.records import number
 from quadest.rotation import euler_to_quat
 
@@ -57,7 +57,7 @@ def read_ulog(path, *, instance: int = 0, imu: str | None = None):
     try:
         return _read_ulog(path, instance=instance, imu=imu)
     except LOG_DAMAGE as exc:
-        raise ReaderError(f"{path}: the ULog is damaged or not from PX4 ({type(exc).__name__}: {exc})") from None
+        raise ReaderError(f"{path}: the ULog is damaged or not from PX4 ({reason(exc)})") from None
 
 
 def read_dataflash(path, *, instance: int = 0, imu: str | None = None):
@@ -67,7 +67,7 @@ def read_dataflash(path, *, instance: int = 0, imu: str | None = None):
     try:
         return _read_dataflash(path, instance=instance, imu=imu)
     except LOG_DAMAGE as exc:
-        raise ReaderError(f"{path}: the DataFlash log is damaged ({type(exc).__name__}: {exc})") from None
+        raise ReaderError(f"{path}: the DataFlash log is damaged ({reason(exc)})") from None
 
 
 PX4_FIFO = ("sensor_gyro_fifo", "sensor_accel_fifo")
@@ -118,7 +118,7 @@ def _read_ulog(path, *, instance: int = 0, imu: str = "logged"):
     try:
         ulog = ULog(str(path), topics)
     except Exception as exc:  # pyulog raises plain Exceptions and struct errors on bad files
-        raise ReaderError(f"{path}: not a readable ULog file ({type(exc).__name__}: {exc})") from None
+        raise ReaderError(f"{path}: not a readable ULog file ({reason(exc)})") from None
     data = {}
     for d in ulog.data_list:
         if d.multi_id == instance or d.name not in data:
@@ -224,16 +224,13 @@ def _read_dataflash(path, *, instance: int = 0, imu: str = "logged"):
     imu, mag, att, xkq, vibe, params, present = [], [], [], [], [], {}, set()
     batch = {"GYR": [], "ACC": []} if fifo else None
     with _printed() as said:  # pymavlink prints what it skips; quadest counts it and says it once
-        try:
-            log = DFReader.DFReader_binary(str(path), zero_time_base=True)
-        except Exception as exc:  # pymavlink raises many kinds on bad files
-            raise ReaderError(f"{path}: not a readable DataFlash log ({type(exc).__name__}: {exc})") from None
+        log = open_dataflash(DFReader, path)
         try:
             _read_dataflash_messages(log, instance, (imu, mag, att, xkq, vibe), params, batch, present)
+        except ReaderError:
+            raise
         except Exception as exc:
-            raise ReaderError(
-                f"{path}: DataFlash log broken after {len(imu)} IMU messages ({type(exc).__name__}: {exc})"
-            ) from None
+            raise ReaderError(f"{path}: DataFlash log broken after {len(imu)} IMU messages ({reason(exc)})") from None
     warnings = _dataflash_damage(said)
     _refuse_missing_instance(path, instance, present)
     if fifo:
@@ -344,6 +341,40 @@ def _dataflash_batch(batch, path) -> np.ndarray:
     g, a = (np.array(sorted(batch[k]), float) for k in ("GYR", "ACC"))
     acc = np.column_stack([np.interp(g[:, 0], a[:, 0], a[:, k]) for k in (1, 2, 3)])
     return np.column_stack([g, acc])
+
+
+def open_dataflash(DFReader, path):
+    """pymavlink's reader of the DataFlash log ``path``, refusing a log it cannot open or that
+    would keep it in one place (:func:`_moving_reader`) in one line naming the file."""
+    try:
+        return _moving_reader(DFReader)(path)
+    except ReaderError:
+        raise
+    except Exception as exc:  # pymavlink raises many kinds on bad files
+        raise ReaderError(f"{path}: not a readable DataFlash log ({reason(exc)})") from None
+
+
+def _moving_reader(DFReader):
+    """pymavlink's binary DataFlash reader that refuses a message which does not move it on: a
+    damaged format message declaring a length below the 3-byte header, with an empty format,
+    made pymavlink read the same place for ever."""
+
+    class MovingReader(DFReader.DFReader_binary):
+        def __init__(self, path):
+            self.quadest_path = path
+            super().__init__(str(path), zero_time_base=True)
+
+        def _parse_next(self):
+            start = self.offset
+            m = super()._parse_next()
+            if m is not None and self.offset <= start:
+                raise ReaderError(
+                    f"{self.quadest_path}: the DataFlash log is damaged: a message at byte {start} has a "
+                    f"format of length {m.fmt.len}, shorter than its header, so the log cannot be read past it"
+                )
+            return m
+
+    return MovingReader
 
 
 def _read_dataflash_messages(log, instance, lists, params, batch=None, present=None):

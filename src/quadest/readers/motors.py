@@ -12,8 +12,8 @@ import numpy as np
 
 from quadest.data.checks import runs
 from quadest.extras import need
-from quadest.readers.common import ReaderError
-from quadest.readers.logs import LOG_DAMAGE, _printed
+from quadest.readers.common import ReaderError, reason
+from quadest.readers.logs import LOG_DAMAGE, _printed, open_dataflash
 
 # ArduPilot's motor tables (AP_MotorsMatrix): per motor, the arm's angle from forward (degrees,
 # positive towards the right) and its sense seen from above (+1 clockwise, -1 counter-clockwise)
@@ -104,31 +104,39 @@ def read_motor_log(path: str | Path) -> MotorLog:
     try:
         return reader(p)
     except LOG_DAMAGE as exc:
-        raise ReaderError(f"{path}: the log is damaged ({type(exc).__name__}: {exc})") from None
+        raise ReaderError(f"{path}: the log is damaged ({reason(exc)})") from None
 
 
 # -- ArduPilot ------------------------------------------------------------------------------------------
+def _read_motor_messages(log, imu, rcou, events, params, changes) -> None:
+    """The IMU (instance 0), motor output, event and parameter messages of a DataFlash log into
+    the lists (``changes``: a parameter's later values, the statistics' apart)."""
+    while (m := log.recv_match(type=["IMU", "RCOU", "PARM", "EV"])) is not None:
+        kind = m.get_type()
+        if kind == "IMU" and getattr(m, "I", 0) == 0:
+            imu.append((m.TimeUS, m.GyrX, m.GyrY, m.GyrZ, m.AccX, m.AccY, m.AccZ))
+        elif kind == "RCOU":
+            rcou.append([m.TimeUS] + [getattr(m, f"C{i}", 0) for i in range(1, 15)])
+        elif kind == "EV":
+            events.append((m.TimeUS * 1e-6, m.Id))
+        elif kind == "PARM":
+            if m.Name in params and params[m.Name] != m.Value and not m.Name.startswith(STATISTICS):
+                changes.append((m.TimeUS * 1e-6, m.Name, float(m.Value)))
+            params.setdefault(m.Name, float(m.Value))
+
+
 def _read_ardupilot(path: Path) -> MotorLog:
     DFReader = need("pymavlink.DFReader", "reading an ArduPilot DataFlash log")
 
     imu, rcou, events, params, changes = [], [], [], {}, []
     with _printed():
+        log = open_dataflash(DFReader, path)
         try:
-            log = DFReader.DFReader_binary(str(path), zero_time_base=True)
+            _read_motor_messages(log, imu, rcou, events, params, changes)
+        except (ReaderError, *LOG_DAMAGE):
+            raise
         except Exception as exc:  # pymavlink raises many kinds on bad files
-            raise ReaderError(f"{path}: not a readable DataFlash log ({type(exc).__name__}: {exc})") from None
-        while (m := log.recv_match(type=["IMU", "RCOU", "PARM", "EV"])) is not None:
-            kind = m.get_type()
-            if kind == "IMU" and getattr(m, "I", 0) == 0:
-                imu.append((m.TimeUS, m.GyrX, m.GyrY, m.GyrZ, m.AccX, m.AccY, m.AccZ))
-            elif kind == "RCOU":
-                rcou.append([m.TimeUS] + [getattr(m, f"C{i}", 0) for i in range(1, 15)])
-            elif kind == "EV":
-                events.append((m.TimeUS * 1e-6, m.Id))
-            elif kind == "PARM":
-                if m.Name in params and params[m.Name] != m.Value and not m.Name.startswith(STATISTICS):
-                    changes.append((m.TimeUS * 1e-6, m.Name, float(m.Value)))
-                params.setdefault(m.Name, float(m.Value))
+            raise ReaderError(f"{path}: DataFlash log broken after {len(imu)} IMU messages ({reason(exc)})") from None
     if not imu or len(rcou) < 2:
         raise ReaderError(f"{path}: the log has no IMU or no RCOU (motor output) messages to diagnose")
     imu, rcou = np.array(imu, float), np.array(rcou, float)
@@ -226,7 +234,7 @@ def _read_px4(path: Path) -> MotorLog:
     try:
         ulog = ULog(str(path), topics)
     except Exception as exc:  # pyulog raises plain Exceptions on bad files
-        raise ReaderError(f"{path}: not a readable ULog file ({type(exc).__name__}: {exc})") from None
+        raise ReaderError(f"{path}: not a readable ULog file ({reason(exc)})") from None
     data = {d.name: d.data for d in ulog.data_list if d.multi_id == 0}
     params = ulog.initial_parameters
     if "sensor_combined" not in data:
