@@ -18,6 +18,7 @@ from quadest.data import save_recording
 from quadest.models.aero import AeroModel
 from quadest.readers import read_recording
 from quadest.readers.motors import read_motor_log
+from quadest.rotation.frames import vec_frd_to_flu
 from quadest.sim import build_config, simulate
 
 FUZZ = settings(
@@ -73,8 +74,42 @@ def _originals():
     write_ulog(d / "l.ulg", short)
     write_dataflash(d / "l.bin", short)
     out["ulg"], out["bin"] = (d / "l.ulg").read_bytes(), (d / "l.bin").read_bytes()
+    out["bag"] = _ros1_bag(d / "r.bag", short)
     _ORIGINALS.update(out)
     return out
+
+
+def _ros1_bag(path, rec) -> bytes:
+    """A small ROS 1 bag (rosbags' writer) of ``rec``'s IMU and field as sensor_msgs, in ROS's
+    frames (FLU) and units (T): valid messages to damage."""
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    T = ts.types
+    V, zeros = T["geometry_msgs/msg/Vector3"], np.zeros(9)
+    with Writer(path) as w:
+        ci = w.add_connection("/imu/data", "sensor_msgs/msg/Imu", typestore=ts)
+        cm = w.add_connection("/imu/mag", "sensor_msgs/msg/MagneticField", typestore=ts)
+        for k in range(0, len(rec), 2):
+            ns = int(1e9 * (1000 + rec.t[k]))
+            stamp = T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
+            hdr = T["std_msgs/msg/Header"](seq=k, stamp=stamp, frame_id="imu")
+            imu = T["sensor_msgs/msg/Imu"](
+                header=hdr,
+                orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+                orientation_covariance=np.full(9, -1.0),
+                angular_velocity=V(*vec_frd_to_flu(rec.gyr[k])),
+                angular_velocity_covariance=zeros,
+                linear_acceleration=V(*vec_frd_to_flu(rec.acc[k])),
+                linear_acceleration_covariance=zeros,
+            )
+            mag = T["sensor_msgs/msg/MagneticField"](
+                header=hdr, magnetic_field=V(*(vec_frd_to_flu(rec.mag[k]) * 1e-6)), magnetic_field_covariance=zeros
+            )
+            w.write(ci, ns, ts.serialize_ros1(imu, "sensor_msgs/msg/Imu"))
+            w.write(cm, ns, ts.serialize_ros1(mag, "sensor_msgs/msg/MagneticField"))
+    return path.read_bytes()
 
 
 def _mutate(data: bytes, edits) -> bytes:
@@ -149,7 +184,7 @@ def test_damaged_dataflash_logs_the_fuzz_test_found(edits, said, tmp_path):
         assert msg.startswith(str(p)) and said in msg and "\n" not in msg, msg
 
 
-@pytest.mark.parametrize("kind", ["csv", "parquet", "hdf5", "ulg", "bin"])
+@pytest.mark.parametrize("kind", ["csv", "parquet", "hdf5", "ulg", "bin", "bag"])
 @FUZZ
 @given(edits=EDITS)
 def test_damaged_recordings_are_read_or_refused(kind, edits, tmp_path):
