@@ -210,8 +210,8 @@ class FtcParams:
         10.0,
         "deg",
         "the drain acts while the primary axis is at least this far from the desired up direction "
-        "(the tumble; with drain_margin also wherever the rate about the unbrakeable axis is "
-        "positive); nearer it is off, so that the relaxed hover settles",
+        "(the tumble; with drain_margin, where the relaxed hover couples weakly, also wherever the "
+        "rate about the unbrakeable axis is positive); nearer it is off, so that the relaxed hover settles",
         "chosen on training seeds: without it the relaxed hover wobbled (3-27° of tilt 4-7 s after a "
         "hover loss, seed 0); 10° and 20° keep 86 and 84 of the 100 figure eights up",
         bounds="[0, 180]",
@@ -556,7 +556,8 @@ def _moments(xh, db, ftc, dt, integral, cmd):
     if ftc.k_u > 0.0:
         u = w0 * ftc.unbrakeable[0] + w1 * ftc.unbrakeable[1]
         tumble = n[0] * db[0] + n[1] * db[1] + n[2] * db[2] < ftc.drain_cos or (ftc.drain_positive and u > 0.0)
-        od0, od1 = drain_unbrakeable(ftc, w0, w1, w2, od0, od1, _rotor_momentum(ftc, cmd), tumble)
+        h = _rotor_momentum(ftc, cmd) if tumble else 0.0  # read only in the tumble
+        od0, od1 = drain_unbrakeable(ftc, w0, w1, w2, od0, od1, h, tumble)
     M0 = J0 * ftc.k_w * (od0 - w0)
     M1 = J1 * ftc.k_w * (od1 - w1)
     if ftc.cancel_gyroscopic:

@@ -3,6 +3,7 @@ autopilots already use NED / FRD, so only units change (docs/readers.md)."""
 
 from __future__ import annotations
 
+import functools
 import struct
 from contextlib import contextmanager
 
@@ -354,6 +355,7 @@ def open_dataflash(DFReader, path):
         raise ReaderError(f"{path}: not a readable DataFlash log ({reason(exc)})") from None
 
 
+@functools.cache
 def _moving_reader(DFReader):
     """pymavlink's binary DataFlash reader that refuses a message which does not move it on: a
     damaged format message declaring a length below the 3-byte header, with an empty format,
