@@ -325,11 +325,17 @@ def test_fly_writes_runs_that_every_command_reads(tmp_path, capsys):
         (["--seeds", "5-3,7"], "5-3 selects no seed"),
         (["--seeds", "0-99999999999999999999999"], "seeds are at most"),
         (["--scenario", "throw", "--detection", "commands", "--set", "detector.glr=0"], "a throw flies no"),
+        (["--estimator", "robust-offline"], "robust-offline is acausal"),
+        (["--scenario", "throw", "--failure", "0@1"], "a throw has no rotor failure"),
+        (["--duration", "-1"], "duration must be between"),
+        (["--set", "flight.landing_m_s=1", "--duration", "1"], "does not fit"),
     ],
 )
 def test_fly_refuses_bad_options_in_one_line(tmp_path, capsys, argv, match):
+    """Refused in one line, before the output folder is made."""
     code, _, err = run(capsys, "fly", "--estimator", "truth", "--duration", "3", "-o", str(tmp_path / "f"), *argv)
     assert code == 2 and match in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "f").exists()
 
 
 def test_fly_set_reaches_the_sensors_the_vehicle_and_the_controller(tmp_path, capsys, monkeypatch):
@@ -524,3 +530,38 @@ def test_a_span_beyond_the_recording_is_one_usage_error(tmp_path, capsys):
     code = main([*argv, "-o", str(tmp_path / "r.html")])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "holds fewer than two samples" in err[0]
+
+
+def test_estimate_refuses_a_declination_or_parameter_it_cannot_use(tmp_path, capsys):
+    """A declination that is no angle, and a parameter the filter does not have (named before its
+    value is read), are one-line usage errors; info and estimate say where a simulation's
+    declination comes from."""
+    rec_path = tmp_path / "f.csv"
+    assert main(["simulate", "--scenario", "hover", "--duration", "2", "-o", str(rec_path)]) == 0
+    capsys.readouterr()
+    out = str(tmp_path / "q.csv")
+    for value in ("1e9", "nan"):
+        code, _, err = run(capsys, "estimate", str(rec_path), "-o", out, "--declination-deg", value)
+        assert code == 2 and "lies within ±180" in err and len(err.strip().splitlines()) == 1, err
+    code, _, err = run(
+        capsys, "estimate", str(rec_path), "-o", out, "--filter", "madgwick", "--param", "madgwick.beta=abc"
+    )
+    assert code == 2 and "madgwick has no parameter beta" in err and len(err.strip().splitlines()) == 1, err
+    code, text, _ = run(capsys, "info", str(rec_path))
+    assert code == 0 and "declination +2.00° (the simulation's earth field)" in text
+
+
+def test_every_output_option_takes_the_same_names():
+    """-o, --output and --out name what a command writes, on every command that writes one."""
+    from quadest.cli.main import OUTPUT_OPTIONS, build_parser
+
+    commands = build_parser()._subparsers._group_actions[0].choices
+    named = {}
+    for name, sub in commands.items():
+        for action in sub._actions:
+            if action.dest in ("output", "out") and action.option_strings:
+                named[name] = set(action.option_strings)
+    assert {"estimate", "simulate", "fly", "report", "calibrate", "sweep", "campaign", "tune", "demo"} <= set(named)
+    for name, strings in named.items():
+        assert strings == {"-o", "--output", "--out"}, (name, strings)
+    assert OUTPUT_OPTIONS["output"] == OUTPUT_OPTIONS["out"] == "-o"

@@ -534,11 +534,13 @@ def _add_demo(sub):
     d = sub.add_parser(
         "demo",
         help="the main job: a Bebop 2 flies, loses a rotor, five estimators judged (what make demo runs)",
-        description="Runs `quadest reproduce afckf` with its plots, JSON and HTML report written to --out: "
+        description="Runs `quadest reproduce afckf` with its plots, JSON and HTML report written to -o (--output): "
         "the AFCKF paper's rotor loss flown by the simulated Bebop 2, each estimator's errors beside "
         "the paper's tables. The same job as `make demo`.",
     )
-    d.add_argument("--out", default="demo-output", help="output folder (default: demo-output)")
+    d.add_argument(
+        "-o", "--output", "--out", dest="out", default="demo-output", help="output folder (default: demo-output)"
+    )
     d.add_argument("--seeds", default=None, help="seed range or list (default: reproduce afckf's, 1-5)")
     d.set_defaults(func=cmd_demo, plot_dir=None, report=None)
 

@@ -30,7 +30,7 @@ from quadest.flight import (
 )
 from quadest.flight.common import COLLISIONS
 from quadest.flight.detection import DETECTION_MODES
-from quadest.flight.fly import DEFAULT_PRESET
+from quadest.flight.fly import DEFAULT_PRESET, check_flight
 from quadest.flight.throw import ThrowParams
 from quadest.models import VEHICLE_PRESETS
 from quadest.models.multirotor import vehicle_preset
@@ -219,6 +219,10 @@ def _fmt(v, unit="", digits=2):
     return "-" if v is None else f"{v:.{digits}f}{unit}"
 
 
+CAUSAL = [n for n in FILTERS if not ESTIMATORS[n].acausal]
+"""quadest's estimators that can fly in the loop (an acausal one uses the whole recording)."""
+
+
 def parse_estimators(text, scenario: str) -> list[str]:
     """``all`` (truth and every quadest filter; for a throw truth and the recovery) or a
     comma-separated list."""
@@ -227,9 +231,15 @@ def parse_estimators(text, scenario: str) -> list[str]:
         return ["recovery" if scenario == "throw" else "madgwick"]
     names = known if text.strip() == "all" else [filter_name(n.strip()) for n in text.split(",") if n.strip()]
     bad = [n for n in names if n not in known]
+    acausal = [n for n in bad if n in ESTIMATORS and ESTIMATORS[n].acausal]
+    if acausal:
+        raise CliError(
+            f"--estimator (--filters): {', '.join(acausal)} is acausal (each estimate uses the whole recording) and "
+            "cannot fly in the loop; run it over the flight afterwards with quadest estimate --offline"
+        )
     if bad or not names:
         raise CliError(
-            f"--estimator: unknown {', '.join(bad) or repr(text)} for {scenario}; estimators: "
+            f"--estimator (--filters): unknown {', '.join(bad) or repr(text)} for {scenario}; estimators: "
             f"{', '.join(known)}, or all"
         )
     return names
@@ -305,6 +315,12 @@ def cmd_fly(args):
     sets = parse_sets(args.set)
     settings = fly_settings(args, sets)
     check_runs(args, len(seeds) * len(estimators), f"--seeds {args.seeds} x {len(estimators)} estimator(s)")
+    for name in estimators:
+        check_flight(
+            args.scenario, estimator=name, controller=args.controller, duration=args.duration,
+            vehicle=settings["vehicle"], failure=failure, params=settings["params"], preset=args.preset,
+            config=settings.get("config"), seeds=seeds,
+        )  # fmt: skip
     out = Path(args.output)
     if out.exists() and not out.is_dir():
         raise CliError(f"{out}: -o names a folder for the runs' files, and this is a file")
@@ -394,8 +410,10 @@ def add_parsers(sub):
     )
     s.add_argument(
         "--estimator",
+        "--filters",
+        dest="estimator",
         default=None,
-        help=f"the attitude estimator in the loop: truth, {', '.join(FILTERS)}, the peers "
+        help=f"the attitude estimator in the loop: truth, {', '.join(CAUSAL)}, the peers "
         f"{' and '.join(n for n, c in ESTIMATORS.items() if c.peer and c.streaming)} "
         "(their streaming API, when installed); for a throw recovery (the "
         "bank of EKFs, then its nominal EKF) or truth. Several (comma-separated) or all fly each, with "
@@ -459,7 +477,7 @@ def add_parsers(sub):
         "unless --preset says otherwise (default: auto)",
     )
     s.add_argument("--set", action="append", metavar="KEY=VALUE", help=SET_HELP)
-    s.add_argument("-o", "--output", required=True, metavar="DIR", help="folder for the runs' files")
+    s.add_argument("-o", "--output", "--out", required=True, metavar="DIR", help="folder for the runs' files")
     s.add_argument("--no-plot", action="store_true", help="skip the figures")
     s.set_defaults(func=cmd_fly)
 

@@ -133,6 +133,8 @@ def cmd_estimate(args):
     if other:
         raise CliError(f"--param names {', '.join(other)}, but this runs {args.filter} (--filter)")
     kw = {**cal_params.get(args.filter, {}), **params.get(args.filter, {})}
+    if args.declination_deg is not None and not abs(args.declination_deg) <= 180.0:
+        raise CliError(f"--declination-deg {args.declination_deg:g}: a declination in degrees lies within ±180")
     decl = np.radians(args.declination_deg) if args.declination_deg is not None else None
     res = estimate(rec, args.filter, kw, declination=decl)
     warn_tilt_disagreement(args.filter, res.q, rec.acc)
@@ -145,7 +147,7 @@ def cmd_estimate(args):
     extra = f", diag_{', diag_'.join(res.diag)}" if args.diagnostics else ""
     say(f"{args.filter}: {len(rec)} samples -> {args.output} (t, q_w, q_x, q_y, q_z, roll, pitch, yaw; rad{extra})")
     decl = np.degrees(rec.declination if decl is None else decl)
-    source = "--declination-deg" if args.declination_deg is not None else rec.meta.get("declination_source", "none")
+    source = "--declination-deg" if args.declination_deg is not None else rec.declination_source
     say(f"  t in the file's own time, from {rec.t[0]:.3f} s; declination {decl:+.2f}° ({source})")
     if args.report:
         write_report_for(
@@ -351,7 +353,7 @@ def add_parsers(sub):
     add_span_args(r)
     r.add_argument("--param", action="append", metavar="FILTER.NAME=VALUE", help="a filter parameter (repeatable)")
     r.add_argument("--title", default=None, help="the page's title (default: from the file name)")
-    r.add_argument("-o", "--output", type=Path, required=True, help="the HTML file to write")
+    r.add_argument("-o", "--output", "--out", type=Path, required=True, help="the HTML file to write")
     r.add_argument("--json", type=Path, default=None, help="also write the report's tables as JSON")
     r.add_argument(
         "--rotors",
@@ -384,7 +386,7 @@ def add_parsers(sub):
     )
     cb.add_argument("kind", choices=["gyro", "accel", "mag", "centrifugal", "aero"])
     cb.add_argument("recordings", nargs="+", type=Path, metavar="RECORDING")
-    cb.add_argument("-o", "--output", required=True, metavar="CALIB.json")
+    cb.add_argument("-o", "--output", "--out", required=True, metavar="CALIB.json")
     cb.add_argument("--mass", type=float, default=None, help="aero: vehicle mass, kg")
     add_input_args(cb)
     cb.set_defaults(func=cmd_calibrate)
@@ -411,7 +413,7 @@ def add_parsers(sub):
         "recording, before and after it (robust-offline, or the offline estimator --filter names: "
         "robust-offline, vqf-offline)",
     )
-    es.add_argument("-o", "--output", required=True, metavar="OUT", help=".csv or .parquet")
+    es.add_argument("-o", "--output", "--out", required=True, metavar="OUT", help=".csv or .parquet")
     es.add_argument("--param", action="append", metavar="FILTER.NAME=VALUE", help="estimator parameter")
     es.add_argument(
         "--diagnostics",

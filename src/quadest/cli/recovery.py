@@ -108,7 +108,7 @@ def add_parsers(sub):
         "throws: the free flight after release; other recordings: every sample).",
     )
     fa.add_argument("recordings", nargs="+", type=Path, metavar="RECORDING")
-    fa.add_argument("-o", "--output", required=True, metavar="JSON", help="model file to write")
+    fa.add_argument("-o", "--output", "--out", required=True, metavar="JSON", help="model file to write")
     fa.add_argument("--mass", type=float, default=None, help="vehicle mass, kg (default: from a simulation)")
     add_input_args(fa)
     fa.set_defaults(func=cmd_fit_aero)

@@ -266,7 +266,9 @@ def _add_results_args(p, row: str):
     """The results file and what a sweep or a campaign does with it: the same options on both."""
     p.add_argument(
         "-o",
+        "--output",
         "--out",
+        dest="out",
         required=True,
         type=Path,
         metavar="RESULTS.parquet",

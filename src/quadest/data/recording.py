@@ -261,6 +261,17 @@ class Recording:
             return float(math.atan2(B[1], B[0]))
         return float(self.meta.get("declination_rad", 0.0))
 
+    @property
+    def declination_source(self) -> str:
+        """Where :attr:`declination` comes from, in words."""
+        if self.meta.get("earth_field_ned_ut") is not None:
+            return "the simulation's earth field"
+        if "declination_source" in self.meta:
+            return str(self.meta["declination_source"])
+        if "declination_rad" in self.meta:
+            return "the recording's declination_rad"
+        return "none stated: 0 (give --declination-deg)"
+
     def imu_rate_hz(self) -> float:
         """Nominal IMU rate from the median sample interval, Hz."""
         if len(self.t) < 2:

@@ -53,7 +53,7 @@ def summarize(rec: Recording) -> dict:
         out["imu_source"] = rec.meta.get("imu_source")
         out["imu_sources"] = rec.meta["imu_sources"]
     out["declination_deg"] = float(np.degrees(rec.declination))
-    out["declination_source"] = rec.meta.get("declination_source", "none stated: 0 (give --declination-deg)")
+    out["declination_source"] = rec.declination_source
     return out
 
 

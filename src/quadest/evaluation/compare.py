@@ -8,7 +8,7 @@ from dataclasses import replace
 from quadest.data.recording import Recording
 from quadest.errors import UsageError
 from quadest.evaluation.metrics import AXES
-from quadest.evaluation.runner import alignment_of, estimate_all, evaluation_mask, score, truth_of
+from quadest.evaluation.runner import alignment_of, check_params, estimate_all, evaluation_mask, score, truth_of
 from quadest.evaluation.speed import time_estimator
 from quadest.filters import ESTIMATORS, filter_name, make_filter
 
@@ -22,6 +22,7 @@ def parse_params(items) -> dict:
         name = filter_name(name)
         if not eq or not dot or name not in ESTIMATORS:
             raise UsageError(f"--param expects FILTER.NAME=VALUE with a known filter, got {item!r}")
+        check_params(name, {field: None})  # the name before its value
         v = value.strip()
         parsed = {"true": True, "false": False}.get(v.lower())
         if parsed is None:

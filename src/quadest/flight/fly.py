@@ -180,9 +180,8 @@ def fly(
             estimator=estimator, duration=duration, seed=seed, cfg=cfg, vehicle=vehicle, params=params, se3=se3,
             throw=throw, recovery=_recovery_params(estimator_params), meta=meta,
         )  # fmt: skip
-    t = np.arange(n := int(round(duration * rate))) / rate
-    rng_ref, rng_mocap = (np.random.default_rng(s) for s in np.random.SeedSequence([int(seed), 13]).spawn(2))
-    x0, ref = _reference(scenario, t, rng_ref, vehicle, params)
+    t, rng_mocap, (x0, ref) = _referenced(scenario, duration, rate, seed, vehicle, params)
+    n = len(t)
     processes, sm = sensors_for(cfg, n, seed, vehicle)  # the generators and order of flown_recording's
     nav, est = _in_loop(estimator, cfg, rate, estimator_params)
     if not isinstance(estimator, Estimator):  # one given continues from its state
@@ -345,6 +344,42 @@ def _check_request(scenario, estimator, controller, duration, collision=False):
     if not (math.isfinite(duration) and 0 < duration <= 3600):
         raise UsageError(f"duration must be between 0 and 3600 s, got {duration}")
     return controller, duration
+
+
+def check_flight(
+    scenario: str,
+    *,
+    estimator="truth",
+    controller=None,
+    duration=None,
+    vehicle=None,
+    failure=None,
+    params: FlightParams | None = None,
+    preset=None,
+    config=None,
+    seeds=(0,),
+) -> None:
+    """Refuse, in one line and before anything is flown or written, what :func:`fly` would refuse
+    in its arguments (for each of ``seeds``: a collision is drawn from the seed)."""
+    estimator = filter_name(estimator) if isinstance(estimator, str) else estimator
+    params = params or FlightParams()
+    controller, duration = _check_request(scenario, estimator, controller, duration, params.collision != "none")
+    vehicle = vehicle_preset(vehicle) if isinstance(vehicle, str) else (vehicle or MultirotorParams())
+    _checked_failure(scenario, failure, controller, vehicle, duration)
+    for seed in seeds:
+        _, watching = _in_flight_request(scenario, params, seed, duration)
+        name, cfg = _sensors(preset, config, scenario, watching)
+        rate = _rates(cfg, params, name)[0]
+        if scenario != "throw":
+            _referenced(scenario, duration, rate, seed, vehicle, params)
+
+
+def _referenced(scenario, duration, rate, seed, vehicle, params):
+    """The flight's sample times, the motion capture's generator, and the start state and
+    reference (:func:`_reference`, a landing included), from the seed."""
+    t = np.arange(int(round(duration * rate))) / rate
+    rng_ref, rng_mocap = (np.random.default_rng(s) for s in np.random.SeedSequence([int(seed), 13]).spawn(2))
+    return t, rng_mocap, _reference(scenario, t, rng_ref, vehicle, params)
 
 
 def in_loop_names() -> list[str]:
