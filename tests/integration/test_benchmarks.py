@@ -150,6 +150,50 @@ def test_benchmark_broad_json_layout(broad_dir, tmp_path, capsys):
     assert g["slow"]["roetenberg"] == res["trials"]["01_undisturbed_test_A"]["roetenberg"]
 
 
+def test_nees_terms_of_a_known_error():
+    """An estimate off the truth by a constant rotation Exp(δ) in the navigation frame: the tilt's
+    part is (δ_N² + δ_E²) / var_tilt and the heading's δ_D² / var_heading, exactly."""
+    from quadest.evaluation.metrics import nees, nees_terms
+
+    q_true = _random_walk_attitude(500)
+    delta = np.array([0.02, -0.01, 0.03])
+    q_est = quat_mul(Rotation.from_rotvec(-delta).as_quat(scalar_first=True), q_true)
+    var_t, var_h = np.full(500, 1e-4), np.full(500, 4e-4)
+    tilt, heading = nees_terms(q_est, q_true, var_t, var_h)
+    assert tilt == pytest.approx(5.0, rel=1e-9) and heading == pytest.approx(2.25, rel=1e-9)
+    assert nees(q_est, q_true, var_t, var_h) == pytest.approx(7.25, rel=1e-9)
+
+
+def test_benchmark_reports_the_nees_of_a_reported_covariance(broad_dir, tmp_path, capsys):
+    """robust reports a covariance, madgwick none: robust's NEES in the JSON is the mean of the
+    normalised error over the evaluated rows, computed again here with scipy's rotations; the
+    group's figure is its trials' mean; the text shows it, blank for madgwick."""
+    from quadest.evaluation.runner import estimate, evaluation_mask
+    from quadest.readers import read_recording
+
+    out = tmp_path / "b.json"
+    assert (
+        main(["benchmark", "broad", "--data", str(broad_dir), "--filters", "robust,madgwick", "--json", str(out)]) == 0
+    )
+    assert "NEES tilt" in capsys.readouterr().out
+    res = json.loads(out.read_text())
+    for trial, row in res["trials"].items():
+        assert "nees" not in row["madgwick"]
+        rec = read_recording(broad_dir / f"{trial}.hdf5", "broad")
+        run, m = estimate(rec, "robust"), evaluation_mask(rec)
+        e = (
+            Rotation.from_quat(rec.true_q[m], scalar_first=True) * Rotation.from_quat(run.q[m], scalar_first=True).inv()
+        ).as_rotvec()
+        tilt = np.mean((e[:, 0] ** 2 + e[:, 1] ** 2) / run.diag["var_tilt"][m])
+        assert row["robust"]["nees_tilt"] == pytest.approx(tilt, rel=1e-9)
+        assert row["robust"]["nees"] == pytest.approx(
+            tilt + np.mean(e[:, 2] ** 2 / run.diag["var_heading"][m]), rel=1e-9
+        )
+    both = [res["trials"][t]["robust"]["nees"] for t in res["trials"]]
+    assert res["groups"]["all_trials"]["robust"]["nees"] == pytest.approx(np.mean(both))
+    assert "nees" not in res["groups"]["all_trials"]["madgwick"]
+
+
 def test_benchmark_errors(tmp_path, capsys):
     assert main(["benchmark", "broad"]) == 2  # a missing option: usage
     assert "needs --data" in capsys.readouterr().err

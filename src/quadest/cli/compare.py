@@ -701,6 +701,8 @@ def _add_benchmark(sub):
         "DIDO and Blackbird flights under --data (6-axis; heading offset removed). "
         "repoimu: roll/pitch/yaw and total RMS on the RepoIMU T-stick and pendulum "
         "trials under --data (9-axis; the IMU-to-Vicon body rotation and heading removed). "
+        "With broad, flights and repoimu, an estimator that reports its covariance (robust, "
+        "robust-offline) also gets the mean NEES of it (3 dof, ideal 3; its tilt's part, ideal 2). "
         "speed: microseconds per sample of every filter, batch and streaming (an acausal one, "
         "robust-offline, batch only), and each quadest filter's time against VQF's, offline VQF's and "
         "imufusion's (robust-offline's also against robust's), timed in interleaved pairs (the median "

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from quadest.evaluation.runner import estimate, score
+from quadest.evaluation.runner import consistency, estimate, score
 from quadest.filters import FILTERS, available_peers
 from quadest.progress import bar as progress_bar
 from quadest.readers import detect_format, read_recording
@@ -36,6 +36,22 @@ def _axis_means(rows) -> dict:
 
 
 METRICS = ("total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg")
+NEES = ("nees", "nees_tilt")
+
+
+def _scored(rec, name: str, **kw) -> dict:
+    """:func:`score` of one estimator's run on ``rec``, with the NEES of its reported covariance
+    (:func:`consistency`, on the estimate as scored) when it reports one."""
+    res, aligned = estimate(rec, name), []
+    s = score(rec, res.q, aligned=aligned, **kw)
+    s.update(consistency(rec, res, aligned[0]))
+    return s
+
+
+def _nees_means(rows) -> dict:
+    """Mean over recordings of each NEES figure the rows carry (none for an estimator that
+    reports no covariance)."""
+    return {k: float(np.mean([r[k] for r in rows])) for k in NEES if rows and all(k in r for r in rows)}
 
 
 def benchmark_broad(data_dir, names=None, *, trials: str = "*", nav: str = "none", progress: bool = False) -> dict:
@@ -57,8 +73,8 @@ def benchmark_broad(data_dir, names=None, *, trials: str = "*", nav: str = "none
         out["trials"][trial] = {}
         for n in names:
             bar.set_postfix_str(f"{trial[:24]} {n}")
-            s = score(rec, estimate(rec, n).q, nav=nav, body=False)
-            out["trials"][trial][n] = {k: s[k] for k in METRICS}
+            s = _scored(rec, n, nav=nav, body=False)
+            out["trials"][trial][n] = {k: s[k] for k in METRICS + NEES if k in s}
             bar.update(1)
     bar.close()
     groups: dict[str, list[str]] = {}
@@ -67,7 +83,9 @@ def benchmark_broad(data_dir, names=None, *, trials: str = "*", nav: str = "none
             groups.setdefault(g, []).append(trial)
     for g, members in groups.items():
         out["groups"][g] = {
-            n: {k: float(np.mean([out["trials"][t][n][k] for t in members])) for k in METRICS} for n in names
+            n: {k: float(np.mean([out["trials"][t][n][k] for t in members])) for k in METRICS}
+            | _nees_means([out["trials"][t][n] for t in members])
+            for n in names
         }
         out["groups"][g]["_trials"] = len(members)
     return out
@@ -107,19 +125,20 @@ def benchmark_flights(data_dir, names=None, *, nav: str = "heading", progress: b
         out["flights"][key] = {"samples": len(rec), "duration_s": rec.duration}
         for n in names:
             bar.set_postfix_str(f"{key[:24]} {n}")
-            s = score(rec, estimate(rec, n).q, nav=nav, body=False)
+            s = _scored(rec, n, nav=nav, body=False)
             out["flights"][key][n] = {
                 "rms_deg": s["rms_deg"],
                 "total_rmse_deg": s["total_rmse_deg"],
                 "inclination_rmse_deg": s["inclination_rmse_deg"],
                 "alignment": s.get("alignment"),
-            }
+            } | {k: s[k] for k in NEES if k in s}
             bar.update(1)
     bar.close()
     for n in names:
         rows = [v[n] for v in out["flights"].values()]
         out["mean"][n] = _axis_means(rows)
         out["mean"][n]["inclination_rmse_deg"] = float(np.mean([r["inclination_rmse_deg"] for r in rows]))
+        out["mean"][n].update(_nees_means(rows))
     return out
 
 
@@ -161,19 +180,37 @@ def benchmark_repoimu(data_dir, names=None, *, progress: bool = False) -> dict:
         out["trials"][key] = {"samples": len(rec), "duration_s": rec.duration}
         for n in names:
             bar.set_postfix_str(f"{key[:24]} {n}")
-            s = score(rec, estimate(rec, n).q)
+            s = _scored(rec, n)
             out["trials"][key][n] = {
                 "rms_deg": s["rms_deg"],
                 "total_rmse_deg": s["total_rmse_deg"],
                 "samples": s["samples"],
-            }
+            } | {k: s[k] for k in NEES if k in s}
             bar.update(1)
     bar.close()
     for n in names:
         rows = [v[n] for v in out["trials"].values()]
         out["mean"][n] = _axis_means(rows)
         out["mean"][n]["total_rmse_deg"] = float(np.mean([r["total_rmse_deg"] for r in rows]))
+        out["mean"][n].update(_nees_means(rows))
     return out
+
+
+NEES_LABELS = {"nees": "NEES", "nees_tilt": "NEES tilt"}
+NEES_NOTE = (
+    "NEES: mean normalised error squared of the reported attitude covariance, 3 dof (ideal 3); "
+    "NEES tilt: its tilt's part, 2 dof (ideal 2); blank where an estimator reports none"
+)
+
+
+def _nees_lines(row: dict, names, w: int, indent: int) -> list[str]:
+    """The NEES rows of one recording or mean (``row[name]``), if any estimator has them."""
+    lines = []
+    for k, label in NEES_LABELS.items():
+        if any(k in row[n] for n in names):
+            cells = "".join((f"{row[n][k]:{w}.2f}" if k in row[n] else " " * w) for n in names)
+            lines.append(f"  {label}".ljust(indent) + cells)
+    return lines
 
 
 def format_repoimu(res: dict) -> str:
@@ -188,6 +225,7 @@ def format_repoimu(res: dict) -> str:
         for a in ("roll", "pitch", "yaw"):
             lines.append(f"  {a}".ljust(36) + "".join(f"{row[n]['rms_deg'][a]:{w}.2f}" for n in names))
         lines.append("  total".ljust(36) + "".join(f"{row[n]['total_rmse_deg']:{w}.2f}" for n in names))
+        lines += _nees_lines(row, names, w, 36)
     if res["without_truth"]:
         lines.append(f"not scored (no Vicon truth): {', '.join(res['without_truth'])}")
     lines.append("mean over trials")
@@ -199,7 +237,8 @@ def format_repoimu(res: dict) -> str:
                 for n in names
             )
         )
-    return "\n".join(lines)
+    nees = _nees_lines(res["mean"], names, w, 36)
+    return "\n".join(lines + nees + ([NEES_NOTE] if nees else []))
 
 
 def format_broad(res: dict) -> str:
@@ -220,7 +259,9 @@ def format_broad(res: dict) -> str:
         )
         lines.append("  heading".ljust(34) + "".join(f"{row[n]['heading_rmse_deg']:{w}.2f}" for n in names))
         lines.append("  inclination".ljust(34) + "".join(f"{row[n]['inclination_rmse_deg']:{w}.2f}" for n in names))
-    return "\n".join(lines)
+        nees = _nees_lines(row, names, w, 34)
+        lines += nees
+    return "\n".join(lines + ([NEES_NOTE] if nees else []))
 
 
 def format_flights(res: dict) -> str:
@@ -232,8 +273,10 @@ def format_flights(res: dict) -> str:
         lines.append("".ljust(12) + "".join(n.rjust(w) for n in names))
         for a in ("roll", "pitch", "yaw"):
             lines.append(f"  {a}".ljust(12) + "".join(f"{row[n]['rms_deg'][a]:{w}.2f}" for n in names))
+        lines += _nees_lines(row, names, w, 12)
     lines.append("mean over flights")
     lines.append("".ljust(12) + "".join(n.rjust(w) for n in names))
     for a in ("roll", "pitch", "yaw"):
         lines.append(f"  {a}".ljust(12) + "".join(f"{res['mean'][n][a]:{w}.2f}" for n in names))
-    return "\n".join(lines)
+    nees = _nees_lines(res["mean"], names, w, 12)
+    return "\n".join(lines + nees + ([NEES_NOTE] if nees else []))

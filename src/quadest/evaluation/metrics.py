@@ -106,11 +106,10 @@ def summarize_errors(q_est: ArrayLike, q_true: ArrayLike, mask: ArrayLike | None
     return sums.summary()
 
 
-def nees(q_est, q_true, var_tilt, var_heading, mask=None) -> float:
-    """Mean normalised estimation error squared of an estimator's reported attitude covariance
-    (diagonal in the navigation frame: ``var_tilt`` about north and about east, ``var_heading``
-    about down, rad²): ``e = Log(q_true ⊗ q_est⁻¹)``, ``NEES = (e_N² + e_E²)/var_tilt +
-    e_D²/var_heading``, 3 degrees of freedom (a consistent covariance gives 3 on average)."""
+def nees_terms(q_est, q_true, var_tilt, var_heading, mask=None) -> tuple[float, float]:
+    """The two parts of :func:`nees`, each a mean over the rows: the tilt's ``(e_N² + e_E²) /
+    var_tilt`` (2 degrees of freedom) and the heading's ``e_D² / var_heading`` (1); nan where no
+    row has a finite estimate, truth and positive variances."""
     from scipy.spatial.transform import Rotation
 
     q_est, q_true = np.asarray(q_est, float), np.asarray(q_true, float)
@@ -118,7 +117,15 @@ def nees(q_est, q_true, var_tilt, var_heading, mask=None) -> float:
     if mask is not None:
         ok &= np.asarray(mask, bool)
     if not ok.any():
-        return float("nan")
+        return float("nan"), float("nan")
     err = quat_mul(q_true[ok], quat_conj(q_est[ok]))
     e = Rotation.from_quat(err[:, [1, 2, 3, 0]]).as_rotvec()
-    return float(np.mean((e[:, 0] ** 2 + e[:, 1] ** 2) / var_tilt[ok] + e[:, 2] ** 2 / var_heading[ok]))
+    return float(np.mean((e[:, 0] ** 2 + e[:, 1] ** 2) / var_tilt[ok])), float(np.mean(e[:, 2] ** 2 / var_heading[ok]))
+
+
+def nees(q_est, q_true, var_tilt, var_heading, mask=None) -> float:
+    """Mean normalised estimation error squared of an estimator's reported attitude covariance
+    (diagonal in the navigation frame: ``var_tilt`` about north and about east, ``var_heading``
+    about down, rad²): ``e = Log(q_true ⊗ q_est⁻¹)``, ``NEES = (e_N² + e_E²)/var_tilt +
+    e_D²/var_heading``, 3 degrees of freedom (a consistent covariance gives 3 on average)."""
+    return float(sum(nees_terms(q_est, q_true, var_tilt, var_heading, mask)))

@@ -18,7 +18,7 @@ import numpy as np
 from quadest.data.recording import Recording
 from quadest.errors import UsageError
 from quadest.evaluation.align import Alignment, fit_alignment
-from quadest.evaluation.metrics import SUM_ROWS, nees, summarize_errors
+from quadest.evaluation.metrics import SUM_ROWS, nees_terms, summarize_errors
 from quadest.filters import ESTIMATORS, FILTERS, FilterResult, available_peers, estimator_class, filter_name
 
 
@@ -169,12 +169,26 @@ def score_result(rec: Recording, res: FilterResult, *, t_from: float | None = No
     estimator reports one (diagnostics ``var_tilt``, ``var_heading``) and the truth is
     independent (``true_q``)."""
     out = score(rec, res.q, t_from=t_from)
-    if "var_tilt" in res.diag and rec.true_q is not None:
-        # the declination rotates about down: the covariance, diagonal in NED, is unchanged by it
-        out["nees"] = nees(
-            res.q, rec.true_q, res.diag["var_tilt"], res.diag["var_heading"], evaluation_mask(rec, t_from)
-        )
+    # the declination rotates about down: the covariance, diagonal in NED, is unchanged by it
+    c = consistency(rec, res, mask=evaluation_mask(rec, t_from)) if rec.true_q is not None else {}
+    if c:
+        out["nees"] = c["nees"]
     return out
+
+
+def consistency(rec: Recording, res: FilterResult, q: np.ndarray | None = None, *, mask=None) -> dict:
+    """Mean NEES of a run's reported attitude covariance against the recording's truth over
+    ``mask`` (default the evaluated rows): ``nees`` (3 degrees of freedom, ideal 3) and
+    ``nees_tilt`` (the tilt's part, 2, ideal 2; without a magnetometer the heading's variance
+    is a uniform heading's and its part near 0). ``q`` is the estimate as scored (after the
+    alignment :func:`score` removed; a rotation about down leaves the covariance unchanged),
+    default the run's own. Empty when the estimator reports no covariance."""
+    if "var_tilt" not in res.diag or "var_heading" not in res.diag:
+        return {}
+    m = evaluation_mask(rec) if mask is None else mask
+    truth = getattr(rec, truth_of(rec))
+    tilt, heading = nees_terms(res.q if q is None else q, truth, res.diag["var_tilt"], res.diag["var_heading"], m)
+    return {"nees": tilt + heading, "nees_tilt": tilt}
 
 
 def score(
