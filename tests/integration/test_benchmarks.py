@@ -150,20 +150,6 @@ def test_benchmark_broad_json_layout(broad_dir, tmp_path, capsys):
     assert g["slow"]["roetenberg"] == res["trials"]["01_undisturbed_test_A"]["roetenberg"]
 
 
-def test_nees_terms_of_a_known_error():
-    """An estimate off the truth by a constant rotation Exp(δ) in the navigation frame: the tilt's
-    part is (δ_N² + δ_E²) / var_tilt and the heading's δ_D² / var_heading, exactly."""
-    from quadest.evaluation.metrics import nees, nees_terms
-
-    q_true = _random_walk_attitude(500)
-    delta = np.array([0.02, -0.01, 0.03])
-    q_est = quat_mul(Rotation.from_rotvec(-delta).as_quat(scalar_first=True), q_true)
-    var_t, var_h = np.full(500, 1e-4), np.full(500, 4e-4)
-    tilt, heading = nees_terms(q_est, q_true, var_t, var_h)
-    assert tilt == pytest.approx(5.0, rel=1e-9) and heading == pytest.approx(2.25, rel=1e-9)
-    assert nees(q_est, q_true, var_t, var_h) == pytest.approx(7.25, rel=1e-9)
-
-
 def test_benchmark_reports_the_nees_of_a_reported_covariance(broad_dir, tmp_path, capsys):
     """robust reports a covariance, madgwick none: robust's NEES in the JSON is the mean of the
     normalised error over the evaluated rows, computed again here with scipy's rotations; the
@@ -175,7 +161,10 @@ def test_benchmark_reports_the_nees_of_a_reported_covariance(broad_dir, tmp_path
     assert (
         main(["benchmark", "broad", "--data", str(broad_dir), "--filters", "robust,madgwick", "--json", str(out)]) == 0
     )
-    assert "NEES tilt" in capsys.readouterr().out
+    text = capsys.readouterr().out
+    nees_lines = [ln.split() for ln in text.splitlines() if ln.startswith("  NEES")]
+    numbers = [[c for c in ln if c[0].isdigit()] for ln in nees_lines]
+    assert nees_lines and all(len(n) == 1 for n in numbers)  # robust's figure; madgwick's cell blank
     res = json.loads(out.read_text())
     for trial, row in res["trials"].items():
         assert "nees" not in row["madgwick"]

@@ -177,6 +177,34 @@ def test_sweep_defaults_to_a_local_cluster(tmp_path, capsys):
     assert ResultStore(tmp_path / "r").read().column("status").to_pylist() == ["ok"]
 
 
+def test_sweep_prints_each_sets_mean(tmp_path, capsys):
+    """After the runs, each filter's parameter sets with the mean of their runs' metrics, the
+    figures those of the results file's rows; the JSON carries the same summary."""
+    import pyarrow.parquet as pq
+
+    out, js = tmp_path / "r.parquet", tmp_path / "s.json"
+    argv = "sweep --filters madgwick,roetenberg --grid madgwick.beta_marg=0.01,0.1 --scenario hover".split()
+    argv += ["--seeds", "1-2", "--duration", "3", "--workers", "0", "-o", str(out), "--json", str(js)]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    rows = pq.read_table(out).to_pylist()
+    for name, beta, label in (
+        ("madgwick", 0.01, "beta_marg=0.01"),
+        ("madgwick", 0.1, "beta_marg=0.1"),
+        ("roetenberg", None, "defaults"),
+    ):
+        mine = [
+            r for r in rows if r["filter"] == name and (beta is None or json.loads(r["params"])["beta_marg"] == beta)
+        ]
+        assert len(mine) == 2
+        total, yaw = (np.mean([r[k] for r in mine]) for k in ("total_rmse_deg", "yaw_rms_deg"))
+        line = next(ln for ln in text.splitlines() if ln.startswith(name) and f" {label} " in ln)
+        cells = line.split()
+        assert cells[2] == "2" and cells[3] == f"{total:.2f}" and cells[-1] == f"{yaw:.2f}", line
+    summ = json.loads(js.read_text())["summary"]
+    assert summ["runs"] == 6 and [e["params"] for e in summ["filters"]["roetenberg"]["sets"]] == [{}]
+
+
 def test_tune_command(tmp_path, capsys):
     out = tmp_path / "res"
     assert (

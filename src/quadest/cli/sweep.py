@@ -38,6 +38,7 @@ from quadest.sweep import (
 from quadest.sweep.campaign import DETECTIONS, HEIGHT_M, campaign_runs, campaign_summary, format_campaign
 from quadest.sweep.engine import ResultStore
 from quadest.sweep.runs import flown_names
+from quadest.sweep.summary import format_sweep_summary, sweep_summary
 
 
 def _flown_sources(args):
@@ -117,6 +118,11 @@ def cmd_sweep(args):
     _announce(args, runs)
     res = run_sweep(runs, args.out, **_engine(args))
     _report(args, res)
+    table = ResultStore(args.out).read()
+    if table is not None and table.num_rows:
+        res["summary"] = sweep_summary(table)
+        say(format_sweep_summary(res["summary"]))
+        say(f"every set, and the metrics against each parameter: quadest report {args.out}")
     if args.json:
         write_json(args.json, res)
     if res["executed"] and not res["executed_ok"]:

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from quadest.evaluation.runner import consistency, estimate, score
+from quadest.evaluation.runner import estimate, score_result
 from quadest.filters import FILTERS, available_peers
 from quadest.progress import bar as progress_bar
 from quadest.readers import detect_format, read_recording
@@ -39,15 +39,6 @@ METRICS = ("total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg")
 NEES = ("nees", "nees_tilt")
 
 
-def _scored(rec, name: str, **kw) -> dict:
-    """:func:`score` of one estimator's run on ``rec``, with the NEES of its reported covariance
-    (:func:`consistency`, on the estimate as scored) when it reports one."""
-    res, aligned = estimate(rec, name), []
-    s = score(rec, res.q, aligned=aligned, **kw)
-    s.update(consistency(rec, res, aligned[0]))
-    return s
-
-
 def _nees_means(rows) -> dict:
     """Mean over recordings of each NEES figure the rows carry (none for an estimator that
     reports no covariance)."""
@@ -73,7 +64,7 @@ def benchmark_broad(data_dir, names=None, *, trials: str = "*", nav: str = "none
         out["trials"][trial] = {}
         for n in names:
             bar.set_postfix_str(f"{trial[:24]} {n}")
-            s = _scored(rec, n, nav=nav, body=False)
+            s = score_result(rec, estimate(rec, n), nav=nav, body=False)
             out["trials"][trial][n] = {k: s[k] for k in METRICS + NEES if k in s}
             bar.update(1)
     bar.close()
@@ -125,7 +116,7 @@ def benchmark_flights(data_dir, names=None, *, nav: str = "heading", progress: b
         out["flights"][key] = {"samples": len(rec), "duration_s": rec.duration}
         for n in names:
             bar.set_postfix_str(f"{key[:24]} {n}")
-            s = _scored(rec, n, nav=nav, body=False)
+            s = score_result(rec, estimate(rec, n), nav=nav, body=False)
             out["flights"][key][n] = {
                 "rms_deg": s["rms_deg"],
                 "total_rmse_deg": s["total_rmse_deg"],
@@ -180,7 +171,7 @@ def benchmark_repoimu(data_dir, names=None, *, progress: bool = False) -> dict:
         out["trials"][key] = {"samples": len(rec), "duration_s": rec.duration}
         for n in names:
             bar.set_postfix_str(f"{key[:24]} {n}")
-            s = _scored(rec, n)
+            s = score_result(rec, estimate(rec, n))
             out["trials"][key][n] = {
                 "rms_deg": s["rms_deg"],
                 "total_rmse_deg": s["total_rmse_deg"],
@@ -199,7 +190,8 @@ def benchmark_repoimu(data_dir, names=None, *, progress: bool = False) -> dict:
 NEES_LABELS = {"nees": "NEES", "nees_tilt": "NEES tilt"}
 NEES_NOTE = (
     "NEES: mean normalised error squared of the reported attitude covariance, 3 dof (ideal 3); "
-    "NEES tilt: its tilt's part, 2 dof (ideal 2); blank where an estimator reports none"
+    "NEES tilt: its tilt's part, 2 dof (ideal 2; without a magnetometer the heading's part is near 0, "
+    "so read this one); blank where an estimator reports none"
 )
 
 
@@ -250,6 +242,11 @@ def format_broad(res: dict) -> str:
     ]
     for t, row in res["trials"].items():
         lines.append(t[:33].ljust(34) + "".join(f"{row[n]['total_rmse_deg']:{w}.2f}" for n in names))
+    per_trial = [(t, _nees_lines(row, names, w, 34)) for t, row in res["trials"].items()]
+    if any(nl for _, nl in per_trial):
+        lines += ["", "mean NEES of the reported covariance per trial (3 dof, and the tilt's part)"]
+        for t, nl in per_trial:
+            lines += [t[:33]] + nl
     lines.append("")
     lines.append("group means: total / heading / inclination RMSE [deg]")
     lines.append("group (trials)".ljust(34) + "".join(n.rjust(w) for n in names))
@@ -259,9 +256,9 @@ def format_broad(res: dict) -> str:
         )
         lines.append("  heading".ljust(34) + "".join(f"{row[n]['heading_rmse_deg']:{w}.2f}" for n in names))
         lines.append("  inclination".ljust(34) + "".join(f"{row[n]['inclination_rmse_deg']:{w}.2f}" for n in names))
-        nees = _nees_lines(row, names, w, 34)
-        lines += nees
-    return "\n".join(lines + ([NEES_NOTE] if nees else []))
+        lines += _nees_lines(row, names, w, 34)
+    has_nees = any(k in row[n] for row in res["groups"].values() for n in names for k in NEES)
+    return "\n".join(lines + ([NEES_NOTE] if has_nees else []))
 
 
 def format_flights(res: dict) -> str:

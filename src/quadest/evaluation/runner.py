@@ -164,30 +164,31 @@ def align_estimate(
     return al.apply(q), al
 
 
-def score_result(rec: Recording, res: FilterResult, *, t_from: float | None = None) -> dict:
-    """:func:`score` of a run, with the mean NEES of its reported covariance (``nees``) when the
-    estimator reports one (diagnostics ``var_tilt``, ``var_heading``) and the truth is
-    independent (``true_q``)."""
-    out = score(rec, res.q, t_from=t_from)
-    # the declination rotates about down: the covariance, diagonal in NED, is unchanged by it
-    c = consistency(rec, res, mask=evaluation_mask(rec, t_from)) if rec.true_q is not None else {}
-    if c:
-        out["nees"] = c["nees"]
+def score_result(rec: Recording, res: FilterResult, *, t_from: float | None = None, **alignment) -> dict:
+    """:func:`score` of a run (``nav``, ``body`` as there), with the mean NEES of its reported
+    covariance on the estimate as scored (:func:`consistency`: ``nees``, ``nees_tilt``) when the
+    estimator reports one and the recording has an independent truth."""
+    aligned: list = []
+    out = score(rec, res.q, t_from=t_from, aligned=aligned, **alignment)
+    out.update(consistency(rec, res, aligned[0], mask=evaluation_mask(rec, t_from)))
     return out
 
 
 def consistency(rec: Recording, res: FilterResult, q: np.ndarray | None = None, *, mask=None) -> dict:
-    """Mean NEES of a run's reported attitude covariance against the recording's truth over
-    ``mask`` (default the evaluated rows): ``nees`` (3 degrees of freedom, ideal 3) and
-    ``nees_tilt`` (the tilt's part, 2, ideal 2; without a magnetometer the heading's variance
-    is a uniform heading's and its part near 0). ``q`` is the estimate as scored (after the
-    alignment :func:`score` removed; a rotation about down leaves the covariance unchanged),
-    default the run's own. Empty when the estimator reports no covariance."""
-    if "var_tilt" not in res.diag or "var_heading" not in res.diag:
+    """Mean NEES of a run's reported attitude covariance against the recording's independent
+    truth (``true_q``; none against an onboard reference) over ``mask`` (default the evaluated
+    rows): ``nees`` (3 degrees of freedom, ideal 3) and ``nees_tilt`` (the tilt's part: 2,
+    ideal 2). Without a magnetometer the reported heading variance is that of an unknown
+    heading (π²/3, or π²/6 for robust-offline's two passes fused) and the heading's part is
+    near 0, so ``nees_tilt`` is the one to read. ``q`` is the estimate as scored (after the
+    alignment :func:`score` removed; with a heading offset and a rotation in the body removed
+    the error is still the navigation frame's, which the diagonal covariance describes),
+    default the run's own. Empty when the
+    estimator reports no covariance or there is no independent truth."""
+    if rec.true_q is None or "var_tilt" not in res.diag or "var_heading" not in res.diag:
         return {}
     m = evaluation_mask(rec) if mask is None else mask
-    truth = getattr(rec, truth_of(rec))
-    tilt, heading = nees_terms(res.q if q is None else q, truth, res.diag["var_tilt"], res.diag["var_heading"], m)
+    tilt, heading = nees_terms(res.q if q is None else q, rec.true_q, res.diag["var_tilt"], res.diag["var_heading"], m)
     return {"nees": tilt + heading, "nees_tilt": tilt}
 
 

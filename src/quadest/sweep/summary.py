@@ -60,3 +60,52 @@ def sweep_summary(table) -> dict:
             "failed": sum(1 for r in rows if r["filter"] == name and r["status"] != "ok"),
         }
     return out
+
+
+SHORT = {
+    "total_rmse_deg": "total",
+    "heading_rmse_deg": "heading",
+    "inclination_rmse_deg": "incl.",
+    "roll_rms_deg": "roll",
+    "pitch_rms_deg": "pitch",
+    "yaw_rms_deg": "yaw",
+    "position_rms_m": "pos m",
+    "time_to_settle_s": "settle s",
+    "spin_rate_rad_s": "spin rad/s",
+}
+
+
+def _set_label(params: dict) -> str:
+    return (
+        ", ".join(f"{k}={v:g}" if isinstance(v, (int, float)) else f"{k}={v}" for k, v in params.items()) or "defaults"
+    )
+
+
+def format_sweep_summary(summ: dict, best: int = 3) -> str:
+    """:func:`sweep_summary` for a terminal: per filter its ``best`` parameter sets by mean
+    total RMSE (every set when it has no more), each set's runs and mean metrics."""
+    cols = [
+        m for m in summ["metrics"] if any(e.get(m) is not None for f in summ["filters"].values() for e in f["sets"])
+    ]
+    flown = any("survived" in e for f in summ["filters"].values() for e in f["sets"])
+    head = ["filter", "parameters", "runs"] + [SHORT.get(m, m) for m in cols] + (["survived"] if flown else [])
+    rows = []
+    for name, f in summ["filters"].items():
+        for e in f["sets"][:best]:
+            cells = [f"{e[m]:.2f}" if e.get(m) is not None else "-" for m in cols]
+            survived = [f"{e.get('survived', 0)}/{e['runs']}"] if flown else []
+            rows.append([name, _set_label(e["params"]), str(e["runs"]), *cells, *survived])
+        if len(f["sets"]) > best:
+            rows.append([name, f"(best {best} of {len(f['sets'])} sets by total)"] + [""] * (len(head) - 2))
+        if f["failed"]:
+            rows.append([name, f"({f['failed']} failed run(s) left out)"] + [""] * (len(head) - 2))
+    widths = [max(len(r[i]) for r in [head, *rows]) for i in range(len(head))]
+
+    def line(r):
+        return "  ".join(c.ljust(w) if i < 2 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths))).rstrip()
+
+    title = (
+        f"results: {summ['runs']} runs ({summ['ok']} ok) on {summ['sources']} source(s); per parameter set the mean "
+        "over its successful runs (degrees unless named)"
+    )
+    return "\n".join([title, line(head), *(line(r) for r in rows)])
