@@ -905,6 +905,13 @@ def _at_most(ours: dict, theirs: dict, keys) -> bool:
     return all(ours[k] <= theirs[k] for k in keys)
 
 
+def _against(res: dict, case: str, other: str) -> tuple:
+    """robust's roll / pitch / yaw in a reproduction's ``case`` against ``other``'s: the two cells,
+    and whether robust is at most ``other`` in all three."""
+    ours, theirs = res["cases"][case]["robust"]["rms_deg"], res["cases"][case][other]["rms_deg"]
+    return _rpy(ours), f"{other} {_rpy(theirs)}", _at_most(ours, theirs, ours)
+
+
 def results_robust_everywhere() -> str:
     """docs/estimators.md: robust on every axis and robust-offline, the targets measured."""
     broad, flights, speed = _load("broad"), _load("flights"), _load("speed")
@@ -964,8 +971,7 @@ def results_robust_everywhere() -> str:
         ("simulator seeds 21-40, normal flight (the circle), flown", flown, "nominal", "roetenberg"),
         ("simulator seeds 21-40, the rotor loss, flown", flown, "damaged-rotor", "afckf"),
     ):
-        ours, theirs = res["cases"][case]["robust"]["rms_deg"], res["cases"][case][other]["rms_deg"]
-        row(f"{label}: robust", _rpy(ours), f"{other} {_rpy(theirs)}", _at_most(ours, theirs, ours))
+        row(f"{label}: robust", *_against(res, case, other))
     pair = speed["paired"]
     for key, mode, limit in (
         ("robust/vqf", "batch", 1.0),
@@ -1020,7 +1026,7 @@ def results_robust_targets() -> str:
         "flights (DIDO, Blackbird), roll / pitch RMS",
         f"{fm['robust']['roll']:.2f} / {fm['robust']['pitch']:.2f}",
         f"VQF {fm['vqf']['roll']:.2f} / {fm['vqf']['pitch']:.2f}",
-        fm["robust"]["roll"] <= fm["vqf"]["roll"] and fm["robust"]["pitch"] <= fm["vqf"]["pitch"],
+        _at_most(fm["robust"], fm["vqf"], ("roll", "pitch")),
     )
     ahead = _flights_ahead(flights, "robust", "vqf")
     row(
@@ -1034,12 +1040,11 @@ def results_robust_targets() -> str:
         "RepoIMU, roll / pitch / yaw, total",
         f"{_rpy(rm['robust'])}, {rm['robust']['total_rmse_deg']:.2f}",
         f"VQF {_rpy(rm['vqf'])}, {rm['vqf']['total_rmse_deg']:.2f}",
-        all(rm["robust"][a] <= rm["vqf"][a] for a in ("roll", "pitch", "yaw", "total_rmse_deg")),
+        _at_most(rm["robust"], rm["vqf"], ("roll", "pitch", "yaw", "total_rmse_deg")),
     )
 
     def sim_row(label, res, case, other):
-        ours, theirs = res["cases"][case]["robust"]["rms_deg"], res["cases"][case][other]["rms_deg"]
-        row(label, _rpy(ours), f"{other} {_rpy(theirs)}", all(ours[a] <= theirs[a] for a in ours))
+        row(label, *_against(res, case, other))
 
     sim_row("damaged rotor, prescribed (gyro clips at ±1000 °/s in the spin)", pres, "damaged-rotor", "afckf")
     sim_row("damaged rotor, flown", flown, "damaged-rotor", "afckf")
@@ -1048,7 +1053,7 @@ def results_robust_targets() -> str:
         "damaged rotor, flown, gyro ±500 °/s (clipping)",
         _rpy(clip["robust"]),
         f"afckf {_rpy(clip['afckf'])}",
-        all(clip["robust"][a] <= clip["afckf"][a] for a in ("roll", "pitch", "yaw")),
+        _at_most(clip["robust"], clip["afckf"], ("roll", "pitch", "yaw")),
     )
     sim_row("nominal flight, prescribed", pres, "nominal", "roetenberg")
     sim_row("nominal flight (the circle), flown", flown, "nominal", "roetenberg")

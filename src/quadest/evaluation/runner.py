@@ -183,8 +183,8 @@ def consistency(rec: Recording, res: FilterResult, q: np.ndarray | None = None, 
     near 0, so ``nees_tilt`` is the one to read. ``q`` is the estimate as scored (after the
     alignment :func:`score` removed; with a heading offset and a rotation in the body removed
     the error is still the navigation frame's, which the diagonal covariance describes),
-    default the run's own. Empty when the
-    estimator reports no covariance or there is no independent truth."""
+    default the run's own. Empty when the estimator reports no covariance or there is no
+    independent truth."""
     if rec.true_q is None or "var_tilt" not in res.diag or "var_heading" not in res.diag:
         return {}
     m = evaluation_mask(rec) if mask is None else mask
