@@ -247,7 +247,7 @@ def test_fly_writes_runs_that_every_command_reads(tmp_path, capsys):
     run0 = summary["runs"][0]
     assert run0["status"] == "survived" and run0["controller"] == "ftc"
     rec = load_recording(run0["files"]["recording"])
-    assert rec.meta["failure"] == {"rotor": 0, "time_s": 2.0, "efficiency": 0.0, "imbalance": 0.0} and len(rec) == 3000
+    assert rec.meta["failure"] == {"rotor": 0, "time_s": 2.0, "efficiency": 0.0} and len(rec) == 3000
     table = pq.read_table(run0["files"]["flight"])
     assert table.num_rows == 3000 and "rotor0_cmd" in table.column_names and "est_qw" in table.column_names
     assert open(run0["files"]["plot"], "rb").read(4) == b"\x89PNG"

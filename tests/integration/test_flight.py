@@ -9,13 +9,14 @@ import pytest
 from numba import njit
 from scipy.optimize import least_squares
 
-from quadest.control import Failure, FtcParams, relaxed_hover
+from quadest.control import FtcParams, relaxed_hover
 from quadest.errors import UsageError
 from quadest.evaluation.detection import case_failure, case_flight_kwargs, failure_case
 from quadest.filters import Madgwick, make_filter
 from quadest.flight import FlightParams, fly
 from quadest.flight.common import angle_errors
 from quadest.models import MultirotorParams, vehicle_preset
+from quadest.sim.faults import Failure
 from quadest.sim.flown import flown_recording
 
 V = MultirotorParams()

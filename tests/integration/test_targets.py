@@ -48,7 +48,7 @@ def test_recovery_targets():
     """The recovery paper's targets: with the simulation's model >= 95 % of throws converge within 1.5 s of release,
     gravity error at convergence median <= 5°, p90 <= 15°; the fitted model at most 5 points
     worse. 100 throws, seeds 1-100 (the filter's noise values were chosen on throws 5000-5079)."""
-    from quadest.evaluation.reproduce import reproduce_recovery
+    from quadest.evaluation.reproduce_recovery import reproduce_recovery
 
     r = reproduce_recovery(100, 1)["cases"]
     true, fitted = r["true"], r["fitted"]

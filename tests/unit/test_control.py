@@ -103,7 +103,7 @@ def test_rotor_failures_are_events_whose_outcome_is_physics():
     allocates to four rotors, loses the vehicle (it tumbles and falls): the outcome is
     a consequence of thrust, torque and control, not an input. (The fault-tolerant controller
     that keeps it up comes next.)"""
-    from quadest.control import Failure
+    from quadest.sim.faults import Failure
 
     x0 = P.hover_state()
     states, _, eta = fly_se3(
@@ -131,18 +131,18 @@ def test_rotor_failures_are_events_whose_outcome_is_physics():
     ],
 )
 def test_impossible_failures_are_refused(failure, match):
-    from quadest.control import Failure
+    from quadest.sim.faults import Failure
 
     with pytest.raises(ValueError, match=match):
         fly_se3(P.hover_state(), hover_reference(1000), failure=Failure(**failure))
 
 
 def test_a_flight_with_a_damaged_rotor_is_recorded():
-    from quadest.control import Failure
     from quadest.flight import fly
+    from quadest.sim.faults import Failure
 
     rec = fly("hover", duration=4.0, seed=1, failure=Failure(rotor=2, time_s=2.0, efficiency=0.6)).recording
-    assert rec.meta["failure"] == {"rotor": 2, "time_s": 2.0, "efficiency": 0.6, "imbalance": 0.0}
+    assert rec.meta["failure"] == {"rotor": 2, "time_s": 2.0, "efficiency": 0.6}
     assert np.isfinite(rec.acc).all() and len(rec) == 2000
 
 

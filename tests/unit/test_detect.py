@@ -9,12 +9,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from quadest.control import Failure
 from quadest.detect import Detector, DetectorParams
-from quadest.detect.effectiveness import MAX_ROTORS, MODEL, STATE, _predict, _update_rate, _update_thrust
+from quadest.detect.filter import predict, update_rate, update_thrust
+from quadest.detect.layout import MAX_ROTORS, MODEL, STATE
 from quadest.flight import FlightParams, fly
 from quadest.models import vehicle_preset
 from quadest.models.multirotor import rotor_forces
+from quadest.sim.faults import Failure
 
 BEBOP = vehicle_preset("bebop2")
 
@@ -74,8 +75,8 @@ def test_the_filters_updates_are_the_kalman_filters():
     rng, rotors = np.random.default_rng(5), 4
     ns = 3 + rotors
     P0, s0, h = _symmetric(rng, ns), rng.normal(size=ns), np.r_[0.0, 0.0, 0.0, rng.normal(size=rotors)]
-    rows = [(np.eye(ns)[j], 0.3 + j, lambda x, z, r, j=j: _update_rate(x, ns, j, z, r)) for j in range(3)]
-    rows.append((h, 2.0, lambda x, z, r: _update_thrust(x, ns, z, r)))
+    rows = [(np.eye(ns)[j], 0.3 + j, lambda x, z, r, j=j: update_rate(x, ns, j, z, r)) for j in range(3)]
+    rows.append((h, 2.0, lambda x, z, r: update_thrust(x, ns, z, r)))
     for row, z, update in rows:
         x = np.zeros(STATE.end)
         x[STATE.P : STATE.P + ns * ns], x[STATE.w : STATE.w + ns], x[STATE.h : STATE.h + ns] = P0.ravel(), s0, row
@@ -123,7 +124,7 @@ def test_the_filters_prediction_is_f_p_ft_plus_q():
     ns, dt = 7, 0.002
     P0 = _symmetric(np.random.default_rng(2), ns)
     x[STATE.P : STATE.P + ns * ns] = P0.ravel()
-    _predict(x, p, c, np.array([0.1, -0.2, 0.3]), dt)
+    predict(x, p, c, np.array([0.1, -0.2, 0.3]), dt)
     J, damping = c[MODEL.inertia : MODEL.inertia + 3], c[MODEL.damping : MODEL.damping + 3]
     a = 1.0 - dt * damping / J
     B = x[STATE.B : STATE.B + 3 * MAX_ROTORS].reshape(3, MAX_ROTORS)[:, :4]
@@ -227,7 +228,9 @@ def test_the_airs_drag_on_the_rotors_is_read_from_the_accelerometer():
     prediction's yaw row, the accelerometer's x and y through its low-pass) is the vehicle's:
     the reaction torques, the rotors' drag of the yaw rate and of the motion through the air,
     whatever ``k_h`` and the body's drag."""
-    from quadest.detect.effectiveness import MAX_ROTORS, MODEL, STATE, _air_lowpass, _predict
+    from quadest.detect.filter import predict
+    from quadest.detect.layout import MAX_ROTORS, MODEL, STATE
+    from quadest.detect.model import air_lowpass
 
     speeds, eta = np.array([600.0, 700.0, 820.0, 910.0]), np.array([1.0, 0.3, 1.0, 0.8])
     rate, dt = np.array([0.5, -0.7, 2.0]), 0.002
@@ -243,8 +246,8 @@ def test_the_airs_drag_on_the_rotors_is_read_from_the_accelerometer():
             s[STATE.eta : STATE.eta + 4], s[STATE.omega : STATE.omega + 4] = eta, speeds
             s[STATE.omega_end : STATE.omega_end + 4] = speeds
             s[STATE.h_lp : STATE.h_lp + 4] = c[MODEL.ip_s : MODEL.ip_s + 4] * speeds  # steady momentum
-            _air_lowpass(s, c, F / vehicle.mass_kg, rate[2], 1.0)
-            _predict(s, p, c, rate, dt)
+            air_lowpass(s, c, F / vehicle.mass_kg, rate[2], 1.0)
+            predict(s, p, c, rate, dt)
             yaw_row = s[STATE.B + 2 * MAX_ROTORS : STATE.B + 2 * MAX_ROTORS + 4]
             predicted = np.sum(eta * yaw_row) * vehicle.inertia[2] / dt
             assert predicted == pytest.approx(M[2], rel=1e-9, abs=1e-12), (k_h, drag, u)

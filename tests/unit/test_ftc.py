@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.optimize import lsq_linear
 
-from quadest.control import Failure, FtcParams, nutation_rates, relaxed_hover
+from quadest.control import FtcParams, nutation_rates, relaxed_hover
 from quadest.control.ftc import allocate, drain_unbrakeable
 from quadest.detect import DetectorParams
 from quadest.evaluation.detection import case_failure, case_flight_kwargs, failure_case
@@ -16,6 +16,7 @@ from quadest.evaluation.flown import range_vehicle
 from quadest.flight import FlightParams, fly
 from quadest.models import vehicle_preset
 from quadest.sim import build_config
+from quadest.sim.faults import Failure
 
 BEBOP = vehicle_preset("bebop2")
 

@@ -4,6 +4,7 @@ name, and the packages import in one direction (docs/developing.md)."""
 import ast
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -365,11 +366,25 @@ def test_one_closed_loop_and_one_sensor_model():
             if isinstance(node, ast.Call) and isinstance(node.func, ast.Name):
                 calls.setdefault(node.func.id, set()).add(f"{path.relative_to(SRC)}:{fn.name}")
     assert calls["rk4_ws"] <= {
-        "flight/loop.py:record_and_fly",
+        "flight/loop.py:advance",
         "models/multirotor.py:rk4",
         "models/multirotor.py:fly_open_loop",
     }
     assert calls["ftc_command"] == {"control/registry.py:command"}
+
+
+def test_a_complete_loss_is_decided_in_one_place():
+    """Whether a failure is a complete loss is asked of its record (sim/faults.py:
+    ``Failure.complete``), never re-derived from its efficiency elsewhere."""
+    derived = re.compile(r"efficiency[\"'\]]*\s*(==|>|<=|!=)\s*0")
+    found = [
+        f"{path.relative_to(SRC)}:{i}"
+        for path in sorted(SRC.rglob("*.py"))
+        if path.relative_to(SRC).as_posix() != "sim/faults.py"
+        for i, line in enumerate(path.read_text().splitlines(), 1)
+        if derived.search(line)
+    ]
+    assert not found, found
 
 
 def test_results_do_not_depend_on_what_compiled_first(tmp_path):

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from quadest.control import Failure
 from quadest.flight import fly
 from quadest.models import MultirotorParams
 from quadest.models.multirotor import quad_x
+from quadest.sim.faults import Failure
 from quadest.sim.sensors import rotor_vibration, rotor_vibration_model
 
 # rotors 3 cm above the centre of mass, so that the imbalance rolls and pitches the body too

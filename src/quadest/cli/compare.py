@@ -28,7 +28,7 @@ from quadest.cli.common import (
 )
 from quadest.cli.fly import detector_sets
 from quadest.detect import DetectorParams
-from quadest.evaluation import benchmark, collisions, detection, diagnose, flown, reproduce
+from quadest.evaluation import benchmark, collisions, detection, diagnose, flown, reproduce, reproduce_recovery
 from quadest.evaluation.compare import compare, format_tables, parse_params
 from quadest.evaluation.runner import estimator_names, filter_notes
 from quadest.evaluation.speed import benchmark_speed, format_paired
@@ -252,7 +252,7 @@ def _reproduce_recovery(args):
         f"throws (fma preset, seeds {args.seed}..{args.seed + args.throws - 1}), with the simulation's "
         "aerodynamic model, one fitted on 20 separate throws, and one perturbed by ±20 %."
     )
-    result = reproduce.reproduce_recovery(
+    result = reproduce_recovery.reproduce_recovery(
         args.throws,
         args.seed,
         progress=True,
@@ -260,7 +260,7 @@ def _reproduce_recovery(args):
         workers=args.workers,
         scheduler=args.scheduler,
     )
-    say(reproduce.format_recovery(result))
+    say(reproduce_recovery.format_recovery(result))
     if args.plot_dir:
         from quadest.plot import plot_recovery, plot_recovery_histograms
 
@@ -268,7 +268,7 @@ def _reproduce_recovery(args):
         out.mkdir(parents=True, exist_ok=True)
         runs = {n: c["runs"] for n, c in result["cases"].items()}
         say(f"wrote {plot_recovery_histograms(runs, out / 'errors_histogram.png')}")
-        res, rec = reproduce.example_throw(args.seed)
+        res, rec = reproduce_recovery.example_throw(args.seed)
         say(f"wrote {plot_recovery(res, rec, out / 'throw.png', title=f'throw seed {args.seed}, true model')}")
     if args.json:
         write_json(args.json, result)
@@ -285,7 +285,7 @@ def _reproduce_recovery_flown(args):
         "the controller rights the vehicle and holds its height."
     )
     say("(the first throw fits the model and compiles the loop: about a minute)")
-    result = reproduce.reproduce_recovery_flown(
+    result = reproduce_recovery.reproduce_recovery_flown(
         args.throws,
         args.seed,
         progress=True,
@@ -295,7 +295,7 @@ def _reproduce_recovery_flown(args):
         keep_runs=bool(args.json),
         ablations=args.ablations,
     )
-    say(flown.format_throws(result))
+    say(reproduce_recovery.format_throws(result))
     if args.plot_dir:
         from quadest.plot import plot_flight
 

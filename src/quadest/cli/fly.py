@@ -14,7 +14,7 @@ from quadest.cli.common import (
     with_sets,
     write_json,
 )
-from quadest.control import Failure, FtcParams, SE3Params
+from quadest.control import FtcParams, SE3Params
 from quadest.data import save_recording, write_table
 from quadest.detect import DetectorParams
 from quadest.errors import UsageError
@@ -31,68 +31,24 @@ from quadest.flight import (
 from quadest.flight.common import COLLISIONS
 from quadest.flight.detection import DETECTION_MODES
 from quadest.flight.fly import DEFAULT_PRESET, check_flight
+from quadest.flight.summary import flight_table
 from quadest.flight.throw import ThrowParams
 from quadest.models import VEHICLE_PRESETS
 from quadest.models.multirotor import vehicle_preset
 from quadest.records import check, with_fields
 from quadest.recovery.divergence import CHECKS
 from quadest.sim import PRESETS, build_config
-
-FAILURE_FORMAT = (
-    "ROTOR@TIME[:EFFICIENCY[:IMBALANCE]] (for example 0@2, 1@3:0.6, or 2@1:0.9:5e-6 for a "
-    "damaged propeller, its imbalance in kg m)"
-)
+from quadest.sim.faults import FAILURE_MODES, Failure
 
 
 def parse_failure(text) -> Failure | None:
-    """``ROTOR@TIME[:EFFICIENCY[:IMBALANCE]]`` (``0@2``: rotor 0 lost at 2 s; ``1@3:0.6``:
-    rotor 1 keeps 60 % from 3 s; ``2@1:0.9:5e-6``: rotor 2's propeller damaged at 1 s, 90 % of
-    its thrust and an imbalance of 5e-6 kg m)."""
-    if text is None:
-        return None
-    rotor, at, rest = text.partition("@")
-    parts = rest.split(":")
-    try:
-        if not at or len(parts) > 3:
-            raise ValueError
-        eff = float(parts[1]) if len(parts) > 1 else 0.0
-        return Failure(int(rotor), float(parts[0]), eff, float(parts[2]) if len(parts) > 2 else 0.0)
-    except ValueError:
-        raise CliError(f"--failure expects {FAILURE_FORMAT}, got {text!r}") from None
+    """``--failure``'s value as a :class:`~quadest.sim.faults.Failure` (None: none)."""
+    return None if text is None else Failure.parse(text)
 
 
 def failure_record(f: Failure | None) -> dict | None:
-    """A failure as the sweeps keep it (the imbalance only when there is one, so that earlier
-    sweeps' runs keep their keys)."""
-    if f is None:
-        return None
-    out = {"rotor": f.rotor, "time_s": f.time_s, "efficiency": f.efficiency}
-    return {**out, "imbalance": f.imbalance} if f.imbalance else out
-
-
-def flight_table(flight) -> dict:
-    """Per IMU sample: the true state, the rotor speeds and commands, what the controller read
-    (attitude, position, velocity, body rate), the barometer (NaN between its samples) and a throw's recovery state."""
-    x = flight.states
-    cols = {"t": flight.recording.t}
-    names = ["pn", "pe", "pd", "vn", "ve", "vd", "qw", "qx", "qy", "qz", "wx", "wy", "wz"]
-    for i, n in enumerate(names):
-        cols[f"true_{n}"] = x[:, i]
-    for i in range(x.shape[1] - 13):
-        cols[f"rotor{i}_speed"] = x[:, 13 + i]
-        cols[f"rotor{i}_cmd"] = flight.commands[:, i]
-    for i, n in enumerate(("qw", "qx", "qy", "qz")):
-        cols[f"est_{n}"] = flight.q_est[:, i]
-    for i, n in enumerate(("pn", "pe", "pd", "vn", "ve", "vd")):
-        cols[f"est_{n}"] = flight.pv_est[:, i]
-    if flight.rate_est is not None:  # the body rate the controller read (on a clipped axis the predicted one)
-        for i, n in enumerate(("wx", "wy", "wz")):
-            cols[f"est_{n}"] = flight.rate_est[:, i]
-    if flight.baro is not None:
-        cols["baro_alt"] = flight.baro
-    if flight.modes is not None:
-        cols["recovery_mode"] = flight.modes
-    return cols
+    """A failure as the sweeps keep it (:meth:`~quadest.sim.faults.Failure.to_dict`)."""
+    return None if f is None else f.to_dict()
 
 
 SENSOR_SECTIONS = ("environment", "imu", "gyro", "acc", "mag")
@@ -431,10 +387,13 @@ def add_parsers(sub):
     s.add_argument(
         "--failure",
         default=None,
-        metavar="ROTOR@TIME[:EFF[:IMB]]",
-        help="a rotor failure: 0@2 loses rotor 0 at 2 s, 1@3:0.6 leaves rotor 1 60 %% from 3 s, "
+        metavar="[MODE:]ROTOR@TIME[:EFF[:IMB]][,KEY=VALUE]",
+        help="a rotor failure: 0@2 loses rotor 0's propeller at 2 s, 1@3:0.6 leaves rotor 1 60 %% from 3 s, "
         "2@1:0.9:5e-6 damages rotor 2's propeller at 1 s (90 %% thrust, imbalance 5e-6 kg m: a "
-        "0.1 g chip at 5 cm, which shakes the IMU once per revolution) (default for rotor-loss: 0@2)",
+        "0.1 g chip at 5 cm, which shakes the IMU once per revolution); a MODE first for the others: "
+        "motor-stop:0@2 (the motor spins down to rest), gradual:0@2:0.7,ramp_s=3 (fades to 70 %% over 3 s), "
+        "desync:0@2,off_s=0.05,period_s=0.5 (the ESC drops the motor for 50 ms every 0.5 s); modes: "
+        f"{', '.join(FAILURE_MODES)} (docs/simulator.md) (default for rotor-loss: 0@2)",
     )
     s.add_argument("--preset", choices=list(PRESETS), default=None, help="sensors (default: bebop2; fma for a throw)")
     s.add_argument(
@@ -482,4 +441,4 @@ def add_parsers(sub):
     s.set_defaults(func=cmd_fly)
 
 
-__all__ = ["add_parsers", "cmd_fly", "failure_record", "flight_table", "fly_settings", "grouped_sets", "parse_failure"]
+__all__ = ["add_parsers", "cmd_fly", "failure_record", "fly_settings", "grouped_sets", "parse_failure"]

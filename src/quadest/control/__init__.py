@@ -3,14 +3,13 @@ on SE(3), the fault-tolerant controller after a rotor loss, the recovery control
 throw, their registry, and what they are asked to fly. Layer 1: uses models."""
 
 from quadest.control.ftc import FtcParams, fit_yaw_damping, ftc_command, nutation_rates, relaxed_hover
-from quadest.control.reference import Failure, circle_reference, figure_eight_reference, hover_reference
+from quadest.control.reference import circle_reference, figure_eight_reference, hover_reference
 from quadest.control.registry import CONTROLLERS, Controller
 from quadest.control.se3 import SE3Params, allocation, se3_command
 
 __all__ = [
     "CONTROLLERS",
     "Controller",
-    "Failure",
     "FtcParams",
     "SE3Params",
     "allocation",

@@ -1,16 +1,12 @@
-"""What a controller is asked to fly: references (a fixed setpoint, a circle) and a rotor
-failure as an event."""
+"""What a controller is asked to fly: references (a fixed setpoint, a circle, a figure eight).
+A rotor failure is the simulator's (:mod:`quadest.sim.faults`)."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
-
-from quadest.errors import UsageError
-from quadest.models.multirotor import MultirotorParams
 
 
 def hover_reference(
@@ -75,43 +71,3 @@ def _smooth_step(t: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray, n
         return one, 0 * one, 0 * one
     u = np.clip(t / width, 0.0, 1.0)
     return u**3 * (10 - 15 * u + 6 * u**2), 30 * u**2 * (1 - u) ** 2 / width, 60 * u * (1 - u) * (1 - 2 * u) / width**2
-
-
-@dataclass(frozen=True)
-class Failure:
-    """A rotor failure as an event: rotor ``rotor`` (0-based, the vehicle's order) keeps
-    ``efficiency`` of its thrust and torque from ``time_s`` on. Efficiency 0 is a complete loss:
-    no thrust or torque, and its motor spins down; between 0 and 1 a damaged rotor. A damaged
-    propeller also has an ``imbalance`` (kg m: the missing mass times its radius; 5e-6 is a
-    0.1 g chip at 5 cm), whose once-per-revolution force shakes the sensors
-    (:func:`quadest.sim.sensors.rotor_vibration_step`); with an imbalance the efficiency may be 1."""
-
-    rotor: int
-    time_s: float
-    efficiency: float = 0.0
-    imbalance: float = 0.0
-
-    @property
-    def complete(self) -> bool:
-        """Whether the rotor is lost (no thrust or torque)."""
-        return self.efficiency == 0.0
-
-    def check(self, vehicle: MultirotorParams, duration_s: float) -> None:
-        if not 0 <= self.rotor < vehicle.rotors:
-            raise UsageError(
-                f"failure: rotor {self.rotor} does not exist (the vehicle has rotors 0 to {vehicle.rotors - 1})"
-            )
-        if not 0.0 <= self.time_s < duration_s:
-            raise UsageError(f"failure: time {self.time_s} s lies outside the run (0 to {duration_s:g} s)")
-        if not (math.isfinite(self.imbalance) and 0.0 <= self.imbalance <= MAX_IMBALANCE):
-            raise UsageError(f"failure: imbalance must be between 0 and {MAX_IMBALANCE:g} kg m, got {self.imbalance}")
-        if not 0.0 <= self.efficiency <= 1.0 or (self.efficiency == 1.0 and self.imbalance == 0.0):
-            raise UsageError(
-                f"failure: efficiency must be in [0, 1) (1 only for a propeller with an imbalance), "
-                f"got {self.efficiency}"
-            )
-
-
-MAX_IMBALANCE = 1e-3
-"""The largest propeller imbalance a failure may have (kg m): 1 g at 1 m, far beyond any
-propeller's; what a user meaning grams by millimetres (5 rather than 5e-6) would give."""

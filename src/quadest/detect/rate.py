@@ -2,7 +2,7 @@
 *A clipped gyroscope*).
 
 The rate follows the Euler equations with the detector's model of the vehicle
-(:mod:`quadest.detect.effectiveness`: its arms, thrust with inflow, reaction torque, rotor drag
+(:mod:`quadest.detect.model`: its arms, thrust with inflow, reaction torque, rotor drag
 and drag; never the simulated truth's), integrated once per sample (Heun's method)::
 
     J ω̇ = Σ_i η_i M_i(Ω_i, ω) − ω × (J ω + h e_z) − ḣ e_z − D ω − C_r |ω| ω + J b
@@ -34,14 +34,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from quadest._jit import NO_ALLOCATION, njit
-from quadest.detect.effectiveness import (
-    MAX_ROTORS,
-    MODEL,
-    body_moments,
-    model_coefficients,
-    motor_step,
-    rotor_thrust_yaw,
-)
+from quadest.detect.layout import MAX_ROTORS, MODEL
+from quadest.detect.model import body_moments, model_coefficients, motor_step, rotor_thrust_yaw
 from quadest.records import Params, check, layout, pack, param, params_record
 from quadest.rotation.kernels import mag_rate_terms
 
@@ -138,7 +132,7 @@ def rate_values(params: RatePredictorParams | None = None) -> np.ndarray:
 
 
 @njit(cache=True, inline="always")
-def _start(x, p, c, gyr, rotors):
+def start_filter(x, p, c, gyr, rotors):
     """The first sample: the rate from the gyroscope, no bias known, the rotor speeds read (or
     commanded), no magnetometer sample yet."""
     for j in range(3):
@@ -216,7 +210,7 @@ def _propagate(x, p, c, eta, dt):
 
 
 @njit(cache=True, inline="always")
-def _correct(x, j, innovation, r):
+def correct(x, j, innovation, r):
     """Axis ``j``'s scalar Kalman update of ``(w, b)`` by a rate measured ``innovation`` away
     from the filter's, with variance ``r``."""
     i = STATE.P + 3 * j
@@ -241,7 +235,7 @@ def _fuse_axis(x, p, j, g, limit, out):
         out[j] = x[STATE.w + j]
         x[STATE.gclip + j] = 1.0
         return 1
-    _correct(x, j, g - x[STATE.w + j], p[PARAM.gyro_noise] ** 2)
+    correct(x, j, g - x[STATE.w + j], p[PARAM.gyro_noise] ** 2)
     out[j] = g
     return 0
 
@@ -264,7 +258,7 @@ def _mag_axis(x, p, i, num, den, kl):
     innovation = num / den - wi
     if innovation * innovation > p[PARAM.mag_gate] ** 2 * (x[STATE.P + 3 * i] + r):
         return
-    _correct(x, i, innovation, r)
+    correct(x, i, innovation, r)
 
 
 @njit(cache=True, inline="always")
@@ -308,7 +302,7 @@ def rate_step(x, p, c, gyr, mag, rotors, eta, gyro_range, dt, out):
             out[j] = gyr[j]
         return 0
     if x[STATE.init] == 0.0:
-        _start(x, p, c, gyr, rotors)
+        start_filter(x, p, c, gyr, rotors)
         for j in range(3):
             out[j] = gyr[j]
         _magnetometer(x, p, mag, dt)

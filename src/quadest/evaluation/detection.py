@@ -11,11 +11,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from quadest.control import Failure
 from quadest.detect import DetectorParams
 from quadest.evaluation.parallel import execute
 from quadest.flight import Flight, FlightParams, fly
 from quadest.sim import build_config
+from quadest.sim.faults import Failure
 from quadest.sim.params import SimConfig
 from quadest.sim.wind import WindParams
 
@@ -122,10 +122,23 @@ def case_flight_kwargs(case: dict, overrides: dict | None = None) -> dict:
 
 
 def case_failure(case: dict) -> Failure | None:
-    """The case's rotor failure (None for a nominal flight)."""
+    """The case's rotor failure (None for a nominal flight); its mode, when not the one its
+    numbers imply, under ``failure_mode`` (a case's ``mode`` is how the loss is learnt)."""
     if case.get("rotor") is None:
         return None
-    return Failure(rotor=case["rotor"], time_s=case["time_s"], efficiency=case["efficiency"])
+    return Failure(
+        rotor=case["rotor"],
+        time_s=case["time_s"],
+        efficiency=case["efficiency"],
+        imbalance=case.get("imbalance") or 0.0,
+        mode=case.get("failure_mode"),
+    )
+
+
+def complete_loss(case: dict) -> bool:
+    """Whether a case (or a row of one) is a complete rotor loss, asked of its failure."""
+    failure = case_failure(case)
+    return failure is not None and failure.complete
 
 
 def fly_case(case: dict, detector: DetectorParams | None = None, estimator: str = "truth") -> dict:
@@ -142,7 +155,7 @@ def fly_case_flight(
     """The flight of :func:`fly_case`, its sensors' parameters changed by ``overrides``
     (``{"gyro.range": 8.73}``) before the case's own draws."""
     failure = case_failure(case)
-    controller = "ftc" if failure is not None and failure.efficiency == 0.0 else "se3"
+    controller = "ftc" if failure is not None and failure.complete else "se3"
     return fly(
         case["scenario"],
         seed=case["seed"],
@@ -167,7 +180,7 @@ def survival_by_scenario(rows: list[dict]) -> dict:
     """``{mode: {scenario: [survived, flights]}}`` over the complete losses."""
     out: dict = {}
     for r in rows:
-        if r["rotor"] is not None and r["efficiency"] == 0.0:
+        if complete_loss(r):
             cell = out.setdefault(r["mode"], {}).setdefault(r["scenario"], [0, 0])
             cell[0] += r["status"] == "survived"
             cell[1] += 1
@@ -182,8 +195,8 @@ def percentile(values, q: float) -> float | None:
 def summarize_failures(rows: list[dict]) -> dict:
     """Detection delay (median, p90, p99, max), isolation, misses and survival over complete
     losses; delay, isolation and the effectiveness found over partial ones."""
-    complete = [r for r in rows if r["efficiency"] == 0.0]
-    partial = [r for r in rows if r["efficiency"] > 0.0]
+    complete = [r for r in rows if complete_loss(r)]
+    partial = [r for r in rows if not complete_loss(r)]
     delays = [r["delay_s"] for r in complete if r["delay_s"] is not None]
     out = {
         "complete": len(complete),
@@ -226,7 +239,7 @@ def benchmark_detection(
     losses' survival (by scenario) with the oracle (told 50 ms after the loss) beside, and every
     run's row."""
     cases = [failure_case(s, m) for m in modes for s in seeds]
-    oracle = [c for c in (failure_case(s, "oracle") for s in seeds) if c["efficiency"] == 0.0]
+    oracle = [c for c in (failure_case(s, "oracle") for s in seeds) if complete_loss(c)]
     cases += oracle
     cases += [nominal_case(s, m, nominal_s) for m in modes for s in nominal_seeds]
     rows = execute(
@@ -276,7 +289,7 @@ def tradeoff(rows: list[dict], thresholds=THRESHOLDS) -> list[dict]:
     out = []
     nominal = [r for r in rows if r["rotor"] is None]
     hours = sum(r["flown_s"] for r in nominal) / 3600.0
-    complete = [r for r in rows if r["rotor"] is not None and r["efficiency"] == 0.0]
+    complete = [r for r in rows if complete_loss(r)]
     for h in thresholds:
         key = str(h)
         early = [r for r in rows if r["rotor"] is not None and r["first"][key] and r["first"][key][0] < r["time_s"]]

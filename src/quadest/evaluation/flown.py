@@ -23,12 +23,11 @@ from __future__ import annotations
 import functools
 import itertools
 import math
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from quadest.calibration import calibrate_centrifugal
-from quadest.control import Failure
 from quadest.control.ftc import FtcParams, relaxed_hover
 from quadest.evaluation.metrics import AXES
 from quadest.evaluation.runner import estimate, score_result
@@ -36,8 +35,8 @@ from quadest.flight import FlightParams, fly, fly_many, resample
 from quadest.flight.common import mean_present
 from quadest.models.multirotor import SPIN_RANGES, vehicle_preset
 from quadest.records import check, describe, param
-from quadest.recovery import RecoveryParams
 from quadest.sim import build_config
+from quadest.sim.faults import Failure
 
 
 @dataclass(frozen=True)
@@ -488,125 +487,3 @@ def _clipping_columns(row: dict) -> str:
         return ""
     err = "/".join("-" if e is None else f"{e:.2f}" for e in row["clip_rate_error_rms_rad_s"])
     return f"   clipped {100 * row['gyro_clipped_share']:.0f} %, rate error {err} rad/s"
-
-
-# -- the recovery paper's throws, flown ------------------------------------------------------------------
-RECOVERY_PAPER = {"throws": 32, "hovered_10s": 16, "recovered": 21, "convergence_s": 0.570, "gravity_error_deg": 10.0}
-"""The recovery paper's real throws (section VI): 16 of 32 hovered at least 10 s, 5 more at least
-3 s (21 counted successful); in the detailed experiment the bank converged 570 ms after the
-detection with about 10° of gravity error (Fig. 1 and 2)."""
-
-
-def flown_throw(task) -> dict:
-    """One flown throw recovered by the bank in the loop (a picklable task ``(seed, throw
-    params, duration, recovery params)``): its summary."""
-    seed, throw, duration, recovery = task
-    changed = {k: v for k, v in asdict(recovery).items() if v != getattr(RecoveryParams(), k)} if recovery else None
-    f = fly("throw", estimator="recovery", seed=seed, throw=throw, duration=duration, estimator_params=changed)
-    return f.summary
-
-
-def throw_stats(runs: list[dict]) -> dict:
-    """Shares and statistics over flown throws, beside the paper's."""
-    n = len(runs)
-
-    def values(key):
-        return [r[key] for r in runs if r.get(key) is not None]
-
-    def stats(v):
-        return (
-            {"median": float(np.median(v)), "p90": float(np.percentile(v, 90)), "max": float(np.max(v))}
-            if v
-            else {"median": None, "p90": None, "max": None}
-        )
-
-    failed = [
-        {
-            k: r.get(k)
-            for k in (
-                "seed",
-                "status",
-                "reason",
-                "release_speed_m_s",
-                "release_rate_rad_s",
-                "hand_acc_peak_m_s2",
-                "gravity_error_at_handover_deg",
-                "first_detected_s",
-                "detections",
-                "handover_in_hand",
-                "upright_s",
-                "lowest_point_m",
-            )
-        }
-        for r in runs
-        if not r["recovered"]
-    ]
-    return {
-        "throws": n,
-        "detected": len(values("detected_s")),
-        "converged": len(values("handover_s")),
-        "recovered": sum(r["recovered"] for r in runs),
-        "crashed": sum(r["status"] == "crashed" for r in runs),
-        "detected_in_hand": sum((r.get("first_detected_s") or 0.0) < 0.0 for r in runs),
-        "handover_in_hand": sum(bool(r.get("handover_in_hand")) for r in runs),
-        "height_within_0_2_m": sum(
-            (r.get("height_error_end_m") is not None and r["height_error_end_m"] <= 0.2) for r in runs
-        ),
-        "convergence_s": stats(values("convergence_s")),
-        "detection_delay_s": stats(values("detected_s")),
-        "gravity_error_deg": stats(values("gravity_error_at_handover_deg")),
-        "velocity_error_m_s": stats(values("velocity_error_at_handover_m_s")),
-        "upright_s": stats(values("upright_s")),
-        "fall_m": stats(values("lowest_point_m")),
-        "height_error_end_m": stats(values("height_error_end_m")),
-        "release_speed_m_s": stats(values("release_speed_m_s")),
-        "release_rate_rad_s": stats(values("release_rate_rad_s")),
-        "hand_acc_peak_m_s2": stats(values("hand_acc_peak_m_s2")),
-        "not_recovered": failed,
-    }
-
-
-def format_throws(result: dict) -> str:
-    """The flown throws beside the paper's."""
-    lines = []
-    paper = result["published"]
-    for case, st in result["cases"].items():
-        n = st["throws"]
-
-        def f(d, fmt):
-            return "-" if d["median"] is None else f"{d['median']:{fmt}} median, {d['p90']:{fmt}} p90"
-
-        lines += [
-            f"{case}: {n} flown throws (release up to {result['throw']['speed_max']:g} m/s and "
-            f"{result['throw']['rate_max']:g} rad/s, hand up to {result['throw']['hand_acc_max']:g} m/s²)",
-            f"  release detected        {st['detected']}/{n}",
-            f"  bank converged          {st['converged']}/{n}; {f(st['convergence_s'], '.3f')} s after the "
-            f"detection (paper: {paper['convergence_s'] * 1e3:.0f} ms in its detailed throw)",
-            f"  gravity error there     {f(st['gravity_error_deg'], '.1f')} ° (paper: about "
-            f"{paper['gravity_error_deg']:g}°)",
-            f"  velocity error there    {f(st['velocity_error_m_s'], '.2f')} m/s",
-            f"  upright (30°)           {f(st['upright_s'], '.2f')} s after the release",
-            f"  recovered to hover      {st['recovered']}/{n} = {100 * st['recovered'] / max(n, 1):.0f} % "
-            f"(upright within 30°, then the height within 0.5 m for 10 s; paper: {paper['hovered_10s']} of "
-            f"{paper['throws']} hovered 10 s, {paper['recovered']} of {paper['throws']} with the brief hovers)",
-            f"  crashed                 {st['crashed']}/{n}; fall {f(st['fall_m'], '.2f')} m",
-            f"  detected in the hand    {st['detected_in_hand']}/{n}; handed over in the hand "
-            f"{st['handover_in_hand']}/{n}",
-            f"  height held             {f(st['height_error_end_m'], '.2f')} m off over the last "
-            f"5 s; within 0.2 m {st['height_within_0_2_m']}/{n}",
-        ]
-        for r in st["not_recovered"][:10]:
-            lines.append(
-                f"    not recovered: seed {r['seed']}, {r['reason']}; release {r['release_speed_m_s']:.1f} m/s, "
-                f"{r['release_rate_rad_s']:.1f} rad/s; gravity error at handover "
-                + ("-" if r["gravity_error_at_handover_deg"] is None else f"{r['gravity_error_at_handover_deg']:.1f}°")
-            )
-    for name, ab in result.get("ablations", {}).items():
-        g = ab["gravity_error_deg"]
-        lines.append(
-            f"{name}: recovered {ab['recovered']}/{ab['throws']}, crashed {ab['crashed']}, handed over in the hand "
-            f"{ab['handover_in_hand']}, gravity error "
-            + ("-" if g["median"] is None else f"{g['median']:.1f} / {g['p90']:.1f}° median / p90")
-            + f", height within 0.2 m {ab['height_within_0_2_m']}"
-        )
-    return "\n".join(lines)

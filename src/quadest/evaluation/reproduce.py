@@ -15,7 +15,7 @@ QUKF, EKF and a complementary filter (the paper does not say which; quadest uses
 
 from __future__ import annotations
 
-from dataclasses import asdict, replace
+from dataclasses import replace
 
 import numpy as np
 
@@ -28,11 +28,8 @@ from quadest.evaluation.parallel import execute
 from quadest.evaluation.runner import estimate, estimate_all, score_result
 from quadest.evaluation.speed import time_estimator
 from quadest.filters import make_filter
-from quadest.flight.throw import ThrowParams
-from quadest.models.aero import fit_aero
 from quadest.models.multirotor import SPIN_RANGES
-from quadest.recovery.logic import RecoveryParams, recover
-from quadest.sim import aero_model, build_config, simulate
+from quadest.sim import build_config, simulate
 
 # Published figures (degrees; AFCKF Table V in seconds per step).
 PUBLISHED = {
@@ -151,7 +148,7 @@ def reproduce_afckf(
         "flights": {},
     }
     for case in flown.CASES:
-        res = _map(
+        res = run_tasks(
             flown.flown_seed,
             [(case, s, p, fparams) for s in seeds],
             progress,
@@ -162,7 +159,7 @@ def reproduce_afckf(
         out["cases"][case] = _aggregate([r["scores"] for r in res], flown.LABELS)
         out["flights"][case] = _flight_means([r["flight"] for r in res])
     if ablations:
-        per_seed = _map(
+        per_seed = run_tasks(
             flown.ablation_seed,
             [(s, p, fparams, flown.ABLATIONS) for s in seeds],
             progress,
@@ -194,7 +191,9 @@ def afckf_in_loop(
     seeds = list(seeds)
     tasks = [(label, overrides, s, p, estimators) for label, overrides in variants for s in seeds]
     runs = [
-        r for part in _map(flown.in_loop_seed, tasks, progress, "AFCKF in the loop", workers, scheduler) for r in part
+        r
+        for part in run_tasks(flown.in_loop_seed, tasks, progress, "AFCKF in the loop", workers, scheduler)
+        for r in part
     ]
     return {
         "seeds": seeds,
@@ -239,7 +238,7 @@ def _spin_range_end(p, seeds, progress, workers, scheduler) -> dict:
     model = ftc.model(v)
     hover = relaxed_hover(model, p.rotor, ftc.rho)
     cal, fparams = _spin_range_calibration(p)
-    per_seed = _map(
+    per_seed = run_tasks(
         flown.surviving_seed,
         [("damaged-rotor", s, p, fparams) for s in seeds],
         progress,
@@ -364,7 +363,7 @@ def _one_seed(task) -> dict:
     }
 
 
-def _map(fn, tasks, progress, desc, workers, scheduler) -> list:
+def run_tasks(fn, tasks, progress, desc, workers, scheduler) -> list:
     results = execute(fn, tasks, workers=workers, scheduler=scheduler, progress=progress, desc=desc)
     for r in results:
         if isinstance(r, BaseException):
@@ -387,7 +386,7 @@ def _run_case_labelled(
     duration=None,
 ):
     tasks = [(scenario, preset, s, duration, list(names), list(labels_list), params, t_from) for s in seeds]
-    return _aggregate(_map(_one_seed, tasks, progress, desc, workers, scheduler), labels_list)
+    return _aggregate(run_tasks(_one_seed, tasks, progress, desc, workers, scheduler), labels_list)
 
 
 def reproduce_qukf(
@@ -523,183 +522,3 @@ def _flown_lines(result: dict) -> list[str]:
 
 
 # -- recovery ------------------------------------------------------------------------------
-RECOVERY_FIT_SEEDS = range(100_000, 100_020)  # throws for the fitted model, never evaluated
-RECOVERY_PERTURB_SEED = 7
-
-
-def _pct(values, q):
-    return float(np.percentile(values, q)) if len(values) else float("nan")
-
-
-def recovery_stats(summaries: list, horizon_s: float = 1.5) -> dict:
-    """Shares and error statistics over throws (the JSON block of one model case)."""
-    n = len(summaries)
-    conv = [s for s in summaries if s.get("converged")]
-    ok = [s for s in conv if s.get("t_converge_s") is not None and 0.0 <= s["t_converge_s"] <= horizon_s]
-    t = [s["t_converge_s"] for s in conv if s.get("t_converge_s") is not None]
-    g = [s["gravity_err_deg"] for s in conv if "gravity_err_deg" in s]
-    v = [s["vel_err_mps"] for s in conv if "vel_err_mps" in s]
-    return {
-        "throws": n,
-        "detected_share": sum(bool(s.get("detected")) for s in summaries) / n if n else float("nan"),
-        "converged_share": len(conv) / n if n else float("nan"),
-        "converged_within_share": len(ok) / n if n else float("nan"),
-        "horizon_s": horizon_s,
-        "converged_before_release": sum(1 for x in t if x < 0.0),
-        "t_converge_s": {"median": _pct(t, 50), "p90": _pct(t, 90)},
-        "gravity_err_deg": {"median": _pct(g, 50), "p90": _pct(g, 90), "max": max(g) if g else float("nan")},
-        "vel_err_mps": {"median": _pct(v, 50), "p90": _pct(v, 90), "max": max(v) if v else float("nan")},
-    }
-
-
-def recovery_models(preset: str = "fma") -> dict:
-    """The three model cases: the simulation's own, one fitted on separate throws, and the
-    simulation's with every parameter scaled by a random factor in [0.8, 1.2]."""
-    cfg = build_config(preset)
-    true = aero_model(cfg)
-    fitted = fit_aero([simulate("throw", preset, seed=s) for s in RECOVERY_FIT_SEEDS], cfg.vehicle.mass_kg)
-    rng = np.random.default_rng(RECOVERY_PERTURB_SEED)
-    perturbed = true.scaled(rng.uniform(0.8, 1.2, size=(3, 16)))
-    return {"true": true, "fitted": fitted, "perturbed": perturbed}
-
-
-def _one_throw(task) -> dict:
-    """One simulated throw, recovered with each model case (a picklable task)."""
-    preset, seed, models, params = task
-    rec = simulate("throw", preset, seed=seed)
-    return {name: recover(rec, model, params).summary for name, model in models.items()}
-
-
-def reproduce_recovery(
-    throws: int = 100,
-    seed: int = 1,
-    progress: bool = False,
-    preset: str = "fma",
-    params=None,
-    keep_runs: bool = False,
-    workers: int = 0,
-    scheduler=None,
-) -> dict:
-    """Simulate ``throws`` throws (seeds ``seed``..) and run the recovery with each model case;
-    the throws run through :func:`quadest.evaluation.parallel.execute` like the other
-    reproductions."""
-    models = recovery_models(preset)
-    seeds = list(range(seed, seed + throws))
-    per_case = {name: [] for name in models}
-    results = execute(
-        _one_throw,
-        [(preset, s, models, params) for s in seeds],
-        workers=workers,
-        scheduler=scheduler,
-        progress=progress,
-        desc="throws",
-    )
-    for r in results:
-        if isinstance(r, BaseException):
-            raise ValueError(f"a throw failed: {type(r).__name__}: {r}")
-        for name in models:
-            per_case[name].append(r[name])
-    out = {
-        "preset": preset,
-        "seeds": [seeds[0], seeds[-1]],
-        "cases": {},
-        "fitted_model": models["fitted"].info,
-        "published": {"t_converge_s": 0.570, "gravity_err_deg_detailed": 10.0, "recovered": "21 of 32 real throws"},
-    }
-    for name, summaries in per_case.items():
-        out["cases"][name] = recovery_stats(summaries)
-        if keep_runs:
-            out["cases"][name]["runs"] = summaries
-    return out
-
-
-RECOVERY_ABLATIONS = {
-    "without the re-arm": {"rearm_samples": 0},
-    "without the dwell": {"dwell_s": 0.0},
-    "without the barometer": {"baro_std": 0.0},
-    "the paper's logic, no barometer": {"rearm_samples": 0, "dwell_s": 0.0, "baro_std": 0.0},
-    "with the barometer in the bank": {"bank_baro": True},
-}
-"""The flown throws' ablations: each row one addition to the paper's recovery left out, and the
-last one added that is off by default (the barometer in the bank's likelihood)."""
-
-
-def reproduce_recovery_flown(
-    throws: int = 100,
-    seed: int = 1,
-    progress: bool = False,
-    workers: int = 0,
-    scheduler=None,
-    any_direction: bool = False,
-    keep_runs: bool = False,
-    duration: float = 14.0,
-    ablations: bool = False,
-) -> dict:
-    """The recovery paper's experiment flown: ``throws`` throws of the
-    rotor-level vehicle (seeds ``seed``..), thrown upward (or in any direction), recovered by the
-    bank of EKFs with the aerodynamic model fitted on separate flown throws, then flown to a
-    hover (:mod:`quadest.flight.throw`); with ``ablations`` the same throws again for each row of
-    :data:`RECOVERY_ABLATIONS`."""
-    throw = ThrowParams(any_direction=any_direction)
-    seeds = list(range(seed, seed + throws))
-    variants = {"": RecoveryParams()}
-    if ablations:
-        variants.update({name: replace(RecoveryParams(), **change) for name, change in RECOVERY_ABLATIONS.items()})
-    stats = {}
-    for name, rp in variants.items():
-        tasks = [(s, throw, duration, rp) for s in seeds]
-        runs = _map(flown.flown_throw, tasks, progress, f"flown throws {name}".strip(), workers, scheduler)
-        stats[name] = flown.throw_stats(runs)
-        if keep_runs and not name:
-            stats[name]["runs"] = runs
-    case = "any direction" if any_direction else "upward"
-    out = {
-        "mode": "flown",
-        "seeds": [seeds[0], seeds[-1]],
-        "throw": asdict(throw),
-        "recovery": asdict(RecoveryParams()),
-        "duration_s": duration,
-        "published": flown.RECOVERY_PAPER,
-        "cases": {case: stats.pop("")},
-    }
-    if ablations:
-        out["ablations"] = {name: {k: v for k, v in st.items() if k != "not_recovered"} for name, st in stats.items()}
-    return out
-
-
-def example_throw(seed: int = 1, preset: str = "fma"):
-    """One simulated throw recovered with the simulation's own model, every hypothesis recorded
-    (for the figure of ``reproduce recovery --plot-dir``): ``(RecoveryResult, recording)``."""
-    rec = simulate("throw", preset, seed=seed)
-    return recover(rec, aero_model(build_config(preset)), record_all=True), rec
-
-
-def format_recovery(result: dict) -> str:
-    lines = [
-        f"{result['cases']['true']['throws']} simulated throws ({result['preset']} preset, seeds "
-        f"{result['seeds'][0]}..{result['seeds'][1]}); errors at convergence"
-    ]
-    hdr = f"{'':34}" + "".join(f"{n:>12}" for n in result["cases"])
-    lines.append(hdr)
-
-    def row(label, fn, fmt):
-        lines.append(f"{label:34}" + "".join(f"{fn(c):>12{fmt}}" for c in result["cases"].values()))
-
-    row("detected share", lambda c: 100 * c["detected_share"], ".1f")
-    row("converged share [%]", lambda c: 100 * c["converged_share"], ".1f")
-    row("converged within 1.5 s [%]", lambda c: 100 * c["converged_within_share"], ".1f")
-    row("converged before release [throws]", lambda c: c["converged_before_release"], "d")
-    row("time to convergence median [s]", lambda c: c["t_converge_s"]["median"], ".3f")
-    row("time to convergence p90 [s]", lambda c: c["t_converge_s"]["p90"], ".3f")
-    row("gravity error median [deg]", lambda c: c["gravity_err_deg"]["median"], ".2f")
-    row("gravity error p90 [deg]", lambda c: c["gravity_err_deg"]["p90"], ".2f")
-    row("gravity error max [deg]", lambda c: c["gravity_err_deg"]["max"], ".1f")
-    row("velocity error median [m/s]", lambda c: c["vel_err_mps"]["median"], ".3f")
-    row("velocity error p90 [m/s]", lambda c: c["vel_err_mps"]["p90"], ".3f")
-    row("velocity error max [m/s]", lambda c: c["vel_err_mps"]["max"], ".2f")
-    p = result["published"]
-    lines.append(
-        f"paper (real throws): convergence after {p['t_converge_s'] * 1e3:.0f} ms with about "
-        f"{p['gravity_err_deg_detailed']:.0f}° gravity error in the detailed experiment; {p['recovered']} recovered"
-    )
-    return "\n".join(lines)

@@ -8,13 +8,12 @@ from quadest.flight.fly import (
     CONTROLLERS,
     DEFAULT_DURATION,
     FLIGHT_SCENARIOS,
-    campaign_table,
     fly,
     fly_many,
     in_loop_estimators,
-    offline_errors,
     resample,
 )
+from quadest.flight.summary import campaign_table, offline_errors
 
 __all__ = [
     "CONTROLLERS",

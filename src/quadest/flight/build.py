@@ -9,7 +9,7 @@ import numpy as np
 from quadest.control import FtcParams
 from quadest.control.registry import Control, controller_id
 from quadest.detect import Detector, DetectorParams
-from quadest.detect.effectiveness import DIAG, STATE
+from quadest.detect.layout import DIAG, STATE, STATISTICS
 from quadest.flight.collision import watch as watch_record
 from quadest.flight.detection import DETECTION_MODES, Detection
 from quadest.flight.landing import land_detector
@@ -23,11 +23,12 @@ from quadest.recovery.sphere import spread_points
 
 
 def plant(
-    vehicle, *, h, substeps, ground_z, failure=None, rate=1.0, hand=None, limits=True, zero_failed=True,
+    vehicle, *, h, substeps, ground_z, failure=None, rate=1.0, n=1, hand=None, limits=True, zero_failed=True,
     collision=None, wind=None, legs=False,
 ):  # fmt: skip
-    """The :data:`~quadest.flight.loop.Plant` of ``vehicle``: a ``failure`` striking at its
-    sample (``rate`` Hz), the ``hand``'s ``(states, derivatives)`` until the release, a
+    """The :data:`~quadest.flight.loop.Plant` of ``vehicle``: a ``failure``
+    (:class:`~quadest.sim.faults.Failure`) sampled at ``rate`` Hz over a flight of ``n``
+    samples, the ``hand``'s ``(states, derivatives)`` until the release, a
     ``collision`` (:class:`~quadest.flight.collision.Collision`), the flight ended by the ground
     at ``ground_z`` and (``limits``) by lost control; the ``wind`` (NED, m/s, one row per sample;
     none: still air); with ``legs`` the vehicle stands on legs that touch the ground first
@@ -46,11 +47,9 @@ def plant(
         max_speed=MAX_SPEED if limits else np.inf,
         tw=vehicle.rotors * vehicle.k_f * vehicle.omega_max**2 / (vehicle.mass_kg * vehicle.gravity),
         eta=np.ones(n_rot),
+        drive=np.ones(n_rot),
         imb=np.zeros(n_rot),
-        fail_rotor=-1 if failure is None else failure.rotor,
-        fail_k=-1 if failure is None else int(round(failure.time_s * rate)),
-        fail_eta=1.0 if failure is None else float(failure.efficiency),
-        fail_imb=0.0 if failure is None else float(failure.imbalance),
+        **failure_profile(failure, rate, n, n_rot),
         zero_failed=zero_failed,
         hit_k=-1 if collision is None else int(round(collision.time_s * rate)),
         hit_n=0 if collision is None else max(1, int(round(collision.impact_s * rate))),
@@ -64,6 +63,19 @@ def plant(
         Fb=np.empty(3),
         Mb=np.empty(3),
         thrusts=np.zeros(n_rot),
+    )
+
+
+def failure_profile(failure, rate, n, rotors) -> dict:
+    """The plant's failure fields: the profile from its first sample (none: no rows) and the
+    rotor the oracle knows lost and from which sample (only a complete loss)."""
+    if failure is None:
+        empty = np.zeros((0, rotors))
+        return dict(fail_k=-1, fail_eta=empty, fail_drive=empty, fail_imb=empty, lost_rotor=-1, lost_k=-1)
+    k0, eta, drive, imb = failure.profile(rate, n, rotors)
+    lost = failure.rotor if failure.complete else -1
+    return dict(
+        fail_k=k0, fail_eta=eta, fail_drive=drive, fail_imb=imb, lost_rotor=lost, lost_k=round(failure.lost_s * rate)
     )
 
 
@@ -212,7 +224,7 @@ def detection(mode="oracle", *, vehicle=None, params=None, n=1, noise=None, imu_
         reading=np.zeros(rotors),
         found=np.full(2, -1, np.int64),
         eta=np.full((n if mode != "oracle" else 1, rotors), np.nan),
-        statistics=np.full((n if mode != "oracle" else 1, 4), np.nan),
+        statistics=np.full((n if mode != "oracle" else 1, STATISTICS), np.nan),
     )
 
 

@@ -259,7 +259,7 @@ class Flight:
     imbalance: np.ndarray | None = None  # each propeller's imbalance at each row (kg m)
     vehicle: object = None  # the MultirotorParams flown
     effectiveness: np.ndarray | None = None  # with a detector in the loop: each rotor's effectiveness it estimates
-    detector_statistics: np.ndarray | None = None  # and its tests' statistics (detect.effectiveness.DIAG)
+    detector_statistics: np.ndarray | None = None  # and its tests' statistics (detect.layout.DIAGNOSTICS)
     rate_est: np.ndarray | None = None  # the body rate the controller read (rad/s; NaN where none did)
 
 

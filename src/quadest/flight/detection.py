@@ -13,7 +13,8 @@ from __future__ import annotations
 
 from quadest._jit import njit
 from quadest.detect import detect_step
-from quadest.detect.effectiveness import STAT, STATE, note_commands
+from quadest.detect.filter import note_commands
+from quadest.detect.layout import STAT, STATE, STATISTICS
 from quadest.flight.phases import FAULT, FLYING
 from quadest.records import compiled_record
 
@@ -27,7 +28,7 @@ Detection = compiled_record(
     "The detector in the loop: its mode (DETECTION_MODES' index), its state, parameter and model "
     "arrays, the rotors' effectiveness it estimates, the speed readings' relative noise per "
     "sample, the reading of the sample, the rotor found lost (sample, rotor; -1 none), the "
-    "effectiveness and the tests' statistics (detect.effectiveness.DIAG) per sample.",
+    "effectiveness and the tests' statistics (detect.layout.DIAGNOSTICS) per sample.",
     mode="i8",
     x="f8[:]",
     p="f8[:]",
@@ -60,7 +61,7 @@ def notice_failure(k, x, loop):
     lost = detect_step(det.x, det.p, det.c, sensing.gyr, sensing.acc, det.reading, sensing.dt, det.diag)
     for i in range(n):
         det.eta[k, i] = det.diag[i]
-    for j in range(4):
+    for j in range(STATISTICS):
         det.statistics[k, j] = det.diag[STAT + j]
     if lost >= 0 and det.found[0] < 0:
         det.found[0], det.found[1] = k, lost

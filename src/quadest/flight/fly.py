@@ -12,23 +12,21 @@ import math
 import time
 from collections import namedtuple
 from collections.abc import Callable, Iterable
-from dataclasses import asdict, fields, replace
+from dataclasses import fields
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from quadest.control import (
-    Failure,
     FtcParams,
     SE3Params,
     circle_reference,
     figure_eight_reference,
     hover_reference,
 )
-from quadest.control.ftc import relaxed_hover
 from quadest.control.registry import CONTROLLERS as REGISTRY
 from quadest.data.recording import Recording
-from quadest.detect import DetectorParams, RatePredictorParams
+from quadest.detect import DetectorParams
 from quadest.errors import UsageError
 from quadest.filters import ESTIMATORS, Estimator, filter_name, make_filter
 from quadest.flight import build, inflight
@@ -36,15 +34,19 @@ from quadest.flight.common import (
     SIM_RATE_HZ,
     Flight,
     FlightParams,
-    angle_errors,
     barometer_draws,
     flight_of,
-    mean_present,
     position_gain,
-    rms,
     sensors_for,
 )
-from quadest.flight.detection import DETECTION_MODES, found_damaged
+from quadest.flight.fault_setup import (
+    clip_rate_model,
+    detection_record,
+    detector_mode,
+    detector_model,
+    ftc_gains,
+    known_fault,
+)
 from quadest.flight.landing import descent_start, land_detector, landing_reference, landing_summary
 from quadest.flight.loop import (
     OK,
@@ -56,12 +58,14 @@ from quadest.flight.loop import (
     sense_sample,
 )
 from quadest.flight.start import converge, rest_readings
+from quadest.flight.summary import add_detection, offline_errors, summarize
 from quadest.flight.throw import ThrowParams, fly_throw
 from quadest.models.multirotor import MultirotorParams, vehicle_preset
 from quadest.recovery import RecoveryParams
 from quadest.recovery.divergence import CHECKS, DivergenceParams
-from quadest.rotation import euler_to_quat, quat_rotate
+from quadest.rotation import euler_to_quat
 from quadest.sim import build_config
+from quadest.sim.faults import Failure
 from quadest.sim.flown import flown_recording
 from quadest.sim.params import SimConfig
 from quadest.sim.wind import wind_samples
@@ -187,7 +191,7 @@ def fly(
     if not isinstance(estimator, Estimator):  # one given continues from its state
         _start_converged(est, sm, x0[6:10], cfg, params.estimator_start_s)
     ftc, gains = ftc or FtcParams(), (se3 or SE3Params()).gains(vehicle)
-    detection, detector = (detection, None) if isinstance(detection, str) else (_mode(detection), detection)
+    detection, detector = (detection, None) if isinstance(detection, str) else (detector_mode(detection), detection)
     oracle = detection == "oracle"
     loop = build.loop(
         plant=_plant(vehicle, params, failure, t, (rate, substeps), oracle, seed, event),
@@ -196,22 +200,22 @@ def fly(
             nav,
             x0,
             position_gain(params, rate),
-            _clip_rate(params, vehicle, cfg, seed, n),
+            clip_rate_model(params, vehicle, cfg, seed, n),
             inflight.reset(event, est, rate),
         ),  # fmt: skip
         bank=build.bank() if watching is None else inflight.bank(vehicle, cfg, gains),
-        watch=inflight.watch(watching, _detector_model(vehicle, params, seed)[0], rate, rate / every),
+        watch=inflight.watch(watching, detector_model(vehicle, params, seed)[0], rate, rate / every),
         control=build.control(
             {**dict(REGISTRY[controller].phases), **({} if watching is None else {"nominal": "recovery"})},
             gains=gains,
-            ftc=_ftc_gains(ftc, vehicle, controller, failure, oracle),
+            ftc=ftc_gains(ftc, vehicle, controller, failure, oracle),
             reference=ref,
-            fault=_known_fault(controller, failure, params, rate, n) if oracle else (-1, -1),
+            fault=known_fault(controller, failure, params, rate, n) if oracle else (-1, -1),
             cmd0=x0[13:].copy(),  # what the rotors were doing (a detector reads it before the first command)
             limited_k=(descent := descent_start(ref[1][:, 2], params.landing_m_s)),  # PX4's thrust limits
             **inflight.recovery_control(watching),
         ),
-        detection=_detection(detection, detector, vehicle, params, seed, n, cfg.acc.lever_arm),
+        detection=detection_record(detection, detector, vehicle, params, seed, n, cfg.acc.lever_arm),
         landing=land_detector(vehicle, rate, descent, params.landing_m_s * params.land_detector),
         n=n,
         rotors=vehicle.rotors,
@@ -230,7 +234,7 @@ def fly(
         ref=(loop.control.p_d, loop.control.yaw_d), gyro_range=float(cfg.gyro.range),
     )  # fmt: skip
     if detection != "oracle":
-        _add_detection(flight, loop.detection, detection, failure, flown)
+        add_detection(flight, loop.detection, detection, failure, flown)
     flight.summary.update(landing_summary(loop.landing, t[:flown]))
     if watching is not None or event is not None:
         flight.summary.update(inflight.summary(flight, out, loop, event, status, rate))
@@ -277,44 +281,12 @@ def _plant(vehicle, params, failure, t, rates, oracle, seed, event):
         ground_z=float(params.height_m if event is None else event.height_m),
         failure=failure,
         rate=rate,
+        n=len(t),
         zero_failed=oracle,
         collision=event,
         wind=wind,
         legs=params.landing_m_s > 0.0,
     )
-
-
-def _add_detection(flight: Flight, det, mode: str, failure: Failure | None, flown: int) -> None:
-    """The detector's estimates and statistics per sample, and its summary; a false alarm makes
-    the run a failed one."""
-    flight.effectiveness = det.eta[:flown].copy()
-    flight.detector_statistics = det.statistics[:flown].copy()
-    flight.summary["detection"] = detection_summary(det, mode, failure, flight.recording.t)
-    if flight.summary["detection"]["false_alarm"]:
-        flight.summary["status"] = "false alarm"
-
-
-def detection_summary(det, mode: str, failure: Failure | None, t: np.ndarray) -> dict:
-    """What the detector in the loop found: the rotor found lost and when (s; ``delay_s`` after
-    the failure), whether it is the rotor that failed, whether it was a false alarm (a rotor found
-    lost before any failed: it counts as a failed run, the controller gives an intact rotor up),
-    and the rotor found damaged."""
-    k, rotor = (int(v) for v in det.found)
-    found_s = float(t[k]) if k >= 0 else None
-    fail_s = failure.time_s if failure is not None else None
-    out = {
-        "mode": mode,
-        "lost_rotor": rotor if k >= 0 else None,
-        "lost_s": found_s,
-        "delay_s": None if found_s is None or fail_s is None or found_s < fail_s else found_s - fail_s,
-        "isolated": None if k < 0 or failure is None else rotor == failure.rotor,
-        "false_alarm": k >= 0 and (fail_s is None or found_s < fail_s),
-    }
-    damaged = found_damaged(det)
-    out["damaged_rotor"], out["damaged_s"], out["damaged_effectiveness"] = (
-        (None, None, None) if damaged is None else (damaged[0], float(t[0]) + damaged[1], damaged[2])
-    )
-    return out
 
 
 def _check_request(scenario, estimator, controller, duration, collision=False):
@@ -398,7 +370,7 @@ def _checked_failure(scenario, failure, controller, vehicle, duration):
         failure = Failure(rotor=0, time_s=min(2.0, duration / 2))
     if failure is not None:
         failure.check(vehicle, duration)
-    if controller == "ftc" and (failure is None or failure.efficiency > 0.0):
+    if controller == "ftc" and (failure is None or not failure.complete):
         raise UsageError(
             "the fault-tolerant controller is for a complete rotor loss: give a failure with "
             "efficiency 0 (scenario rotor-loss)"
@@ -478,77 +450,6 @@ def _start_converged(est: InLoop, sm, q0, cfg, seconds: float) -> None:
     converge(est.instance, est.peer is not None, readings, rate)
 
 
-def _mode(detector: DetectorParams) -> str:
-    return "rotor-speeds" if detector.rotor_speeds else "commands"
-
-
-def _known_fault(controller, failure, params, rate, n):
-    """The oracle's fault: the fault-tolerant controller flies ``detect_delay_s`` after a complete
-    loss, giving the lost rotor up (known, not detected); ``(-1, -1)`` for none."""
-    if controller != "ftc":
-        return -1, -1
-    return min(n, int(round(failure.time_s * rate)) + int(round(params.detect_delay_s * rate))), failure.rotor
-
-
-def _ftc_gains(ftc, vehicle, controller, failure, oracle):
-    """The fault-tolerant gains for each rotor that may be lost: with the oracle only the known
-    rotor's are needed (every entry), with a detector each rotor's."""
-    if controller == "ftc" and not oracle:
-        return ftc.all_gains(vehicle)
-    return (ftc.gains(vehicle, failure.rotor if controller == "ftc" else 0),) * vehicle.rotors
-
-
-def _detection(mode, detector, vehicle, params, seed, n, imu_position):
-    """The detector in the loop, with its own model of the vehicle (the flight's, each of mass,
-    inertia and thrust coefficient off by a factor drawn per flight), the sensors' lever arm
-    ``imu_position`` off by a distance drawn per flight, and the rotor speed readings' noise,
-    all from the flight's seed."""
-    if mode not in DETECTION_MODES:
-        raise UsageError(f"unknown detection {mode!r}; detection: {', '.join(DETECTION_MODES)}")
-    if mode == "oracle":
-        return build.detection()
-    model, rng_speed, imu_error = _detector_model(vehicle, params, seed)
-    noise = rng_speed.standard_normal((n, vehicle.rotors)) * params.speed_noise
-    imu = np.asarray(imu_position, float) + imu_error
-    return build.detection(mode, vehicle=model, params=detector, n=n, noise=noise, imu_position=imu)
-
-
-def _detector_model(vehicle, params, seed):
-    """The detector's model of the vehicle (the flight's, each of mass, inertia and thrust
-    coefficient off by a factor within ``params.detector_model_error`` drawn per flight), the
-    generator of its rotor speed readings' noise and the error of the IMU's position it is given
-    (within ``params.detector_imu_error`` per axis), all from the flight's seed."""
-    rng_model, rng_speed = (np.random.default_rng(s) for s in np.random.SeedSequence([int(seed), 29]).spawn(2))
-    e = params.detector_model_error
-    model = replace(
-        vehicle,
-        mass_kg=vehicle.mass_kg * (1 + rng_model.uniform(-e, e)),
-        inertia=tuple(np.asarray(vehicle.inertia) * (1 + rng_model.uniform(-e, e, 3))),
-        k_f=vehicle.k_f * (1 + rng_model.uniform(-e, e)),
-    )
-    return model, rng_speed, rng_model.uniform(-1.0, 1.0, 3) * params.detector_imu_error
-
-
-def _clip_rate(params, vehicle, cfg, seed, n):
-    """The rate of a clipped gyroscope axis (:mod:`quadest.flight.rate`) with the detector's
-    model of the vehicle (:func:`_detector_model`) and the gyroscope's range (the sensor's
-    configuration, as an autopilot knows it); its rotor speed readings' noise from a generator
-    of its own."""
-    model = _detector_model(vehicle, params, seed)[0]
-    noise = None
-    if params.clip_rate == "rotor-speeds":
-        rng = np.random.default_rng(np.random.SeedSequence([int(seed), 31]))
-        noise = rng.standard_normal((n, vehicle.rotors)) * params.speed_noise
-    return build.clip_rate(
-        params.clip_rate,
-        vehicle=model,
-        gyro_range=float(cfg.gyro.range),
-        n=n,
-        noise=noise,
-        to_estimator=params.clip_rate_estimator,
-    )
-
-
 def _run(x, loop, est: InLoop):
     """Fly ``loop`` from ``x``: compiled with a compiled estimator, or sample by sample
     with a peer's streaming update. Returns ``(status, samples flown)``."""
@@ -569,8 +470,10 @@ def _flight(out, t, vehicle, cfg, seed, failure, meta, processes, loop_s, phases
     each sample with ``phases``: a flight that may recover in flight)."""
     imbalance = np.zeros((len(t), vehicle.rotors))
     if failure is not None:
-        meta["failure"] = asdict(failure)  # imbalance in kg m
-        imbalance[int(round(failure.time_s * cfg.imu.rate_hz)) :, failure.rotor] = failure.imbalance
+        meta["failure"] = failure.to_dict()  # imbalance in kg m
+        k0, _, _, imb = failure.profile(cfg.imu.rate_hz, len(t), vehicle.rotors)
+        imbalance[k0:] = imb[-1]
+        imbalance[k0 : k0 + len(imb)] = imb[: len(t) - k0]
     return flight_of(
         out, t, vehicle, cfg=cfg, seed=seed, meta=meta, processes=processes, loop_s=loop_s, imbalance=imbalance,
         modes=out["phase"] if phases else None,
@@ -615,115 +518,6 @@ def resample(
     )
 
 
-def summarize(
-    flight: Flight,
-    *,
-    scenario,
-    status,
-    duration,
-    failure,
-    controller,
-    estimator,
-    seed,
-    params,
-    ftc,
-    vehicle,
-    ref,
-    gyro_range=np.inf,
-) -> dict:
-    """The summary of one run (module doc); with a gyroscope of ``gyro_range`` that clipped,
-    :func:`clipping_summary`'s too."""
-    rec, x = flight.recording, flight.states
-    t = rec.t
-    p_d, _ = ref
-    err = np.linalg.norm(x[:, 0:3] - p_d[: len(t)], axis=1)
-    start = failure.time_s if failure is not None else 0.0
-    s = {
-        "scenario": scenario,
-        "controller": controller,
-        "estimator": estimator,
-        "seed": int(seed),
-        "status": "survived" if status == OK else "crashed" if status in (1, 2) else "stopped",
-        "reason": STATUS[status],
-        "duration_s": float(duration),
-        "flown_s": float(t[-1] + (t[1] - t[0] if len(t) > 1 else 0)),
-        "end_time_s": None if status == OK else float(t[-1]),
-    }
-    # settled: the position error stays below settle_m from then to the end
-    after = t >= start
-    above = np.flatnonzero(after & (err >= params.settle_m))
-    if status != OK:
-        settle = None
-    elif len(above) == 0:
-        settle = float(start)
-    elif above[-1] + 1 < len(t):
-        settle = float(t[above[-1] + 1])
-    else:
-        settle = None
-    s["time_to_settle_s"] = None if settle is None else settle - start
-    s["position_rms_settled_m"] = rms(err[t >= settle]) if settle is not None else None
-    total, tilt = angle_errors(x[:, 6:10], flight.q_est)
-    ok = np.isfinite(total)  # a recovery in flight reads no attitude until its bank hands over
-    s["attitude_error_rms_deg"] = rms(total[ok])
-    s["tilt_error_rms_deg"] = rms(tilt[ok])
-    s["tilt_error_max_deg"] = float(tilt[ok].max())
-    if failure is not None:
-        s["drop_m"] = float(x[t >= start, 2].max()) if (t >= start).any() else None  # below the hover point
-        after = (t >= start) & ok
-        s["attitude_error_after_failure_rms_deg"] = rms(total[after])
-        s["tilt_error_after_failure_rms_deg"] = rms(tilt[after])
-    if failure is not None and failure.efficiency == 0.0 and controller == "ftc":
-        late = t >= max(start + 0.5 * (duration - start), start + 1.0)
-        if status == OK and late.any():
-            # spin: the body rate about the vertical (navigation z); tilt: body −z from the vertical
-            w_n = quat_rotate(x[late, 6:10], x[late, 10:13])
-            down_b = quat_rotate(x[late, 6:10], np.tile([0.0, 0.0, 1.0], (late.sum(), 1)))
-            s["spin_rate_rad_s"] = float(np.mean(w_n[:, 2]))
-            s["tilt_deg"] = float(np.degrees(np.mean(np.arccos(np.clip(down_b[:, 2], -1.0, 1.0)))))
-        hover = relaxed_hover(ftc.model(vehicle), failure.rotor, ftc.rho)
-        s["relaxed_hover_model"] = {
-            "spin_rate_rad_s": float(-hover.spin),
-            "tilt_deg": hover.tilt_deg,
-            "thrusts_n": [float(v) for v in hover.thrusts],
-        }
-    s.update(clipping_summary(flight, gyro_range, failure))
-    return s
-
-
-def clipping_summary(flight: Flight, gyro_range: float, failure: Failure | None) -> dict:
-    """With a gyroscope that clipped (from the failure on, if any): the share of samples with an
-    axis clipped and, per axis, the RMS error of the rate the controller read against the true
-    rate on that axis's clipped samples (None for an axis that never clipped). Empty otherwise."""
-    if not np.isfinite(gyro_range) or flight.rate_est is None:
-        return {}
-    t = flight.recording.t
-    after = t >= (failure.time_s if failure is not None else 0.0)
-    margin = RatePredictorParams().clip_margin
-    clipped = (np.abs(flight.recording.gyr) >= gyro_range * (1.0 - margin)) & after[:, None]
-    if not clipped.any():
-        return {}
-    err = flight.rate_est - flight.states[:, 10:13]
-    return {
-        "gyro_clipped_share": float(clipped.any(axis=1).sum() / max(after.sum(), 1)),
-        "clip_rate_error_rms_rad_s": [rms(err[clipped[:, j], j]) if clipped[:, j].any() else None for j in range(3)],
-    }
-
-
-def offline_errors(flight: Flight, estimator: str) -> dict:
-    """``estimator`` run afterwards over a flight's recording (not in its loop): its tilt and
-    attitude error, as the controller's estimator's are summarised."""
-    rec = flight.recording
-    q = make_filter(estimator, declination=rec.declination).run(rec).q
-    total, tilt = angle_errors(rec.true_q, q)
-    out = {"attitude_error_rms_deg": rms(total), "tilt_error_rms_deg": rms(tilt)}
-    if rec.meta.get("failure"):
-        after = rec.t >= rec.meta["failure"]["time_s"]
-        out.update(
-            attitude_error_after_failure_rms_deg=rms(total[after]), tilt_error_after_failure_rms_deg=rms(tilt[after])
-        )
-    return out
-
-
 def fly_many(
     scenario: str,
     estimators: Iterable[str],
@@ -752,42 +546,3 @@ def fly_many(
             if on_flight:
                 on_flight(f)
     return out
-
-
-def campaign_table(summaries: list[dict]) -> list[dict]:
-    """Per estimator over the runs: how many survived and settled, the tilt error in the loop and
-    offline (over the truth-controlled flight), the settled spin and tilt (rotor loss)."""
-    rows = []
-    for name in dict.fromkeys(s["estimator"] for s in summaries):
-        runs = [s for s in summaries if s["estimator"] == name]
-        ok = [s for s in runs if s["status"] == "survived"]
-        mean = mean_present
-
-        rows.append(
-            {
-                "estimator": name,
-                "runs": len(runs),
-                "survived": len(ok),
-                "settled": sum(s["time_to_settle_s"] is not None for s in runs),
-                "tilt_error_in_loop_deg": mean([s["tilt_error_rms_deg"] for s in runs]),
-                "tilt_error_offline_deg": mean(
-                    [s.get("offline_on_truth_flight", {}).get("tilt_error_rms_deg") for s in runs]
-                )
-                if name != "truth"
-                else 0.0,
-                "position_rms_settled_m": mean([s["position_rms_settled_m"] for s in runs]),
-                "spin_rate_rad_s": mean([s.get("spin_rate_rad_s") for s in ok]),
-                "tilt_deg": mean([s.get("tilt_deg") for s in ok]),
-            }
-        )
-        if any(s["scenario"] == "throw" for s in runs):  # throws
-            rows[-1].update(
-                {
-                    "recovered": sum(bool(s.get("recovered")) for s in runs),
-                    "handover_s": mean([s.get("handover_s") for s in runs]),
-                    "gravity_error_at_handover_deg": mean([s.get("gravity_error_at_handover_deg") for s in runs]),
-                    "velocity_error_at_handover_m_s": mean([s.get("velocity_error_at_handover_m_s") for s in runs]),
-                    "lowest_point_m": mean([s.get("lowest_point_m") for s in runs]),
-                }
-            )
-    return rows

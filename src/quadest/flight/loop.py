@@ -4,7 +4,8 @@ loss, a throw), configured by records checked field by field (:func:`quadest.rec
 Per IMU sample ``k`` (time ``k / rate``; the controller runs at the IMU rate, the vehicle at the
 simulation rate, ``substeps`` RK4 steps per sample):
 
-1. a failure due at ``k`` strikes (the rotor's efficiency changes);
+1. a failure's profile (:mod:`quadest.sim.faults`) sets the rotors' efficiencies, motor
+   drives and imbalances of sample ``k``;
 2. the sensors are sampled (:mod:`quadest.sim.sensors`, the model every simulation samples)
    from the true state, or in the hand from the hand's motion; every ``every`` samples the
    position sensor reads (its reading ``delay`` samples old); a clipped gyroscope axis's rate
@@ -54,8 +55,11 @@ MAX_SPEED = 20.0  # m/s: beyond this it is falling or flying away (RotorPy stops
 Plant = compiled_record(
     "Plant",
     "The vehicle and what happens to it: the integration step and substeps per sample, where "
-    "a flight ends, the rotor failure (rotor -1: none; its command zeroed from the failure on "
-    "with zero_failed, an oracle), the hand's states and derivatives until the release (none: "
+    "a flight ends, the rotor failure (from sample fail_k, -1: none, one row per sample of every "
+    "rotor's efficiency, motor drive and imbalance, the last row holding on: sim.faults.Failure.profile; "
+    "a lost rotor's command zeroed from sample lost_k on with zero_failed, an oracle; lost_rotor -1: "
+    "none), the rotors' efficiencies, drives and imbalances now, the hand's states and derivatives "
+    "until the release (none: "
     "zero rows), a collision (from sample hit_k over hit_n samples, the velocity hit_dv, NED, and "
     "body rate hit_dw it adds; hit_n 0: none), the wind per sample (NED, m/s; no rows: still air) "
     "and the work arrays of the dynamics.",
@@ -67,11 +71,14 @@ Plant = compiled_record(
     max_speed="f8",
     tw="f8",
     eta="f8[:]",
+    drive="f8[:]",
     imb="f8[:]",
-    fail_rotor="i8",
     fail_k="i8",
-    fail_eta="f8",
-    fail_imb="f8",
+    fail_eta="f8[:, :]",
+    fail_drive="f8[:, :]",
+    fail_imb="f8[:, :]",
+    lost_rotor="i8",
+    lost_k="i8",
     zero_failed="b1",
     hit_k="i8",
     hit_n="i8",
@@ -215,12 +222,20 @@ def sample(x, dx, plant, sensing, k):
 
 @njit(cache=True, inline="always")
 def sense(k, x, loop):
-    """Sample ``k``, first half: a failure due now strikes; in the hand the vehicle is where the
-    hand has it; the sensors and the position sensor are read into ``loop.sensing``."""
+    """Sample ``k``, first half: the vehicle's truth of sample ``k`` (:func:`plant_truth`), then
+    its sensors (:func:`read_sensors`)."""
+    plant_truth(k, x, loop)
+    read_sensors(k, x, loop)
+
+
+@njit(cache=True, inline="always")
+def plant_truth(k, x, loop):
+    """The compiled vehicle's truth of sample ``k`` (the plant's side of the loop, what
+    :class:`quadest.flight.plant.Plant` stands for): the failure's profile sets the rotors; the
+    wind of the sample; in the hand the vehicle is where the hand has it; with the sensors on, the
+    state's derivative and the rotor thrusts (``plant.dx``, ``plant.thrusts``), a collision's share."""
     plant, sensing = loop.plant, loop.sensing
-    if k == plant.fail_k and plant.fail_rotor >= 0:
-        plant.eta[plant.fail_rotor] = plant.fail_eta
-        plant.imb[plant.fail_rotor] = plant.fail_imb
+    strike_failure(k, plant)
     if k < plant.wind.shape[0]:
         copy_into(plant.vehicle.wind, plant.wind[k])
     in_hand = k < plant.hand_dx.shape[0]
@@ -228,12 +243,21 @@ def sense(k, x, loop):
         copy_into(x, plant.hand_x[k])
     if sensing.on:
         derivative_ws(
-            x, loop.control.cmd, plant.eta, plant.vehicle, plant.dx, plant.Fb, plant.Mb, plant.thrusts
+            x, loop.control.cmd, plant.eta, plant.drive, plant.vehicle, plant.dx, plant.Fb, plant.Mb, plant.thrusts
         )  # also the rotor thrusts
         if in_hand:
             copy_into(plant.dx, plant.hand_dx[k])
         if hitting(k, plant):
             strike(plant.dx, plant, 1.0 / (plant.hit_n * sensing.dt))
+
+
+@njit(cache=True, inline="always")
+def read_sensors(k, x, loop):
+    """The sensors of sample ``k`` from the truth (the state ``x``, ``plant.dx``,
+    ``plant.thrusts``, ``plant.eta``, ``plant.imb``) into ``loop.sensing``: the IMU and
+    magnetometer, a clipped axis's predicted rate, the position sensor and the barometer."""
+    plant, sensing = loop.plant, loop.sensing
+    if sensing.on:
         sample(x, plant.dx, plant, sensing, k)
         predict_rate(k, x, loop)
     for j in range(sensing.delay, 0, -1):
@@ -245,6 +269,16 @@ def sense(k, x, loop):
             sensing.reading[j] = sensing.hist[sensing.delay, j] + sensing.noise[m, j]
     if k < sensing.baro_a.shape[0]:
         sample_baro(k, -x[2], sensing)
+
+
+@njit(cache=True, inline="always")
+def strike_failure(k, plant):
+    """The failure's row for sample ``k`` (while its profile changes; its last row then holds)."""
+    j = k - plant.fail_k
+    if plant.fail_k >= 0 and 0 <= j < plant.fail_eta.shape[0]:
+        copy_into(plant.eta, plant.fail_eta[j])
+        copy_into(plant.drive, plant.fail_drive[j])
+        copy_into(plant.imb, plant.fail_imb[j])
 
 
 @njit(cache=True, inline="always")
@@ -325,8 +359,8 @@ def control_flight(k, loop):
     command(control.by_phase[phase], k, loop.nav.xh, control, plant.vehicle, loop.sensing.dt)
     if phase == FAULT:
         control.cmd[fault[1]] = 0.0
-    if plant.zero_failed and plant.fail_rotor >= 0 and k >= plant.fail_k and plant.fail_eta == 0.0:
-        control.cmd[plant.fail_rotor] = 0.0
+    if plant.zero_failed and plant.lost_rotor >= 0 and k >= plant.lost_k:
+        control.cmd[plant.lost_rotor] = 0.0
 
 
 @njit(cache=True, inline="always")
@@ -357,8 +391,15 @@ def ended(x, plant):
 
 @njit(cache=True, inline="always")
 def record_and_fly(k, x, loop):
-    """Record sample ``k``, fly ``substeps`` RK4 steps to the next sample (in the hand: carried
-    to the hand's next state) and say whether the flight ends there (:func:`ended`)."""
+    """Record sample ``k`` (:func:`record_sample`), fly to the next (:func:`advance`) and say
+    whether the flight ends there (:func:`ended`)."""
+    record_sample(k, x, loop)
+    return advance(k, x, loop)
+
+
+@njit(cache=True, inline="always")
+def record_sample(k, x, loop):
+    """Record sample ``k``: the truth, the readings, the commands and the phase."""
     plant, sensing, record, control = loop.plant, loop.sensing, loop.record, loop.control
     copy_into(record.x[k], x)
     copy_into(record.dx[k], plant.dx)
@@ -371,12 +412,20 @@ def record_and_fly(k, x, loop):
     if k < sensing.baro_noise.shape[0] and np.isfinite(sensing.baro_noise[k]):
         record.baro[k] = sensing.baro[0]
     record.phase[k] = loop.state[PHASE]
+
+
+@njit(cache=True, inline="always")
+def advance(k, x, loop):
+    """The compiled vehicle from sample ``k`` to the next: ``substeps`` RK4 steps with the
+    commands (in the hand: carried to the hand's next state), a collision's share; whether the
+    flight ends there (:func:`ended`)."""
+    plant, control = loop.plant, loop.control
     if k < plant.hand_dx.shape[0]:
         status = ended(x, plant)
         copy_into(x, plant.hand_x[k + 1])
         return status
     for _ in range(plant.substeps):
-        rk4_ws(x, control.cmd, plant.eta, plant.vehicle, plant.h, plant.work)
+        rk4_ws(x, control.cmd, plant.eta, plant.drive, plant.vehicle, plant.h, plant.work)
     if hitting(k, plant):
         strike(x, plant, 1.0 / plant.hit_n)
     return ended(x, plant)
@@ -393,6 +442,14 @@ def fly_sample(k, x, loop, q_est):
         return recover_sample(k, x, loop)
     if status != OK:
         return status
+    command_rotors(k, x, loop)
+    return record_and_fly(k, x, loop)
+
+
+@njit(cache=True, inline="always")
+def command_rotors(k, x, loop):
+    """The rotor commands of sample ``k`` once the controller has its state: the detector, the
+    land detector, the controller of the phase; what the controller read recorded."""
     notice_failure(k, x, loop)
     detect_landing(k, loop)
     control_flight(k, loop)
@@ -402,7 +459,26 @@ def fly_sample(k, x, loop, q_est):
     copy_into(record.pv[k, 0:3], nav.ph)
     copy_into(record.pv[k, 3:6], nav.vh)
     copy_into(record.rate[k], nav.xh[10:13])
-    return record_and_fly(k, x, loop)
+
+
+@njit(cache=True, **NO_ALLOCATION)
+def read_sensors_sample(k, x, loop):
+    """:func:`read_sensors`, compiled on its own: a plant of another simulator has set the truth
+    of sample ``k`` (:mod:`quadest.flight.plant`)."""
+    read_sensors(k, x, loop)
+
+
+@njit(cache=True, **NO_ALLOCATION)
+def command_sample(k, x, loop, q_est):
+    """Sample ``k``, second half, of a flight whose plant is another simulator's
+    (:mod:`quadest.flight.plant`): navigate, command and record, but not fly (the plant does).
+    Returns the status (:data:`OK` to go on)."""
+    status = navigate(k, x, loop, q_est)
+    if status != OK:
+        return status
+    command_rotors(k, x, loop)
+    record_sample(k, x, loop)
+    return OK
 
 
 @njit(cache=True)
@@ -471,16 +547,48 @@ def _fly_with_estimator(x, loop, est_step, ex, ep, ec, ediag, dq):
     ``ep``, ``ec``, diagnostics ``ediag``; ``dq`` the declination quaternion). Not cached (it
     takes a function): numba compiles it once per estimator and process, so its halves stay
     calls to their cached compiled code."""
-    q, sensing, gyr = loop.nav.q_est, loop.sensing, loop.nav.clip.gyr
     n = loop.record.phase.shape[0]
     for k in range(n):
         sense_sample(k, x, loop)
-        if k == loop.nav.reset_k:
-            copy_into(ex, loop.nav.reset_x)  # a collision's reset to nonsense
-        est_step(ex, ep, ec, gyr, sensing.acc, sensing.mag, sensing.dt, ediag)
-        # q = dq ⊗ q_est (the declination turns the magnetic frame into the geographic one)
-        q[0], q[1], q[2], q[3] = qmul_s(dq[0], dq[1], dq[2], dq[3], ex[0], ex[1], ex[2], ex[3])
+        q = estimate(k, loop, est_step, ex, ep, ec, ediag, dq)
         status = act_sample(k, x, loop, q)
         if status != OK:
             return status, flown(status, k)
     return OK, n
+
+
+@njit(inline="always")
+def estimate(k, loop, est_step, ex, ep, ec, ediag, dq):
+    """The estimator's step of sample ``k`` (:func:`_fly_with_estimator`'s arguments) and the
+    geographic attitude it gives, ``loop.nav.q_est``."""
+    q, sensing, gyr = loop.nav.q_est, loop.sensing, loop.nav.clip.gyr
+    if k == loop.nav.reset_k:
+        copy_into(ex, loop.nav.reset_x)  # a collision's reset to nonsense
+    est_step(ex, ep, ec, gyr, sensing.acc, sensing.mag, sensing.dt, ediag)
+    # q = dq ⊗ q_est (the declination turns the magnetic frame into the geographic one)
+    q[0], q[1], q[2], q[3] = qmul_s(dq[0], dq[1], dq[2], dq[3], ex[0], ex[1], ex[2], ex[3])
+    return q
+
+
+@njit(**NO_ALLOCATION)
+def estimate_sample(k, loop, est_step, ex, ep, ec, ediag, dq):
+    """:func:`estimate`, compiled on its own for a loop run from Python (:mod:`quadest.flight.plant`)."""
+    return estimate(k, loop, est_step, ex, ep, ec, ediag, dq)
+
+
+@njit(cache=True, **NO_ALLOCATION)
+def plant_truth_sample(k, x, loop):
+    """:func:`plant_truth`, compiled on its own (the compiled vehicle as a :class:`~quadest.flight.plant.Plant`)."""
+    plant_truth(k, x, loop)
+
+
+@njit(cache=True, **NO_ALLOCATION)
+def advance_sample(k, x, loop):
+    """:func:`advance`, compiled on its own (the compiled vehicle as a :class:`~quadest.flight.plant.Plant`)."""
+    return advance(k, x, loop)
+
+
+@njit(cache=True, **NO_ALLOCATION)
+def ended_sample(x, loop):
+    """:func:`ended` of the state ``x``, compiled on its own."""
+    return ended(x, loop.plant)

@@ -6,12 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from quadest.control import Failure, SE3Params
+from quadest.control import SE3Params
 from quadest.flight import build
 from quadest.flight.common import sensors_for
 from quadest.flight.loop import closed_loop
 from quadest.models.multirotor import MultirotorParams
 from quadest.sim import build_config
+from quadest.sim.faults import Failure
 
 
 def fly_se3(
@@ -40,7 +41,14 @@ def fly_se3(
     _, sm = sensors_for(build_config("bebop2"), 1, 0, vehicle)  # of the record's type; not sampled
     loop = build.loop(
         plant=build.plant(
-            vehicle, h=1.0 / rate_hz, substeps=1, ground_z=np.inf, failure=failure, rate=rate_hz, limits=False
+            vehicle,
+            h=1.0 / rate_hz,
+            substeps=1,
+            ground_z=np.inf,
+            failure=failure,
+            rate=rate_hz,
+            n=steps,
+            limits=False,
         ),
         sensing=build.sensing(sm, dt=1.0 / rate_hz, rotors=vehicle.rotors, position0=x[0:3], n=steps, on=False),
         nav=build.navigation("true-state", x),

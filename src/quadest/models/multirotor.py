@@ -449,14 +449,17 @@ def ground_contact(x, vehicle, F, M):
 
 @njit(cache=True)
 def derivative(x, cmd, eta, vehicle, dx):
-    """``ẋ`` at ``x`` with rotor speed commands ``cmd`` (rad/s) and efficiencies ``eta``."""
-    derivative_ws(x, cmd, eta, vehicle, dx, np.empty(3), np.empty(3), np.empty(vehicle.rotor_pos.shape[0]))
+    """``ẋ`` at ``x`` with rotor speed commands ``cmd`` (rad/s) and efficiencies ``eta``, every
+    motor driven."""
+    n_rot = vehicle.rotor_pos.shape[0]
+    derivative_ws(x, cmd, eta, np.ones(n_rot), vehicle, dx, np.empty(3), np.empty(3), np.empty(n_rot))
 
 
 @njit(cache=True, **NO_ALLOCATION)
-def derivative_ws(x, cmd, eta, vehicle, dx, F, M, T):
-    """:func:`derivative` with its work arrays given (no allocation in a hot loop); on return
-    ``F``, ``M`` and ``T`` hold the body force, moment and rotor thrusts at ``x``."""
+def derivative_ws(x, cmd, eta, drive, vehicle, dx, F, M, T):
+    """:func:`derivative` with each motor's ``drive`` (1: it follows its command, 0: its ESC has
+    stopped driving it, :mod:`quadest.sim.faults`) and its work arrays given (no allocation in a
+    hot loop); on return ``F``, ``M`` and ``T`` hold the body force, moment and rotor thrusts at ``x``."""
     rotor_forces(x, eta, vehicle, F, M, T)
     qw, qx, qy, qz = x[6], x[7], x[8], x[9]
     w0, w1, w2 = x[10], x[11], x[12]
@@ -467,7 +470,7 @@ def derivative_ws(x, cmd, eta, vehicle, dx, F, M, T):
     h = 0.0  # the rotors' angular momentum about body z, and its rate
     h_dot = 0.0
     for i in range(vehicle.rotor_pos.shape[0]):
-        target = min(max(cmd[i], vehicle.omega_min), vehicle.omega_max)
+        target = drive[i] * min(max(cmd[i], vehicle.omega_min), vehicle.omega_max)
         rate = (target - x[13 + i]) / vehicle.tau
         dx[13 + i] = min(max(rate, -vehicle.omega_dot_max), vehicle.omega_dot_max)
         h += vehicle.rotor_inertia * eta[i] * vehicle.spin[i] * x[13 + i]
@@ -483,7 +486,7 @@ def derivative_ws(x, cmd, eta, vehicle, dx, F, M, T):
 def rk4(x, cmd, eta, vehicle, h):
     """One classical Runge-Kutta step of ``h`` seconds, in place; the quaternion is renormalised
     and rotor speeds kept non-negative."""
-    rk4_ws(x, cmd, eta, vehicle, h, work(vehicle, x.shape[0]))
+    rk4_ws(x, cmd, eta, np.ones(vehicle.rotor_pos.shape[0]), vehicle, h, work(vehicle, x.shape[0]))
 
 
 @njit(cache=True)
@@ -493,21 +496,22 @@ def work(vehicle, n):
 
 
 @njit(cache=True, **NO_ALLOCATION)
-def rk4_ws(x, cmd, eta, vehicle, h, work_arrays):
-    """:func:`rk4` with its work arrays ``work_arrays`` (from :func:`work`): no allocation per step."""
+def rk4_ws(x, cmd, eta, drive, vehicle, h, work_arrays):
+    """:func:`rk4` with each motor's ``drive`` (:func:`derivative_ws`) and its work arrays
+    ``work_arrays`` (from :func:`work`): no allocation per step."""
     n = x.shape[0]
     stages, F, M, T = work_arrays
     k1, k2, k3, k4, y = stages[0], stages[1], stages[2], stages[3], stages[4]
-    derivative_ws(x, cmd, eta, vehicle, k1, F, M, T)
+    derivative_ws(x, cmd, eta, drive, vehicle, k1, F, M, T)
     for j in range(n):
         y[j] = x[j] + 0.5 * h * k1[j]
-    derivative_ws(y, cmd, eta, vehicle, k2, F, M, T)
+    derivative_ws(y, cmd, eta, drive, vehicle, k2, F, M, T)
     for j in range(n):
         y[j] = x[j] + 0.5 * h * k2[j]
-    derivative_ws(y, cmd, eta, vehicle, k3, F, M, T)
+    derivative_ws(y, cmd, eta, drive, vehicle, k3, F, M, T)
     for j in range(n):
         y[j] = x[j] + h * k3[j]
-    derivative_ws(y, cmd, eta, vehicle, k4, F, M, T)
+    derivative_ws(y, cmd, eta, drive, vehicle, k4, F, M, T)
     for j in range(n):
         x[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
     nq = np.sqrt(x[6] * x[6] + x[7] * x[7] + x[8] * x[8] + x[9] * x[9])
@@ -520,9 +524,9 @@ def rk4_ws(x, cmd, eta, vehicle, h, work_arrays):
 @njit(cache=True)
 def fly_open_loop(x, cmd, eta, vehicle, h, steps, out):
     """``steps`` RK4 steps with constant commands; ``out[k]`` the state after step k."""
-    work_arrays = work(vehicle, x.shape[0])
+    work_arrays, drive = work(vehicle, x.shape[0]), np.ones(vehicle.rotor_pos.shape[0])
     for k in range(steps):
-        rk4_ws(x, cmd, eta, vehicle, h, work_arrays)
+        rk4_ws(x, cmd, eta, drive, vehicle, h, work_arrays)
         for j in range(x.shape[0]):
             out[k, j] = x[j]
 
@@ -533,5 +537,6 @@ def derivatives(states, cmds, etas, vehicle, dx, thrusts):
     efficiencies), in place."""
     F = np.empty(3)
     M = np.empty(3)
+    drive = np.ones(vehicle.rotor_pos.shape[0])
     for k in range(states.shape[0]):
-        derivative_ws(states[k], cmds[k], etas[k], vehicle, dx[k], F, M, thrusts[k])
+        derivative_ws(states[k], cmds[k], etas[k], drive, vehicle, dx[k], F, M, thrusts[k])

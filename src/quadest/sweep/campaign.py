@@ -19,6 +19,7 @@ from quadest.detect import DetectorParams
 from quadest.errors import UsageError
 from quadest.evaluation.detection import (
     case_config,
+    complete_loss,
     failure_case,
     fly_case_flight,
     nominal_case,
@@ -100,7 +101,7 @@ def campaign_runs(
     runs = []
     for case in cases:
         for mode in detections:
-            if mode == "oracle" and (case["rotor"] is None or case["efficiency"] > 0.0):
+            if mode == "oracle" and not complete_loss(case):
                 continue
             for g in gyro_ranges_dps:
                 for lat in mag_latencies_s:
@@ -176,7 +177,7 @@ def _told(case: dict) -> dict:
 
 def _case_columns(src: dict, cfg) -> dict:
     c = src["case"]
-    kind = "nominal" if c["rotor"] is None else ("loss" if c["efficiency"] == 0.0 else "partial")
+    kind = "nominal" if c["rotor"] is None else ("loss" if complete_loss(c) else "partial")
     return {
         "scenario": c["scenario"],
         "kind": kind,

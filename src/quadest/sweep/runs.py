@@ -20,13 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
-from quadest.control import Failure
 from quadest.errors import MAX_RUNS, UsageError, check_run_count
 from quadest.evaluation.runner import check_params, estimate, estimator_names, score
 from quadest.filters import filter_name
 from quadest.flight import fly, in_loop_estimators
 from quadest.readers import read_recording
 from quadest.sim import simulate
+from quadest.sim.faults import Failure
 from quadest.sweep.campaign import CAMPAIGN_ROW_TYPES, RUN_COLUMNS, campaign_label, fly_campaign
 
 METRICS = ("total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg", "roll_rms_deg", "pitch_rms_deg", "yaw_rms_deg")
@@ -224,7 +224,7 @@ def flown_sources(
     preset: str | None = None,
 ) -> list[dict]:
     """Flown flights (:func:`quadest.flight.fly`): one per (failure, seed); a failure as
-    ``{"rotor", "time_s", "efficiency"[, "imbalance"]}`` or None."""
+    :meth:`~quadest.sim.faults.Failure.to_dict` writes it, or None."""
     return [
         {
             "kind": "flown",
@@ -310,21 +310,27 @@ def build_runs(
 def source_label(src: dict) -> str:
     if src["kind"] == "flown":
         f = src.get("failure")
-        fail = (
-            (
-                f"/rotor{f['rotor']}@{f['time_s']:g}"
-                + (f":{f['efficiency']:g}" if f["efficiency"] or f.get("imbalance") else "")
-                + (f":{f['imbalance']:g}" if f.get("imbalance") else "")
-            )
-            if f
-            else ""
-        )
-        return f"flown {src['scenario']}{fail}/seed{src['seed']}"
+        return f"flown {src['scenario']}{failure_label(f)}/seed{src['seed']}"
     if src["kind"] == "sim":
         return f"{src['scenario']}/{src['preset']}/seed{src['seed']}"
     if src["kind"] == "campaign":
         return campaign_label(src)
     return Path(src["path"]).stem if Path(src["path"]).is_file() else Path(src["path"]).name
+
+
+def failure_label(f: dict | None) -> str:
+    """A flown source's failure in its label: ``/rotor1@3:0.6`` for one whose numbers imply its
+    mode (the labels of results written before the modes), else the failure as ``--failure``
+    reads it (``/motor-stop:0@2``)."""
+    if not f:
+        return ""
+    failure = Failure.from_dict(f)
+    if "mode" in f:
+        return f"/{failure}"
+    text = f"/rotor{failure.rotor}@{failure.time_s:g}"
+    if failure.efficiency or failure.imbalance:
+        text += f":{failure.efficiency:g}" + (f":{failure.imbalance:g}" if failure.imbalance else "")
+    return text
 
 
 # -- executing one run --------------------------------------------------------------------------------
@@ -379,7 +385,7 @@ def fly_one(spec: dict, row: dict) -> None:
         seed=src["seed"],
         preset=src.get("preset"),
         vehicle=src.get("vehicle") or "recovery",
-        failure=Failure(**f) if f else None,
+        failure=Failure.from_dict(f) if f else None,
         estimator_params=spec["params"] or None,
     )
     s = flight.summary
