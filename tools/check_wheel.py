@@ -29,6 +29,9 @@ est = quadest.estimate(gyr, acc, rate=200.0)
 assert est.q.shape == (n, 4) and abs(est.t[-1] - (n - 1) / 200.0) < 1e-12
 assert np.degrees(np.abs(est.euler[-1, :2])).max() < 1.0, est.euler[-1]
 print("  estimate on arrays given only rate=: ok; C streaming:", quadest.filters.base.STREAM_C)
+from pathlib import Path
+assert (Path(quadest.__file__).parent / "py.typed").is_file(), "py.typed (PEP 561) is not in the installed wheel"
+print("  py.typed in the installed package: ok")
 """
 
 LOGS = """

@@ -1182,7 +1182,7 @@ def results_spin_summary() -> str:
         f"{f['spin_rate_rad_s']:.1f} rad/s (the paper's: 15.5 rad/s) with its thrust axis {f['tilt_deg']:.0f}° off the "
         f"vertical; the loss's transient peaks at {f['peak_rate_rad_s']:.0f} rad/s, so its ±1000°/s gyroscope clips on "
         f"{100 * f['gyro_clipped_share']:.1f} % of the samples after the loss. Across the range from sources "
-        f"([docs/vehicle.md](docs/vehicle.md#spin-range), `quadest reproduce afckf --spin-range`): "
+        f"([docs/vehicle.md](vehicle.md#spin-range), `quadest reproduce afckf --spin-range`): "
         f"{end_text('low')}; {end_text('high')}. {_default_ftc_ends()}"
     )
 
