@@ -346,12 +346,12 @@ def test_fly_set_reaches_the_sensors_the_vehicle_and_the_controller(tmp_path, ca
 
     import pyarrow.parquet as pq
 
-    import quadest.cli.fly as cli_fly
+    import quadest.flight
     from quadest.models.multirotor import vehicle_preset
 
     flown = []
-    real_fly = cli_fly.fly
-    monkeypatch.setattr(cli_fly, "fly", lambda *a, **kw: flown.append(kw) or real_fly(*a, **kw))
+    real_fly = quadest.flight.fly
+    monkeypatch.setattr(quadest.flight, "fly", lambda *a, **kw: flown.append(kw) or real_fly(*a, **kw))
     sets = {"gyro.range": "8.73", "vehicle.mass_kg": "0.55", "se3.k_R": "2", "ftc.rho": "0.6"}
     argv = [a for k, v in sets.items() for a in ("--set", f"{k}={v}")]
     out = tmp_path / "fly"

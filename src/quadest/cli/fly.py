@@ -3,7 +3,19 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+from quadest.cli.choices import (
+    CHECKS,
+    COLLISIONS,
+    CONTROLLERS,
+    DETECTION_MODES,
+    ESTIMATORS,
+    FILTERS,
+    FLIGHT_SCENARIOS,
+    PRESETS,
+    VEHICLE_PRESETS,
+)
 from quadest.cli.common import (
     CliError,
     add_max_runs_arg,
@@ -14,29 +26,10 @@ from quadest.cli.common import (
     with_sets,
     write_json,
 )
-from quadest.control import Failure, FtcParams, SE3Params
-from quadest.data import save_recording, write_table
-from quadest.detect import DetectorParams
 from quadest.errors import UsageError
-from quadest.filters import ESTIMATORS, FILTERS, filter_name
-from quadest.flight import (
-    CONTROLLERS,
-    FLIGHT_SCENARIOS,
-    FlightParams,
-    campaign_table,
-    fly,
-    fly_many,
-    in_loop_estimators,
-)
-from quadest.flight.common import COLLISIONS
-from quadest.flight.detection import DETECTION_MODES
-from quadest.flight.fly import DEFAULT_PRESET, check_flight
-from quadest.flight.throw import ThrowParams
-from quadest.models import VEHICLE_PRESETS
-from quadest.models.multirotor import vehicle_preset
-from quadest.records import check, with_fields
-from quadest.recovery.divergence import CHECKS
-from quadest.sim import PRESETS, build_config
+
+if TYPE_CHECKING:  # the library is imported when a command runs
+    from quadest.control import Failure
 
 FAILURE_FORMAT = (
     "ROTOR@TIME[:EFFICIENCY[:IMBALANCE]] (for example 0@2, 1@3:0.6, or 2@1:0.9:5e-6 for a "
@@ -48,6 +41,8 @@ def parse_failure(text) -> Failure | None:
     """``ROTOR@TIME[:EFFICIENCY[:IMBALANCE]]`` (``0@2``: rotor 0 lost at 2 s; ``1@3:0.6``:
     rotor 1 keeps 60 % from 3 s; ``2@1:0.9:5e-6``: rotor 2's propeller damaged at 1 s, 90 % of
     its thrust and an imbalance of 5e-6 kg m)."""
+    from quadest.control import Failure
+
     if text is None:
         return None
     rotor, at, rest = text.partition("@")
@@ -64,6 +59,7 @@ def parse_failure(text) -> Failure | None:
 def failure_record(f: Failure | None) -> dict | None:
     """A failure as the sweeps keep it (the imbalance only when there is one, so that earlier
     sweeps' runs keep their keys)."""
+
     if f is None:
         return None
     out = {"rotor": f.rotor, "time_s": f.time_s, "efficiency": f.efficiency}
@@ -149,6 +145,9 @@ def detector_changes(texts: dict, modes, hint: str = MODE_HINT) -> dict:
     the detector's bounds, those equal to the defaults left out. Refused where no detector flies
     (every one of ``modes`` the oracle) and for ``rotor_speeds``, which the detection mode decides
     (``hint``: how the command decides it)."""
+    from quadest.detect import DetectorParams
+    from quadest.records import check, with_fields
+
     if not texts:
         return {}
     if "rotor_speeds" in texts:
@@ -178,12 +177,23 @@ def detector_sets(items, modes, command: str, hint: str = MODE_HINT) -> dict:
 
 def _sensor_config(preset: str, texts: dict):
     """The preset's sensors with ``--set``'s overrides, checked as simulate checks them."""
+    from quadest.sim import build_config
+
     return with_sets(build_config(preset), texts)
 
 
 def fly_settings(args, sets: dict) -> dict:
     """The flight's records from the options, then ``--set`` (fly's keyword arguments): the
     sensors, the vehicle, the flight, the controllers' and a throw's parameters."""
+    from quadest.control import FtcParams, SE3Params
+    from quadest.detect import DetectorParams
+    from quadest.flight import FlightParams
+    from quadest.flight.fly import DEFAULT_PRESET
+    from quadest.flight.throw import ThrowParams
+    from quadest.models.multirotor import vehicle_preset
+    from quadest.records import with_fields
+    from quadest.recovery.divergence import CHECKS
+
     groups = grouped_sets(sets)
     _check_sets_fly(groups, args.scenario, args.controller)
     checks = [c.strip() for c in args.divergence.split(",")]
@@ -226,6 +236,9 @@ CAUSAL = [n for n in FILTERS if not ESTIMATORS[n].acausal]
 def parse_estimators(text, scenario: str) -> list[str]:
     """``all`` (truth and every quadest filter; for a throw truth and the recovery) or a
     comma-separated list."""
+    from quadest.filters import ESTIMATORS, filter_name
+    from quadest.flight import in_loop_estimators
+
     known = ["truth", "recovery"] if scenario == "throw" else ["truth", *in_loop_estimators()]
     if text is None:
         return ["recovery" if scenario == "throw" else "madgwick"]
@@ -246,6 +259,8 @@ def parse_estimators(text, scenario: str) -> list[str]:
 
 
 def _report(flight, out: Path, plot: bool):
+    from quadest.data import save_recording, write_table
+
     s = flight.summary
     stem = out / f"{s['scenario']}-{s['controller']}-{s['estimator']}-seed{s['seed']}"
     s["files"] = {
@@ -309,6 +324,9 @@ def in_flight_line(s: dict) -> str:
 
 
 def cmd_fly(args):
+    from quadest.flight import campaign_table, fly, fly_many
+    from quadest.flight.fly import check_flight
+
     seeds = parse_seeds(args.seeds)
     failure = parse_failure(args.failure)
     estimators = parse_estimators(args.estimator, args.scenario)
