@@ -501,27 +501,6 @@ def test_reproduce_recovery_flies_the_throws(tmp_path, capsys):
     assert (tmp_path / "p" / "recovery" / "flown-throw.png").is_file()
 
 
-def test_a_cold_compile_is_said_at_a_terminal(monkeypatch):
-    """One line before the first compile of a version, for a person at a terminal only."""
-    import io
-
-    from quadest import _jit
-    from quadest.cli import main as cli_main
-    from quadest.cli.main import build_parser
-
-    class Terminal(io.StringIO):
-        def isatty(self):
-            return True
-
-    args = build_parser().parse_args(["estimate", "x.csv", "-o", "y.csv"])
-    for tty, cold, said in ((True, True, True), (False, True, False), (True, False, False)):
-        err = Terminal() if tty else io.StringIO()
-        monkeypatch.setattr(cli_main.sys, "stderr", err)
-        monkeypatch.setattr(_jit, "cold", lambda cold=cold: cold)
-        cli_main.say_if_compiling(args)
-        assert ("compiling its numerical code" in err.getvalue()) == said
-
-
 def test_a_span_beyond_the_recording_is_one_usage_error(tmp_path, capsys):
     rec_path = tmp_path / "f.csv"
     assert main(["simulate", "--scenario", "hover", "--duration", "3", "-o", str(rec_path)]) == 0

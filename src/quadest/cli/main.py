@@ -193,25 +193,6 @@ def check_extras(args) -> None:
         need("bokeh", "quadest demo's report")
 
 
-QUICK = ("info", "data")
-"""Commands that compile nothing."""
-
-
-def say_if_compiling(args) -> None:
-    """One line before a cold compile, so that the first run's wait is not silent (for a person at
-    a terminal: a log or a pipe is not told)."""
-    if args.command in QUICK or not sys.stderr.isatty():
-        return
-    from quadest import _jit  # numba: only for a command that compiles
-
-    if _jit.cold():
-        print(
-            "quadest: compiling its numerical code for this version, once (the first run takes about a "
-            f"minute longer; cached in {_jit.CACHE_DIR})",
-            file=sys.stderr,
-        )
-
-
 def _one_line_note(message, category, filename, lineno, line=None):
     """A library warning as the command line says it: one line, no source location."""
     return f"quadest: note: {message}\n"
@@ -247,7 +228,6 @@ def run_command(argv: list) -> int:
     try:
         check_outputs(args)
         check_extras(args)
-        say_if_compiling(args)
         from quadest.data.files import replacing_read_only
         from quadest.data.tables import use_system_allocator
 
