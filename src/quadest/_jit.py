@@ -29,6 +29,7 @@ import contextlib
 import functools
 import glob
 import hashlib
+import logging
 import os
 import shutil
 import tempfile
@@ -134,12 +135,6 @@ CACHE_DIR = configure()
 """Where compiled code is cached (None when no folder could be written)."""
 
 
-def cold() -> bool:
-    """Whether nothing has been compiled into this version's cache folder yet (the first run
-    after installing or changing quadest compiles what it uses, for a minute or so)."""
-    return CACHE_DIR is not None and not any(Path(CACHE_DIR).rglob("*.nbi"))
-
-
 from numba import carray, cfunc, types  # noqa: E402  (after the cache folder is set)
 from numba import njit as _numba_njit  # noqa: E402
 
@@ -159,12 +154,46 @@ def _remove_entry(cache_file) -> list[str]:
     return removed
 
 
-def _load_or_mend(cache, load, sig, target_context):
-    """numba's ``Cache.load_overload``, where a damaged entry (a cut or overwritten ``.nbi`` /
+COMPILING = "quadest: compiling"
+"""How the line said before the first compile of a process begins (:func:`say_compiling`)."""
+_SAID: list[str] = []
+QUICK_TO_COMPILE = ("quadest.rotation.",)
+"""Modules of small shared kernels (a second or two to compile) whose compile is not said: what
+called them (an estimator) compiles next, and is said."""
+
+
+def compile_label(func) -> tuple[str, str]:
+    """What compiling ``func`` is, for a user, and about how long it takes: an estimator's batch
+    run or streaming call (``<name>_run``, ``<name>_stream``, made in ``filters/common.py``) is
+    the estimator; anything else is named by its module and function."""
+    name, module = func.__name__, func.__module__
+    estimator = name.removesuffix("_run").removesuffix("_stream")
+    if module.startswith("quadest.filters") and estimator != name:
+        return f"the {estimator} estimator", "about 20 s"
+    return f"quadest's compiled code ({module.removeprefix('quadest.')}.{name})", "up to a minute"
+
+
+def say_compiling(func) -> None:
+    """Say, once a process and on stderr whether a terminal or a log (the logger ``quadest``),
+    that compiled code is being made: numba's cache does not hold ``func`` (the first use after
+    installing or editing quadest), and the wait would otherwise be silent."""
+    if _SAID or func.__module__.startswith(QUICK_TO_COMPILE):
+        return
+    what, how_long = compile_label(func)
+    _SAID.append(what)
+    logging.getLogger("quadest").warning(
+        f"{COMPILING} {what} (first use after an install or an edit, {how_long}; cached for the next runs)…"
+    )
+
+
+def _load_or_mend(dispatcher, load, sig, target_context):
+    """numba's ``Cache.load_overload``, where a miss (nothing cached for ``sig``: numba compiles
+    next) is said (:func:`say_compiling`), and a damaged entry (a cut or overwritten ``.nbi`` /
     ``.nbc`` file: pickle fails on it, on every run) is removed, said once in one line, and
     compiled again (numba then saves it anew) instead of failing every call."""
+    cache = dispatcher._cache
     try:
-        return load(sig, target_context)
+        loaded = load(sig, target_context)
     except Exception as exc:  # noqa: BLE001 (whatever unpickling a damaged file raises)
         removed = _remove_entry(cache._cache_file)
         if not MENDED:
@@ -176,14 +205,17 @@ def _load_or_mend(cache, load, sig, target_context):
                 stacklevel=2,
             )
         MENDED.extend(removed or [cache._cache_file._index_path])
-        return None
+        loaded = None
+    if loaded is None:
+        say_compiling(dispatcher.py_func)
+    return loaded
 
 
 def _mending(dispatcher):
     """``dispatcher`` with its disk cache (if any) loading through :func:`_load_or_mend`."""
     cache = getattr(dispatcher, "_cache", None)
     if cache is not None and hasattr(cache, "_cache_file"):
-        cache.load_overload = functools.partial(_load_or_mend, cache, cache.load_overload)
+        cache.load_overload = functools.partial(_load_or_mend, dispatcher, cache.load_overload)
     return dispatcher
 
 
@@ -220,4 +252,4 @@ def copy_into(dst, src):
         dst[i] = src[i]
 
 
-__all__ = ["CACHE_DIR", "NO_ALLOCATION", "carray", "cfunc", "cold", "copy_into", "njit", "types"]
+__all__ = ["CACHE_DIR", "NO_ALLOCATION", "carray", "cfunc", "copy_into", "njit", "say_compiling", "types"]

@@ -62,7 +62,9 @@ def _checked(t, gyr, acc, mag) -> None:
             "quadest.estimate: acc is exactly zero on every row: a dead sensor or the wrong array? (even "
             "in free fall an accelerometer's noise is not zero)"
         )
-    if rows.sum() >= 2:
+    if rows.all():  # the usual case: no copies
+        check_units(t, gyr, acc, mag)
+    elif rows.sum() >= 2:
         check_units(t[rows], gyr[rows], acc[rows], None if mag is None else mag[rows])
 
 

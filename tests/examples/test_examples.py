@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pytest
 
+from quadest._jit import COMPILING
+
 EXAMPLES = sorted((Path(__file__).resolve().parents[2] / "examples").glob("*.py"))
 
 
@@ -15,11 +17,16 @@ def test_there_are_examples():
     assert len(EXAMPLES) >= 5
 
 
+def _said(stderr: str) -> str:
+    """What a script wrote on stderr but the line before a first compile (quadest._jit)."""
+    return "\n".join(line for line in stderr.splitlines() if not line.startswith(COMPILING)).strip()
+
+
 @pytest.mark.parametrize("script", EXAMPLES, ids=lambda p: p.stem)
 def test_example_runs(script):
     done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-2000:]
-    assert done.stderr.strip() == "", done.stderr[-2000:]  # no warning, no note
+    assert _said(done.stderr) == "", done.stderr[-2000:]  # no warning, no note
     assert re.search(r"\d+\.\d+", done.stdout), done.stdout  # it printed its figures
 
 
@@ -43,7 +50,7 @@ def test_the_readme_python_section_runs(tmp_path):
     for code in blocks:
         done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=600)
         assert done.returncode == 0, done.stderr[-2000:]
-        assert done.stderr.strip() == "", done.stderr[-2000:]
+        assert _said(done.stderr) == "", done.stderr[-2000:]
         assert "roll" in done.stdout, done.stdout
 
 

@@ -346,12 +346,12 @@ def test_fly_set_reaches_the_sensors_the_vehicle_and_the_controller(tmp_path, ca
 
     import pyarrow.parquet as pq
 
-    import quadest.cli.fly as cli_fly
+    import quadest.flight
     from quadest.models.multirotor import vehicle_preset
 
     flown = []
-    real_fly = cli_fly.fly
-    monkeypatch.setattr(cli_fly, "fly", lambda *a, **kw: flown.append(kw) or real_fly(*a, **kw))
+    real_fly = quadest.flight.fly
+    monkeypatch.setattr(quadest.flight, "fly", lambda *a, **kw: flown.append(kw) or real_fly(*a, **kw))
     sets = {"gyro.range": "8.73", "vehicle.mass_kg": "0.55", "se3.k_R": "2", "ftc.rho": "0.6"}
     argv = [a for k, v in sets.items() for a in ("--set", f"{k}={v}")]
     out = tmp_path / "fly"
@@ -499,27 +499,6 @@ def test_reproduce_recovery_flies_the_throws(tmp_path, capsys):
     case = r["cases"]["upward"]
     assert case["throws"] == 2 and len(case["runs"]) == 2 and case["detected"] == 2
     assert (tmp_path / "p" / "recovery" / "flown-throw.png").is_file()
-
-
-def test_a_cold_compile_is_said_at_a_terminal(monkeypatch):
-    """One line before the first compile of a version, for a person at a terminal only."""
-    import io
-
-    from quadest import _jit
-    from quadest.cli import main as cli_main
-    from quadest.cli.main import build_parser
-
-    class Terminal(io.StringIO):
-        def isatty(self):
-            return True
-
-    args = build_parser().parse_args(["estimate", "x.csv", "-o", "y.csv"])
-    for tty, cold, said in ((True, True, True), (False, True, False), (True, False, False)):
-        err = Terminal() if tty else io.StringIO()
-        monkeypatch.setattr(cli_main.sys, "stderr", err)
-        monkeypatch.setattr(_jit, "cold", lambda cold=cold: cold)
-        cli_main.say_if_compiling(args)
-        assert ("compiling its numerical code" in err.getvalue()) == said
 
 
 def test_a_span_beyond_the_recording_is_one_usage_error(tmp_path, capsys):

@@ -7,16 +7,9 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-import numpy as np
-
-from quadest.data import files
+from quadest.cli.choices import FORMATS, IMU_SOURCES
 from quadest.errors import MAX_RUNS, UsageError, check_run_count
-from quadest.evaluation.inspect import report_data, report_json
 from quadest.extras import need
-from quadest.readers import FORMATS, read_recording
-from quadest.readers.generic import parse_columns, parse_units
-from quadest.readers.logs import IMU_SOURCES
-from quadest.sim import build_config
 
 
 class CliError(UsageError):
@@ -29,6 +22,8 @@ def say(msg):
 
 def write_json(path, obj):
     """Write ``obj`` as indented JSON (atomically) and say so."""
+    from quadest.data import files
+
     files.write_json(path, obj)
     say(f"wrote {path}")
 
@@ -47,6 +42,8 @@ def parse_sets(items) -> dict:
 def sim_config(preset, sets, toml=None, ideal: bool = False):
     """A simulator configuration: a preset, a TOML file's overrides (errors there are the file's),
     then ``--set`` overrides (errors there are usage errors)."""
+    from quadest.sim import build_config
+
     cfg = build_config(preset, None, toml, ideal)
     overrides = parse_sets(sets)
     return with_sets(cfg, overrides) if overrides else cfg
@@ -133,6 +130,8 @@ SPAN_HELP = "the {} of the span shown and scored, in seconds after the recording
 
 def cropped(rec, t_from: float | None, t_to: float | None):
     """The rows of ``rec`` within ``--from`` / ``--to`` (seconds after its first sample)."""
+    import numpy as np
+
     if t_from is None and t_to is None:
         return rec
     t0 = float(rec.t[0])
@@ -256,6 +255,9 @@ def add_align_args(
 
 def read(args, path):
     """A recording in any supported format, with the reader options of :func:`add_input_args`."""
+    from quadest.readers import read_recording
+    from quadest.readers.generic import parse_columns, parse_units
+
     opts = {}
     fmt = getattr(args, "format", None)
     if fmt == "csv" or getattr(args, "map", None):
@@ -303,6 +305,8 @@ def write_report_for(
     """``quadest report`` and every ``--report PATH``: the HTML page for ``rec`` with the
     estimators ``names``, a throw's ``recovery`` and a log's ``diagnosis``
     (:meth:`~quadest.evaluation.diagnose.Diagnosis.for_report`; docs/report.md)."""
+    from quadest.evaluation.inspect import report_data, report_json
+
     need("bokeh", "the HTML report")
     from quadest.plot.report import write_report  # bokeh: only when a report is written
 

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-
-from quadest.calibration import apply_calibrations
+from quadest.cli.choices import FILTERS, PEERS, PRESCRIBED_SCENARIOS, PRESETS
 from quadest.cli.common import (
     CliError,
     add_align_args,
@@ -27,22 +26,14 @@ from quadest.cli.common import (
     write_report_for,
 )
 from quadest.cli.fly import detector_sets
-from quadest.detect import DetectorParams
-from quadest.evaluation import benchmark, collisions, detection, diagnose, flown, reproduce, reproduce_recovery
-from quadest.evaluation.compare import compare, format_tables, parse_params
-from quadest.evaluation.runner import estimator_names, filter_notes
-from quadest.evaluation.speed import benchmark_speed, format_paired
-from quadest.filters import FILTERS, PEERS
-from quadest.filters.base import STREAM_C
-from quadest.flight import fly
-from quadest.flight.crosscheck import rotorpy_available
-from quadest.flight.speed import benchmark_sim
-from quadest.flight.throw import ThrowParams
-from quadest.readers.catalog import resolve_data
-from quadest.sim import PRESCRIBED_SCENARIOS, PRESETS, simulate
+
+if TYPE_CHECKING:  # the library is imported when a command runs
+    from quadest.evaluation import flown
 
 
 def _recording_from_args(args):
+    from quadest.sim import simulate
+
     if args.recording:
         return read(args, args.recording), str(args.recording)
     cfg = sim_config(args.preset, args.set)
@@ -56,6 +47,12 @@ def _us(v) -> str:
 
 
 def cmd_compare(args):
+    import numpy as np
+
+    from quadest.calibration import apply_calibrations
+    from quadest.evaluation.compare import compare, format_tables, parse_params
+    from quadest.evaluation.runner import estimator_names, filter_notes
+
     names = estimator_names(args.filters)
     params = parse_params(args.param)
     not_run = sorted(set(params) - set(names))
@@ -116,6 +113,8 @@ def cmd_compare(args):
 
 
 def cmd_reproduce(args):
+    from quadest.evaluation import reproduce
+
     if args.clipping and not (args.paper == "afckf" and args.in_loop):
         raise CliError("--clipping is an ablation of reproduce afckf --in-loop: add --in-loop")
     if args.vehicle_range != "chosen" and (args.paper != "afckf" or args.prescribed):
@@ -191,10 +190,14 @@ def cmd_reproduce(args):
 def _flown_params(args) -> flown.FlownAfckfParams:
     """The flown rotor loss's parameters the command line sets: the vehicle's end of the spin range
     and the fault-tolerant controller."""
+    from quadest.evaluation import flown
+
     return flown.FlownAfckfParams(vehicle_range=args.vehicle_range, ftc=args.ftc)
 
 
 def _reproduce_in_loop(args):
+    from quadest.evaluation import flown, reproduce
+
     seeds = parse_seeds(args.seeds)
     what = (
         "the clipping ablation (the rate of a clipped gyroscope axis predicted or not, for the controller and "
@@ -223,6 +226,8 @@ def _reproduce_in_loop(args):
 
 
 def _reproduce_spin_range(args):
+    from quadest.evaluation import reproduce
+
     seeds = parse_seeds(args.seeds)
     say(
         "The AFCKF paper's rotor loss flown at the low, chosen and high ends of the Bebop 2's spin range "
@@ -238,6 +243,8 @@ def _reproduce_spin_range(args):
 
 
 def _reproduce_recovery(args):
+    from quadest.evaluation import reproduce_recovery
+
     check_runs(args, args.throws, f"--throws {args.throws}")
     if args.in_loop:
         raise CliError("--in-loop: the flown rotor loss in the loop; its runs are for reproduce afckf")
@@ -276,6 +283,10 @@ def _reproduce_recovery(args):
 
 
 def _reproduce_recovery_flown(args):
+    from quadest.evaluation import reproduce_recovery
+    from quadest.flight import fly
+    from quadest.flight.throw import ThrowParams
+
     say(
         f"Reproducing Beffa, Ledergerber & D'Andrea (state estimate recovery) on {args.throws} flown throws (seeds "
         f"{args.seed}..{args.seed + args.throws - 1}): the rotor-level vehicle thrown "
@@ -309,6 +320,10 @@ def _reproduce_recovery_flown(args):
 
 
 def _benchmark_sim(args):
+    from quadest.filters import FILTERS
+    from quadest.flight.crosscheck import rotorpy_available
+    from quadest.flight.speed import benchmark_sim
+
     est = args.filters if args.filters in ("truth", *FILTERS) else "afckf"
     rp = min(args.duration, 10.0)
     say(
@@ -346,6 +361,10 @@ BOTH_MODES = " (both modes are flown)"
 
 
 def _benchmark_detection(args):
+    from quadest.detect import DetectorParams
+    from quadest.evaluation import detection
+    from quadest.filters import FILTERS
+
     seeds, nominal = parse_seeds(args.seeds), parse_seeds(args.nominal_seeds, "--nominal-seeds")
     check_runs(args, len(seeds) + len(nominal), f"--seeds {args.seeds} and --nominal-seeds {args.nominal_seeds}")
     changes = detector_sets(args.set, ("rotor-speeds",), "benchmark detection", BOTH_MODES)
@@ -371,6 +390,9 @@ def _benchmark_detection(args):
 
 
 def _benchmark_collisions(args):
+    from quadest.evaluation import collisions
+    from quadest.filters import FILTERS
+
     seeds, nominal = parse_seeds(args.seeds), parse_seeds(args.nominal_seeds, "--nominal-seeds")
     ablate = 1 + len(collisions.ABLATIONS)
     check_runs(
@@ -390,6 +412,9 @@ def _benchmark_collisions(args):
 
 
 def _benchmark_tradeoff(args):
+    from quadest.detect import DetectorParams
+    from quadest.evaluation import detection
+
     train, test = parse_seeds(args.train_seeds, "--train-seeds"), parse_seeds(args.seeds)
     train_nominal = parse_seeds(args.train_nominal_seeds, "--train-nominal-seeds")
     test_nominal = parse_seeds(args.nominal_seeds, "--nominal-seeds")
@@ -416,6 +441,8 @@ def _benchmark_tradeoff(args):
 
 
 def _benchmark_diagnose(args):
+    from quadest.evaluation import diagnose
+
     folder = Path(args.data) if args.data else None
     if folder is None or not folder.is_dir():
         raise CliError("benchmark diagnose: --data must name a folder of ArduPilot (.bin) or PX4 (.ulg) logs")
@@ -438,6 +465,12 @@ def _benchmark_diagnose(args):
 
 
 def cmd_benchmark(args):
+    from quadest.evaluation import benchmark
+    from quadest.evaluation.runner import estimator_names
+    from quadest.evaluation.speed import benchmark_speed, format_paired
+    from quadest.filters.base import STREAM_C
+    from quadest.readers.catalog import resolve_data
+
     if args.set and args.what not in ("detection", "detection-tradeoff"):
         raise CliError(f"--set: benchmark {args.what} takes none (it is for detection and detection-tradeoff)")
     if args.what == "diagnose":

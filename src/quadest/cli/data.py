@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from quadest.cli.common import say
-from quadest.readers.catalog import DATASETS, cache_dir, dataset, fetch, is_fetched, is_present, not_present_reason
 
 
 def _size(n: int) -> str:
@@ -11,6 +10,8 @@ def _size(n: int) -> str:
 
 
 def cmd_data_list(args):
+    from quadest.readers.catalog import DATASETS, cache_dir, is_fetched
+
     root = cache_dir(args.dir)
     say(f"datasets quadest reads (cache: {root}; QUADEST_DATA or --dir to move it)")
     for d in DATASETS.values():
@@ -31,6 +32,8 @@ def cmd_data_list(args):
 
 
 def cmd_data_fetch(args):
+    from quadest.readers.catalog import cache_dir, dataset, fetch
+
     d = dataset(args.name)
     trials = [t for t in args.trials.split(",")] if args.trials else None
     say(f"fetching {d.name} ({d.title}) into {cache_dir(args.dir) / d.name}; each file checked against its SHA-256")
@@ -41,6 +44,8 @@ def cmd_data_fetch(args):
 
 
 def cmd_data_path(args):
+    from quadest.readers.catalog import cache_dir, dataset, is_present, not_present_reason
+
     d = dataset(args.name)
     folder = cache_dir(args.dir) / d.name
     if not is_present(d, args.dir):

@@ -3,7 +3,20 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+from quadest.cli.choices import (
+    CHECKS,
+    COLLISIONS,
+    CONTROLLERS,
+    DETECTION_MODES,
+    ESTIMATORS,
+    FAILURE_MODES,
+    FILTERS,
+    FLIGHT_SCENARIOS,
+    PRESETS,
+    VEHICLE_PRESETS,
+)
 from quadest.cli.common import (
     CliError,
     add_max_runs_arg,
@@ -14,35 +27,16 @@ from quadest.cli.common import (
     with_sets,
     write_json,
 )
-from quadest.control import FtcParams, SE3Params
-from quadest.data import save_recording, write_table
-from quadest.detect import DetectorParams
 from quadest.errors import UsageError
-from quadest.filters import ESTIMATORS, FILTERS, filter_name
-from quadest.flight import (
-    CONTROLLERS,
-    FLIGHT_SCENARIOS,
-    FlightParams,
-    campaign_table,
-    fly,
-    fly_many,
-    in_loop_estimators,
-)
-from quadest.flight.common import COLLISIONS
-from quadest.flight.detection import DETECTION_MODES
-from quadest.flight.fly import DEFAULT_PRESET, check_flight
-from quadest.flight.summary import flight_table
-from quadest.flight.throw import ThrowParams
-from quadest.models import VEHICLE_PRESETS
-from quadest.models.multirotor import vehicle_preset
-from quadest.records import check, with_fields
-from quadest.recovery.divergence import CHECKS
-from quadest.sim import PRESETS, build_config
-from quadest.sim.faults import FAILURE_MODES, Failure
+
+if TYPE_CHECKING:  # the library is imported when a command runs
+    from quadest.sim.faults import Failure
 
 
 def parse_failure(text) -> Failure | None:
     """``--failure``'s value as a :class:`~quadest.sim.faults.Failure` (None: none)."""
+    from quadest.sim.faults import Failure
+
     return None if text is None else Failure.parse(text)
 
 
@@ -105,6 +99,9 @@ def detector_changes(texts: dict, modes, hint: str = MODE_HINT) -> dict:
     the detector's bounds, those equal to the defaults left out. Refused where no detector flies
     (every one of ``modes`` the oracle) and for ``rotor_speeds``, which the detection mode decides
     (``hint``: how the command decides it)."""
+    from quadest.detect import DetectorParams
+    from quadest.records import check, with_fields
+
     if not texts:
         return {}
     if "rotor_speeds" in texts:
@@ -134,12 +131,23 @@ def detector_sets(items, modes, command: str, hint: str = MODE_HINT) -> dict:
 
 def _sensor_config(preset: str, texts: dict):
     """The preset's sensors with ``--set``'s overrides, checked as simulate checks them."""
+    from quadest.sim import build_config
+
     return with_sets(build_config(preset), texts)
 
 
 def fly_settings(args, sets: dict) -> dict:
     """The flight's records from the options, then ``--set`` (fly's keyword arguments): the
     sensors, the vehicle, the flight, the controllers' and a throw's parameters."""
+    from quadest.control import FtcParams, SE3Params
+    from quadest.detect import DetectorParams
+    from quadest.flight import FlightParams
+    from quadest.flight.fly import DEFAULT_PRESET
+    from quadest.flight.throw import ThrowParams
+    from quadest.models.multirotor import vehicle_preset
+    from quadest.records import with_fields
+    from quadest.recovery.divergence import CHECKS
+
     groups = grouped_sets(sets)
     _check_sets_fly(groups, args.scenario, args.controller)
     checks = [c.strip() for c in args.divergence.split(",")]
@@ -182,6 +190,9 @@ CAUSAL = [n for n in FILTERS if not ESTIMATORS[n].acausal]
 def parse_estimators(text, scenario: str) -> list[str]:
     """``all`` (truth and every quadest filter; for a throw truth and the recovery) or a
     comma-separated list."""
+    from quadest.filters import ESTIMATORS, filter_name
+    from quadest.flight import in_loop_estimators
+
     known = ["truth", "recovery"] if scenario == "throw" else ["truth", *in_loop_estimators()]
     if text is None:
         return ["recovery" if scenario == "throw" else "madgwick"]
@@ -202,6 +213,9 @@ def parse_estimators(text, scenario: str) -> list[str]:
 
 
 def _report(flight, out: Path, plot: bool):
+    from quadest.data import save_recording, write_table
+    from quadest.flight.summary import flight_table
+
     s = flight.summary
     stem = out / f"{s['scenario']}-{s['controller']}-{s['estimator']}-seed{s['seed']}"
     s["files"] = {
@@ -239,6 +253,10 @@ def _report(flight, out: Path, plot: bool):
             )
         if det["false_alarm"]:
             found += ": a false alarm"
+        if det.get("damaged_rotor") is not None:
+            damaged = f"rotor {det['damaged_rotor']} found damaged at {det['damaged_s']:.3f} s"
+            damaged += f" ({100 * det['damaged_effectiveness']:.0f} % of its thrust left)"
+            found = damaged if det["lost_rotor"] is None else f"{found}; {damaged}"
         extra += f"; detector: {found}"
     say(
         f"{s['estimator']}, seed {s['seed']}: {s['reason']}{end}; settled after {_fmt(s['time_to_settle_s'], ' s')}, "
@@ -265,6 +283,9 @@ def in_flight_line(s: dict) -> str:
 
 
 def cmd_fly(args):
+    from quadest.flight import campaign_table, fly, fly_many
+    from quadest.flight.fly import check_flight
+
     seeds = parse_seeds(args.seeds)
     failure = parse_failure(args.failure)
     estimators = parse_estimators(args.estimator, args.scenario)

@@ -53,11 +53,8 @@ try:  # Ctrl-C while the command line loads ends in one line too
     import warnings
     from pathlib import Path
 
-    from quadest import __version__, _jit
     from quadest.cli import compare, data, fly, recordings, recovery, sim, sweep
     from quadest.cli.common import CliError
-    from quadest.data.files import output_target, refuse_overwriting_inputs, replacing_read_only
-    from quadest.data.tables import use_system_allocator
     from quadest.errors import UsageError
     from quadest.extras import MissingExtra, need
 except KeyboardInterrupt:
@@ -88,13 +85,23 @@ ORDER = (
 )
 
 
+class Version(argparse.Action):
+    """``--version``: the installed version, read only when asked (importlib.metadata)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        import quadest
+
+        print(f"quadest {quadest.__version__}")
+        parser.exit()
+
+
 def build_parser():
     p = argparse.ArgumentParser(
         prog="quadest",
         description="Quadcopter attitude and state estimation that keeps working when things go "
         "wrong. Conventions: NED/FRD, q_nb = [w, x, y, z], SI units (docs/conventions.md).",
     )
-    p.add_argument("--version", action="version", version=f"quadest {__version__}")
+    p.add_argument("--version", action=Version, nargs=0, help="show program's version number and exit")
     p.add_argument(
         "--debug", action="store_true", help="on an error, show the full traceback (also accepted after the command)"
     )
@@ -138,6 +145,8 @@ def check_outputs(args) -> None:
     """Before any work: refuse an output that names an input file (writing it would destroy the
     input), or that cannot be written as its kind says (data.files.output_target: a read-only
     file without --force, a missing folder, a socket...)."""
+    from quadest.data.files import output_target, refuse_overwriting_inputs
+
     inputs = [p for name in INPUT_OPTIONS for p in _paths(getattr(args, name, None))]
     outputs = {
         opt: getattr(args, name)
@@ -184,21 +193,6 @@ def check_extras(args) -> None:
         need("bokeh", "quadest demo's report")
 
 
-QUICK = ("info", "data")
-"""Commands that compile nothing."""
-
-
-def say_if_compiling(args) -> None:
-    """One line before a cold compile, so that the first run's wait is not silent (for a person at
-    a terminal: a log or a pipe is not told)."""
-    if args.command not in QUICK and sys.stderr.isatty() and _jit.cold():
-        print(
-            "quadest: compiling its numerical code for this version, once (the first run takes about a "
-            f"minute longer; cached in {_jit.CACHE_DIR})",
-            file=sys.stderr,
-        )
-
-
 def _one_line_note(message, category, filename, lineno, line=None):
     """A library warning as the command line says it: one line, no source location."""
     return f"quadest: note: {message}\n"
@@ -234,7 +228,9 @@ def run_command(argv: list) -> int:
     try:
         check_outputs(args)
         check_extras(args)
-        say_if_compiling(args)
+        from quadest.data.files import replacing_read_only
+        from quadest.data.tables import use_system_allocator
+
         use_system_allocator()
         with replacing_read_only(getattr(args, "force", False)):
             return args.func(args)

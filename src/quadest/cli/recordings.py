@@ -6,9 +6,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import numpy as np
-
-from quadest.calibration import apply_calibrations, calibrate
+from quadest.cli.choices import DIAGNOSE_DEFAULTS, ESTIMATORS, filter_name
 from quadest.cli.common import (
     CliError,
     add_calibration_arg,
@@ -21,26 +19,12 @@ from quadest.cli.common import (
     write_json,
     write_report_for,
 )
-from quadest.data import files, format_summary, summarize, write_blocks
-from quadest.data.checks import warn_tilt_disagreement
-from quadest.evaluation.compare import parse_params
-from quadest.evaluation.diagnose import DiagnoseParams, diagnose_log, format_diagnosis
-from quadest.evaluation.inspect import events
-from quadest.evaluation.runner import estimate, estimator_names, filter_notes
 from quadest.extras import need
-from quadest.filters import ESTIMATORS, filter_name
-from quadest.models.aero import AeroModel
-from quadest.readers import ReaderError
-from quadest.readers.motors import MOTOR_LOG_SUFFIXES
-from quadest.recovery import recover
-from quadest.rotation import quat_to_euler
-from quadest.sim import aero_model_of
-from quadest.sweep.campaign import campaign_summary, is_campaign
-from quadest.sweep.engine import ResultStore
-from quadest.sweep.summary import is_results, sweep_summary
 
 
 def cmd_info(args):
+    from quadest.data import files, format_summary, summarize
+
     rec = read(args, args.file)
     s = summarize(rec)
     if args.json:
@@ -51,6 +35,8 @@ def cmd_info(args):
 
 
 def cmd_diagnose(args):
+    from quadest.evaluation.diagnose import DiagnoseParams, diagnose_log, format_diagnosis
+
     if not args.file.exists():
         raise CliError(f"{args.file}: no such file")
     if not args.moment_gain > 0:
@@ -70,6 +56,10 @@ def cmd_diagnose(args):
 
 
 def cmd_calibrate(args):
+    import numpy as np
+
+    from quadest.calibration import calibrate
+
     recs = [read(args, p) for p in args.recordings]
     kw = {"mass_kg": args.mass} if args.kind == "aero" else {}
     cal = calibrate(args.kind, recs, **kw)
@@ -99,6 +89,10 @@ WRITE_ROWS = 1 << 18
 
 def attitude_blocks(t, q, extra: dict | None = None, rows: int = WRITE_ROWS):
     """``t, q_w ... q_z, roll, pitch, yaw`` and ``extra``'s columns, block by block of ``rows``."""
+    import numpy as np
+
+    from quadest.rotation import quat_to_euler
+
     for s in range(0, len(q), rows):
         qb = q[s : s + rows]
         euler = quat_to_euler(qb)
@@ -113,6 +107,8 @@ def attitude_blocks(t, q, extra: dict | None = None, rows: int = WRITE_ROWS):
 def estimate_filter(args) -> str:
     """The estimator ``quadest estimate`` runs: ``--filter``, else robust (robust-offline with
     ``--offline``); with ``--offline`` it must be acausal."""
+    from quadest.filters import ESTIMATORS
+
     if not args.offline:
         return args.filter or "robust"
     name = args.filter or "robust-offline"
@@ -123,6 +119,14 @@ def estimate_filter(args) -> str:
 
 
 def cmd_estimate(args):
+    import numpy as np
+
+    from quadest.calibration import apply_calibrations
+    from quadest.data import write_blocks
+    from quadest.data.checks import warn_tilt_disagreement
+    from quadest.evaluation.compare import parse_params
+    from quadest.evaluation.runner import estimate, filter_notes
+
     args.filter = estimate_filter(args)
     rec = read(args, args.file)
     if not args.report:  # the truth is for the report alone: a long recording's is not held
@@ -161,6 +165,15 @@ def cmd_estimate(args):
 
 
 def cmd_report(args):
+    from quadest.calibration import apply_calibrations
+    from quadest.evaluation.compare import parse_params
+    from quadest.evaluation.inspect import events
+    from quadest.evaluation.runner import estimator_names
+    from quadest.models.aero import AeroModel
+    from quadest.recovery import recover
+    from quadest.sim import aero_model_of
+    from quadest.sweep.summary import is_results
+
     if Path(args.file).suffix.lower() == ".parquet" and is_results(args.file):
         return _sweep_report(args)
     rec = cropped(read(args, args.file), args.t_from, args.t_to)
@@ -204,6 +217,10 @@ def cmd_report(args):
 def _log_diagnosis(path) -> dict | None:
     """An autopilot log's diagnosis for its report page (quadest diagnose), or None for a file
     that is not one or has no motor outputs (said in one line)."""
+    from quadest.evaluation.diagnose import DiagnoseParams, diagnose_log
+    from quadest.readers import ReaderError
+    from quadest.readers.motors import MOTOR_LOG_SUFFIXES
+
     if Path(path).suffix.lower() not in MOTOR_LOG_SUFFIXES:
         return None
     try:
@@ -235,6 +252,7 @@ def _rotor_speeds(path, explicit: bool):
 
 def _campaign_report(args, table):
     from quadest.plot.campaign import write_campaign_report  # bokeh: only when a report is written
+    from quadest.sweep.campaign import campaign_summary
 
     summ = campaign_summary(table.to_pylist())
     out = write_campaign_report(summ, args.output, args.title or f"quadest campaign: {Path(args.file).name}")
@@ -245,6 +263,10 @@ def _campaign_report(args, table):
 
 
 def _sweep_report(args):
+    from quadest.sweep.campaign import is_campaign
+    from quadest.sweep.engine import ResultStore
+    from quadest.sweep.summary import sweep_summary
+
     need("bokeh", "the HTML report")
     from quadest.plot.report import write_sweep_report  # bokeh: only when a report is written
 
@@ -297,18 +319,18 @@ def _add_diagnose(sub):
     d.add_argument(
         "--moment-gain",
         type=float,
-        default=DiagnoseParams.moment_gain,
+        default=DIAGNOSE_DEFAULTS.moment_gain,
         metavar="RAD_S2",
         help="roll/pitch angular acceleration per unit of one motor's thrust on a unit arm "
-        f"(default {DiagnoseParams.moment_gain:g}; docs/diagnose.md shows the range that works)",
+        f"(default {DIAGNOSE_DEFAULTS.moment_gain:g}; docs/diagnose.md shows the range that works)",
     )
     d.add_argument(
         "--excess-threshold",
         type=float,
-        default=DiagnoseParams.excess_threshold,
+        default=DIAGNOSE_DEFAULTS.excess_threshold,
         metavar="SHARE",
         help="flag a motor whose thrust exceeds the others' mean by more than this share "
-        f"(default {DiagnoseParams.excess_threshold:g})",
+        f"(default {DIAGNOSE_DEFAULTS.excess_threshold:g})",
     )
     d.set_defaults(func=cmd_diagnose)
 

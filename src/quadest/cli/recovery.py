@@ -4,9 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
-from quadest.calibration import apply_calibrations, load_calibration
+from quadest.cli.choices import RECOVERY_DEFAULTS
 from quadest.cli.common import (
     CliError,
     add_calibration_arg,
@@ -17,12 +15,13 @@ from quadest.cli.common import (
     write_json,
     write_report_for,
 )
-from quadest.models.aero import AeroModel, fit_aero
-from quadest.recovery import RecoveryParams, recover
-from quadest.sim import aero_model_of
 
 
 def cmd_fit_aero(args):
+    import numpy as np
+
+    from quadest.models.aero import fit_aero
+
     recs = [read(args, p) for p in args.recordings]
     mass = args.mass
     if mass is None:
@@ -41,6 +40,10 @@ def cmd_fit_aero(args):
 
 
 def cmd_recover(args):
+    from quadest.calibration import apply_calibrations, load_calibration
+    from quadest.models.aero import AeroModel
+    from quadest.recovery import RecoveryParams, recover
+
     rec = read(args, args.file)
     cals = [load_calibration(p) for p in args.calibration or []]
     aero = [c.aero_model() for c in cals if c.kind == "aero"]
@@ -91,6 +94,8 @@ def cmd_recover(args):
 
 
 def _simulated_model(rec):
+    from quadest.sim import aero_model_of
+
     try:
         return aero_model_of(rec)
     except ValueError:
@@ -123,7 +128,7 @@ def add_parsers(sub):
     )
     rv.add_argument("file", type=Path, help="recording: any supported format (docs/readers.md)")
     rv.add_argument("--aero", metavar="JSON", help="aerodynamic model (default: a simulation's own)")
-    d = RecoveryParams()  # the defaults are the parameter record's
+    d = RECOVERY_DEFAULTS  # the parameter record's defaults
     rv.add_argument(
         "--hypotheses", type=int, default=d.n_hypotheses, help=f"hypotheses of the bank (default: {d.n_hypotheses})"
     )

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import json
 
+from quadest.cli.choices import PRESCRIBED_SCENARIOS, PRESETS
 from quadest.cli.common import CliError, count, say, sim_config
-from quadest.data import save_recording
-from quadest.sim import PRESCRIBED_SCENARIOS, PRESETS, param_table, simulate
 
 
 def cmd_simulate(args):
+    from quadest.data import save_recording
+    from quadest.sim import param_table, simulate
+
     cfg = sim_config(args.preset, args.set, args.config, args.ideal)
     if args.list_params:
         rows = param_table(cfg, args.preset)

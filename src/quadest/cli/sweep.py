@@ -6,6 +6,15 @@ import math
 import sys
 from pathlib import Path
 
+from quadest.cli.choices import (
+    CONTROLLERS,
+    DETECTIONS,
+    FLIGHT_SCENARIOS,
+    PRESCRIBED_SCENARIOS,
+    PRESETS,
+    VEHICLE_PRESETS,
+    filter_name,
+)
 from quadest.cli.common import (
     CliError,
     add_engine_args,
@@ -19,29 +28,13 @@ from quadest.cli.common import (
 )
 from quadest.cli.fly import detector_sets, failure_record, parse_failure
 from quadest.extras import need
-from quadest.filters import filter_name
-from quadest.flight import CONTROLLERS, DEFAULT_DURATION, FLIGHT_SCENARIOS
-from quadest.models import VEHICLE_PRESETS, vehicle_preset
-from quadest.readers.catalog import resolve_data
-from quadest.sim import PRESCRIBED_SCENARIOS, PRESETS
-from quadest.sweep import (
-    build_runs,
-    file_sources,
-    flown_sources,
-    format_selection,
-    format_split,
-    parse_grid,
-    run_sweep,
-    sim_sources,
-    tune,
-)
-from quadest.sweep.campaign import DETECTIONS, HEIGHT_M, campaign_runs, campaign_summary, format_campaign
-from quadest.sweep.engine import ResultStore
-from quadest.sweep.runs import flown_names
-from quadest.sweep.summary import format_sweep_summary, sweep_summary
 
 
 def _flown_sources(args):
+    from quadest.flight import DEFAULT_DURATION
+    from quadest.models import vehicle_preset
+    from quadest.sweep import flown_sources
+
     if args.data or args.set:
         raise CliError("--fly flies the vehicle: it takes neither --data nor --set")
     failures = [parse_failure(f) for f in args.failure] if args.failure else [None]
@@ -64,6 +57,8 @@ def _flown_sources(args):
 
 
 def _sim_sources(args):
+    from quadest.sweep import sim_sources
+
     preset = args.preset or "bebop2"
     sim_config(preset, args.set)  # refuse a wrong --set before any run starts
     seeds = parse_seeds(args.seeds)
@@ -72,6 +67,9 @@ def _sim_sources(args):
 
 
 def _sweep_runs(args, filters):
+    from quadest.readers.catalog import resolve_data
+    from quadest.sweep import build_runs, file_sources, parse_grid
+
     grid = parse_grid(args.grid, args.max_runs)
     if args.fly:
         sources = _flown_sources(args)
@@ -114,6 +112,10 @@ def _engine(args) -> dict:
 
 
 def cmd_sweep(args):
+    from quadest.sweep import run_sweep
+    from quadest.sweep.engine import ResultStore
+    from quadest.sweep.summary import format_sweep_summary, sweep_summary
+
     runs = _sweep_runs(args, args.filters)
     _announce(args, runs)
     res = run_sweep(runs, args.out, **_engine(args))
@@ -136,6 +138,8 @@ def cmd_sweep(args):
 
 
 def cmd_tune(args):
+    from quadest.sweep import format_selection, format_split, tune
+
     runs = _sweep_runs(args, args.filter)
     _announce(args, runs)
     sel, res = tune(runs, args.out, args.filter, args.metric, split=args.split, **_engine(args))
@@ -165,6 +169,9 @@ def _campaign_list(text: str, option: str, unit: str) -> list:
 
 
 def _campaign_runs(args):
+    from quadest.sweep.campaign import DETECTIONS, HEIGHT_M, campaign_runs
+    from quadest.sweep.runs import flown_names
+
     filters = flown_names(args.filters, "rotor-loss")
     detections = [d.strip() for d in args.detection.split(",") if d.strip()]
     if not detections:
@@ -192,6 +199,10 @@ def _campaign_runs(args):
 
 
 def cmd_campaign(args):
+    from quadest.sweep import run_sweep
+    from quadest.sweep.campaign import campaign_summary, format_campaign
+    from quadest.sweep.engine import ResultStore
+
     runs = _campaign_runs(args)
     if args.report:
         need("bokeh", "the campaign's HTML report")
