@@ -390,6 +390,27 @@ def test_fly_set_reaches_the_detector(tmp_path, capsys):
     assert blind["set"] == {"detector.lost_threshold": "10", "detector.glr": "false"}
 
 
+def test_fly_takes_the_failure_modes_and_says_a_damaged_rotor(tmp_path, capsys):
+    """quadest fly --failure MODE:...: a gradual fade is flown and kept in the recording as given;
+    a stopped motor is a complete loss the fault-tolerant controller flies; a partial loss the
+    detector names damaged is said so (it used to print 'nothing found')."""
+    base = ["fly", "--estimator", "truth", "--vehicle", "bebop2", "--duration", "5", "--no-plot"]
+    code, text, _ = run(capsys, *base, "--scenario", "hover", "--failure", "gradual:0@1:0.7,ramp_s=3",
+                        "-o", str(tmp_path / "g"))  # fmt: skip
+    run0 = json.loads((tmp_path / "g" / "summary.json").read_text())["runs"][0]
+    rec = load_recording(run0["files"]["recording"])
+    assert code == 0 and rec.meta["failure"] == {"rotor": 0, "time_s": 1.0, "efficiency": 0.7, "mode": "gradual",
+                                                 "ramp_s": 3.0}, text  # fmt: skip
+    code, text, _ = run(capsys, *base, "--scenario", "rotor-loss", "--failure", "motor-stop:2@1",
+                        "-o", str(tmp_path / "m"))  # fmt: skip
+    run0 = json.loads((tmp_path / "m" / "summary.json").read_text())["runs"][0]
+    assert code == 0 and run0["controller"] == "ftc" and run0["status"] == "survived", text
+    code, text, _ = run(capsys, *base, "--scenario", "hover", "--detection", "rotor-speeds", "--failure", "1@2:0.6",
+                        "-o", str(tmp_path / "p"))  # fmt: skip
+    det = json.loads((tmp_path / "p" / "summary.json").read_text())["runs"][0]["detection"]
+    assert code == 0 and det["damaged_rotor"] == 1 and "rotor 1 found damaged at" in text, text
+
+
 def test_seeds_take_ranges_and_lists_together():
     from quadest.cli.common import parse_seeds
 
