@@ -127,7 +127,7 @@ def test_rotor_failures_are_events_whose_outcome_is_physics():
     [
         (dict(rotor=4, time_s=1.0), "rotor 4 does not exist"),
         (dict(rotor=0, time_s=9.0), "outside the run"),
-        (dict(rotor=0, time_s=0.5, efficiency=1.5), "efficiency must be in"),
+        (dict(rotor=0, time_s=0.5, efficiency=1.5), "needs an efficiency in"),
     ],
 )
 def test_impossible_failures_are_refused(failure, match):

@@ -572,8 +572,9 @@ def estimate(k, loop, est_step, ex, ep, ec, ediag, dq):
 
 @njit(**NO_ALLOCATION)
 def estimate_sample(k, loop, est_step, ex, ep, ec, ediag, dq):
-    """:func:`estimate`, compiled on its own for a loop run from Python (:mod:`quadest.flight.plant`)."""
-    return estimate(k, loop, est_step, ex, ep, ec, ediag, dq)
+    """:func:`estimate`, compiled on its own for a loop run from Python (:mod:`quadest.flight.plant`):
+    the attitude into ``loop.nav.q_est``."""
+    estimate(k, loop, est_step, ex, ep, ec, ediag, dq)
 
 
 @njit(cache=True, **NO_ALLOCATION)

@@ -104,4 +104,5 @@ def _attitude(k: int, loop, estimator):
     if callable(estimator):  # a peer's streaming update
         sensing = loop.sensing
         return estimator(loop.nav.clip.gyr, sensing.acc, sensing.mag, dt=sensing.dt)
-    return estimate_sample(k, loop, *estimator)
+    estimate_sample(k, loop, *estimator)
+    return loop.nav.q_est
