@@ -255,7 +255,7 @@ def format_diagnosis(d: Diagnosis) -> str:
     log = d.log
     lines = [
         f"{log.path}: {log.autopilot}, {log.frame}, IMU {log.imu_rate:.0f} Hz, motor outputs {log.output_rate:.0f} Hz",
-        "flying: " + ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in log.flying) if log.flying else "flying: never",
+        "flying: " + ", ".join(_span(a, b) for a, b in log.flying) if log.flying else "flying: never",
     ]
     for t, name, value in log.changes:
         lines.append(f"parameter change at {t:.3f} s: {name} = {value:g}")
@@ -267,10 +267,10 @@ def format_diagnosis(d: Diagnosis) -> str:
     else:
         lines.append("no rotor failure found")
     unit = "us" if log.output_unit == "us" else ""
-    lines.append("motor  output  vs others  thrust vs others")
-    for r in d.motors:
-        if r["output"] is None:
-            continue
+    shown = [r for r in d.motors if r["output"] is not None]  # None: no flight to take shares from
+    if shown:
+        lines.append("motor  output  vs others  thrust vs others")
+    for r in shown:
         flag = (
             "  <- works harder than intact vehicles spread" if any(x["motor"] == r["motor"] for x in d.damaged) else ""
         )
@@ -279,6 +279,13 @@ def format_diagnosis(d: Diagnosis) -> str:
         )
     lines += [f"note: {n}" for n in d.notes]
     return "\n".join(lines)
+
+
+def _span(start: float, end: float) -> str:
+    """A flying span as text; a span with no landing logged runs to the log's end."""
+    if np.isfinite(end):
+        return f"{start:.1f}-{end:.1f} s"
+    return f"from {start:.1f} s to the end of the log (no landing logged)"
 
 
 IN_FLIGHT = {

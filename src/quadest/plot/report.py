@@ -244,11 +244,12 @@ def _diagnosis_text(j: dict) -> str:
         [m["motor"], f"{m['output']:.0f}", f"{m['output_excess']:+.1f}", f"{100 * m['excess']:+.1f} %",
          "works harder than intact vehicles spread" if m["motor"] in flagged else ""]
         for m in j["motors"]
+        if m["output"] is not None  # None: the vehicle did not fly, no share to show
     ]  # fmt: skip
     shares = (
         _table(["motor", "median output", "above the others' mean", "thrust share above the others", ""], rows,
                "diagnose-motors")
-        if rows else "<p class='q'>No motor shares (a flight with a failure, or shorter than 10 s).</p>"
+        if rows else "<p class='q'>No motor shares (no flight, a flight with a failure, or one shorter than 10 s).</p>"
     )  # fmt: skip
     notes = "".join(f"<p class='q'>note: {html.escape(n)}</p>" for n in j["notes"])
     return STYLE + head + found + shares + notes
