@@ -56,7 +56,7 @@ try:  # Ctrl-C while the command line loads ends in one line too
     from quadest import __version__, _jit
     from quadest.cli import compare, data, fly, recordings, recovery, sim, sweep
     from quadest.cli.common import CliError
-    from quadest.data.files import output_target, refuse_overwriting_inputs, replacing_read_only
+    from quadest.data.files import output_folder, output_target, refuse_overwriting_inputs, replacing_read_only
     from quadest.data.tables import use_system_allocator
     from quadest.errors import UsageError
     from quadest.extras import MissingExtra, need
@@ -151,6 +151,8 @@ def check_outputs(args) -> None:
         for opt, path in outputs.items():
             if opt not in folders:
                 output_target(path, force=getattr(args, "force", False))
+            else:
+                output_folder(path)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
 
