@@ -212,6 +212,8 @@ def main(argv=None):
     entry = argv is None
     if entry:
         sys.unraisablehook = _interrupt_in_a_callback
+        if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:  # kill: as Ctrl-C, the output being written removed
+            signal.signal(signal.SIGTERM, signal.default_int_handler)
     try:
         return run_command(list(sys.argv[1:] if entry else argv))
     except KeyboardInterrupt:  # while the parser is built, or an error is being said
@@ -222,6 +224,8 @@ def main(argv=None):
     finally:
         if entry:  # from here to the process's end (Dask's and the interpreter's clean-up)
             signal.signal(signal.SIGINT, lambda *_: interrupted())
+            if signal.getsignal(signal.SIGTERM) is signal.default_int_handler:
+                signal.signal(signal.SIGTERM, lambda *_: interrupted())
 
 
 def run_command(argv: list) -> int:
