@@ -135,7 +135,7 @@ def thrust_per_mass(log: MotorLog, mask_out) -> float:
     az = np.interp(log.t_out[mask_out], log.t, log.acc[:, 2])
     total = log.thrust[mask_out].sum(axis=1)
     ok = total > 0.05
-    return float(np.median(-az[ok] / total[ok]))
+    return float(np.median(-az[ok] / total[ok])) if ok.any() else float("nan")
 
 
 def log_vehicle(log: MotorLog, t_over_m: float, params: DiagnoseParams) -> MultirotorParams:
@@ -219,6 +219,12 @@ def diagnose(log: MotorLog, params: DiagnoseParams | None = None) -> Diagnosis:
         notes.append("the vehicle did not fly in this log (no take-off, or too short): nothing to diagnose")
         return Diagnosis(log, [], [], motor_shares(log, params), {}, notes)
     t_over_m = thrust_per_mass(log, fly_out)
+    if not (np.isfinite(t_over_m) and t_over_m > 0):  # the model's k_f from it would be refused
+        raise ValueError(
+            f"{log.path}: in flight the motors' outputs give no thrust that lifts the vehicle against "
+            f"its accelerometer (thrust over mass {t_over_m:g}): are the log's motor and thrust parameters "
+            "(SERVOn_FUNCTION, MOT_*; PX4: CA_*, PWM_*) those of the vehicle?"
+        )
     vehicle = log_vehicle(log, t_over_m, params)
     failures, noise = find_failures(log, vehicle, params)
     shares = motor_shares(log, params)

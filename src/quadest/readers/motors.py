@@ -170,14 +170,7 @@ def _read_ardupilot(path: Path) -> MotorLog:
     if pwm_min <= 0 or pwm_max <= pwm_min:  # ArduPilot then takes the throttle channel's range
         pwm_min, pwm_max = params.get("RC3_MIN", 1000.0), params.get("RC3_MAX", 2000.0)
     outputs = rcou[:, [c for c in channels]]
-    thrust = pwm_thrust(
-        outputs,
-        pwm_min,
-        pwm_max,
-        params.get("MOT_SPIN_MIN", 0.15),
-        params.get("MOT_SPIN_MAX", 0.95),
-        params.get("MOT_THST_EXPO", 0.65),
-    )
+    thrust = pwm_thrust(outputs, pwm_min, pwm_max, *_thrust_curve(params, path))
     t_out = rcou[:, 0] * 1e-6
     hover = params.get("MOT_THST_HOVER", 0.35)
     flying = _flying_from_events(events) or _flying_from_thrust(t_out, thrust, 0.5 * hover)
@@ -204,6 +197,24 @@ def _read_ardupilot(path: Path) -> MotorLog:
         channels,
         _imu_position(params, "INS_POS1_"),
     )
+
+
+def _thrust_curve(params, path) -> tuple[float, float, float]:
+    """``MOT_SPIN_MIN``, ``MOT_SPIN_MAX`` and ``MOT_THST_EXPO`` (ArduPilot's defaults where the
+    log has none); ReaderError, in the log's terms, where they make no thrust curve."""
+    spin_min, spin_max = params.get("MOT_SPIN_MIN", 0.15), params.get("MOT_SPIN_MAX", 0.95)
+    expo = params.get("MOT_THST_EXPO", 0.65)
+    if not -1.0 <= expo <= 1.0:
+        raise ReaderError(
+            f"{path}: the log's MOT_THST_EXPO = {expo:g} is outside ArduPilot's range [-1, 1]: its motors' "
+            "thrust cannot be read from their outputs"
+        )
+    if not 0.0 <= spin_min < spin_max <= 1.0:
+        raise ReaderError(
+            f"{path}: the log's MOT_SPIN_MIN = {spin_min:g} and MOT_SPIN_MAX = {spin_max:g} are not "
+            "0 <= MIN < MAX <= 1: its motors' thrust cannot be read from their outputs"
+        )
+    return spin_min, spin_max, expo
 
 
 def _imu_position(params, prefix) -> tuple:
