@@ -1,12 +1,13 @@
-"""A damaged sample is a sample: one implausible value or time in an autopilot log is skipped
-and counted as a NaN is; only a log whose values are implausible throughout is refused, naming
-the unit (readers.common.make_recording; docs/reliability.md)."""
+"""Autopilot logs read as they are: one implausible value or time is skipped and counted as a
+NaN is, only a log whose values are implausible throughout is refused, naming the unit
+(readers.common.make_recording); a ULog's second IMU is that IMU's (docs/reliability.md)."""
 
+import struct
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from logwriters import write_dataflash, write_ulog
+from logwriters import _ulog_msg, write_dataflash, write_ulog
 
 from quadest.readers import ReaderError, read_recording
 from quadest.sim import simulate
@@ -55,3 +56,35 @@ def test_a_log_implausible_throughout_is_refused_naming_the_unit(hover, tmp_path
     write_dataflash(tmp_path / "log.bin", flight)
     with pytest.raises(ReaderError, match="is the gyroscope in deg/s"):
         read_recording(tmp_path / "log.bin")
+
+
+def _two_gyroscopes_ulog(path, rec):
+    """sensor_combined (PX4's primary IMU, instance 0 only) and sensor_gyro / sensor_accel of
+    instances 0 and 1; instance 1 reads twice the rates of instance 0."""
+    vec = "uint64_t timestamp;float x;float y;float z;"
+    formats = {"sensor_combined": "uint64_t timestamp;float[3] gyro_rad;float[3] accelerometer_m_s2;"}
+    formats.update({"sensor_gyro": vec, "sensor_accel": vec})
+    out = b"ULog\x01\x12\x35\x01" + struct.pack("<Q", 0) + _ulog_msg("B", bytes(16) + struct.pack("<3Q", 0, 0, 0))
+    for name, fmt in formats.items():
+        out += _ulog_msg("F", f"{name}:{fmt}".encode())
+    subs = [("sensor_combined", 0), ("sensor_gyro", 0), ("sensor_gyro", 1), ("sensor_accel", 0), ("sensor_accel", 1)]
+    for mid, (name, multi) in enumerate(subs):
+        out += _ulog_msg("A", struct.pack("<BH", multi, mid) + name.encode())
+    for k in range(len(rec)):
+        us = 1_000_000 + int(round(rec.t[k] * 1e6))
+        out += _ulog_msg("D", struct.pack("<HQ6f", 0, us, *rec.gyr[k], *rec.acc[k]))
+        for mid, (name, multi) in enumerate(subs[1:], start=1):
+            value = (rec.gyr[k] if name == "sensor_gyro" else rec.acc[k]) * (1 + multi)
+            out += _ulog_msg("D", struct.pack("<HQ3f", mid, us, *value))
+    path.write_bytes(out)
+
+
+def test_a_ulogs_second_imu_is_that_instance(hover, tmp_path):
+    """Before: instance=1 returned sensor_combined, instance 0's data, silently."""
+    path = tmp_path / "two.ulg"
+    rec = _flight(hover)
+    rec.acc = rec.acc * 0.5  # instance 1's accelerometer (twice this) stays gravity-sized
+    _two_gyroscopes_ulog(path, rec)
+    first, second = read_recording(path), read_recording(path, instance=1)
+    assert np.allclose(first.gyr, rec.gyr, atol=1e-5)
+    assert np.allclose(second.gyr, 2 * rec.gyr, atol=1e-5) and np.allclose(second.acc, 2 * rec.acc, atol=1e-4)
