@@ -1,15 +1,18 @@
 """Autopilot logs read as they are: one implausible value or time is skipped and counted as a
 NaN is, only a log whose values are implausible throughout is refused, naming the unit
-(readers.common.make_recording); a ULog's second IMU is that IMU's (docs/reliability.md)."""
+(readers.common.make_recording); a ULog's second IMU is that IMU's; a missing value or time
+is missing, not zeros nor the bag's clock (docs/reliability.md)."""
 
 import struct
 from types import SimpleNamespace
 
+import h5py
 import numpy as np
 import pytest
 from logwriters import _ulog_msg, write_dataflash, write_ulog
 
 from quadest.readers import ReaderError, read_recording
+from quadest.rotation.frames import vec_frd_to_flu
 from quadest.sim import simulate
 
 K = 150  # the damaged row
@@ -88,3 +91,49 @@ def test_a_ulogs_second_imu_is_that_instance(hover, tmp_path):
     first, second = read_recording(path), read_recording(path, instance=1)
     assert np.allclose(first.gyr, rec.gyr, atol=1e-5)
     assert np.allclose(second.gyr, 2 * rec.gyr, atol=1e-5) and np.allclose(second.acc, 2 * rec.acc, atol=1e-4)
+
+
+def test_an_hdf5_dataset_never_written_is_missing_not_zeros(tmp_path):
+    """Before: a BROAD file whose imu_gyr was declared but never written read as a gyroscope at
+    rest (h5py's fill value)."""
+    n, path = 200, tmp_path / "b.hdf5"
+    with h5py.File(path, "w") as f:
+        f.attrs["sampling_rate"] = 100.0
+        f.create_dataset("imu_gyr", shape=(n, 3), dtype="f8")  # declared, never written
+        f["imu_acc"] = np.tile([0.0, 0.0, 9.81], (n, 1))
+        f["imu_mag"] = np.tile([20.0, 0.0, -40.0], (n, 1))
+        f["opt_quat"] = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+        f["movement"] = np.ones(n)
+    with pytest.raises(ReaderError, match="'imu_gyr' declares .* but none was ever written"):
+        read_recording(path)
+
+
+def test_a_ros2_imu_message_stamped_0_is_a_missing_time(hover, tmp_path):
+    """Before: an IMU message whose header stamp is 0 took the bag's wall-clock time and was
+    sorted after every other sample (a jump of decades); now it is dropped and counted."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    T, path = ts.types, tmp_path / "bag"
+    V = T["geometry_msgs/msg/Vector3"]
+    with Writer(path, version=8) as w:
+        conn = w.add_connection("/imu", "sensor_msgs/msg/Imu", typestore=ts)
+        for k in range(len(hover)):
+            ns = 0 if k == K else int(1e9 * (100 + hover.t[k]))
+            stamp = T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
+            imu = T["sensor_msgs/msg/Imu"](
+                header=T["std_msgs/msg/Header"](stamp=stamp, frame_id="imu"),
+                orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+                orientation_covariance=np.full(9, -1.0),
+                angular_velocity=V(*vec_frd_to_flu(hover.gyr[k])),
+                angular_velocity_covariance=np.zeros(9),
+                linear_acceleration=V(*vec_frd_to_flu(hover.acc[k])),
+                linear_acceleration_covariance=np.zeros(9),
+            )
+            w.write(
+                conn, 1_700_000_000_000_000_000 + int(1e9 * hover.t[k]), ts.serialize_cdr(imu, "sensor_msgs/msg/Imu")
+            )
+    rec = read_recording(path)
+    assert rec.meta["dropped_rows"] == 1 and len(rec) == len(hover) - 1
+    assert np.allclose(rec.t, 100 + np.delete(hover.t, K), atol=1e-6)
