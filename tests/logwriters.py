@@ -34,18 +34,23 @@ def _ulog_fifo(flight, k, us, mid, name, value):
     return _ulog_msg("D", head + counts.astype("<i2").tobytes())
 
 
-def write_ulog(path, flight, truncate_at=None, params=None, t0_us=1_000_000, fifo=False):
+def write_ulog(path, flight, truncate_at=None, params=None, t0_us=1_000_000, fifo=False, mag=True, outputs=None):
     """A minimal ULog (format version 1): header, flag bits, formats, ``params`` (name → float),
     subscriptions, data; the IMU's first timestamp ``t0_us``. With ``fifo`` every sample goes
     into sensor_gyro_fifo / sensor_accel_fifo (four a message) and sensor_combined logs every
-    fourth."""
+    fourth. ``mag`` False leaves the magnetometer out; ``outputs`` (N, 4) PWM µs, one row per
+    sample, logs actuator_outputs every fourth sample."""
     topics = {
         "sensor_combined": ("uint64_t timestamp;float[3] gyro_rad;float[3] accelerometer_m_s2;", 0),
         "vehicle_magnetometer": ("uint64_t timestamp;float[3] magnetometer_ga;", 1),
         "vehicle_attitude": ("uint64_t timestamp;float[4] q;", 2),
     }
+    if not mag:
+        del topics["vehicle_magnetometer"]
     if fifo:
         topics.update({"sensor_gyro_fifo": (FIFO, 3), "sensor_accel_fifo": (FIFO, 4)})
+    if outputs is not None:
+        topics["actuator_outputs"] = ("uint64_t timestamp;float[16] output;", 5)
     out = b"ULog\x01\x12\x35\x01" + struct.pack("<Q", 0)
     out += _ulog_msg("B", bytes(16) + struct.pack("<3Q", 0, 0, 0))
     for name, (fmt, _) in topics.items():
@@ -62,9 +67,12 @@ def write_ulog(path, flight, truncate_at=None, params=None, t0_us=1_000_000, fif
         if fifo and k % 4:
             continue
         out += _ulog_msg("D", struct.pack("<HQ6f", 0, us, *flight.gyr[k], *flight.acc[k]))
-        out += _ulog_msg("D", struct.pack("<HQ3f", 1, us, *(flight.mag[k] / 100.0)))
+        if mag:
+            out += _ulog_msg("D", struct.pack("<HQ3f", 1, us, *(flight.mag[k] / 100.0)))
         if k % 4 == 0:
             out += _ulog_msg("D", struct.pack("<HQ4f", 2, us, *flight.true_q[k]))
+        if k % 4 == 0 and outputs is not None:
+            out += _ulog_msg("D", struct.pack("<HQ16f", 5, us, *outputs[k], *[0.0] * 12))
     Path(path).write_bytes(out[:truncate_at] if truncate_at else out)
 
 
@@ -80,9 +88,10 @@ def _df_fmt(mid, name, fmt, cols):
     )
 
 
-def write_dataflash(path, flight, params=None, xkq=False, batch=False):
+def write_dataflash(path, flight, params=None, xkq=False, batch=False, mag=True, outputs=None):
     """A DataFlash log: IMU, MAG, ATT (and XKQ when ``xkq``; every sample as the batch sampler's
-    GYR / ACC, and IMU every fourth, when ``batch``), PARM for ``params``."""
+    GYR / ACC, and IMU every fourth, when ``batch``), PARM for ``params``. ``mag`` False leaves
+    MAG out; ``outputs`` (N, 4) PWM µs, one row per sample, logs RCOU every fourth sample."""
     out = _df_fmt(128, "FMT", "BBnNZ", "Type,Length,Name,Format,Columns")
     out += _df_fmt(129, "IMU", "QBffffff", "TimeUS,I,GyrX,GyrY,GyrZ,AccX,AccY,AccZ")
     out += _df_fmt(130, "MAG", "QBfff", "TimeUS,I,MagX,MagY,MagZ")
@@ -91,6 +100,7 @@ def write_dataflash(path, flight, params=None, xkq=False, batch=False):
     out += _df_fmt(133, "XKQ", "QBffff", "TimeUS,C,Q1,Q2,Q3,Q4")
     out += _df_fmt(134, "GYR", "QBQfff", "TimeUS,I,SampleUS,GyrX,GyrY,GyrZ")
     out += _df_fmt(135, "ACC", "QBQfff", "TimeUS,I,SampleUS,AccX,AccY,AccZ")
+    out += _df_fmt(136, "RCOU", "Qffff", "TimeUS,C1,C2,C3,C4")
     for name, value in (params or {}).items():
         out += b"\xa3\x95\x84" + struct.pack("<Q16sf", 400_000, name.encode(), value)
     eul = np.degrees(quat_to_euler(flight.true_q))
@@ -101,7 +111,10 @@ def write_dataflash(path, flight, params=None, xkq=False, batch=False):
             out += b"\xa3\x95\x87" + struct.pack("<QBQ3f", us + 50, 0, us, *flight.acc[k])
         if not batch or k % 4 == 0:
             out += b"\xa3\x95\x81" + struct.pack("<QB6f", us, 0, *flight.gyr[k], *flight.acc[k])
-        out += b"\xa3\x95\x82" + struct.pack("<QB3f", us, 0, *(flight.mag[k] * 10.0))
+        if mag:
+            out += b"\xa3\x95\x82" + struct.pack("<QB3f", us, 0, *(flight.mag[k] * 10.0))
+        if k % 4 == 0 and outputs is not None:
+            out += b"\xa3\x95\x88" + struct.pack("<Q4f", us, *outputs[k])
         out += b"\xa3\x95\x83" + struct.pack("<Q3f", us, *eul[k])
         if xkq and k % 2 == 0:
             out += b"\xa3\x95\x85" + struct.pack("<QB4f", us, 0, *flight.true_q[k])

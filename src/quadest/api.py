@@ -39,8 +39,18 @@ def read(path: str | Path, format: str | None = None, **options) -> Recording:
     """Any file or folder quadest reads, as a :class:`Recording` in quadest's conventions:
     ULog, DataFlash, ROS bags, BROAD / DIDO / RepoIMU / Blackbird, CSV or Parquet (generic with
     ``columns=``, or quadest's own). ``format`` overrides the detection; ``options`` go to the
-    format's reader (docs/readers.md)."""
-    return read_recording(path, format, **options)
+    format's reader (docs/readers.md). What the command line says on stderr about the file (a
+    log cut short or damaged, rows dropped) is said here as a ``UserWarning``, one line naming
+    the file; it is also kept in ``meta['warnings']`` and ``meta['dropped_rows']``."""
+    rec = read_recording(path, format, **options)
+    dropped = rec.meta.get("dropped_rows")
+    if dropped:
+        warnings.warn(
+            f"{path}: dropped {dropped} row(s) with a repeated or decreasing time or a bad IMU value", stacklevel=2
+        )
+    for warning in rec.meta.get("warnings", []):
+        warnings.warn(f"{path}: {warning}", stacklevel=2)
+    return rec
 
 
 def _vectors(name: str, a, n: int | None) -> np.ndarray:

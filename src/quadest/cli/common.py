@@ -290,7 +290,8 @@ def read(args, path):
     dropped = rec.meta.get("dropped_rows")
     if dropped:  # said on stderr, so that JSON on stdout stays clean
         print(
-            f"note: {path}: dropped {dropped} row(s) with a repeated or decreasing time or a non-finite IMU value",
+            f"note: {path}: dropped {dropped} row(s) with a repeated or decreasing time or a non-finite or implausible "
+            "IMU value",
             file=sys.stderr,
             flush=True,
         )

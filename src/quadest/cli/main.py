@@ -145,7 +145,7 @@ def check_outputs(args) -> None:
     """Before any work: refuse an output that names an input file (writing it would destroy the
     input), or that cannot be written as its kind says (data.files.output_target: a read-only
     file without --force, a missing folder, a socket...)."""
-    from quadest.data.files import output_target, refuse_overwriting_inputs
+    from quadest.data.files import output_folder, output_target, refuse_overwriting_inputs
 
     inputs = [p for name in INPUT_OPTIONS for p in _paths(getattr(args, name, None))]
     outputs = {
@@ -160,6 +160,8 @@ def check_outputs(args) -> None:
         for opt, path in outputs.items():
             if opt not in folders:
                 output_target(path, force=getattr(args, "force", False))
+            else:
+                output_folder(path)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
 
@@ -204,6 +206,8 @@ def main(argv=None):
     entry = argv is None
     if entry:
         sys.unraisablehook = _interrupt_in_a_callback
+        if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:  # kill: as Ctrl-C, the output being written removed
+            signal.signal(signal.SIGTERM, signal.default_int_handler)
     try:
         return run_command(list(sys.argv[1:] if entry else argv))
     except KeyboardInterrupt:  # while the parser is built, or an error is being said
@@ -214,6 +218,8 @@ def main(argv=None):
     finally:
         if entry:  # from here to the process's end (Dask's and the interpreter's clean-up)
             signal.signal(signal.SIGINT, lambda *_: interrupted())
+            if signal.getsignal(signal.SIGTERM) is signal.default_int_handler:
+                signal.signal(signal.SIGTERM, lambda *_: interrupted())
 
 
 def run_command(argv: list) -> int:

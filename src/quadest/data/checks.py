@@ -448,8 +448,17 @@ def median_interval(t) -> float:
     return float(np.median(np.diff(t), overwrite_input=True))
 
 
+MIN_INTERVAL_S = 1e-6
+"""s: no IMU samples faster than 1 MHz (the fastest FIFOs run at a few tens of kHz)."""
+
+
 def _check_time_unit(t) -> None:
-    """An IMU samples faster than once a second."""
+    """An IMU samples faster than once a second, and slower than :data:`MIN_INTERVAL_S`."""
+    if len(t) >= 2 and 0 < (med_dt := median_interval(t)) < MIN_INTERVAL_S:
+        raise ValueError(
+            f"t: the median interval is {med_dt:g} s ({1 / med_dt:.3g} Hz), faster than any IMU: "
+            "are the times in seconds (or the rate in Hz)?"
+        )
     if len(t) >= 10:
         med_dt = median_interval(t)
         if med_dt > 1.0:

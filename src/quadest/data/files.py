@@ -117,6 +117,25 @@ def output_target(path, *, force: bool | None = None) -> OutputTarget:
     raise ValueError(f"{path} is {NOT_WRITTEN.get(kind, 'not a file')}")
 
 
+def output_folder(path) -> Path:
+    """A folder to write files into (made when absent); ValueError (one line, naming the path)
+    when the name is a file, or a link that loops or leads to nothing."""
+    path = Path(path)
+    try:
+        st = os.stat(path)  # follows links
+    except FileNotFoundError:
+        if path.is_symlink():
+            raise ValueError(
+                f"{path} is a symbolic link to {os.readlink(path)}, which is not there; give a folder"
+            ) from None
+        return path
+    except OSError as exc:  # a link loop, a file where a folder should be, no permission
+        raise ValueError(f"{path}: cannot be written into ({exc.strerror})") from None
+    if not stat.S_ISDIR(st.st_mode):
+        raise ValueError(f"{path} is not a folder; give a folder for the files")
+    return path
+
+
 def _open_stream(path: Path, wait_s: float) -> int:
     """A descriptor to write ``path`` as a stream; a FIFO waits up to ``wait_s`` for a reader
     (opening it blocking would wait forever), then is refused."""
@@ -208,8 +227,8 @@ def same_file(a, b) -> bool:
     """True when two paths name the same file (also through links); False when either is absent."""
     try:
         return os.path.samefile(a, b)
-    except OSError:
-        return Path(a).resolve() == Path(b).resolve()
+    except OSError:  # realpath, not Path.resolve: a link that loops is a name, not an error
+        return os.path.realpath(a) == os.path.realpath(b)
 
 
 def refuse_overwriting_inputs(outputs: dict, inputs) -> None:

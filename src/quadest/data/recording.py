@@ -235,6 +235,18 @@ class Recording:
     def __len__(self):
         return len(self.t)
 
+    def __repr__(self) -> str:
+        """A line, not the arrays: samples, duration, rate, channels and the source."""
+        n = len(self.t)
+        channels = ["gyr", "acc", *(["mag"] if self.has_mag else []), *self.truth]
+        span = f", {self.duration:.3f} s at {self.imu_rate_hz():.1f} Hz" if n > 1 else ""
+        source = self.meta.get("source")
+        return (
+            f"Recording({n} sample{'s' if n != 1 else ''}{span}; {', '.join(channels)}"
+            + (f"; from {source}" if source else "")
+            + ")"
+        )
+
     @property
     def duration(self) -> float:
         """Time from the first to the last sample, s."""

@@ -135,7 +135,7 @@ def thrust_per_mass(log: MotorLog, mask_out) -> float:
     az = np.interp(log.t_out[mask_out], log.t, log.acc[:, 2])
     total = log.thrust[mask_out].sum(axis=1)
     ok = total > 0.05
-    return float(np.median(-az[ok] / total[ok]))
+    return float(np.median(-az[ok] / total[ok])) if ok.any() else float("nan")
 
 
 def log_vehicle(log: MotorLog, t_over_m: float, params: DiagnoseParams) -> MultirotorParams:
@@ -219,6 +219,12 @@ def diagnose(log: MotorLog, params: DiagnoseParams | None = None) -> Diagnosis:
         notes.append("the vehicle did not fly in this log (no take-off, or too short): nothing to diagnose")
         return Diagnosis(log, [], [], motor_shares(log, params), {}, notes)
     t_over_m = thrust_per_mass(log, fly_out)
+    if not (np.isfinite(t_over_m) and t_over_m > 0):  # the model's k_f from it would be refused
+        raise ValueError(
+            f"{log.path}: in flight the motors' outputs give no thrust that lifts the vehicle against "
+            f"its accelerometer (thrust over mass {t_over_m:g}): are the log's motor and thrust parameters "
+            "(SERVOn_FUNCTION, MOT_*; PX4: CA_*, PWM_*) those of the vehicle?"
+        )
     vehicle = log_vehicle(log, t_over_m, params)
     failures, noise = find_failures(log, vehicle, params)
     shares = motor_shares(log, params)
@@ -255,7 +261,7 @@ def format_diagnosis(d: Diagnosis) -> str:
     log = d.log
     lines = [
         f"{log.path}: {log.autopilot}, {log.frame}, IMU {log.imu_rate:.0f} Hz, motor outputs {log.output_rate:.0f} Hz",
-        "flying: " + ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in log.flying) if log.flying else "flying: never",
+        "flying: " + ", ".join(_span(a, b) for a, b in log.flying) if log.flying else "flying: never",
     ]
     for t, name, value in log.changes:
         lines.append(f"parameter change at {t:.3f} s: {name} = {value:g}")
@@ -267,10 +273,10 @@ def format_diagnosis(d: Diagnosis) -> str:
     else:
         lines.append("no rotor failure found")
     unit = "us" if log.output_unit == "us" else ""
-    lines.append("motor  output  vs others  thrust vs others")
-    for r in d.motors:
-        if r["output"] is None:
-            continue
+    shown = [r for r in d.motors if r["output"] is not None]  # None: no flight to take shares from
+    if shown:
+        lines.append("motor  output  vs others  thrust vs others")
+    for r in shown:
         flag = (
             "  <- works harder than intact vehicles spread" if any(x["motor"] == r["motor"] for x in d.damaged) else ""
         )
@@ -279,6 +285,13 @@ def format_diagnosis(d: Diagnosis) -> str:
         )
     lines += [f"note: {n}" for n in d.notes]
     return "\n".join(lines)
+
+
+def _span(start: float, end: float) -> str:
+    """A flying span as text; a span with no landing logged runs to the log's end."""
+    if np.isfinite(end):
+        return f"{start:.1f}-{end:.1f} s"
+    return f"from {start:.1f} s to the end of the log (no landing logged)"
 
 
 IN_FLIGHT = {

@@ -28,7 +28,9 @@ the magnetometer correction is skipped for that step.
 
 from __future__ import annotations
 
+import copy
 import math
+import numbers
 from collections import namedtuple
 from dataclasses import dataclass, fields, replace
 from typing import TYPE_CHECKING, NamedTuple
@@ -379,6 +381,8 @@ class Estimator:
         the magnetometer's may be None) itself and hands every other call to this method with
         the same arguments. Each check below is what a wrong input would otherwise turn into
         wrong memory reads in compiled code."""
+        if type(dt) is not float:
+            dt = _interval(dt, self.name)
         s = self._s
         if not 0.0 < dt <= s[1]:
             if 0.0 < dt < math.inf:  # a gap: start again; the first sample after it spans a nominal interval
@@ -415,6 +419,11 @@ class Estimator:
         state.pop("_qv", None)  # a view of _x, made again after unpickling
         state.pop("update", None)
         return state
+
+    def __copy__(self):
+        """A copy is a whole estimator: its state, parameter and coefficient arrays its own (a
+        shallow copy shared them, and the compiled step writes them in place)."""
+        return copy.deepcopy(self)
 
     def __setstate__(self, state):
         self.__dict__.update(state)
@@ -553,6 +562,14 @@ def _nominal_interval(dt) -> float:
     """The median of the usable (positive, finite) intervals; 0 when there is none."""
     ok = dt[np.isfinite(dt) & (dt > 0)]
     return float(np.median(ok)) if len(ok) else 0.0
+
+
+def _interval(dt, name: str) -> float:
+    """A streaming ``dt`` as a float: a real number (Python's, numpy's, a Fraction); anything
+    else (a Decimal, a string, a bool, an array) refused in one line."""
+    if isinstance(dt, bool) or not isinstance(dt, (numbers.Real, np.floating, np.integer)):
+        raise UsageError(f"{name}: dt must be a real number of seconds, got {type(dt).__name__} {dt!r}")
+    return float(dt)
 
 
 def sample_times(t, rate, gyr, who: str) -> np.ndarray:

@@ -38,6 +38,7 @@ RATE_LIMIT = 1e3  # rad/s, gyroscope (MEMS gyroscopes end near 35 rad/s)
 ACC_LIMIT = 1e4  # m/s², accelerometer (about 1000 g)
 MAG_LIMIT = 1e9  # magnetometer, any unit (the earth's field is 5e4 nT)
 DT_LIMIT = 1e3  # s, one interval
+DT_MIN = 1e-9  # s: a shorter interval is no sensor's (1/dt overflows the steps' arithmetic near 1e-308)
 
 
 @njit(cache=True, inline="always")
@@ -68,12 +69,12 @@ def within3(v, limit):
 def admit(x, gyr, acc, mag, dt):
     """Whether a sample can be used; a sample that cannot is skipped and counted in
     ``x[SKIPPED]`` (the state is left as it was, so it never becomes NaN). Refused: an interval
-    that is not a positive finite number up to ``DT_LIMIT``; a gyroscope or accelerometer value
+    that is not a finite number from ``DT_MIN`` up to ``DT_LIMIT``; a gyroscope or accelerometer value
     that is not finite or beyond any sensor. The magnetometer's value is put in ``x[MAG:MAG + 3]``
     for the step to read (:func:`admitted_mag`): as it is, or, when it is not finite or beyond any
     sensor, NaN ("no new sample": the rest of the sample is used) and counted in
     ``x[MAG_SKIPPED]``. A NaN magnetometer row means "no new sample" and is not counted."""
-    ok = dt > 0.0 and dt <= DT_LIMIT and within3(gyr, RATE_LIMIT) and within3(acc, ACC_LIMIT)
+    ok = dt >= DT_MIN and dt <= DT_LIMIT and within3(gyr, RATE_LIMIT) and within3(acc, ACC_LIMIT)
     if not ok:
         x[SKIPPED] += 1.0
         return False

@@ -244,11 +244,12 @@ def _diagnosis_text(j: dict) -> str:
         [m["motor"], f"{m['output']:.0f}", f"{m['output_excess']:+.1f}", f"{100 * m['excess']:+.1f} %",
          "works harder than intact vehicles spread" if m["motor"] in flagged else ""]
         for m in j["motors"]
+        if m["output"] is not None  # None: the vehicle did not fly, no share to show
     ]  # fmt: skip
     shares = (
         _table(["motor", "median output", "above the others' mean", "thrust share above the others", ""], rows,
                "diagnose-motors")
-        if rows else "<p class='q'>No motor shares (a flight with a failure, or shorter than 10 s).</p>"
+        if rows else "<p class='q'>No motor shares (no flight, a flight with a failure, or one shorter than 10 s).</p>"
     )  # fmt: skip
     notes = "".join(f"<p class='q'>note: {html.escape(n)}</p>" for n in j["notes"])
     return STYLE + head + found + shares + notes
@@ -323,9 +324,16 @@ def _failure_sections(rec, att, xr) -> list:
 SPECTROGRAM_COLUMNS = 800  # at most about this many columns drawn (chosen)
 
 
+SPECTROGRAM_MIN = 16
+"""Samples of the shortest segment a spectrogram is computed on."""
+
+
 def _spectrogram(rec, xr):
-    """The accelerometer norm's spectrogram (vibration, the spin's frequency), in dB."""
+    """The accelerometer norm's spectrogram (vibration, the spin's frequency), in dB; a note
+    for a recording shorter than one segment."""
     t = rec.t
+    if len(t) < SPECTROGRAM_MIN:
+        return Div(text=STYLE + f"<p class='q'>No spectrogram: {len(t)} sample(s), fewer than {SPECTROGRAM_MIN}.</p>")
     fs = 1.0 / median_interval(t)
     S = 10 * np.log10(_spectrogram_columns(row_norms(rec.acc), fs) + 1e-12)
     f = _figure("accelerometer norm: spectrogram [dB]", xr, "frequency [Hz]", "spectrogram", height=260)
@@ -349,7 +357,7 @@ def _spectrogram_columns(x, fs: float) -> np.ndarray:
     those segments alone: ``(frequencies, columns)``. ``x`` is overwritten."""
     x -= np.nanmean(x)
     x = np.nan_to_num(x, copy=False)
-    nper = int(min(256, max(16, len(x) // 8)))
+    nper = int(min(256, max(SPECTROGRAM_MIN, len(x) // 8)))
     hop = nper - nper // 2
     segments = (len(x) - nper // 2) // hop
     step = max(1, segments // SPECTROGRAM_COLUMNS)

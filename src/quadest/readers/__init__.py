@@ -23,6 +23,7 @@ Every failure is a :class:`ReaderError` (a ValueError) with one line naming the 
 from __future__ import annotations
 
 import inspect
+import os
 from pathlib import Path
 
 from quadest.data.inputs import check_input
@@ -69,6 +70,8 @@ def detect_format(path: str | Path) -> str:
     """The format of ``path`` from its extension and first bytes (or, for HDF5, its datasets)."""
     p = Path(path)
     if not p.exists():
+        if p.is_symlink():
+            raise ReaderError(f"{path}: a symbolic link that loops or leads to nothing ({os.readlink(p)})")
         raise ReaderError(f"{path}: no such file or folder")
     if p.is_dir():
         if (p / "metadata.yaml").is_file():

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from quadest.conventions import GRAVITY
+from quadest.data.checks import ACC_LIMIT, GYR_LIMIT, row_abs_max, row_norms
 from quadest.data.recording import Recording
 from quadest.rotation import quat_continuous, quat_normalize
 from quadest.rotation.quaternion import quat_mul
@@ -98,16 +99,35 @@ MAX_DROPPED_SHARE = 0.05
 """A reader refuses a file in which more than this share of the rows must be dropped."""
 
 
+def _isolated_implausible(t, gyr, acc) -> np.ndarray:
+    """Rows a damaged sample made implausible, to drop as a NaN is: a gyroscope or accelerometer
+    value beyond any sensor (:data:`~quadest.data.checks.GYR_LIMIT`, ``ACC_LIMIT``), and a time
+    ahead of the next while the ones around it are in order (one ``TimeUS`` jump). Values beyond
+    any sensor on more than ``MAX_DROPPED_SHARE`` of the rows are a unit, not damage: they are
+    kept, for the unit checks to name."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        beyond = (row_abs_max(np.asarray(gyr, float)) > GYR_LIMIT) | (row_norms(np.asarray(acc, float)) > ACC_LIMIT)
+    if beyond.sum() > MAX_DROPPED_SHARE * len(t):
+        beyond[:] = False
+    ahead = np.zeros(len(t), bool)
+    if len(t) >= 3:
+        ahead[1:-1] = (t[1:-1] > t[2:]) & (t[:-2] < t[2:])
+        ahead[0] = t[0] > t[1] and t[1] < t[2]
+    return beyond | ahead
+
+
 def make_recording(path, fmt: str, t, gyr, acc, mag=None, meta=None, **truth) -> Recording:
     """A Recording from a reader's converted arrays, in the file's own time (so an output joins
     the file's other data; where it starts is also ``meta['t0_s']``); rows with repeated or
-    decreasing timestamps or non-finite IMU values are dropped (and counted in
+    decreasing timestamps, non-finite IMU values or an isolated implausible value or time
+    (:func:`_isolated_implausible`) are dropped (and counted in
     ``meta['dropped_rows']``; every command reports them), more than ``MAX_DROPPED_SHARE`` of
     them is refused, and any validation error names the file."""
     t = np.asarray(t, float)
     if len(t) == 0:
         raise ReaderError(f"{path}: no IMU samples")
     good = np.isfinite(t) & np.isfinite(gyr).all(axis=1) & np.isfinite(acc).all(axis=1)
+    good &= ~_isolated_implausible(t, gyr, acc)
     t_run = np.maximum.accumulate(np.where(good, t, -np.inf))
     good &= np.concatenate([[True], t[1:] > t_run[:-1]])
     meta = dict(meta or {})
@@ -121,7 +141,7 @@ def make_recording(path, fmt: str, t, gyr, acc, mag=None, meta=None, **truth) ->
     if (~good).sum() > MAX_DROPPED_SHARE * len(t):
         raise ReaderError(
             f"{path}: {int((~good).sum())} of {len(t)} rows have a repeated or decreasing time or a "
-            "non-finite IMU value (more than {:.0f} %): is the file sorted by time, and are the "
+            "non-finite or implausible IMU value (more than {:.0f} %): is the file sorted by time, and are the "
             "columns the right ones?".format(100 * MAX_DROPPED_SHARE)
         )
     kw = {k: (np.asarray(v, float)[good] if v is not None else None) for k, v in truth.items()}

@@ -57,6 +57,10 @@ def _h5_read(f, name, path):
             f"{path}: {name!r} declares {ds.shape} values ({declared / 1e6:.0f} MB) but the file "
             f"stores {stored / 1e6:.3g} MB of it: the file is damaged or not what it claims"
         )
+    if declared > 0 and stored == 0:  # h5py would read its fill value (zeros) as samples
+        raise ReaderError(
+            f"{path}: {name!r} declares {ds.shape} values but none was ever written: the file is incomplete"
+        )
     try:
         return ds[()]
     except (OSError, ValueError, TypeError) as exc:

@@ -121,8 +121,8 @@ def _read_ulog(path, *, instance: int = 0, imu: str = "logged"):
     except Exception as exc:  # pyulog raises plain Exceptions and struct errors on bad files
         raise ReaderError(f"{path}: not a readable ULog file ({reason(exc)})") from None
     data = {}
-    for d in ulog.data_list:
-        if d.multi_id == instance or d.name not in data:
+    for d in ulog.data_list:  # the IMU's topics of that instance only; others' first where it has none
+        if d.multi_id == instance or (d.name not in data and d.name not in ULOG_IMU_TOPICS):
             data[d.name] = d.data
     _refuse_missing_instance(path, instance, {d.multi_id for d in ulog.data_list if d.name in ULOG_IMU_TOPICS})
     if imu == "fifo":
@@ -140,7 +140,8 @@ def _read_ulog(path, *, instance: int = 0, imu: str = "logged"):
     else:
         raise ReaderError(
             f"{path}: the ULog has no raw IMU topic (sensor_combined or sensor_gyro/"
-            "sensor_accel); log it with SDLOG_PROFILE including sensor data"
+            f"sensor_accel) of instance {instance}; log it with SDLOG_PROFILE including sensor data"
+            + (" (sensor_combined holds instance 0 only)" if instance else "")
         )
     mag = None
     if "vehicle_magnetometer" in data:

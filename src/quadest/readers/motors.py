@@ -13,7 +13,7 @@ import numpy as np
 from quadest.data.checks import runs
 from quadest.extras import need
 from quadest.readers.common import ReaderError, reason
-from quadest.readers.logs import LOG_DAMAGE, _printed, open_dataflash
+from quadest.readers.logs import DF_HEAD, LOG_DAMAGE, _printed, open_dataflash
 
 # ArduPilot's motor tables (AP_MotorsMatrix): per motor, the arm's angle from forward (degrees,
 # positive towards the right) and its sense seen from above (+1 clockwise, -1 counter-clockwise)
@@ -100,17 +100,33 @@ def read_motor_log(path: str | Path) -> MotorLog:
     p = Path(path)
     if not p.exists():
         raise ReaderError(f"{path}: no such file")
-    reader = _read_px4 if p.suffix.lower() == ".ulg" else _read_ardupilot
+    reader = _log_reader(p)
     try:
         return reader(p)
     except LOG_DAMAGE as exc:
         raise ReaderError(f"{path}: the log is damaged ({reason(exc)})") from None
 
 
+def _log_reader(path: Path):
+    """The reader of a log from its first bytes (a ULog's ``ULog``, a DataFlash log's ``A3 95``):
+    any other file is refused at once, not walked byte by byte as a damaged DataFlash log."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(4)
+    except OSError as exc:
+        raise ReaderError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    if head.startswith(b"ULog"):
+        return _read_px4
+    if head.startswith(DF_HEAD):
+        return _read_ardupilot
+    raise ReaderError(f"{path}: not an ArduPilot DataFlash (.bin) or PX4 ULog (.ulg) log; diagnose reads only those")
+
+
 # -- ArduPilot ------------------------------------------------------------------------------------------
 def _read_motor_messages(log, imu, rcou, events, params, changes) -> None:
     """The IMU (instance 0), motor output, event and parameter messages of a DataFlash log into
     the lists (``changes``: a parameter's later values, the statistics' apart)."""
+    last = {}  # each parameter's latest value: a value logged again is not a change again
     while (m := log.recv_match(type=["IMU", "RCOU", "PARM", "EV"])) is not None:
         kind = m.get_type()
         if kind == "IMU" and getattr(m, "I", 0) == 0:
@@ -120,9 +136,10 @@ def _read_motor_messages(log, imu, rcou, events, params, changes) -> None:
         elif kind == "EV":
             events.append((m.TimeUS * 1e-6, m.Id))
         elif kind == "PARM":
-            if m.Name in params and params[m.Name] != m.Value and not m.Name.startswith(STATISTICS):
+            if m.Name in last and last[m.Name] != m.Value and not m.Name.startswith(STATISTICS):
                 changes.append((m.TimeUS * 1e-6, m.Name, float(m.Value)))
             params.setdefault(m.Name, float(m.Value))
+            last[m.Name] = m.Value
 
 
 def _read_ardupilot(path: Path) -> MotorLog:
@@ -153,14 +170,7 @@ def _read_ardupilot(path: Path) -> MotorLog:
     if pwm_min <= 0 or pwm_max <= pwm_min:  # ArduPilot then takes the throttle channel's range
         pwm_min, pwm_max = params.get("RC3_MIN", 1000.0), params.get("RC3_MAX", 2000.0)
     outputs = rcou[:, [c for c in channels]]
-    thrust = pwm_thrust(
-        outputs,
-        pwm_min,
-        pwm_max,
-        params.get("MOT_SPIN_MIN", 0.15),
-        params.get("MOT_SPIN_MAX", 0.95),
-        params.get("MOT_THST_EXPO", 0.65),
-    )
+    thrust = pwm_thrust(outputs, pwm_min, pwm_max, *_thrust_curve(params, path))
     t_out = rcou[:, 0] * 1e-6
     hover = params.get("MOT_THST_HOVER", 0.35)
     flying = _flying_from_events(events) or _flying_from_thrust(t_out, thrust, 0.5 * hover)
@@ -187,6 +197,24 @@ def _read_ardupilot(path: Path) -> MotorLog:
         channels,
         _imu_position(params, "INS_POS1_"),
     )
+
+
+def _thrust_curve(params, path) -> tuple[float, float, float]:
+    """``MOT_SPIN_MIN``, ``MOT_SPIN_MAX`` and ``MOT_THST_EXPO`` (ArduPilot's defaults where the
+    log has none); ReaderError, in the log's terms, where they make no thrust curve."""
+    spin_min, spin_max = params.get("MOT_SPIN_MIN", 0.15), params.get("MOT_SPIN_MAX", 0.95)
+    expo = params.get("MOT_THST_EXPO", 0.65)
+    if not -1.0 <= expo <= 1.0:
+        raise ReaderError(
+            f"{path}: the log's MOT_THST_EXPO = {expo:g} is outside ArduPilot's range [-1, 1]: its motors' "
+            "thrust cannot be read from their outputs"
+        )
+    if not 0.0 <= spin_min < spin_max <= 1.0:
+        raise ReaderError(
+            f"{path}: the log's MOT_SPIN_MIN = {spin_min:g} and MOT_SPIN_MAX = {spin_max:g} are not "
+            "0 <= MIN < MAX <= 1: its motors' thrust cannot be read from their outputs"
+        )
+    return spin_min, spin_max, expo
 
 
 def _imu_position(params, prefix) -> tuple:

@@ -35,12 +35,24 @@ POSE = (
 
 
 def _stamp(msg, t_log):
+    """``(header stamp, bag time)`` in s: a message without a header has the bag's time as its
+    stamp; a header stamp of 0 is kept as 0 (no time) for :func:`_clocked` to judge."""
     h = getattr(msg, "header", None)
     if h is not None:
-        s = h.stamp.sec + h.stamp.nanosec * 1e-9
-        if s > 0:
-            return s
-    return t_log * 1e-9
+        return h.stamp.sec + h.stamp.nanosec * 1e-9, t_log * 1e-9
+    return t_log * 1e-9, t_log * 1e-9
+
+
+def _clocked(rows, keep_missing: bool = False) -> np.ndarray:
+    """A topic's rows ``(stamp, bag time, values...)`` as ``(time, values...)`` sorted by time,
+    on one clock: the header stamps where the topic has any (a stamp of 0 among them is a
+    missing time: NaN, last, and left out unless ``keep_missing``, never the bag's wall-clock
+    time, which sorted it after every other message), the bag's times where it has none."""
+    a = np.array(rows, float)
+    stamped = a[:, 0] > 0
+    t = np.where(stamped, a[:, 0], np.nan) if stamped.any() else a[:, 1]
+    out = np.column_stack([t, a[:, 2:]])[np.argsort(t, kind="stable")]
+    return out if keep_missing else out[np.isfinite(out[:, 0])]
 
 
 def _pick(conns, types, wanted, what, path, required):
@@ -76,7 +88,7 @@ def _imu_orientation(orient, t) -> np.ndarray | None:
     REP 145) on the IMU's rows in NED/FRD, where it is given and a unit quaternion; else None."""
     if not orient:
         return None
-    o = np.array(sorted(orient), float)
+    o = _clocked(orient)
     norm = np.linalg.norm(o[:, 1:5], axis=1)
     o = o[np.abs(norm - 1.0) < 0.01]
     if len(o) < 2:
@@ -131,18 +143,18 @@ def read_rosbag(path, *, imu_topic=None, mag_topic=None, truth_topic=None, msgs=
         chosen = [c for c in (ci, cm, ct) if c is not None]
         for conn, t_log, raw in reader.messages(connections=chosen):
             msg = reader.deserialize(raw, conn.msgtype)
-            ts = _stamp(msg, t_log)
+            ts = _stamp(msg, t_log)  # a pair: header, bag
             if conn is ci or conn.topic == ci.topic:
                 w, a, o = msg.angular_velocity, msg.linear_acceleration, msg.orientation
-                imu.append((ts, w.x, w.y, w.z, a.x, a.y, a.z))
+                imu.append((*ts, w.x, w.y, w.z, a.x, a.y, a.z))
                 if msg.orientation_covariance[0] != -1.0:  # REP 145: -1, no orientation given
-                    orient.append((ts, o.w, o.x, o.y, o.z))
+                    orient.append((*ts, o.w, o.x, o.y, o.z))
             elif cm is not None and conn.topic == cm.topic:
                 f = msg.magnetic_field
-                mag.append((ts, f.x, f.y, f.z))
+                mag.append((*ts, f.x, f.y, f.z))
             else:
                 pos, o = _pose_of(msg)
-                pose.append((ts, o.w, o.x, o.y, o.z, *pos))
+                pose.append((*ts, o.w, o.x, o.y, o.z, *pos))
     except ReaderError:
         raise
     except Exception as exc:
@@ -151,15 +163,15 @@ def read_rosbag(path, *, imu_topic=None, mag_topic=None, truth_topic=None, msgs=
         reader.close()
     if not imu:
         raise ReaderError(f"{path}: the IMU topic {ci.topic} has no messages")
-    imu = np.array(sorted(imu), float)
+    imu = _clocked(imu, keep_missing=True)  # a missing time: dropped and counted with the rows
     t = imu[:, 0]
     magv = None
     if mag:
-        mag = np.array(sorted(mag), float)
+        mag = _clocked(mag)
         magv = mag_on_imu_rows(t, mag[:, 0], vec_flu_to_frd(mag[:, 1:4] * 1e6))
     truth = {}
     if pose:
-        pose = np.array(sorted(pose), float)
+        pose = _clocked(pose)
         truth["true_q"] = quat_enu_flu_to_ned_frd(resample_quat(pose[:, 0], pose[:, 1:5], t))
         inside = np.isfinite(truth["true_q"][:, 0])
         pos = np.full((len(t), 3), np.nan)
