@@ -6,8 +6,8 @@ The fault-tolerant controller takes over once the loss is known (after the fligh
     python examples/fly_a_rotor_loss.py
 """
 
-from quadest.control import Failure
 from quadest.flight import FlightParams, fly
+from quadest.sim import Failure
 
 flight = fly("rotor-loss", estimator="robust", duration=8.0, failure=Failure(rotor=0, time_s=2.0))
 s = flight.summary

@@ -18,9 +18,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from quadest.control import Failure  # noqa: E402
 from quadest.flight import fly  # noqa: E402
-from quadest.sim import build_config  # noqa: E402
+from quadest.sim import Failure, build_config  # noqa: E402
 
 
 def main(out: str = "docs/figures/clip-rate.png") -> None:

@@ -304,7 +304,7 @@ def test_fly_writes_runs_that_every_command_reads(tmp_path, capsys):
         (["--failure", "7@2"], "rotor 7 does not exist"),
         (["--failure", "0@99"], "outside the run"),
         (["--failure", "0@1:0.5:1e-6:2"], "--failure expects"),
-        (["--failure", "0@1:1"], "efficiency must be in [0, 1)"),
+        (["--failure", "0@1:1"], "needs an efficiency in [0, 1)"),
         (["--failure", "0@1:0.9:-1e-6"], "imbalance must be between"),
         (["--failure", "0@1:0.9:5"], "imbalance must be between"),
         (["--seeds", "a-b"], "--seeds expects"),
