@@ -30,14 +30,14 @@ from quadest.flight.loop import (
 
 
 class Truth(NamedTuple):
-    """The arrays a plant writes a sample's truth into (the loop's own: nothing is copied).
+    """The arrays a plant writes a sample's truth into (the loop's own: nothing is copied):
 
-    x : (13 + N,) NED position (m), NED velocity (m/s), ``q_nb`` ``[w, x, y, z]``, FRD body
-        rate (rad/s), rotor speeds (rad/s).
-    dx : (13 + N,) the time derivative of ``x`` (the accelerometer reads ``dx[3:6]``).
-    thrusts : (N,) each rotor's thrust, N.
-    eta : (N,) the share of its thrust and torque each rotor delivers (1 intact).
-    imb : (N,) each propeller's imbalance, kg m (0 balanced).
+    - ``x`` (13 + N): NED position (m), NED velocity (m/s), ``q_nb`` ``[w, x, y, z]``, FRD body
+      rate (rad/s), rotor speeds (rad/s);
+    - ``dx`` (13 + N): the time derivative of ``x`` (the accelerometer reads ``dx[3:6]``);
+    - ``thrusts`` (N): each rotor's thrust, N;
+    - ``eta`` (N): the share of its thrust and torque each rotor delivers (1 intact);
+    - ``imb`` (N): each propeller's imbalance, kg m (0 balanced).
     """
 
     x: np.ndarray
