@@ -215,8 +215,3 @@ class Failure:
         if self.efficiency or self.imbalance:
             text += f":{self.efficiency:g}" + (f":{self.imbalance:g}" if self.imbalance else "")
         return text + "".join(f",{k}={d[k]:g}" for k in _EXTRA.get(self.mode, ()))
-
-
-def parse_failure(text: str | None) -> Failure | None:
-    """:meth:`Failure.parse`, None for None."""
-    return None if text is None else Failure.parse(text)
