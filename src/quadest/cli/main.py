@@ -42,13 +42,19 @@ def _while_loading(signum, frame) -> None:
     interrupted()
 
 
-_LOADING = threading.current_thread() is threading.main_thread() and (
-    signal.getsignal(signal.SIGINT) is signal.default_int_handler  # Python's own: Ctrl-C not ignored
-)
+def _ctrl_c_is_pythons() -> bool:
+    """Ctrl-C is Python's own (not ignored, not replaced) and this is the main thread."""
+    return threading.current_thread() is threading.main_thread() and (
+        signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    )
+
+
+_LOADING = _ctrl_c_is_pythons()
 if _LOADING:
     signal.signal(signal.SIGINT, _while_loading)
 try:  # Ctrl-C while the command line loads ends in one line too
     import argparse
+    import importlib
     import traceback
     import warnings
     from pathlib import Path
@@ -62,6 +68,26 @@ except KeyboardInterrupt:
 finally:
     if _LOADING:
         signal.signal(signal.SIGINT, signal.default_int_handler)
+
+LIBRARIES = ("numpy", "scipy.linalg", "scipy.signal", "scipy.optimize", "scipy.spatial", "numba")
+"""The compiled libraries a command loads when it runs (the command line's own modules load none)."""
+
+_program = False  # main() runs as the program (the console script), not called from Python
+
+
+def load_libraries() -> None:
+    """Load the compiled libraries before a command runs, a Ctrl-C meanwhile ending the program
+    at once as while the command line loads (:func:`_while_loading`): nothing is written yet."""
+    ends_at_once = _program and _ctrl_c_is_pythons()
+    if ends_at_once:
+        signal.signal(signal.SIGINT, _while_loading)
+    try:
+        for name in LIBRARIES:
+            importlib.import_module(name)
+    finally:
+        if ends_at_once:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+
 
 GROUPS = (sim, fly, recordings, compare, recovery, sweep, data)
 ORDER = (
@@ -203,8 +229,10 @@ def _one_line_note(message, category, filename, lineno, line=None):
 def main(argv=None):
     """The command line; ``argv`` None: the program itself (``quadest``), whose Ctrl-C at any
     moment, its end included, is one line and exit code 130."""
+    global _program
     entry = argv is None
     if entry:
+        _program = True
         sys.unraisablehook = _interrupt_in_a_callback
         if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:  # kill: as Ctrl-C, the output being written removed
             signal.signal(signal.SIGTERM, signal.default_int_handler)
@@ -234,6 +262,7 @@ def run_command(argv: list) -> int:
     try:
         check_outputs(args)
         check_extras(args)
+        load_libraries()
         from quadest.data.files import replacing_read_only
         from quadest.data.tables import use_system_allocator
 
