@@ -27,7 +27,7 @@ from quadest.data.recording import Recording
 from quadest.errors import UsageError
 from quadest.evaluation import runner
 from quadest.filters import FilterResult, estimator_class
-from quadest.filters.base import sample_intervals, sample_times
+from quadest.filters.timing import sample_intervals, sample_times
 from quadest.readers import read_recording
 from quadest.rotation.frames import quat_ned_frd_to_enu_flu, vec_flu_to_frd
 

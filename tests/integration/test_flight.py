@@ -354,7 +354,7 @@ def test_the_barometer_holds_the_height_after_the_handover():
 
 
 def test_the_bank_without_its_update_keeps_the_prior():
-    """`bank_step(update=False)` (the nominal estimator's gate, section V-B): the likelihoods stay,
+    """`bank_step` with update False (the nominal estimator's gate, section V-B): the likelihoods stay,
     the covariance grows, the velocity follows the prior alone."""
     from quadest.recovery import RecoveryParams
     from quadest.recovery.bank import bank_step
@@ -367,9 +367,9 @@ def test_the_bank_without_its_update_keeps_the_prior():
     w = np.array([0.1, 0.0, 0.0])
     acc = np.array([0.0, 0.0, -3.0])
     Va, Qa, Pa, La = args()
-    bank_step(Va, Qa, Pa, La, np.zeros(1), w.copy(), w, acc, 1e-3, prm, m.A, m.B, m.C, False)
+    bank_step((Va, Qa, Pa, La, np.zeros(1), w.copy()), (w, acc, 1e-3, False, np.nan), prm, (m.A, m.B, m.C))
     Vb, Qb, Pb, Lb = args()
-    bank_step(Vb, Qb, Pb, Lb, np.zeros(1), w.copy(), w, acc, 1e-3, prm, m.A, m.B, m.C, True)
+    bank_step((Vb, Qb, Pb, Lb, np.zeros(1), w.copy()), (w, acc, 1e-3, True, np.nan), prm, (m.A, m.B, m.C))
     assert La[0] == 0.0 and np.trace(Pa[0]) > np.trace(Pb[0]) and not np.allclose(Va, Vb)
     # the prior by hand: v + dt (−ω × v + f_c(v, ω)/m + g_b), g_b = [0, 0, g] level
     from quadest.models.aero import aero_force

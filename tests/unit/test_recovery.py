@@ -129,7 +129,9 @@ def test_transition_matrix_eqs40_44_against_finite_differences():
     P0 = np.diag([1.0, 2.0, 3.0, 0.1, 0.2, 0.5])
     V, Qr, P, L = v[None].copy(), q_ref[None].copy(), P0[None].copy(), np.zeros(1)
     prm = BankRecord(gravity=9.80665, mass=MODEL.mass_kg, acc_var=1e30, q_vel=0.0, q_att=0.0, baro_var=0.0)
-    bank_step(V, Qr, P, L, np.zeros(1), w.copy(), w, np.zeros(3), dt, prm, MODEL.A, MODEL.B, MODEL.C)
+    bank_step(
+        (V, Qr, P, L, np.zeros(1), w.copy()), (w, np.zeros(3), dt, True, np.nan), prm, (MODEL.A, MODEL.B, MODEL.C)
+    )
     np.testing.assert_allclose(P[0, :5, :5], F @ P0[:5, :5] @ F.T, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(V[0], _prior(v, q_ref, np.zeros(2), w, dt)[:3], atol=1e-12)
 
@@ -159,7 +161,7 @@ def test_bank_height_row_against_finite_differences():
     P0 = np.diag([1.0, 2.0, 3.0, 0.1, 0.2, 0.5])
     V, Qr, P, L, Z = v[None].copy(), q_ref[None].copy(), P0[None].copy(), np.zeros(1), np.array([1.5])
     prm = BankRecord(gravity=9.80665, mass=MODEL.mass_kg, acc_var=1.0, q_vel=0.0, q_att=0.0, baro_var=0.09)
-    bank_step(V, Qr, P, L, Z, w.copy(), w, np.zeros(3), dt, prm, MODEL.A, MODEL.B, MODEL.C, False)
+    bank_step((V, Qr, P, L, Z, w.copy()), (w, np.zeros(3), dt, False, np.nan), prm, (MODEL.A, MODEL.B, MODEL.C))
     tol = 2 * (np.linalg.norm(w) * dt) ** 2 + 1e-9
     np.testing.assert_allclose(P[0], fd @ P0 @ fd.T, atol=10 * tol)
     assert Z[0] == pytest.approx(z1, abs=1e-12)
@@ -181,7 +183,7 @@ def _level_fall(baro_var, ms=1000):
         v = v + dt * (acc + [0.0, 0.0, g])
         z += dt * v[2]
         baro = -z if k % 20 == 0 else np.nan
-        bank_step(V, Qr, P, L, Z, w.copy(), w, acc, dt, prm, MODEL.A, MODEL.B, MODEL.C, True, baro)
+        bank_step((V, Qr, P, L, Z, w.copy()), (w, acc, dt, True, baro), prm, (MODEL.A, MODEL.B, MODEL.C))
     return L
 
 
@@ -251,7 +253,7 @@ def test_probabilities_stay_normalised_and_finite_over_a_million_steps():
                 gyr[j] = 0.5 + 0.01 * np.random.randn()
                 acc[j] = 0.1 * np.random.randn()
             acc[2] -= 3.0
-            bank_step(V, Qr, P, L, Z, w, gyr, acc, 1e-3, prm, A, B, C)
+            bank_step((V, Qr, P, L, Z, w), (gyr, acc, 1e-3, True, np.nan), prm, (A, B, C))
             if k % 1000 == 0:
                 summarize(Qr, L, prm.gravity, prob, gd)
                 worst = max(worst, abs(prob.sum() - 1.0))

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from quadest.cli.choices import (
     CHECKS,
@@ -27,23 +26,7 @@ from quadest.cli.common import (
     with_sets,
     write_json,
 )
-from quadest.errors import UsageError
-
-if TYPE_CHECKING:  # the library is imported when a command runs
-    from quadest.sim.faults import Failure
-
-
-def parse_failure(text) -> Failure | None:
-    """``--failure``'s value as a :class:`~quadest.sim.faults.Failure` (None: none)."""
-    from quadest.sim.faults import Failure
-
-    return None if text is None else Failure.parse(text)
-
-
-def failure_record(f: Failure | None) -> dict | None:
-    """A failure as the sweeps keep it (:meth:`~quadest.sim.faults.Failure.to_dict`)."""
-    return None if f is None else f.to_dict()
-
+from quadest.cli.flight_options import detector_changes, parse_failure
 
 SENSOR_SECTIONS = ("environment", "imu", "gyro", "acc", "mag")
 """The simulator's sections a flight samples its sensors with (``--set gyro.range=8.73``)."""
@@ -90,45 +73,6 @@ def _check_sets_fly(groups: dict, scenario: str, controller: str | None) -> None
         raise CliError("--set ftc.*: this flight does not fly the fault-tolerant controller (--controller ftc does)")
 
 
-MODE_HINT = " (--detection rotor-speeds or commands)"
-"""How fly and campaign choose the detection mode, for their messages."""
-
-
-def detector_changes(texts: dict, modes, hint: str = MODE_HINT) -> dict:
-    """``--set detector.*`` (``{"lost_threshold": "0.008"}``) as ``{name: value}``, checked against
-    the detector's bounds, those equal to the defaults left out. Refused where no detector flies
-    (every one of ``modes`` the oracle) and for ``rotor_speeds``, which the detection mode decides
-    (``hint``: how the command decides it)."""
-    from quadest.detect import DetectorParams
-    from quadest.records import check, with_fields
-
-    if not texts:
-        return {}
-    if "rotor_speeds" in texts:
-        raise CliError(f"--set detector.rotor_speeds: the detection mode decides it{hint}")
-    if all(m == "oracle" for m in modes):
-        raise CliError("--set detector.*: the oracle flies no detector; give --detection rotor-speeds or commands")
-    record = with_fields(DetectorParams(), texts, "detector")
-    try:
-        check(record, "detector")
-    except UsageError as exc:
-        raise CliError(f"--set {exc}") from None
-    default = DetectorParams()
-    return {name: getattr(record, name) for name in texts if getattr(record, name) != getattr(default, name)}
-
-
-def detector_sets(items, modes, command: str, hint: str = MODE_HINT) -> dict:
-    """``--set detector.KEY=VALUE`` items, the only ``--set`` ``command`` takes, as the detector's
-    changed parameters (:func:`detector_changes`)."""
-    texts = {}
-    for key, text in parse_sets(items).items():
-        prefix, _, name = key.partition(".")
-        if prefix != "detector" or not name:
-            raise CliError(f"--set {key}: {command} takes detector.* (e.g. --set detector.lost_threshold=0.008)")
-        texts[name] = text
-    return detector_changes(texts, modes, hint)
-
-
 def _sensor_config(preset: str, texts: dict):
     """The preset's sensors with ``--set``'s overrides, checked as simulate checks them."""
     from quadest.sim import build_config
@@ -142,7 +86,7 @@ def fly_settings(args, sets: dict) -> dict:
     from quadest.control import FtcParams, SE3Params
     from quadest.detect import DetectorParams
     from quadest.flight import FlightParams
-    from quadest.flight.fly import DEFAULT_PRESET
+    from quadest.flight.spec import DEFAULT_PRESET
     from quadest.flight.throw import ThrowParams
     from quadest.models.multirotor import vehicle_preset
     from quadest.records import with_fields
@@ -285,6 +229,7 @@ def in_flight_line(s: dict) -> str:
 def cmd_fly(args):
     from quadest.flight import campaign_table, fly, fly_many
     from quadest.flight.fly import check_flight
+    from quadest.flight.spec import FlightSpec
 
     seeds = parse_seeds(args.seeds)
     failure = parse_failure(args.failure)
@@ -293,11 +238,12 @@ def cmd_fly(args):
     settings = fly_settings(args, sets)
     check_runs(args, len(seeds) * len(estimators), f"--seeds {args.seeds} x {len(estimators)} estimator(s)")
     for name in estimators:
-        check_flight(
+        spec = FlightSpec(
             args.scenario, estimator=name, controller=args.controller, duration=args.duration,
             vehicle=settings["vehicle"], failure=failure, params=settings["params"], preset=args.preset,
-            config=settings.get("config"), seeds=seeds,
+            config=settings.get("config"),
         )  # fmt: skip
+        check_flight(spec, seeds)
     out = Path(args.output)
     if out.exists() and not out.is_dir():
         raise CliError(f"{out}: -o names a folder for the runs' files, and this is a file")
@@ -397,6 +343,17 @@ def add_parsers(sub):
         "the flight with truth in the loop first and each estimator also run over that flight "
         "afterwards (default: madgwick; recovery for a throw)",
     )
+    _add_runs(s)
+    _add_preset_and_vehicle(s)
+    _add_sensing_and_detection(s)
+    s.add_argument("--set", action="append", metavar="KEY=VALUE", help=SET_HELP)
+    s.add_argument("-o", "--output", "--out", required=True, metavar="DIR", help="folder for the runs' files")
+    s.add_argument("--no-plot", action="store_true", help="skip the figures")
+    s.set_defaults(func=cmd_fly)
+
+
+def _add_runs(s) -> None:
+    """The seeds, the duration and the failure."""
     s.add_argument("--seeds", default="0", help="seeds: 0-4, 0,3,7 or both, 0-4,10-14 (default: 0)")
     add_max_runs_arg(s)
     s.add_argument(
@@ -416,6 +373,10 @@ def add_parsers(sub):
         "desync:0@2,off_s=0.05,period_s=0.5 (the ESC drops the motor for 50 ms every 0.5 s); modes: "
         f"{', '.join(FAILURE_MODES)} (docs/simulator.md) (default for rotor-loss: 0@2)",
     )
+
+
+def _add_preset_and_vehicle(s) -> None:
+    """The sensors' preset and the vehicle."""
     s.add_argument("--preset", choices=list(PRESETS), default=None, help="sensors (default: bebop2; fma for a throw)")
     s.add_argument(
         "--vehicle",
@@ -424,6 +385,10 @@ def add_parsers(sub):
         help="vehicle: recovery (the recovery paper's), bebop2 (Sun et al. 2021), hummingbird (RotorPy's) "
         "(default: recovery; docs/vehicle.md)",
     )
+
+
+def _add_sensing_and_detection(s) -> None:
+    """The position sensor, how a rotor loss is learnt, a collision and the divergence checks."""
     s.add_argument(
         "--position-sensor",
         choices=["mocap", "gnss"],
@@ -456,10 +421,6 @@ def add_parsers(sub):
         f"a comma-separated list of {', '.join(CHECKS)}; with them on, the sensors are fma with a magnetometer "
         "unless --preset says otherwise (default: auto)",
     )
-    s.add_argument("--set", action="append", metavar="KEY=VALUE", help=SET_HELP)
-    s.add_argument("-o", "--output", "--out", required=True, metavar="DIR", help="folder for the runs' files")
-    s.add_argument("--no-plot", action="store_true", help="skip the figures")
-    s.set_defaults(func=cmd_fly)
 
 
-__all__ = ["add_parsers", "cmd_fly", "failure_record", "fly_settings", "grouped_sets", "parse_failure"]
+__all__ = ["add_parsers", "cmd_fly", "fly_settings", "grouped_sets"]

@@ -26,7 +26,7 @@ from quadest.cli.common import (
     sim_config,
     write_json,
 )
-from quadest.cli.fly import detector_sets, failure_record, parse_failure
+from quadest.cli.flight_options import detector_sets, failure_record, parse_failure
 from quadest.extras import need
 
 

@@ -13,7 +13,7 @@ import numpy as np
 from quadest.evaluation.parallel import execute
 from quadest.flight import FlightParams, fly
 from quadest.flight.collision import CollisionParams
-from quadest.flight.fly import COLLISION_S
+from quadest.flight.spec import COLLISION_S
 from quadest.recovery.divergence import CHECKS, DivergenceParams
 
 SCENARIOS = ("hover", "trajectory", "aggressive")

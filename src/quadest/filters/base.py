@@ -43,6 +43,7 @@ from quadest.data.checks import GAP_FACTOR, GAP_MIN_S
 from quadest.errors import UsageError
 from quadest.extras import need
 from quadest.filters.common import BASE, DECL, INIT, MAG, MAG_SKIPPED, Q_OUT, RESTARTS, SKIPPED, T_LAST, YAW_PENDING
+from quadest.filters.timing import nominal_interval, sample_intervals, sample_times
 from quadest.records import Params, check, field_offsets, number, pack, params_record  # noqa: F401 -- the filters take them from here
 from quadest.rotation import quat_mul, quat_to_euler
 from quadest.rotation.kernels import qmul
@@ -475,7 +476,7 @@ class Estimator:
         if n and np.isfinite(self._x[T_LAST]):  # resuming: the real interval to the last sample
             dt[0] = t[0] - self._x[T_LAST]
         # gaps: the estimator starts again from the sensors after each (docs/reliability.md)
-        nominal = dt[0] if n and not np.isfinite(self._x[T_LAST]) else _nominal_interval(dt)
+        nominal = dt[0] if n and not np.isfinite(self._x[T_LAST]) else nominal_interval(dt)
         gap = self.max_gap_s or max(GAP_FACTOR * nominal, GAP_MIN_S)
         starts = np.flatnonzero(dt > gap)
         q = np.empty((n, 4))
@@ -558,44 +559,9 @@ STREAM_GAP_S = 0.5
 ``max_gap_s`` to choose."""
 
 
-def _nominal_interval(dt) -> float:
-    """The median of the usable (positive, finite) intervals; 0 when there is none."""
-    ok = dt[np.isfinite(dt) & (dt > 0)]
-    return float(np.median(ok)) if len(ok) else 0.0
-
-
 def _interval(dt, name: str) -> float:
     """A streaming ``dt`` as a float: a real number (Python's, numpy's, a Fraction); anything
     else (a Decimal, a string, a bool, an array) refused in one line."""
     if isinstance(dt, bool) or not isinstance(dt, (numbers.Real, np.floating, np.integer)):
         raise UsageError(f"{name}: dt must be a real number of seconds, got {type(dt).__name__} {dt!r}")
     return float(dt)
-
-
-def sample_times(t, rate, gyr, who: str) -> np.ndarray:
-    """``t`` as float64, or ``k / rate`` for the rows of ``gyr``; exactly one must be given."""
-    if (t is None) == (rate is None):
-        raise UsageError(f"{who}: give the sample times t (s) or the sample rate rate (Hz), one of them")
-    if t is not None:
-        return np.asarray(t, dtype=np.float64)
-    if isinstance(rate, bool) or not (isinstance(rate, (int, float, np.number)) and math.isfinite(rate) and rate > 0):
-        raise UsageError(f"{who}: rate must be a positive number of samples per second, got {rate!r}")
-    return np.arange(len(np.asarray(gyr))) / float(rate)
-
-
-def sample_intervals(t) -> np.ndarray:
-    """``dt[k] = t[k] − t[j]`` with ``t[j]`` the latest earlier time that was usable (finite, and
-    later than every time before it); the first interval is the median of the usable ones (0 for
-    one sample). A non-finite time or one that goes backwards gives an unusable interval (NaN or ≤ 0):
-    the filters skip that sample, and the next one is measured from the last good time."""
-    t = np.asarray(t, dtype=np.float64)
-    if len(t) < 2:
-        return np.zeros(len(t))
-    latest = np.maximum.accumulate(np.where(np.isfinite(t), t, -np.inf))
-    prev = np.concatenate([[-np.inf], latest[:-1]])
-    with np.errstate(invalid="ignore"):  # inf − inf: NaN, as wanted
-        dt = t - prev
-        nominal = _nominal_interval(np.diff(t))
-    dt[~np.isfinite(prev) & np.isfinite(t)] = nominal  # the first usable sample
-    dt[~np.isfinite(t)] = np.nan  # a NaN or infinite time: skipped and counted, never a gap
-    return dt

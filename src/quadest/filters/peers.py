@@ -34,7 +34,8 @@ from numpy.typing import ArrayLike
 
 from quadest.conventions import GRAVITY
 from quadest.errors import UsageError
-from quadest.filters.base import Estimator, FilterResult, Params, declination_quat, sample_intervals, sample_times
+from quadest.filters.base import Estimator, FilterResult, Params, declination_quat
+from quadest.filters.timing import sample_intervals, sample_times
 from quadest.records import param
 from quadest.rotation import quat_conj, quat_mul
 from quadest.rotation.frames import quat_enu_flu_to_ned_frd, vec_frd_to_flu

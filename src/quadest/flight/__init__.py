@@ -4,15 +4,8 @@ becomes a recording that every command reads. Layer 2: it joins the controllers,
 and the simulator's sensors."""
 
 from quadest.flight.common import SIM_RATE_HZ, Flight, FlightParams, position_gain
-from quadest.flight.fly import (
-    CONTROLLERS,
-    DEFAULT_DURATION,
-    FLIGHT_SCENARIOS,
-    fly,
-    fly_many,
-    in_loop_estimators,
-    resample,
-)
+from quadest.flight.fly import fly, fly_many, resample
+from quadest.flight.spec import CONTROLLERS, DEFAULT_DURATION, FLIGHT_SCENARIOS, FlightSpec, in_loop_estimators
 from quadest.flight.summary import campaign_table, offline_errors
 
 __all__ = [
@@ -20,6 +13,7 @@ __all__ = [
     "DEFAULT_DURATION",
     "Flight",
     "FlightParams",
+    "FlightSpec",
     "FLIGHT_SCENARIOS",
     "SIM_RATE_HZ",
     "campaign_table",

@@ -23,17 +23,17 @@ from quadest.recovery.sphere import spread_points
 
 
 def plant(
-    vehicle, *, h, substeps, ground_z, failure=None, rate=1.0, n=1, hand=None, limits=True, zero_failed=True,
+    vehicle, *, h, substeps, ground_z, failure=None, sampled=(1.0, 1), hand=None, limits=True, zero_failed=True,
     collision=None, wind=None, legs=False,
 ):  # fmt: skip
     """The :data:`~quadest.flight.loop.Plant` of ``vehicle``: a ``failure``
-    (:class:`~quadest.sim.faults.Failure`) sampled at ``rate`` Hz over a flight of ``n``
-    samples, the ``hand``'s ``(states, derivatives)`` until the release, a
+    (:class:`~quadest.sim.faults.Failure`) over a flight ``sampled`` at ``rate`` Hz for ``n``
+    samples (``(rate, n)``), the ``hand``'s ``(states, derivatives)`` until the release, a
     ``collision`` (:class:`~quadest.flight.collision.Collision`), the flight ended by the ground
     at ``ground_z`` and (``limits``) by lost control; the ``wind`` (NED, m/s, one row per sample;
     none: still air); with ``legs`` the vehicle stands on legs that touch the ground first
     (:func:`~quadest.models.multirotor.with_ground`)."""
-    n_rot, nx = vehicle.rotors, 13 + vehicle.rotors
+    (rate, n), n_rot, nx = sampled, vehicle.rotors, 13 + vehicle.rotors
     dynamics = vehicle.vehicle()
     if legs:
         dynamics = with_ground(dynamics, ground_z)

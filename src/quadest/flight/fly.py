@@ -12,7 +12,7 @@ import math
 import time
 from collections import namedtuple
 from collections.abc import Callable, Iterable
-from dataclasses import fields
+from dataclasses import fields, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -26,14 +26,12 @@ from quadest.control import (
 )
 from quadest.control.registry import CONTROLLERS as REGISTRY
 from quadest.data.recording import Recording
-from quadest.detect import DetectorParams
 from quadest.errors import UsageError
-from quadest.filters import ESTIMATORS, Estimator, filter_name, make_filter
+from quadest.filters import ESTIMATORS, Estimator, make_filter
 from quadest.flight import build, inflight
 from quadest.flight.common import (
     SIM_RATE_HZ,
     Flight,
-    FlightParams,
     barometer_draws,
     flight_of,
     position_gain,
@@ -57,41 +55,17 @@ from quadest.flight.loop import (
     flown_arrays,
     sense_sample,
 )
+from quadest.flight.spec import FlightSpec, Resolved
 from quadest.flight.start import converge, rest_readings
 from quadest.flight.summary import add_detection, offline_errors, summarize
-from quadest.flight.throw import ThrowParams, fly_throw
-from quadest.models.multirotor import MultirotorParams, vehicle_preset
+from quadest.flight.throw import fly_throw
 from quadest.recovery import RecoveryParams
-from quadest.recovery.divergence import CHECKS, DivergenceParams
 from quadest.rotation import euler_to_quat
-from quadest.sim import build_config
-from quadest.sim.faults import Failure
 from quadest.sim.flown import flown_recording
 from quadest.sim.params import SimConfig
 from quadest.sim.wind import wind_samples
 
 FLIGHT_SCENARIOS = ("hover", "trajectory", "aggressive", "rotor-loss", "throw")
-
-
-def in_loop_estimators() -> list[str]:
-    """What can fly in the loop (besides truth): quadest's filters and the installed peers with
-    a per-sample API."""
-    return [name for name in in_loop_names() if ESTIMATORS[name].available()]
-
-
-CONTROLLERS = tuple(name for name, c in REGISTRY.items() if c.selectable)  # what a user may fly by name
-DEFAULT_DURATION = {
-    "hover": 10.0,
-    "trajectory": 20.0,
-    "aggressive": 20.0,
-    "rotor-loss": 10.0,
-    "throw": 14.0,
-}  # a throw: from the release
-COLLISION_S = 16.0  # s: a flight with a collision (at 2-4 s), then the 10 s hover it is judged by
-IN_FLIGHT_MAG = {"mag.rate_hz": 100.0}
-"""A recovery in flight flies the recovery paper's IMU (``fma``) with a magnetometer at the
-simulator's default rate: the estimator in the loop needs a heading before the collision."""
-DEFAULT_PRESET = {"throw": "fma"}  # the recovery paper's sensors (IMU 1 kHz, no magnetometer); else bebop2
 
 
 def _reference(scenario, t, rng, vehicle, params):
@@ -120,28 +94,9 @@ def _reference(scenario, t, rng, vehicle, params):
     return x0, ref
 
 
-def fly(
-    scenario: str = "trajectory",
-    *,
-    estimator: str | Estimator = "truth",
-    controller: str | None = None,
-    duration: float | None = None,
-    seed: int = 0,
-    preset: str | None = None,
-    vehicle: MultirotorParams | str | None = None,
-    failure: Failure | None = None,
-    se3: SE3Params | None = None,
-    ftc: FtcParams | None = None,
-    params: FlightParams | None = None,
-    config: SimConfig | None = None,
-    estimator_params: dict | None = None,
-    throw: ThrowParams | None = None,
-    detection: str | DetectorParams = "oracle",
-) -> Flight:
-    """Fly ``scenario`` with ``estimator`` in the loop: a quadest filter or peer by name (with the
-    preset's declination; started converged at the start attitude, ``params.estimator_start_s``:
-    an oracle of the start), an :class:`~quadest.filters.Estimator` (it continues from its
-    state), or ``truth`` (an oracle: the controller reads the true state).
+def fly(spec: FlightSpec | str = "trajectory", /, **changes) -> Flight:
+    """Fly ``spec`` (a :class:`~quadest.flight.spec.FlightSpec`, or a scenario's name) with
+    ``changes`` to its fields: ``fly("rotor-loss", estimator="robust", seed=3)``.
 
     Scenarios: ``hover`` (hold the origin from a disturbed start), ``trajectory`` (a 1 m circle
     at 0.2 Hz), ``aggressive`` (a figure eight drawn from the seed, 1-1.5 m by 0.3-0.45 m at
@@ -149,18 +104,16 @@ def fly(
     0 lost at 2 s unless ``failure`` says otherwise), ``throw`` (released tumbling; the recovery
     paper's bank of EKFs and logic in the loop, then the recovery controller:
     :mod:`quadest.flight.throw`; estimator ``recovery`` or ``truth``, sensors ``fma`` by default).
-    ``controller``: ``se3`` (nominal only) or ``ftc`` (SE(3), then the fault-tolerant controller
-    once a complete rotor loss is known, holding the point the reference had reached then: a
-    trajectory with a loss ends in a relaxed hover); default ``ftc`` for ``rotor-loss``, else ``se3``.
-    The sensors are the ``preset``'s (or ``config``'s), the position sensor and what the loop
-    assumes ``params``'; ``vehicle`` a :class:`MultirotorParams` or a preset name
-    (:data:`~quadest.models.VEHICLE_PRESETS`, default ``recovery``); ``estimator_params`` the
-    named estimator's parameters (``{"beta_marg": 0.05}``; a throw's recovery: RecoveryParams'
-    fields); ``throw`` a throw's (:class:`~quadest.flight.throw.ThrowParams`; duration from the release).
-    ``detection``: how the fault-tolerant controller learns of a rotor loss: ``oracle`` (told
-    ``params.detect_delay_s`` after it, the lost rotor's command zeroed from the failure on),
-    ``rotor-speeds`` or ``commands`` (found by the detector of :mod:`quadest.detect` with a model
-    of the vehicle off by ``params.detector_model_error``), or a
+    The estimator in the loop is a quadest filter or peer by name (with the preset's declination;
+    started converged at the start attitude, ``params.estimator_start_s``: an oracle of the
+    start), an :class:`~quadest.filters.Estimator` (it continues from its state), or ``truth`` (an
+    oracle: the controller reads the true state). ``controller``: ``se3`` (nominal only) or
+    ``ftc`` (SE(3), then the fault-tolerant controller once a complete rotor loss is known,
+    holding the point the reference had reached then: a trajectory with a loss ends in a relaxed
+    hover). ``detection``: how the fault-tolerant controller learns of a rotor loss: ``oracle``
+    (told ``params.detect_delay_s`` after it, the lost rotor's command zeroed from the failure
+    on), ``rotor-speeds`` or ``commands`` (found by the detector of :mod:`quadest.detect` with a
+    model of the vehicle off by ``params.detector_model_error``), or a
     :class:`~quadest.detect.DetectorParams` (its ``rotor_speeds`` says which).
     ``params.collision`` and ``params.divergence``: a collision and the checks that start a recovery
     in flight (:mod:`quadest.flight.collision`; with the checks the sensors are ``fma`` by default).
@@ -168,103 +121,87 @@ def fly(
     drawn from the seed), which the vehicle flies in and nothing in the loop knows.
     ``params.landing_m_s``: the flight ends with a hard landing (:func:`landing_reference`) on
     sprung legs (:func:`~quadest.models.multirotor.with_ground`)."""
-    estimator = filter_name(estimator) if isinstance(estimator, str) else estimator
-    params = params or FlightParams()
-    controller, duration = _check_request(scenario, estimator, controller, duration, params.collision != "none")
-    vehicle_name = vehicle if isinstance(vehicle, str) else ("recovery" if vehicle is None else "custom")
-    vehicle = vehicle_preset(vehicle) if isinstance(vehicle, str) else (vehicle or MultirotorParams())
-    failure = _checked_failure(scenario, failure, controller, vehicle, duration)
-    event, watching = _in_flight_request(scenario, params, seed, duration)
-    preset, cfg = _sensors(preset, config, scenario, watching)
-    rate, substeps, every = _rates(cfg, params, preset)
-    meta = {"scenario": f"flown {scenario}", "preset": preset, "vehicle": vehicle_name}
-    if scenario == "throw":
-        meta.update(controller="se3 after recovery", estimator=estimator)
+    spec = replace(FlightSpec(spec) if isinstance(spec, str) else spec, **changes)
+    r = spec.resolved()
+    meta = {"scenario": f"flown {spec.scenario}", "preset": r.preset, "vehicle": r.vehicle_name}
+    if spec.scenario == "throw":
+        meta.update(controller="se3 after recovery", estimator=r.estimator)
         return fly_throw(
-            estimator=estimator, duration=duration, seed=seed, cfg=cfg, vehicle=vehicle, params=params, se3=se3,
-            throw=throw, recovery=_recovery_params(estimator_params), meta=meta,
+            estimator=r.estimator, duration=r.duration, seed=spec.seed, cfg=r.cfg, vehicle=r.vehicle,
+            params=r.params, se3=spec.se3, throw=spec.throw, recovery=_recovery_params(spec.estimator_params),
+            meta=meta,
         )  # fmt: skip
-    t, rng_mocap, (x0, ref) = _referenced(scenario, duration, rate, seed, vehicle, params)
-    n = len(t)
-    processes, sm = sensors_for(cfg, n, seed, vehicle)  # the generators and order of flown_recording's
-    nav, est = _in_loop(estimator, cfg, rate, estimator_params)
-    if not isinstance(estimator, Estimator):  # one given continues from its state
-        _start_converged(est, sm, x0[6:10], cfg, params.estimator_start_s)
-    ftc, gains = ftc or FtcParams(), (se3 or SE3Params()).gains(vehicle)
+    rate = r.rates[0]
+    t, rng_mocap, (x0, ref) = _referenced(spec.scenario, r.duration, rate, spec.seed, r.vehicle, r.params)
+    processes, sm = sensors_for(r.cfg, len(t), spec.seed, r.vehicle)  # the generators and order of flown_recording's
+    nav, est = _in_loop(r.estimator, r.cfg, rate, spec.estimator_params)
+    if not isinstance(r.estimator, Estimator):  # one given continues from its state
+        _start_converged(est, sm, x0[6:10], r.cfg, r.params.estimator_start_s)
+    detection = spec.detection
     detection, detector = (detection, None) if isinstance(detection, str) else (detector_mode(detection), detection)
-    oracle = detection == "oracle"
-    loop = build.loop(
-        plant=_plant(vehicle, params, failure, t, (rate, substeps), oracle, seed, event),
-        sensing=_position_sensing(sm, params, rate, every, n, x0, rng_mocap, vehicle.rotors, seed),
-        nav=build.navigation(
-            nav,
-            x0,
-            position_gain(params, rate),
-            clip_rate_model(params, vehicle, cfg, seed, n),
-            inflight.reset(event, est, rate),
-        ),  # fmt: skip
-        bank=build.bank() if watching is None else inflight.bank(vehicle, cfg, gains),
-        watch=inflight.watch(watching, detector_model(vehicle, params, seed)[0], rate, rate / every),
-        control=build.control(
-            {**dict(REGISTRY[controller].phases), **({} if watching is None else {"nominal": "recovery"})},
-            gains=gains,
-            ftc=ftc_gains(ftc, vehicle, controller, failure, oracle),
-            reference=ref,
-            fault=known_fault(controller, failure, params, rate, n) if oracle else (-1, -1),
-            cmd0=x0[13:].copy(),  # what the rotors were doing (a detector reads it before the first command)
-            limited_k=(descent := descent_start(ref[1][:, 2], params.landing_m_s)),  # PX4's thrust limits
-            **inflight.recovery_control(watching),
-        ),
-        detection=detection_record(detection, detector, vehicle, params, seed, n, cfg.acc.lever_arm),
-        landing=land_detector(vehicle, rate, descent, params.landing_m_s * params.land_detector),
-        n=n,
-        rotors=vehicle.rotors,
-        phase="flying",
-    )
+    loop = _loop(spec, r, (t, x0, ref), (sm, rng_mocap), (nav, est), (detection, detector))
     x, t0 = x0.copy(), time.perf_counter()
     (status, flown), loop_s = _run(x, loop, est), time.perf_counter() - t0
     if flown == 0:
         raise ValueError(f"the flight ended before its first sample ({STATUS[status]})")
     out = flown_arrays(loop.record, flown)
-    meta.update(controller=controller, estimator=est.name, position_sensor=params.position_sensor)
-    flight = _flight(out, t[:flown], vehicle, cfg, seed, failure, meta, processes, loop_s, watching is not None)
-    flight.summary = summarize(
-        flight, scenario=scenario, status=status, duration=duration, failure=failure, controller=controller,
-        estimator=est.name, seed=seed, params=params, ftc=ftc, vehicle=vehicle,
-        ref=(loop.control.p_d, loop.control.yaw_d), gyro_range=float(cfg.gyro.range),
-    )  # fmt: skip
+    meta.update(controller=r.controller, estimator=est.name, position_sensor=r.params.position_sensor)
+    flight = _flight(out, t[:flown], r, spec.seed, meta, (processes, loop_s))
+    flight.summary = summarize(flight, spec, r, status, est.name, (loop.control.p_d, loop.control.yaw_d))
     if detection != "oracle":
-        add_detection(flight, loop.detection, detection, failure, flown)
+        add_detection(flight, loop.detection, detection, r.failure, flown)
     flight.summary.update(landing_summary(loop.landing, t[:flown]))
-    if watching is not None or event is not None:
-        flight.summary.update(inflight.summary(flight, out, loop, event, status, rate))
+    if r.watching is not None or r.event is not None:
+        flight.summary.update(inflight.summary(flight, out, loop, r.event, status, rate))
     return flight
 
 
-def _sensors(preset, config, scenario, watching):
-    """The preset's name and the sensors: ``config``, the ``preset``'s, or by default the
-    scenario's (:data:`DEFAULT_PRESET`); with the divergence checks on, ``fma`` with a magnetometer
-    (:data:`IN_FLIGHT_MAG`)."""
-    if preset is None and config is None and watching is not None:
-        return "fma+mag", build_config("fma").with_overrides(IN_FLIGHT_MAG, source="a recovery in flight").validate()
-    preset = preset or DEFAULT_PRESET.get(scenario, "bebop2")
-    return preset, (config or build_config(preset)).validate()
+def _loop(spec: FlightSpec, r: Resolved, motion, sensing, estimating, detecting):
+    """The compiled loop's record of one flight: ``motion`` the sample times, start state and
+    reference; ``sensing`` the sensor model and the position sensor's generator; ``estimating``
+    what the controller reads and the estimator; ``detecting`` the detection mode and the
+    detector's parameters (None: the defaults)."""
+    (t, x0, ref), (sm, rng_mocap), (nav, _), (detection, detector) = motion, sensing, estimating, detecting
+    (rate, substeps, every), vehicle, params, seed, n = r.rates, r.vehicle, r.params, spec.seed, len(t)
+    ftc, gains = spec.ftc or FtcParams(), (spec.se3 or SE3Params()).gains(vehicle)
+    oracle = detection == "oracle"
+    return build.loop(
+        plant=_plant(vehicle, params, r.failure, t, (rate, substeps), oracle, seed, r.event),
+        sensing=_position_sensing(sm, params, rate, every, n, x0, rng_mocap, vehicle.rotors, seed),
+        nav=build.navigation(
+            nav,
+            x0,
+            position_gain(params, rate),
+            clip_rate_model(params, vehicle, r.cfg, seed, n),
+            inflight.reset(r.event, estimating[1], rate),
+        ),  # fmt: skip
+        bank=build.bank() if r.watching is None else inflight.bank(vehicle, r.cfg, gains),
+        watch=inflight.watch(r.watching, detector_model(vehicle, params, seed)[0], rate, rate / every),
+        control=build.control(
+            {**dict(REGISTRY[r.controller].phases), **({} if r.watching is None else {"nominal": "recovery"})},
+            gains=gains,
+            ftc=ftc_gains(ftc, vehicle, r.controller, r.failure, oracle),
+            reference=ref,
+            fault=known_fault(r.controller, r.failure, params, rate, n) if oracle else (-1, -1),
+            cmd0=x0[13:].copy(),  # what the rotors were doing (a detector reads it before the first command)
+            limited_k=(descent := descent_start(ref[1][:, 2], params.landing_m_s)),  # PX4's thrust limits
+            **inflight.recovery_control(r.watching),
+        ),
+        detection=detection_record(detection, detector, vehicle, params, seed, n, r.cfg.acc.lever_arm),
+        landing=land_detector(vehicle, rate, descent, params.landing_m_s * params.land_detector),
+        n=n,
+        rotors=vehicle.rotors,
+        phase="flying",
+    )
 
 
-def _in_flight_request(scenario, params: FlightParams, seed, duration):
-    """The flight's collision (``params.collision``, drawn from ``seed``; None: none) and its
-    divergence checks (``params.divergence``; None: off), after refusing what cannot fly."""
-    if scenario == "throw" and (params.collision != "none" or params.divergence not in ("auto", "off")):
-        raise UsageError("a throw starts its recovery at the release: no collision or divergence checks")
-    event = inflight.collision_of(params.collision, seed)
-    if event is not None and not 0.0 <= event.time_s < duration:
-        raise UsageError(
-            f"collision: time {event.time_s:g} s lies outside the run (0 to {duration:g} s): a longer --duration"
-        )
-    checks = params.divergence
-    if checks == "auto":
-        checks = "off" if event is None or scenario == "throw" else ",".join(CHECKS)
-    return event, None if checks == "off" else DivergenceParams(checks=checks)
+def check_flight(spec: FlightSpec, seeds=(0,)) -> None:
+    """Refuse, in one line and before anything is flown or written, what :func:`fly` would refuse
+    of ``spec`` for each of ``seeds`` (a collision is drawn from the seed)."""
+    for seed in seeds:
+        r = spec.resolved(seed)
+        if spec.scenario != "throw":
+            _referenced(spec.scenario, r.duration, r.rates[0], seed, r.vehicle, r.params)
 
 
 def _plant(vehicle, params, failure, t, rates, oracle, seed, event):
@@ -280,70 +217,12 @@ def _plant(vehicle, params, failure, t, rates, oracle, seed, event):
         substeps=substeps,
         ground_z=float(params.height_m if event is None else event.height_m),
         failure=failure,
-        rate=rate,
-        n=len(t),
+        sampled=(rate, len(t)),
         zero_failed=oracle,
         collision=event,
         wind=wind,
         legs=params.landing_m_s > 0.0,
     )
-
-
-def _check_request(scenario, estimator, controller, duration, collision=False):
-    """The controller and duration of a flight (with a ``collision``, 16 s by default: the
-    collision at 2-4 s, then the 10 s hover), after refusing what cannot fly (one line each)."""
-    if scenario not in FLIGHT_SCENARIOS:
-        raise UsageError(f"unknown scenario {scenario!r}; scenarios: {', '.join(FLIGHT_SCENARIOS)}")
-    if scenario == "throw":
-        if estimator not in ("recovery", "truth"):
-            raise UsageError(
-                f"a throw is recovered by the recovery paper's bank of EKFs: estimator recovery (or "
-                f"truth), not {estimator!r}"
-            )
-        if controller not in (None, "se3"):
-            raise UsageError("after a throw the SE(3) controller holds the vehicle: controller se3 (or none)")
-    elif not isinstance(estimator, Estimator) and estimator != "truth" and estimator not in in_loop_names():
-        raise UsageError(
-            f"unknown estimator {estimator!r}; estimators in the loop: truth, {', '.join(in_loop_names())} "
-            "(a peer through its streaming API)"
-        )
-    controller = controller or ("ftc" if scenario == "rotor-loss" else "se3")
-    if controller not in CONTROLLERS:
-        raise UsageError(f"unknown controller {controller!r}; controllers: {', '.join(CONTROLLERS)}")
-    if duration is None:
-        duration = COLLISION_S if collision and scenario != "throw" else DEFAULT_DURATION[scenario]
-    duration = float(duration)
-    if not (math.isfinite(duration) and 0 < duration <= 3600):
-        raise UsageError(f"duration must be between 0 and 3600 s, got {duration}")
-    return controller, duration
-
-
-def check_flight(
-    scenario: str,
-    *,
-    estimator="truth",
-    controller=None,
-    duration=None,
-    vehicle=None,
-    failure=None,
-    params: FlightParams | None = None,
-    preset=None,
-    config=None,
-    seeds=(0,),
-) -> None:
-    """Refuse, in one line and before anything is flown or written, what :func:`fly` would refuse
-    in its arguments (for each of ``seeds``: a collision is drawn from the seed)."""
-    estimator = filter_name(estimator) if isinstance(estimator, str) else estimator
-    params = params or FlightParams()
-    controller, duration = _check_request(scenario, estimator, controller, duration, params.collision != "none")
-    vehicle = vehicle_preset(vehicle) if isinstance(vehicle, str) else (vehicle or MultirotorParams())
-    _checked_failure(scenario, failure, controller, vehicle, duration)
-    for seed in seeds:
-        _, watching = _in_flight_request(scenario, params, seed, duration)
-        name, cfg = _sensors(preset, config, scenario, watching)
-        rate = _rates(cfg, params, name)[0]
-        if scenario != "throw":
-            _referenced(scenario, duration, rate, seed, vehicle, params)
 
 
 def _referenced(scenario, duration, rate, seed, vehicle, params):
@@ -352,46 +231,6 @@ def _referenced(scenario, duration, rate, seed, vehicle, params):
     t = np.arange(int(round(duration * rate))) / rate
     rng_ref, rng_mocap = (np.random.default_rng(s) for s in np.random.SeedSequence([int(seed), 13]).spawn(2))
     return t, rng_mocap, _reference(scenario, t, rng_ref, vehicle, params)
-
-
-def in_loop_names() -> list[str]:
-    """The names an estimator in the loop may have (installed or not): those with a per-sample
-    ``update``."""
-    return [name for name, cls in ESTIMATORS.items() if cls.streaming]
-
-
-def _checked_failure(scenario, failure, controller, vehicle, duration):
-    """The failure the flight has (rotor 0 at 2 s for ``rotor-loss`` unless given), checked."""
-    if scenario == "throw":
-        if failure is not None:
-            raise UsageError("a throw has no rotor failure")
-        return None
-    if scenario == "rotor-loss" and failure is None:
-        failure = Failure(rotor=0, time_s=min(2.0, duration / 2))
-    if failure is not None:
-        failure.check(vehicle, duration)
-    if controller == "ftc" and (failure is None or not failure.complete):
-        raise UsageError(
-            "the fault-tolerant controller is for a complete rotor loss: give a failure with "
-            "efficiency 0 (scenario rotor-loss)"
-        )
-    return failure
-
-
-def _rates(cfg, params, preset):
-    """The IMU rate, the simulation substeps per IMU sample and the IMU samples per position
-    reading, which must divide each other."""
-    rate = cfg.imu.rate_hz
-    substeps = SIM_RATE_HZ / rate
-    if abs(substeps - round(substeps)) > 1e-9 or substeps < 1:
-        raise UsageError(
-            f"preset {preset!r}: its IMU rate {rate:g} Hz must divide the simulation rate {SIM_RATE_HZ:g} Hz"
-        )
-    pos_rate = params.position()[0]
-    every = rate / pos_rate
-    if abs(every - round(every)) > 1e-9 or every < 1:
-        raise UsageError(f"the position sensor's rate {pos_rate:g} Hz must divide the IMU rate {rate:g} Hz")
-    return rate, int(round(substeps)), int(round(every))
 
 
 def _recovery_params(values: dict | None) -> RecoveryParams:
@@ -464,19 +303,21 @@ def _run(x, loop, est: InLoop):
     return OK, len(loop.record.phase)
 
 
-def _flight(out, t, vehicle, cfg, seed, failure, meta, processes, loop_s, phases=False) -> Flight:
+def _flight(out, t, r: Resolved, seed, meta, run) -> Flight:
     """The :class:`Flight` of the loop's record ``out`` (its recording sampled as every
-    simulation samples, with the loop's readings; the ``failure`` in its ``meta``; the phase of
-    each sample with ``phases``: a flight that may recover in flight)."""
+    simulation samples, with the loop's readings; the failure in its ``meta``; the phase of each
+    sample when the flight may recover in flight); ``run``: the sensors' processes and the
+    loop's wall time (s)."""
+    (processes, loop_s), vehicle, failure = run, r.vehicle, r.failure
     imbalance = np.zeros((len(t), vehicle.rotors))
     if failure is not None:
         meta["failure"] = failure.to_dict()  # imbalance in kg m
-        k0, _, _, imb = failure.profile(cfg.imu.rate_hz, len(t), vehicle.rotors)
+        k0, _, _, imb = failure.profile(r.cfg.imu.rate_hz, len(t), vehicle.rotors)
         imbalance[k0:] = imb[-1]
         imbalance[k0 : k0 + len(imb)] = imb[: len(t) - k0]
     return flight_of(
-        out, t, vehicle, cfg=cfg, seed=seed, meta=meta, processes=processes, loop_s=loop_s, imbalance=imbalance,
-        modes=out["phase"] if phases else None,
+        out, t, vehicle, cfg=r.cfg, seed=seed, meta=meta, processes=processes, loop_s=loop_s, imbalance=imbalance,
+        modes=out["phase"] if r.watching is not None else None,
     )  # fmt: skip
 
 

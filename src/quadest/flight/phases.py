@@ -173,21 +173,10 @@ def converge(k, x, loop):
     if loop.watch.on:  # started in flight: the rotors still spin down to the throw's speed
         measured_thrust(loop, x)
     bank_step(
-        bank.Vb,
-        bank.Qr,
-        bank.Pb,
-        bank.Lb,
-        bank.Zb,
-        bank.w_prev,
-        sensing.gyr,
-        sensing.acc,
-        sensing.dt,
+        (bank.Vb, bank.Qr, bank.Pb, bank.Lb, bank.Zb, bank.w_prev),
+        (sensing.gyr, sensing.acc, sensing.dt, True, baro_reading(k, sensing)),
         bank.prm,
-        bank.A,
-        bank.B,
-        bank.Cn if loop.watch.on else bank.C,
-        True,
-        baro_reading(k, sensing),
+        (bank.A, bank.B, bank.Cn if loop.watch.on else bank.C),
     )
     best, sg = summarize(bank.Qr, bank.Lb, bank.prm.gravity, bank.prob, bank.gd)
     record.sg[k] = sg

@@ -7,12 +7,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from quadest.control import FtcParams
 from quadest.control.ftc import relaxed_hover
 from quadest.detect import RatePredictorParams
 from quadest.filters import make_filter
 from quadest.flight.common import Flight, angle_errors, mean_present, rms
 from quadest.flight.detection import found_damaged
 from quadest.flight.loop import OK, STATUS
+from quadest.flight.spec import FlightSpec, Resolved
 from quadest.rotation import quat_rotate
 from quadest.sim.faults import Failure
 
@@ -50,24 +52,12 @@ def detection_summary(det, mode: str, failure: Failure | None, t: np.ndarray) ->
     return out
 
 
-def summarize(
-    flight: Flight,
-    *,
-    scenario,
-    status,
-    duration,
-    failure,
-    controller,
-    estimator,
-    seed,
-    params,
-    ftc,
-    vehicle,
-    ref,
-    gyro_range=np.inf,
-) -> dict:
-    """The summary of one run (module doc); with a gyroscope of ``gyro_range`` that clipped,
-    :func:`clipping_summary`'s too."""
+def summarize(flight: Flight, spec: FlightSpec, r: Resolved, status: int, estimator: str, ref) -> dict:
+    """The summary of one run of ``spec`` (module doc; ``r`` the spec resolved, ``status`` the
+    loop's, ``estimator`` the name of the one in the loop, ``ref`` the reference position and
+    heading flown); with a gyroscope that clipped, :func:`clipping_summary`'s too."""
+    scenario, seed, ftc = spec.scenario, spec.seed, spec.ftc or FtcParams()
+    duration, failure, controller, params, vehicle = r.duration, r.failure, r.controller, r.params, r.vehicle
     rec, x = flight.recording, flight.states
     t = rec.t
     p_d, _ = ref
@@ -121,7 +111,7 @@ def summarize(
             "tilt_deg": hover.tilt_deg,
             "thrusts_n": [float(v) for v in hover.thrusts],
         }
-    s.update(clipping_summary(flight, gyro_range, failure))
+    s.update(clipping_summary(flight, float(r.cfg.gyro.range), failure))
     return s
 
 

@@ -210,12 +210,14 @@ def barometer_term(v, q, Pi, Z, i, baro, baro_var, K):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def bank_step(V, Qr, P, L, Z, w_prev, gyr, acc, dt, prm, A, B, C, update=True, baro=np.nan):
-    """Advance every hypothesis by one IMU sample (in place): ``V`` (H, 3), ``Qr`` (H, 4), ``P``
-    (H, 6, 6), ``L`` (H), ``Z`` (H) the heights (NaN: not yet read). ``prm``: a :data:`BankRecord`.
-    ``update=False`` skips the accelerometer update (prior only; the likelihoods stay): the
-    nominal estimator's gate while the attitude control error is large (section V-B). ``baro``:
-    the barometer's reading this sample (m up; NaN: none)."""
+def bank_step(bank, sample, prm, model):
+    """Advance every hypothesis by one IMU sample (in place): ``bank`` is ``(V, Qr, P, L, Z,
+    w_prev)``, ``V`` (H, 3), ``Qr`` (H, 4), ``P`` (H, 6, 6), ``L`` (H), ``Z`` (H) the heights (NaN:
+    not yet read); ``sample`` is ``(gyr, acc, dt, update, baro)``; ``prm``: a :data:`BankRecord`;
+    ``model``: the aerodynamic model's ``(A, B, C)``. ``update`` False skips the accelerometer
+    update (prior only; the likelihoods stay): the nominal estimator's gate while the attitude
+    control error is large (section V-B). ``baro``: the barometer's reading this sample (m up;
+    NaN: none)."""
     work = (
         np.empty(3),  # f: the aerodynamic force per mass
         np.empty((3, 3)),  # U: its Jacobian in v
@@ -229,7 +231,8 @@ def bank_step(V, Qr, P, L, Z, w_prev, gyr, acc, dt, prm, A, B, C, update=True, b
         np.empty(3),  # the prior velocity
         np.empty(NX),  # the correction
     )
-    advance_bank(V, Qr, P, L, Z, w_prev, (gyr, acc, dt, update, baro), prm, (A, B, C), work)
+    V, Qr, P, L, Z, w_prev = bank
+    advance_bank(V, Qr, P, L, Z, w_prev, sample, prm, model, work)
 
 
 @njit(cache=True, fastmath=FASTMATH, **NO_ALLOCATION)

@@ -238,10 +238,9 @@ def bank_sample(bank, data, k, prm, model, out, record_all, prob, gd):
     returns S_g. ``prob`` and ``gd`` are its work arrays."""
     V, Qr, P, L, Z, w_prev = bank
     t, gyr, acc = data
-    A, B, C = model
     best_out, sg_out, prob_out, gd_out, v_out = out
     dt = t[k] - t[k - 1] if k > 0 else t[1] - t[0]
-    bank_step(V, Qr, P, L, Z, w_prev, gyr[k], acc[k], dt, prm, A, B, C)
+    bank_step(bank, (gyr[k], acc[k], dt, True, np.nan), prm, model)
     best, sg = summarize(Qr, L, prm.gravity, prob, gd)
     best_out[k] = best
     sg_out[k] = sg
@@ -259,13 +258,18 @@ def bank_sample(bank, data, k, prm, model, out, record_all, prob, gd):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def _run_single(V, Qr, P, L, w_prev, t, gyr, acc, k0, prm, A, B, C, gd_out, v_out):
-    """The nominal estimator: one EKF of the bank's kind, from k0 to the end."""
+def _run_single(single, data, k0, prm, model, out):
+    """The nominal estimator: one EKF of the bank's kind (``single``: ``(V, Qr, P, L, w_prev)``)
+    over ``data`` (``(t, gyr, acc)``) from k0 to the end, its gravity's direction and velocity
+    into ``out`` (``(gd_out, v_out)``)."""
+    V, Qr, P, L, w_prev = single
+    t, gyr, acc = data
+    gd_out, v_out = out
     gd = np.empty(3)
     Z = np.full(1, np.nan)  # no barometer in a recording
     for k in range(k0, len(t)):
         dt = t[k] - t[k - 1]
-        bank_step(V, Qr, P, L, Z, w_prev, gyr[k], acc[k], dt, prm, A, B, C)
+        bank_step((V, Qr, P, L, Z, w_prev), (gyr[k], acc[k], dt, True, np.nan), prm, model)
         gravity_body(Qr[0], 1.0, gd)
         for j in range(3):
             gd_out[k, j] = gd[j]
@@ -370,23 +374,8 @@ def recover(
             events.append(("nominal", float(t[k_conv])))
             i = best[k_conv]
             if k_conv + 1 < n:
-                _run_single(
-                    V[i : i + 1].copy(),
-                    Qr[i : i + 1].copy(),
-                    P[i : i + 1].copy(),
-                    np.zeros(1),
-                    w_prev,
-                    t,
-                    gyr,
-                    acc,
-                    k_conv + 1,
-                    prm,
-                    model.A,
-                    model.B,
-                    model.C,
-                    gdir,
-                    vel,
-                )
+                single = (V[i : i + 1].copy(), Qr[i : i + 1].copy(), P[i : i + 1].copy(), np.zeros(1), w_prev)
+                _run_single(single, (t, gyr, acc), k_conv + 1, prm, (model.A, model.B, model.C), (gdir, vel))
     res = RecoveryResult(
         t=t,
         events=events,

@@ -442,7 +442,10 @@ def _keep(h, r, q, pos, current):
 
 
 @njit(cache=True)
-def _sample_rows(m, q, acc_n, w, wdot, vib_acc, vib_gyr, pos, current, gyr, acc, mag, f_imu):
+def _sample_rows(m, motion, vibration, pos, current, out):
+    """Every row of the ``motion`` (``(q, acc_n, w, wdot)``) and ``vibration`` (``(acc, gyr)``)
+    sampled into ``out`` (``(gyr, acc, mag, f_imu)``)."""
+    (q, acc_n, w, wdot), (vib_acc, vib_gyr), (gyr, acc, mag, f_imu) = motion, vibration, out
     for k in range(q.shape[0]):
         f_imu[k] = sample_imu(m, k, q[k], acc_n[k], w[k], wdot[k], vib_acc[k], vib_gyr[k], gyr[k], acc[k])
         sample_mag(m, k, q[k], pos[k], current[k], mag[k])
@@ -455,7 +458,7 @@ def sample_all(m: SensorModel, q, acc_n, w, wdot, vib_acc, vib_gyr, pos, current
     c = np.ascontiguousarray
     n = len(q)
     gyr, acc, mag, f_imu = (np.empty((n, 3)) for _ in range(4))
-    _sample_rows(m, c(q, dtype=float), c(acc_n, dtype=float), c(w, dtype=float), c(wdot, dtype=float),
-                 c(vib_acc, dtype=float), c(vib_gyr, dtype=float), c(pos, dtype=float),
-                 c(current, dtype=float), gyr, acc, mag, f_imu)  # fmt: skip
+    motion = tuple(c(v, dtype=float) for v in (q, acc_n, w, wdot))
+    vibration = (c(vib_acc, dtype=float), c(vib_gyr, dtype=float))
+    _sample_rows(m, motion, vibration, c(pos, dtype=float), c(current, dtype=float), (gyr, acc, mag, f_imu))
     return gyr, acc, mag, f_imu

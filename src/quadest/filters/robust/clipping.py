@@ -147,7 +147,7 @@ def field_jacobian(x, b, r, c0, c1, c2, h):
 
 
 @njit(cache=True)
-def clipped_rates_from_field(x, p, c0, c1, c2, d0, d1, d2, v0, v1, v2, mdt, rg):
+def clipped_rates_from_field(x, p, field, mdt, rg):
     """Eq R4f: the axes not read within range over the interval predicted (:func:`rate_predict`)
     and the clipped ones corrected together from the field's change ``d`` (its mid-point ``c``):
     ``ṁ = −ω × m = m × ω``, the interval's mean rate ``ω − α Δt/2`` on a clipped axis and the
@@ -159,6 +159,7 @@ def clipped_rates_from_field(x, p, c0, c1, c2, d0, d1, d2, v0, v1, v2, mdt, rg):
     others (eq R4, per axis, does). ``P ← P − K (P Hᵀ)ᵀ``, kept symmetric. Written out on the
     state's own entries and its workspace (``work``: ``P Hᵀ``, the gain, ``S``), without
     allocating."""
+    (c0, c1, c2), (d0, d1, d2), (v0, v1, v2) = field  # the field's mid-point and change, the mean reading
     P, PH, K, S = STATE.Pc, STATE.work, STATE.work + 18, STATE.work + 36
     for i in range(3):  # an axis's (ω, α) from its reading is uncorrelated with the others'
         if x[STATE.fresh + i] != 0.0:
@@ -354,7 +355,7 @@ def rates_from_field(x, p, c, m0, m1, m2):
             x[STATE.gclip + 2] + x[STATE.gflat + 2],
         )
         if g0 + g1 + g2 != 0.0:
-            clipped_rates_from_field(x, p, c0, c1, c2, d0, d1, d2, v0, v1, v2, mdt, rg)
+            clipped_rates_from_field(x, p, ((c0, c1, c2), (d0, d1, d2), (v0, v1, v2)), mdt, rg)
         else:  # eq R4f's noise: the field's change against every axis's reading, per component
             r0, r1, r2 = field_residual(c0, c1, c2, d0, d1, d2, v0, v1, v2)
             x[STATE.sdt] += mdt

@@ -164,10 +164,11 @@ def heading_from_field(x, p, q_e, m, h2, tau, delta, ph, at_rest, nclip, clip_b)
 
 
 @njit(cache=True, inline="always")
-def heading(x, p, c, m0, m1, m2, have_mag, u0, u1, u2, at_rest, nclip, clip_b, dt):
+def heading(x, p, c, m, have_mag, u, at_rest, nclip, clip_b, dt):
     """The heading's time constant and variance, its correction by the field, and the attitude
     ``q_nb = Rz(δ) ⊗ q_EI ⊗ q_Ib`` it completes (into ``x[0:4]``). Returns 1.0 if the field
     corrected the heading."""
+    (m0, m1, m2), (u0, u1, u2) = m, u  # the field read, the strapdown's rotation
     iw, ix, iy, iz = x[STATE.qi], x[STATE.qi + 1], x[STATE.qi + 2], x[STATE.qi + 3]
     gw, gx, gy, gz = x[STATE.qg], x[STATE.qg + 1], x[STATE.qg + 2], x[STATE.qg + 3]
     ew, ex, ey, ez = qmul_s(iw, ix, iy, iz, gw, gx, gy, gz)

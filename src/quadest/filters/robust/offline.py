@@ -19,10 +19,11 @@ from numpy.typing import ArrayLike
 from quadest._jit import njit
 from quadest.data.checks import GAP_FACTOR, GAP_MIN_S
 from quadest.errors import UsageError
-from quadest.filters.base import FilterResult, _nominal_interval, sample_intervals, sample_times
+from quadest.filters.base import FilterResult
 from quadest.filters.common import finite3
 from quadest.filters.robust.params import UNKNOWN_HEADING_VAR, RobustParams
 from quadest.filters.robust.step import Robust
+from quadest.filters.timing import nominal_interval, sample_intervals, sample_times
 from quadest.records import param
 from quadest.rotation.kernels import FASTMATH, normalize_s, qmul_s, rotate_s
 
@@ -116,15 +117,17 @@ def _rate_between(q0, q1, h):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def fuse_and_strapdown(qf, df, qb, db, yaw, dt, gyr, acc, gap, q_out, d_out, q_ib, f_i):
-    """Per sample (``df``, ``db``: the passes' diagnostics, robust's; the backward pass in its
-    own, reversed order, its heading turned by ``yaw``): eq O1, the attitudes fused, and the
+def fuse_and_strapdown(passes, yaw, dt, gyr, acc, gap, out):
+    """Per sample (``passes``: ``(qf, df, qb, db)``, the forward and backward passes' attitudes
+    and diagnostics, robust's; the backward pass in its own, reversed order, its heading turned
+    by ``yaw``; ``out``: ``(q_out, d_out, q_ib, f_i)``): eq O1, the attitudes fused, and the
     fused variances ``P = P_f P_b / (P_f + P_b)`` (tilt and heading); eq O2, the biases fused
     by theirs (the reversed gyro's bias negated); ``d_out`` = bias x/y/z, var_tilt,
     var_heading, weight_tilt, weight_heading. Then the strapdown ``q_Ib`` with the smoothed bias
     (from the identity again after a gap longer than ``gap``; a clipped sample's rate from the
     fused attitude, whose passes took it from the field, eq R4) and ``f_I = R(q_Ib) f``; an
     unusable sample holds both."""
+    (qf, df, qb, db), (q_out, d_out, q_ib, f_i) = passes, out
     n = len(dt)
     cz, sz = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
     gw, gx, gy, gz = 1.0, 0.0, 0.0, 0.0
@@ -327,12 +330,12 @@ class RobustOffline(Robust):
         if n and (df[:, VH] >= UNKNOWN_HEADING_VAR).all() and (db[:, VH] >= UNKNOWN_HEADING_VAR).all():
             yaw = heading_offset(f.q, b.q[::-1])  # neither knows north: the backward heading is its own
         dt = sample_intervals(t)
-        h = _nominal_interval(dt) or 1.0
+        h = nominal_interval(dt) or 1.0
         gap = self.max_gap_s or max(GAP_FACTOR * h, GAP_MIN_S)
         q, d = np.empty((n, 4)), np.empty((n, len(self.diag_names)))
         q_ib, f_i = np.empty((n, 4)), np.empty((n, 3))
         gyr, acc = (np.ascontiguousarray(v, dtype=np.float64) for v in (gyr, acc))
-        fuse_and_strapdown(np.ascontiguousarray(f.q), df, b.q, db, yaw, dt, gyr, acc, gap, q, d, q_ib, f_i)
+        fuse_and_strapdown((np.ascontiguousarray(f.q), df, b.q, db), yaw, dt, gyr, acc, gap, (q, d, q_ib, f_i))
         if self.params.zero_phase_tilt:
             bounds = [0, *np.flatnonzero(dt > gap).tolist(), n]
             y = np.empty((n, 3))

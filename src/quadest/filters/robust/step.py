@@ -57,7 +57,7 @@ def robust_step(x, p, c, gyr, acc, mag, dt, diag):
     clip_b = p[PARAM.bias_clip] + p[PARAM.scale_max] * math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
     at_rest, rest_rate2 = rest_and_bias(x, p, gyr, acc, nclip, dt)
     tilt(x, p, c, gyr, (f0, f1, f2), fn, (u0, u1, u2), at_rest, nclip, rest_rate2, clip_b, dtc)
-    mupd = heading(x, p, c, m0, m1, m2, have_mag, u0, u1, u2, at_rest, nclip, clip_b, dt)
+    mupd = heading(x, p, c, (m0, m1, m2), have_mag, (u0, u1, u2), at_rest, nclip, clip_b, dt)
     diag[0] = 1.0 if at_rest else 0.0
     diag[1] = x[STATE.disturbed]
     diag[2] = float(nclip)
