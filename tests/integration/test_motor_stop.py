@@ -32,7 +32,8 @@ def _spin_down_bound(omega0: float, params: DetectorParams) -> float:
 
 @pytest.mark.parametrize("rotor", [0, 1, 2, 3])
 def test_a_stopped_motor_is_found_named_and_survived_in_the_loop(rotor):
-    """Each rotor's motor stopped in hover (10 m up), rotor speeds read with 1 % noise and the
+    """Each rotor's motor stopped in hover (10 m up; `robust` in the loop, as the campaign flies),
+    rotor speeds read with 1 % noise and the
     detector's model off by the campaign's ±10 %: the speed test names the rotor no later than two
     samples after the bound for its speed at the stop (about 25 ms at the hover's 695 rad/s; the
     loop's first sample after the stop is up to one late), the fault-tolerant controller takes
@@ -42,7 +43,7 @@ def test_a_stopped_motor_is_found_named_and_survived_in_the_loop(rotor):
     fail = Failure(rotor=rotor, time_s=2.0, mode="motor-stop")
     high = FlightParams(height_m=10.0)
     f = fly("rotor-loss", seed=rotor, duration=5.0, vehicle="bebop2", failure=fail, detection="rotor-speeds",
-            params=high)  # fmt: skip
+            params=high, estimator="robust")  # fmt: skip
     det = f.summary["detection"]
     omega0 = f.states[np.searchsorted(f.recording.t, fail.time_s), 13 + rotor]
     bound = _spin_down_bound(omega0, DetectorParams()) + 2.0 / 500.0
@@ -50,5 +51,6 @@ def test_a_stopped_motor_is_found_named_and_survived_in_the_loop(rotor):
     assert 0.0 <= det["delay_s"] <= bound, (det["delay_s"], bound, omega0)
     assert f.summary["status"] == "survived", f.summary
     off = DetectorParams(speed_test=False)
-    s = fly("rotor-loss", seed=rotor, duration=2.5, vehicle="bebop2", failure=fail, detection=off, params=high).summary
+    s = fly("rotor-loss", seed=rotor, duration=2.5, vehicle="bebop2", failure=fail, detection=off, params=high,
+            estimator="robust").summary  # fmt: skip
     assert s["detection"]["lost_rotor"] is None, s["detection"]
