@@ -7,6 +7,7 @@ import math
 import pytest
 
 from quadest.cli.main import main
+from quadest.errors import UsageError
 from quadest.evaluation.detection import failure_case, fly_case, fly_case_flight
 from quadest.sweep import ResultStore
 from quadest.sweep.campaign import campaign_runs, campaign_summary, survival_curves, up_by_height
@@ -205,3 +206,40 @@ def test_two_outputs_on_one_file_are_refused(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "give each output its own file" in err[0]
     assert not out.exists()
+
+
+def test_each_complete_loss_is_flown_once_per_failure_mode():
+    """Seeds 0-3 (0-2 complete, 3 partial) with a propeller off and a motor stopped: the complete
+    losses twice, the propeller's runs with the ids they always had, the partial loss and the
+    nominal flight once; an unknown mode is a one-line refusal."""
+    before = campaign_runs(range(4), [100], ["truth"], detections=("rotor-speeds",))
+    both = campaign_runs(range(4), [100], ["truth"], detections=("rotor-speeds",),
+                         failure_modes=("propeller-off", "motor-stop"))  # fmt: skip
+    assert len(both) == len(before) + 3
+    assert {run_id(r) for r in before} <= {run_id(r) for r in both}
+    stopped = [r["source"]["case"] for r in both if r["source"]["case"].get("failure_mode") == "motor-stop"]
+    assert sorted(c["seed"] for c in stopped) == [0, 1, 2]
+    with pytest.raises(UsageError, match="--failure-modes: unknown or no mode.*desync"):
+        campaign_runs([0], [], ["truth"], failure_modes=("desync",))
+
+
+def test_the_summary_names_each_groups_failure_mode():
+    """A propeller off and a motor stopped in one file: a group each, both with the nominal
+    flight and the partial loss flown once; a file of before (no failure_mode column) is all
+    propellers off."""
+    rows = [
+        _row(failure_mode="propeller-off"),
+        _row(failure_mode="motor-stop", flight="crashed", lost_rotor=-1, delay_s=math.nan, isolated=0),
+        _row(kind="partial", failure_mode="partial", efficiency=0.5, lost_rotor=-1, delay_s=math.nan, isolated=0),
+        _row(kind="nominal", failure_mode="", rotor=-1, failure_s=math.nan, efficiency=math.nan, lost_rotor=-1,
+             flown_s=3600.0),
+    ]  # fmt: skip
+    off, stop = campaign_summary(rows)["groups"]
+    assert (off["failure_mode"], stop["failure_mode"]) == ("propeller-off", "motor-stop")
+    assert (off["failures"]["survived"], stop["failures"]["survived"]) == (1, 0)
+    assert (off["failures"]["found"], stop["failures"]["found"]) == (1, 0)
+    assert off["nominal"]["hours"] == stop["nominal"]["hours"] == 1.0
+    assert off["failures"]["partial"]["flights"] == stop["failures"]["partial"]["flights"] == 1
+    assert stop["detection_label"] == "rotor-speeds, motor-stop" and off["detection_label"] == "rotor-speeds"
+    old = campaign_summary([{k: v for k, v in r.items() if k != "failure_mode"} for r in rows[:1] + rows[2:]])
+    assert [g["failure_mode"] for g in old["groups"]] == ["propeller-off"]

@@ -74,6 +74,7 @@ def _library_choices() -> dict:
     from quadest.recovery.divergence import CHECKS
     from quadest.sim import FAILURE_MODES, PRESCRIBED_SCENARIOS, PRESETS
     from quadest.sweep.campaign import DETECTIONS
+    from quadest.sweep.campaign import FAILURE_MODES as CAMPAIGN_FAILURE_MODES
 
     recovery = RecoveryParams()
     return {
@@ -92,6 +93,7 @@ def _library_choices() -> dict:
         "COLLISIONS": tuple(COLLISIONS),
         "CHECKS": tuple(CHECKS),
         "DETECTIONS": tuple(DETECTIONS),
+        "CAMPAIGN_FAILURE_MODES": tuple(CAMPAIGN_FAILURE_MODES),
         "RECOVERY_DEFAULTS": SimpleNamespace(
             n_hypotheses=recovery.n_hypotheses, beta1=recovery.beta1, beta2=recovery.beta2
         ),

@@ -65,15 +65,17 @@ CONTROLLERS = ("se3", "ftc")
 VEHICLE_PRESETS = ("recovery", "bebop2", "hummingbird")
 """``quadest.models.VEHICLE_PRESETS``' names: the vehicle models."""
 DETECTION_MODES = ("oracle", "rotor-speeds", "commands")
-
-FAILURE_MODES = ("propeller-off", "motor-stop", "desync", "gradual", "partial", "damaged-propeller")
 """``quadest.flight.detection.DETECTION_MODES``: how a rotor loss is learnt in flight."""
+FAILURE_MODES = ("propeller-off", "motor-stop", "desync", "gradual", "partial", "damaged-propeller")
+"""``quadest.sim.FAILURE_MODES``: how a rotor fails."""
 COLLISIONS = ("none", "drawn", "reset", "left")
 """``quadest.flight.common.COLLISIONS``: a collision in flight."""
 CHECKS = ("impact", "rate", "innovation", "nonfinite")
 """``quadest.recovery.divergence.CHECKS``' names: the checks that start a recovery in flight."""
 DETECTIONS = ("rotor-speeds", "commands", "oracle")
 """``quadest.sweep.campaign.DETECTIONS``: a campaign's detection modes."""
+CAMPAIGN_FAILURE_MODES = ("propeller-off", "motor-stop")
+"""``quadest.sweep.campaign.FAILURE_MODES``: how a campaign's complete losses happen."""
 
 RECOVERY_DEFAULTS = SimpleNamespace(n_hypotheses=40, beta1=7.0, beta2=0.06)
 """``quadest.recovery.RecoveryParams``' defaults that ``quadest recover`` offers as options."""

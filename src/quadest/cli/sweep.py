@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from quadest.cli.choices import (
+    CAMPAIGN_FAILURE_MODES,
     CONTROLLERS,
     DETECTIONS,
     FLIGHT_SCENARIOS,
@@ -192,10 +193,13 @@ def _campaign_runs(args):
     gyro = _campaign_list(args.gyro_range, "--gyro-range", "°/s")
     lat = [v or 0.0 for v in _campaign_list(args.mag_latency, "--mag-latency", "s")]
     detector = detector_sets(args.set, detections, "campaign")
+    modes = [m.strip() for m in args.failure_modes.split(",") if m.strip()]
     per_case = len(filters) * len(detections) * len(gyro) * len(lat)
-    check_runs(args, per_case * (len(seeds) + len(nominal)), f"{len(seeds) + len(nominal):,} cases x {per_case} set(s)")
+    cases = len(seeds) * len(modes) + len(nominal)  # at most: a partial loss is flown once
+    check_runs(args, per_case * cases, f"{cases:,} cases x {per_case} set(s)")
     return campaign_runs(seeds, nominal, filters, detections=detections, gyro_ranges_dps=gyro, mag_latencies_s=lat,
-                         duration=args.duration, height_m=args.height, detector=detector)  # fmt: skip
+                         duration=args.duration, height_m=args.height, detector=detector,
+                         failure_modes=modes)  # fmt: skip
 
 
 def cmd_campaign(args):
@@ -252,6 +256,14 @@ def _add_campaign_args(p):
         default=",".join(DETECTIONS),
         help="how the controller learns of a loss, "
         "comma-separated: rotor-speeds, commands (the detector), oracle (told 50 ms after) (default: all three)",
+    )
+    p.add_argument(
+        "--failure-modes",
+        default=CAMPAIGN_FAILURE_MODES[0],
+        metavar="MODE[,MODE...]",
+        help=f"how the complete losses happen, comma-separated: {', '.join(CAMPAIGN_FAILURE_MODES)} (the motor "
+        "stops and spins down, its propeller on); each complete-loss seed is flown once per mode, the partial losses "
+        f"and nominal flights once (default: {CAMPAIGN_FAILURE_MODES[0]})",
     )
     p.add_argument(
         "--gyro-range",

@@ -25,6 +25,10 @@ passes its threshold ``h`` is the one that failed. The test with the larger drif
 "lost" (the fault-tolerant controller takes over), the one with the smaller drift "damaged".
 Beside them a fast test (``glr``) reads a loss's first samples directly: a generalised
 likelihood ratio of each rotor lost at the start of each of the last few samples' windows.
+With the rotor speeds measured and the commands given, the speed test (``speed_test``,
+:mod:`quadest.detect.speed`) names a rotor lost whose speed falls below what its commands give
+any working motor within the model's errors: a stopped motor or a desync, whose propeller still
+pushes at the speed it turns, so that its effectiveness stays 1.
 """
 
 from __future__ import annotations
@@ -41,6 +45,7 @@ from quadest.detect.layout import DIAG, DIAGNOSTICS, MODEL, STAT, STATE, STATIST
 from quadest.detect.model import air_lowpass, model_coefficients, motor_step
 from quadest.detect.params import PARAM, DetectorParams
 from quadest.detect.sequential import cusum_test, glr_store, glr_test
+from quadest.detect.speed import speed_test
 from quadest.records import check, pack
 
 if TYPE_CHECKING:
@@ -79,6 +84,8 @@ def detect_step(x, p, c, gyr, acc, rotors, dt, diag):
     acc = x[STATE.acc_cg : STATE.acc_cg + 3]
     air_lowpass(x, c, acc, gyr[2], dt)
     x[STATE.time] += dt
+    if measured:
+        speed_test(x, p, c, rotors, dt)
     cusum_test(x, p, c, dt)
     if p[PARAM.glr] != 0.0:
         glr_store(x, p, c, gyr, acc, dt)
@@ -91,6 +98,8 @@ def detect_step(x, p, c, gyr, acc, rotors, dt, diag):
             diag[DIAGNOSTICS.lost_sum], diag[DIAGNOSTICS.lost_rotor] = x[STATE.s_lost + i], i
         if x[STATE.s_damaged + i] > diag[DIAGNOSTICS.damaged_sum]:
             diag[DIAGNOSTICS.damaged_sum], diag[DIAGNOSTICS.damaged_rotor] = x[STATE.s_damaged + i], i
+        if x[STATE.s_speed + i] > diag[DIAGNOSTICS.speed_sum]:
+            diag[DIAGNOSTICS.speed_sum], diag[DIAGNOSTICS.speed_rotor] = x[STATE.s_speed + i], i
     return int(x[STATE.lost])
 
 
@@ -120,7 +129,8 @@ class Detection:
     damaged_t: float | None
     damaged_effectiveness: float | None
     statistics: np.ndarray | None = None
-    """Per sample: the largest 'lost' sum and its rotor, the largest 'damaged' sum and its rotor."""
+    """Per sample: the largest 'lost' sum and its rotor, the largest 'damaged' sum and its rotor,
+    the largest speed test's sum and its rotor."""
 
 
 class Detector:
@@ -163,7 +173,8 @@ class Detector:
         self, gyr: ArrayLike, acc: ArrayLike, rotors: ArrayLike, *, dt: float, commands: ArrayLike | None = None
     ) -> int | None:
         """One sample (rotor speeds or commands, rad/s, one per rotor; with measured speeds, the
-        ``commands`` over the interval too, for the thrust cut's hold): the rotor found lost, or None."""
+        ``commands`` over the interval too, for the thrust cut's hold and the speed test): the rotor
+        found lost, or None."""
         if commands is not None:
             note_commands(self._state, self._values, self._model, _vec(commands, self.rotors))
         lost = detect_step(

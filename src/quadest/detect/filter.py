@@ -30,6 +30,8 @@ def start_filter(x, p, c, gyr, rotors):
         x[STATE.h_lp + i] = c[MODEL.ip_s + i] * rotors[i]
         x[STATE.s_lost + i] = 0.0
         x[STATE.s_damaged + i] = 0.0
+        x[STATE.speed_low + i] = rotors[i]  # the speed test's floor starts at the reading
+        x[STATE.s_speed + i] = 0.0
     x[STATE.lost] = x[STATE.damaged] = -1.0
     x[STATE.contact_t] = -np.inf
     for j in range(3):
@@ -260,14 +262,19 @@ def gyro_noise_estimate(x, p, gyr, dt):
 
 @njit(cache=True, inline="always")
 def note_commands(x, p, c, cmd):
-    """The speeds commanded over the interval that ends at the next step (rad/s): a thrust cut,
-    ``cut_rotors`` or more at the lowest speed, holds the tests (the rotors are then far from the
-    regime the model holds in: near idle, decelerating, in the inflow of the vehicle's own motion)."""
+    """The speeds commanded over the interval that ends at the next step (rad/s), kept for the
+    speed test: a thrust cut, ``cut_rotors`` or more at the lowest speed, holds the tests (the
+    rotors are then far from the regime the model holds in: near idle, decelerating, in the inflow
+    of the vehicle's own motion)."""
+    n = int(c[MODEL.rotors])
+    for i in range(n):
+        x[STATE.cmd + i] = cmd[i]
+    x[STATE.cmd_known] = 1.0
     need = p[PARAM.cut_rotors]
     if need <= 0.0:
         return
     at_min = 0
-    for i in range(int(c[MODEL.rotors])):
+    for i in range(n):
         if cmd[i] <= c[MODEL.omega_min]:
             at_min += 1
     if at_min >= need:

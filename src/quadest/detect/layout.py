@@ -61,6 +61,10 @@ STATE = layout(
     ("alpha", 3),  # scratch of one step: the model's angular acceleration over the interval
     ("acc_cg", 3),  # and the accelerometer's reading moved to the centre of mass
     ("thrust", MAX_ROTORS),  # and each intact rotor's thrust at its speed over the interval (N)
+    ("cmd", MAX_ROTORS),  # the speeds commanded over the interval that ends at the next step (rad/s)
+    ("cmd_known", 1),  # 1 once commands were given (the speed test needs them)
+    ("speed_low", MAX_ROTORS),  # the speed test's floor: the lowest speed a working motor can have (rad/s)
+    ("s_speed", MAX_ROTORS),  # the speed test's sums
 )
 SCALE_LP = 0.02  # s: above the gyroscope's noise and the rotors' tone (chosen)
 SCALE_HP = 1.0  # s: below the manoeuvres; what the model misses steadily (wind, trim) is left out (chosen)
@@ -90,8 +94,11 @@ DIAGNOSTICS = layout(
     ("lost_rotor", 1),
     ("damaged_sum", 1),  # the largest 'damaged' sum and its rotor
     ("damaged_rotor", 1),
+    ("speed_sum", 1),  # the largest speed test's sum and its rotor
+    ("speed_rotor", 1),
 )
-"""A step's diagnostics (``diag``): each rotor's effectiveness, then the tests' statistics."""
+"""A step's diagnostics (``diag``): each rotor's effectiveness, then the tests' statistics (the
+speed test's zero without measured speeds and commands)."""
 DIAG = DIAGNOSTICS.end
 STAT = DIAGNOSTICS.lost_sum
 STATISTICS = DIAG - STAT

@@ -202,6 +202,53 @@ class DetectorParams(Params):
         "thrust-cut hold; 0.008 before it; docs/detection.md)",
         "(0, 10]",
     )
+    speed_test: bool = param(
+        True,
+        "-",
+        "with the rotor speeds measured and the commands known, a rotor whose speed falls below what any working "
+        "motor within the model's errors (speed_tau_ratio, speed_top_sag) reaches from its commands is lost: a "
+        "stopped motor or a desync, which still makes the thrust its speed gives (docs/detection.md, The motor's "
+        "speed)",
+        "measured on the campaign's losses: a stopped motor was found in 1 of 120 without it (docs/detection.md)",
+    )
+    speed_tau_ratio: float = param(
+        2.0,
+        "-",
+        "the speed test's motor time constant may be this many times the model's, or this many times less",
+        "chosen: the motor's time constant × 2 and × 0.5 the detector must stand (docs/detection.md)",
+        "[1, 100]",
+    )
+    speed_top_sag: float = param(
+        0.15,
+        "-",
+        "the speed test's top and lowest speeds may be this share below the model's (a sagging battery)",
+        "chosen: a top speed 15 % low, which the detector must stand (docs/detection.md)",
+        "[0, 0.9]",
+    )
+    speed_noise: float = param(
+        0.01,
+        "-",
+        "relative noise of a rotor speed reading; a reading lifts the speed test's floor to itself less three of it",
+        "chosen: eRPM telemetry resolves about 1 % at hover speed (the loop's speed_noise)",
+        "[0, 0.3]",
+    )
+    speed_drift: float = param(
+        0.1,
+        "-",
+        "the speed test ignores a shortfall below its floor of this share of the model's top speed (ν)",
+        "chosen: ten times a reading's noise at top speed; 0.13 is the floor's largest rise over a reading held 10 ms "
+        "(docs/detection.md, The motor's speed)",
+        "(0, 1]",
+    )
+    speed_threshold: float = param(
+        0.002,
+        "s",
+        "the speed test's threshold (h, shares of the top speed times seconds)",
+        "chosen on synthetic motors: 1.7 times the largest sum (0.00115) of working motors whose time constant is "
+        "0.5-2 times the model's and top speed 15 % low, read at 100 Hz with 1 % noise, under full-range command "
+        "steps; a motor stopped at hover speed passes it in 25 ms (docs/detection.md)",
+        "(0, 10]",
+    )
     damaged_drift: float = param(
         0.15,
         "-",

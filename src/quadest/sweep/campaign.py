@@ -19,6 +19,7 @@ from quadest.detect import DetectorParams
 from quadest.errors import UsageError
 from quadest.evaluation.detection import (
     case_config,
+    case_failure,
     complete_loss,
     failure_case,
     fly_case_flight,
@@ -33,6 +34,12 @@ HEIGHT_M = FlightParams().height_m
 DETECTIONS = ("rotor-speeds", "commands", "oracle")
 """The ways the fault-tolerant controller learns of a loss: the detector from measured rotor
 speeds or from the commands, or the oracle (told 50 ms after the loss: not what a vehicle knows)."""
+
+FAILURE_MODES = ("propeller-off", "motor-stop")
+"""How a campaign's complete losses happen (:data:`quadest.sim.faults.FAILURE_MODES`): the
+propeller comes off (its motor spins on at its command), or the motor stops (it spins down, its
+propeller still on). Each complete-loss seed is flown once per mode asked; the partial losses
+and the nominal flights once."""
 
 RUN_COLUMNS = {
     "run_id": "string",
@@ -59,6 +66,7 @@ CAMPAIGN_ROW_TYPES = {
     "rotor": "int64",
     "failure_s": "double",
     "efficiency": "double",
+    "failure_mode": "string",
     "flight": "string",
     "reason": "string",
     "flown_s": "double",
@@ -84,17 +92,18 @@ where they do not apply (no rotor failed, none found); numbers NaN."""
 def campaign_runs(
     seeds, nominal_seeds, filters, *, detections=DETECTIONS, gyro_ranges_dps=(None,), mag_latencies_s=(0.0,),
     duration: float = 60.0, failure_duration: float = 6.0, height_m: float | None = None,
-    detector: dict | None = None,
+    detector: dict | None = None, failure_modes=FAILURE_MODES[:1],
 ) -> list[dict]:  # fmt: skip
     """Every (failure seed or nominal seed, estimator, detection mode, gyroscope range,
     magnetometer latency) as a run spec, the hover point ``height_m`` above the ground (None:
     ``FlightParams``'), the detector's parameters changed by ``detector`` (``{name: value}``;
-    the oracle flies none); the oracle flies only the complete losses (it knows nothing of a
+    the oracle flies none), each complete loss once per mode of ``failure_modes``
+    (:data:`FAILURE_MODES`); the oracle flies only the complete losses (it knows nothing of a
     partial one, and has nothing to alarm on in nominal flight)."""
     bad = [d for d in detections if d not in DETECTIONS]
     if bad:
         raise UsageError(f"--detection: unknown mode(s) {', '.join(bad)}; known: {', '.join(DETECTIONS)}")
-    cases = [failure_case(s, "x", failure_duration) for s in seeds]
+    cases = _failure_cases(seeds, failure_modes, failure_duration)
     cases += [nominal_case(s, "x", duration) for s in nominal_seeds]
     if height_m is not None and height_m != HEIGHT_M:  # the default's runs keep their ids
         cases = [{**c, "height_m": float(height_m)} for c in cases]
@@ -113,9 +122,30 @@ def campaign_runs(
     return runs
 
 
+def _failure_cases(seeds, failure_modes, duration: float) -> list[dict]:
+    """The failures of ``seeds``: a complete loss once per mode of ``failure_modes`` (a propeller
+    off as its case always was, so that its runs keep their ids), a partial loss once."""
+    modes = list(dict.fromkeys(failure_modes))
+    bad = [m for m in modes if m not in FAILURE_MODES]
+    if bad or not modes:
+        raise UsageError(
+            f"--failure-modes: unknown or no mode(s) {', '.join(bad)}; a campaign flies {', '.join(FAILURE_MODES)}"
+        )
+    cases = []
+    for s in seeds:
+        case = failure_case(s, "x", duration)
+        if not complete_loss(case):
+            cases.append(case)
+            continue
+        cases += [case if m == "propeller-off" else {**case, "failure_mode": m} for m in modes]
+    return cases
+
+
 def campaign_label(src: dict) -> str:
     c = src["case"]
     what = "nominal" if c["rotor"] is None else f"rotor{c['rotor']}@{c['time_s']:.3f}:{c['efficiency']:.2f}"
+    if c.get("failure_mode"):
+        what = f"{c['failure_mode']}:{what}"
     g = "" if src["gyro_range_dps"] is None else f"/gyro{src['gyro_range_dps']:g}"
     lat = f"/maglat{src['mag_latency_s']:g}" if src["mag_latency_s"] else ""
     det = f"/{detector_label(src.get('detector'))}" if src.get("detector") else ""
@@ -188,6 +218,7 @@ def _case_columns(src: dict, cfg) -> dict:
         "rotor": _int(c["rotor"]),
         "failure_s": _num(c.get("time_s")),
         "efficiency": _num(c.get("efficiency")),
+        "failure_mode": "" if c["rotor"] is None else case_failure(c).mode,
         "height_m": float(c.get("height_m", HEIGHT_M)),
     }
 
@@ -245,21 +276,44 @@ def _as_case_row(r: dict) -> dict:
 GROUP = ("filter", "detection", "detector", "gyro_range_dps", "mag_latency_s", "height_m")
 
 
+def _with_mode(r: dict) -> dict:
+    """A row with its failure mode (files of before: a complete loss was a propeller off)."""
+    if r.get("failure_mode"):
+        return r
+    if r["kind"] == "nominal":
+        return {**r, "failure_mode": ""}
+    return {**r, "failure_mode": "propeller-off" if r["kind"] == "loss" else "partial"}
+
+
+def _by_failure_mode(rows: list[dict]) -> list[tuple[str | None, list[dict]]]:
+    """A group's rows once per failure mode of its complete losses (:data:`FAILURE_MODES`' order),
+    each with the partial losses and the nominal flights, which are flown once; ``(None, rows)``
+    when it has no complete loss."""
+    modes = {r["failure_mode"] for r in rows if r["kind"] == "loss"}
+    order = sorted(modes, key=lambda m: (FAILURE_MODES.index(m) if m in FAILURE_MODES else len(FAILURE_MODES), m))
+    if not order:
+        return [(None, rows)]
+    return [(m, [r for r in rows if r["kind"] != "loss" or r["failure_mode"] == m]) for m in order]
+
+
 def campaign_summary(rows: list[dict]) -> dict:
     """Per (estimator, detection, the detector's changed parameters, gyroscope range, magnetometer
-    latency, height): the losses' survival, detection and isolation (:func:`summarize_failures`),
-    survival by scenario and at each lower height (:func:`up_by_height`), the nominal flights'
-    hours and alarms; and survival against spin, clipping, delay, latency and height."""
-    ok = [{"height_m": HEIGHT_M, "detector": "", **r} for r in rows if r["status"] == "ok"]  # files of before
+    latency, height) and the complete losses' failure mode: the losses' survival, detection and
+    isolation (:func:`summarize_failures`), survival by scenario and at each lower height
+    (:func:`up_by_height`), the nominal flights' hours and alarms (the partial losses and nominal
+    flights, flown once, in each failure mode's group); and survival against spin, clipping,
+    delay, latency and height."""
+    ok = [_with_mode({"height_m": HEIGHT_M, "detector": "", **r}) for r in rows if r["status"] == "ok"]  # before
     groups: dict = {}
     for r in ok:
         groups.setdefault(tuple(r[k] for k in GROUP), []).append(r)
     out = {"runs": len(rows), "ok": len(ok), "failed": len(rows) - len(ok), "groups": []}
-    for key in sorted(groups, key=lambda k: (k[0], DETECTIONS.index(k[1]), k[2], -k[3], k[4], k[5])):
-        mine = groups[key]
+    keys = sorted(groups, key=lambda k: (k[0], DETECTIONS.index(k[1]), k[2], -k[3], k[4], k[5]))
+    for key, mode, mine in ((k, m, rs) for k in keys for m, rs in _by_failure_mode(groups[k])):
         failures = [_as_case_row(r) for r in mine if r["kind"] != "nominal"]
         nominal = [r for r in mine if r["kind"] == "nominal"]
         g = dict(zip(GROUP, key))
+        g["failure_mode"] = mode
         g["detection_label"] = detection_cell(g)
         g["failures"] = summarize_failures(failures)
         losses = [r for r in mine if r["kind"] == "loss"]
@@ -288,6 +342,8 @@ def group_label(g: dict, groups: list[dict]) -> str:
     parts = [g["filter"], g["detection"]]
     if g["detector"]:
         parts.append(f"detector {g['detector']}")
+    if len({h.get("failure_mode") for h in groups}) > 1:
+        parts.append(g.get("failure_mode") or "no complete loss")
     for key, fmt in (("gyro_range_dps", "±{:g} °/s"), ("mag_latency_s", "latency {:g} s"), ("height_m", "{:g} m up")):
         if len({h[key] for h in groups}) > 1:
             parts.append(fmt.format(g[key]))
@@ -295,8 +351,9 @@ def group_label(g: dict, groups: list[dict]) -> str:
 
 
 def detection_cell(g: dict) -> str:
-    """A group's detection mode, with the detector's parameters it changed."""
-    return g["detection"] + (f" ({g['detector']})" if g.get("detector") else "")
+    """A group's detection mode, with the detector's parameters it changed and its complete
+    losses' failure mode when not a propeller off."""
+    return g["detection"] + (f" ({g['detector']})" if g.get("detector") else "") + _mode_suffix(g)
 
 
 HEIGHTS_M = (1.0, 2.0, 3.0, 5.0, 10.0, 20.0, 30.0, 50.0, 100.0)
@@ -342,10 +399,11 @@ def survival_curves(rows: list[dict]) -> dict:
     the share of complete losses that stayed up in bins of the variable (equal counts), per
     estimator and detection mode; a variable with no finite value is left out."""
     out = {}
+    several = len({r.get("failure_mode") for r in rows}) > 1
     for var, (label, bins) in CURVES.items():
         lines = {}
-        for name in sorted({_curve_key(r) for r in rows}):
-            mine = [r for r in rows if _curve_key(r) == name and np.isfinite(r[var])]
+        for name in sorted({_curve_key(r, several) for r in rows}):
+            mine = [r for r in rows if _curve_key(r, several) == name and np.isfinite(r[var])]
             if mine:
                 lines[" / ".join(n for n in name if n)] = _binned(mine, var, bins)
         if lines:
@@ -353,8 +411,10 @@ def survival_curves(rows: list[dict]) -> dict:
     return out
 
 
-def _curve_key(r: dict) -> tuple:
-    return r["filter"], r["detection"], r.get("detector", "")  # files of before: the defaults
+def _curve_key(r: dict, mode: bool = False) -> tuple:
+    """A curve's line: estimator, detection, the detector's changed parameters (files of before:
+    the defaults) and, with ``mode``, the failure mode."""
+    return r["filter"], r["detection"], r.get("detector", ""), (r.get("failure_mode") or "") if mode else ""
 
 
 def _binned(rows: list[dict], var: str, bins: int | None) -> dict:
@@ -376,8 +436,9 @@ def _binned(rows: list[dict], var: str, bins: int | None) -> dict:
 
 def format_campaign(summary: dict) -> str:
     """The campaign's table for a person: a line per group."""
+    wide = max([13] + [len(_detection_text(g)) + 1 for g in summary["groups"]])
     head = (
-        f"{'estimator':<10}{'detection':<13}{'gyro °/s':>9}{'mag lat':>8}{'height':>7}{'losses':>8}{'survived':>10}"
+        f"{'estimator':<10}{'detection':<{wide}}{'gyro °/s':>9}{'mag lat':>8}{'height':>7}{'losses':>8}{'survived':>10}"
         f"{'found':>7}{'named':>7}{'median':>8}{'p99':>7}{'max':>7}{'partial':>9}{'nominal h':>10}{'alarms':>7}"
     )
     changed = any(g.get("detector") for g in summary["groups"])
@@ -389,7 +450,7 @@ def format_campaign(summary: dict) -> str:
         alarms = "-" if g["detection"] == "oracle" else f"{n['lost_alarms']}"
         gyro = "none" if math.isinf(g["gyro_range_dps"]) else f"{g['gyro_range_dps']:.0f}"
         lines.append(
-            f"{g['filter']:<10}{g['detection']:<13}{gyro:>9}{g['mag_latency_s']:>8g}{g['height_m']:>7g}{f['complete']:>8}"
+            f"{g['filter']:<10}{_detection_text(g):<{wide}}{gyro:>9}{g['mag_latency_s']:>8g}{g['height_m']:>7g}{f['complete']:>8}"
             f"{share:>10}"
             f"{f['found']:>7}{f['isolated']:>7}{_ms(d['median']):>8}{_ms(d['p99']):>7}{_ms(d['max']):>7}{part:>9}"
             f"{n['hours']:>10.2f}{alarms:>7}" + (f"  {_detector_cell(g)}" if changed else "")
@@ -402,6 +463,16 @@ def format_campaign(summary: dict) -> str:
             lines.append(f"{group_label(g, summary['groups'])}: of {up['flights'][0]} complete losses, up with the "
                          f"hover point at {kept} above the ground")  # fmt: skip
     return "\n".join(lines)
+
+
+def _detection_text(g: dict) -> str:
+    """The table's detection cell: the mode, and the failure mode when not a propeller off."""
+    return g["detection"] + _mode_suffix(g)
+
+
+def _mode_suffix(g: dict) -> str:
+    mode = g.get("failure_mode")
+    return f", {mode}" if mode and mode != FAILURE_MODES[0] else ""
 
 
 def _detector_cell(g: dict) -> str:
