@@ -34,12 +34,15 @@ def _ulog_fifo(flight, k, us, mid, name, value):
     return _ulog_msg("D", head + counts.astype("<i2").tobytes())
 
 
-def write_ulog(path, flight, truncate_at=None, params=None, t0_us=1_000_000, fifo=False, mag=True, outputs=None):
+def write_ulog(
+    path, flight, truncate_at=None, params=None, t0_us=1_000_000, fifo=False, mag=True, outputs=None, rotors=None
+):
     """A minimal ULog (format version 1): header, flag bits, formats, ``params`` (name → float),
     subscriptions, data; the IMU's first timestamp ``t0_us``. With ``fifo`` every sample goes
     into sensor_gyro_fifo / sensor_accel_fifo (four a message) and sensor_combined logs every
     fourth. ``mag`` False leaves the magnetometer out; ``outputs`` (N, 4) PWM µs, one row per
-    sample, logs actuator_outputs every fourth sample."""
+    sample, logs actuator_outputs every fourth sample; ``rotors`` ((N, 4) normalised commands,
+    (N, 4) rpm) logs actuator_motors and esc_status (a nested esc_report) every second sample."""
     topics = {
         "sensor_combined": ("uint64_t timestamp;float[3] gyro_rad;float[3] accelerometer_m_s2;", 0),
         "vehicle_magnetometer": ("uint64_t timestamp;float[3] magnetometer_ga;", 1),
@@ -51,8 +54,13 @@ def write_ulog(path, flight, truncate_at=None, params=None, t0_us=1_000_000, fif
         topics.update({"sensor_gyro_fifo": (FIFO, 3), "sensor_accel_fifo": (FIFO, 4)})
     if outputs is not None:
         topics["actuator_outputs"] = ("uint64_t timestamp;float[16] output;", 5)
+    if rotors is not None:
+        topics["actuator_motors"] = ("uint64_t timestamp;float[12] control;", 6)
+        topics["esc_status"] = ("uint64_t timestamp;uint8_t esc_count;esc_report[4] esc;", 7)
     out = b"ULog\x01\x12\x35\x01" + struct.pack("<Q", 0)
     out += _ulog_msg("B", bytes(16) + struct.pack("<3Q", 0, 0, 0))
+    if rotors is not None:
+        out += _ulog_msg("F", b"esc_report:int32_t esc_rpm;float esc_voltage;")
     for name, (fmt, _) in topics.items():
         out += _ulog_msg("F", f"{name}:{fmt}".encode())
     for name, value in (params or {}).items():
@@ -73,6 +81,10 @@ def write_ulog(path, flight, truncate_at=None, params=None, t0_us=1_000_000, fif
             out += _ulog_msg("D", struct.pack("<HQ4f", 2, us, *flight.true_q[k]))
         if k % 4 == 0 and outputs is not None:
             out += _ulog_msg("D", struct.pack("<HQ16f", 5, us, *outputs[k], *[0.0] * 12))
+        if k % 2 == 0 and rotors is not None:
+            out += _ulog_msg("D", struct.pack("<HQ12f", 6, us, *rotors[0][k], *[np.nan] * 8))
+            esc = b"".join(struct.pack("<if", int(r), 16.0) for r in rotors[1][k])
+            out += _ulog_msg("D", struct.pack("<HQB", 7, us, 4) + esc)
     Path(path).write_bytes(out[:truncate_at] if truncate_at else out)
 
 
@@ -88,10 +100,11 @@ def _df_fmt(mid, name, fmt, cols):
     )
 
 
-def write_dataflash(path, flight, params=None, xkq=False, batch=False, mag=True, outputs=None):
+def write_dataflash(path, flight, params=None, xkq=False, batch=False, mag=True, outputs=None, esc_rpm=None):
     """A DataFlash log: IMU, MAG, ATT (and XKQ when ``xkq``; every sample as the batch sampler's
     GYR / ACC, and IMU every fourth, when ``batch``), PARM for ``params``. ``mag`` False leaves
-    MAG out; ``outputs`` (N, 4) PWM µs, one row per sample, logs RCOU every fourth sample."""
+    MAG out; ``outputs`` (N, 4) PWM µs, one row per sample, logs RCOU every fourth sample;
+    ``esc_rpm`` (N, 4) rpm: one ESC message per instance (output channel − 1) every second sample."""
     out = _df_fmt(128, "FMT", "BBnNZ", "Type,Length,Name,Format,Columns")
     out += _df_fmt(129, "IMU", "QBffffff", "TimeUS,I,GyrX,GyrY,GyrZ,AccX,AccY,AccZ")
     out += _df_fmt(130, "MAG", "QBfff", "TimeUS,I,MagX,MagY,MagZ")
@@ -101,6 +114,7 @@ def write_dataflash(path, flight, params=None, xkq=False, batch=False, mag=True,
     out += _df_fmt(134, "GYR", "QBQfff", "TimeUS,I,SampleUS,GyrX,GyrY,GyrZ")
     out += _df_fmt(135, "ACC", "QBQfff", "TimeUS,I,SampleUS,AccX,AccY,AccZ")
     out += _df_fmt(136, "RCOU", "Qffff", "TimeUS,C1,C2,C3,C4")
+    out += _df_fmt(137, "ESC", "QBf", "TimeUS,Instance,RPM")
     for name, value in (params or {}).items():
         out += b"\xa3\x95\x84" + struct.pack("<Q16sf", 400_000, name.encode(), value)
     eul = np.degrees(quat_to_euler(flight.true_q))
@@ -115,6 +129,9 @@ def write_dataflash(path, flight, params=None, xkq=False, batch=False, mag=True,
             out += b"\xa3\x95\x82" + struct.pack("<QB3f", us, 0, *(flight.mag[k] * 10.0))
         if k % 4 == 0 and outputs is not None:
             out += b"\xa3\x95\x88" + struct.pack("<Q4f", us, *outputs[k])
+        if k % 2 == 0 and esc_rpm is not None:
+            for i, rpm in enumerate(esc_rpm[k]):
+                out += b"\xa3\x95\x89" + struct.pack("<QBf", us, i, rpm)
         out += b"\xa3\x95\x83" + struct.pack("<Q3f", us, *eul[k])
         if xkq and k % 2 == 0:
             out += b"\xa3\x95\x85" + struct.pack("<QB4f", us, 0, *flight.true_q[k])

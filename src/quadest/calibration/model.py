@@ -110,7 +110,7 @@ class Calibration:
     def apply(self, rec: Recording) -> Recording:
         """A new recording with this calibration applied (gyro, accel, mag kinds)."""
         self.check(rec)
-        kw = {k: getattr(rec, k) for k in ("t", "gyr", "acc", "mag", *rec.truth)}
+        kw = {k: getattr(rec, k) for k in ("t", "gyr", "acc", "mag", *rec.truth, *rec.rotor_channels)}
         v = self.values
         if self.kind == "gyro":
             kw["gyr"] = rec.gyr - np.asarray(v["bias"])

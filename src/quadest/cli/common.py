@@ -154,14 +154,15 @@ def add_input_args(p):
         "--map",
         action="append",
         metavar="FIELD=COL[,COL..]",
-        help="--format csv: which columns are t, gyr, acc, mag, true_q, true_pos, true_vel "
-        "(e.g. --map gyr=gx,gy,gz; repeatable)",
+        help="--format csv: which columns are t, gyr, acc, mag, true_q, true_pos, true_vel, and "
+        "rotor_speed / motor_command (one column per rotor) (e.g. --map gyr=gx,gy,gz; repeatable)",
     )
     g.add_argument(
         "--units",
         action="append",
         metavar="FIELD=UNIT",
-        help="--format csv: t=s|ms|us|ns, gyr=rad/s|deg/s, acc=m/s^2|g|mg, mag=uT|nT|T|gauss|mgauss",
+        help="--format csv: t=s|ms|us|ns, gyr=rad/s|deg/s, acc=m/s^2|g|mg, mag=uT|nT|T|gauss|mgauss, "
+        "rotor_speed=rad/s|rpm, motor_command=1|%%",
     )
     g.add_argument(
         "--frame",

@@ -8,8 +8,10 @@ is fixed (docs/recordings.md)::
     t, gyr_x, gyr_y, gyr_z, acc_x, acc_y, acc_z, mag_x, mag_y, mag_z
     [, true_q_w, true_q_x, true_q_y, true_q_z] [, true_gyr_x, ...] [, true_pos_n, ...]
     [, true_vel_n, ...] [, true_acc_x, ...] [, ref_q_w, ...]
+    [, rotor_speed_0, ..., rotor_speed_{n-1}] [, motor_command_0, ...]
 
-and the metadata stands in ``# key: <json>`` comment lines at the top.
+and the metadata stands in ``# key: <json>`` comment lines at the top (the rotors' count,
+numbering and spin directions in ``# rotors: {...}`` where the source states them).
 """
 
 from __future__ import annotations
@@ -46,10 +48,23 @@ TRUTH_FIELDS = {
     ),
 }
 SENSOR_FIELDS = ("gyr", "acc", "mag")
+ROTOR_FIELDS = {
+    "rotor_speed": "each rotor's speed, rad/s",
+    "motor_command": "each motor's command, normalised: 0 off, 1 full",
+}
+"""The rotors' channels: one column per rotor, numbered from 0 in quadest's order (the detector's and a
+failure's rotor index); ``meta['rotors']`` says which of the source's motors each one is. NaN: no reading
+of that rotor at that row."""
+MAX_ROTOR_CHANNELS = 12
+ROTOR_SPEED_LIMIT = 1.0e4
+"""rad/s (about 95 000 rpm): no propeller turns faster; a larger value is rpm or another unit."""
 
 
-def columns_of(name: str) -> list[str]:
-    """CSV / Parquet column names of a field (``'gyr'`` -> ``['gyr_x', 'gyr_y', 'gyr_z']``)."""
+def columns_of(name: str, rotors: int = 0) -> list[str]:
+    """CSV / Parquet column names of a field (``'gyr'`` -> ``['gyr_x', 'gyr_y', 'gyr_z']``; a rotor
+    field's with its ``rotors`` count: ``rotor_speed_0`` ...)."""
+    if name in ROTOR_FIELDS:
+        return [f"{name}_{i}" for i in range(rotors)]
     if name in SENSOR_FIELDS:
         return [f"{name}_{a}" for a in "xyz"]
     return [f"{name}_{a}" for a in TRUTH_FIELDS[name][0]]
@@ -130,6 +145,11 @@ class Recording:
         ``TRUTH_FIELDS``); a row of NaN means "no truth at this sample".
     ref_q : optional reference attitude from the vehicle's own estimator (a log's onboard
         attitude), kept apart from truth.
+    rotor_speed : optional (N, n) speed of each of n rotors, rad/s, ≥ 0 (``ROTOR_FIELDS``).
+    motor_command : optional (N, n) command of each motor, normalised to [0, 1]. In both, NaN is
+        "no reading of that rotor at that row"; ``meta['rotors']`` holds the count, the source's
+        numbering (``motors``), the spin directions (``spin``, +1 clockwise seen from above) and
+        the arms' directions (``positions``, body FRD) where the source states them.
     meta : JSON-serialisable metadata: ``preset``, ``imu_rate_hz``, ``mag_rate_hz``,
         ``source``, ``units`` and anything else.
     check_units : if true (default), refuse magnitudes that show a unit mistake (gyroscope in
@@ -148,6 +168,8 @@ class Recording:
     true_vel: np.ndarray | None = None
     true_acc: np.ndarray | None = None
     ref_q: np.ndarray | None = None
+    rotor_speed: np.ndarray | None = None
+    motor_command: np.ndarray | None = None
     meta: dict = field(default_factory=dict)
     check_units: bool = field(default=True, repr=False)
     _adopt: bool = field(default=False, repr=False, compare=False)  # a reader's own arrays: not copied
@@ -187,6 +209,7 @@ class Recording:
             if name in ("true_q", "ref_q"):
                 _check_unit_rows(name, a)
             object.__setattr__(self, name, a)
+        self._set_rotor_channels(n, copy)
         if not isinstance(self.meta, dict):
             raise ValueError("meta: must be a dict")
         try:
@@ -198,18 +221,45 @@ class Recording:
             raise ValueError(f'meta: units must be a mapping like {{"mag": "uT"}}, got {meta["units"]!r}')
         meta["units"] = {"gyr": "rad/s", "acc": "m/s^2", "mag": "unknown", **meta["units"]}
         _check_si(meta["units"])
+        _check_rotor_meta(meta, self.rotors)
         object.__setattr__(self, "meta", meta)
         if self.check_units:
             self._check_units()
 
     # -- validation helpers -------------------------------------------------------------
+    def _set_rotor_channels(self, n, copy):
+        """The rotors' channels checked: one width for both, NaN allowed per value (a rotor without a
+        reading), never an infinite value, a negative speed or a command outside [0, 1]."""
+        widths = set()
+        for name in ROTOR_FIELDS:
+            value = getattr(self, name)
+            if value is None:
+                continue
+            a = self._array(name, value, n=n, copy=copy)
+            if not 1 <= a.shape[1] <= MAX_ROTOR_CHANNELS:
+                raise ValueError(f"{name}: expected 1 to {MAX_ROTOR_CHANNELS} rotors (columns), got {a.shape[1]}")
+            widths.add(a.shape[1])
+            inf = np.isinf(a).any(axis=1)
+            if inf.any():
+                raise ValueError(f"{name}: infinite value at row {_first_row(inf)}")
+            with np.errstate(invalid="ignore"):
+                low = (a < 0.0).any(axis=1) if name == "rotor_speed" else ((a < 0.0) | (a > 1.0)).any(axis=1)
+            if low.any():
+                i = _first_row(low)
+                what = "a negative speed (a magnitude, rad/s)" if name == "rotor_speed" else "a value outside [0, 1]"
+                raise ValueError(f"{name}: row {i} holds {what}: {a[i].tolist()}")
+            object.__setattr__(self, name, a)
+        if len(widths) > 1:
+            counts = " and ".join(map(str, sorted(widths)))
+            raise ValueError(f"rotor_speed and motor_command: different rotor counts ({counts})")
+
     @staticmethod
-    def _array(name, value, ndim=2, width=None, n=None, copy=True):
+    def _array(name, value, ndim=2, width=None, n=None, copy=True):  # width None: any (a rotor field)
         try:
             a = np.array(value, dtype=np.float64) if copy else np.asarray(value, dtype=np.float64)
         except (TypeError, ValueError):
             raise ValueError(f"{name}: not a numeric array") from None
-        shape = "(N,)" if ndim == 1 else f"(N, {width})"
+        shape = "(N,)" if ndim == 1 else f"(N, {width or 'rotors'})"
         if a.ndim != ndim or (width is not None and a.shape[1] != width):
             raise ValueError(f"{name}: expected shape {shape}, got {a.shape}")
         if n is not None and len(a) != n:
@@ -230,6 +280,15 @@ class Recording:
 
     def _check_units(self):
         check_units(self.t, self.gyr, self.acc, self.mag if self.has_mag else None)
+        if self.rotor_speed is not None:
+            with np.errstate(invalid="ignore"):
+                fast = (self.rotor_speed > ROTOR_SPEED_LIMIT).any(axis=1)
+            if fast.any():
+                i = _first_row(fast)
+                raise ValueError(
+                    f"rotor_speed: row {i} holds {np.nanmax(self.rotor_speed[i]):.6g}, beyond any propeller's "
+                    f"{ROTOR_SPEED_LIMIT:g} rad/s: the speeds are in rpm or another unit (rpm times pi/30 is rad/s)"
+                )
 
     # -- properties ---------------------------------------------------------------------
     def __len__(self):
@@ -238,7 +297,7 @@ class Recording:
     def __repr__(self) -> str:
         """A line, not the arrays: samples, duration, rate, channels and the source."""
         n = len(self.t)
-        channels = ["gyr", "acc", *(["mag"] if self.has_mag else []), *self.truth]
+        channels = ["gyr", "acc", *(["mag"] if self.has_mag else []), *self.truth, *self.rotor_channels]
         span = f", {self.duration:.3f} s at {self.imu_rate_hz():.1f} Hz" if n > 1 else ""
         source = self.meta.get("source")
         return (
@@ -261,6 +320,16 @@ class Recording:
     def truth(self) -> list[str]:
         """Names of the truth fields present."""
         return [k for k in TRUTH_FIELDS if getattr(self, k) is not None]
+
+    @property
+    def rotor_channels(self) -> list[str]:
+        """Names of the rotors' channels present (``ROTOR_FIELDS``)."""
+        return [k for k in ROTOR_FIELDS if getattr(self, k) is not None]
+
+    @property
+    def rotors(self) -> int:
+        """How many rotors the rotor channels hold (0: none)."""
+        return next((getattr(self, k).shape[1] for k in self.rotor_channels), 0)
 
     @property
     def declination(self) -> float:
@@ -299,7 +368,7 @@ class Recording:
 
     def select(self, index: slice | ArrayLike) -> Recording:
         """A new recording with the rows ``index`` (slice, boolean mask or integer array)."""
-        kw = {k: getattr(self, k)[index] for k in ("t", "gyr", "acc", "mag", *self.truth)}
+        kw = {k: getattr(self, k)[index] for k in ("t", "gyr", "acc", "mag", *self.truth, *self.rotor_channels)}
         return Recording(**kw, meta=self.meta, check_units=False)
 
     def sensors_only(self) -> Recording:
@@ -314,11 +383,27 @@ class Recording:
     def columns(self) -> dict[str, np.ndarray]:
         """Every column by its file name, in file order."""
         cols = {"t": self.t}
-        for name in ("gyr", "acc", "mag", *self.truth):
+        for name in ("gyr", "acc", "mag", *self.truth, *self.rotor_channels):
             a = getattr(self, name)
-            for j, c in enumerate(columns_of(name)):
+            for j, c in enumerate(columns_of(name, self.rotors)):
                 cols[c] = a[:, j]
         return cols
+
+
+def _check_rotor_meta(meta: dict, rotors: int) -> None:
+    """``meta['rotors']``, where present: a mapping whose ``count`` and per-rotor lists (``motors``,
+    ``spin``, ``positions``) agree with the channels' rotor count."""
+    info = meta.get("rotors")
+    if info is None:
+        return
+    if not isinstance(info, dict):
+        raise ValueError(f'meta: rotors must be a mapping like {{"count": 4, "spin": [...]}}, got {info!r}')
+    count = info.get("count", rotors)
+    if rotors and count != rotors:
+        raise ValueError(f"meta: rotors states {count} rotors but the rotor channels hold {rotors}")
+    for key in ("motors", "spin", "positions"):
+        if key in info and (not isinstance(info[key], list) or len(info[key]) != count):
+            raise ValueError(f"meta: rotors.{key} must be a list of {count} (one per rotor), got {info[key]!r}")
 
 
 # -- files ---------------------------------------------------------------------------------
@@ -371,6 +456,17 @@ def _stacked(get, cols, n) -> np.ndarray:
     return out
 
 
+def _rotor_columns(names, field_name, source) -> list[str]:
+    """A rotor field's columns, ``NAME_0`` on without a gap (or none)."""
+    found = [c for c in names if re.fullmatch(rf"{field_name}_\d+", c)]
+    expected = columns_of(field_name, len(found))
+    if sorted(found) != sorted(expected):
+        raise ValueError(
+            f"{source}: {field_name} needs the columns {', '.join(expected)} (numbered from 0), got {', '.join(found)}"
+        )
+    return expected
+
+
 def _from_columns(names, get, meta, source, check_units=True) -> Recording:
     names = list(names)
     base = ["t"] + [c for f in SENSOR_FIELDS for c in columns_of(f)]
@@ -387,6 +483,11 @@ def _from_columns(names, get, meta, source, check_units=True) -> Recording:
         if present and len(present) != len(cols):
             raise ValueError(f"{source}: truth field {f} needs all of {', '.join(cols)}")
         if present:
+            kw[f] = _stacked(get, cols, len(kw["t"]))
+            known.update(cols)
+    for f in ROTOR_FIELDS:
+        cols = _rotor_columns(names, f, source)
+        if cols:
             kw[f] = _stacked(get, cols, len(kw["t"]))
             known.update(cols)
     extra = [c for c in names if c not in known]

@@ -1,9 +1,10 @@
-"""What ``quadest info`` prints: duration, rates, ranges, gaps and the truth present."""
+"""What ``quadest info`` prints: duration, rates, ranges, gaps, the truth present and the rotors'
+channels."""
 
 import numpy as np
 
 from quadest.data.checks import BLOCK, GAP_FACTOR, GAP_MIN_S, jitter_note, row_norms, timestamp_jitter
-from quadest.data.recording import TRUTH_FIELDS, Recording
+from quadest.data.recording import ROTOR_FIELDS, TRUTH_FIELDS, Recording
 
 IRREGULAR_FACTOR = 1.5  # an interval longer than this many median intervals is irregular
 
@@ -54,6 +55,25 @@ def summarize(rec: Recording) -> dict:
         out["imu_sources"] = rec.meta["imu_sources"]
     out["declination_deg"] = float(np.degrees(rec.declination))
     out["declination_source"] = rec.declination_source
+    out["rotors"] = rotor_summary(rec)
+    return out
+
+
+def rotor_summary(rec: Recording) -> dict:
+    """The rotors' channels: per channel its rows with a reading and each rotor's median and largest
+    value; and what the source states of the rotors (``meta['rotors']``: numbering, spin, the
+    readings' sources and rates)."""
+    out = {"count": rec.rotors, "channels": {}, **{k: v for k, v in rec.meta.get("rotors", {}).items() if k != "count"}}
+    for name in rec.rotor_channels:
+        a = getattr(rec, name)
+        read = np.isfinite(a)
+        rows = read.any(axis=1)
+        out["channels"][name] = {
+            "meaning": ROTOR_FIELDS[name],
+            "rows": int(rows.sum()),
+            "median": [float(np.median(a[read[:, i], i])) if read[:, i].any() else None for i in range(a.shape[1])],
+            "max": [float(a[read[:, i], i].max()) if read[:, i].any() else None for i in range(a.shape[1])],
+        }
     return out
 
 
@@ -103,4 +123,21 @@ def format_summary(s: dict, name: str = "") -> str:
         lines.append(f"{name:<11} min [{lo}]  max [{hi}]  mean norm {r['norm_mean']:.4g} {unit}")
     truth = s["truth"]
     lines.append("truth       " + ("; ".join(f"{k} ({v})" for k, v in truth.items()) if truth else "none"))
-    return "\n".join(lines)
+    return "\n".join(lines + _rotor_lines(s.get("rotors", {})))
+
+
+def _rotor_lines(r: dict) -> list[str]:
+    """:func:`rotor_summary` as lines (none without rotor channels)."""
+    if not r.get("count"):
+        return []
+    stated = [f"{k} {r[k]}" for k in ("frame", "motors", "spin", "numbering") if k in r]
+    lines = [f"rotors      {r['count']}" + (f" ({'; '.join(stated)})" if stated else "")]
+    for name, c in r["channels"].items():
+        med = ", ".join("-" if v is None else f"{v:.4g}" for v in c["median"])
+        rate = r.get("rates_hz", {}).get(name)
+        source = r.get("sources", {}).get(name)
+        lines.append(
+            f"  {name:<13} {c['rows']} rows{f', read at {rate:.1f} Hz' if rate else ''}; median [{med}] "
+            f"({c['meaning']}){f'; from {source}' if source else ''}"
+        )
+    return lines

@@ -33,15 +33,17 @@ pushes at the speed it turns, so that its effectiveness stays 1.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+import warnings
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from quadest._jit import NO_ALLOCATION, njit
+from quadest.detect import inputs
 from quadest.detect.filter import correct, gyro_noise_estimate, note_commands, predict, start_filter
-from quadest.detect.layout import DIAG, DIAGNOSTICS, MODEL, STAT, STATE, STATISTICS
+from quadest.detect.layout import DIAG, DIAGNOSTICS, MODEL, SCALE_RANGE, STAT, STATE, STATISTICS
 from quadest.detect.model import air_lowpass, model_coefficients, motor_step
 from quadest.detect.params import PARAM, DetectorParams
 from quadest.detect.sequential import cusum_test, glr_store, glr_test
@@ -104,14 +106,72 @@ def detect_step(x, p, c, gyr, acc, rotors, dt, diag):
 
 
 @njit(cache=True, **NO_ALLOCATION)
-def detect_run(x, p, c, dt, gyr, acc, rotors, diag_out, commands):
+def detect_batch(x, p, c, dt, gyr, acc, rotors, diag_out, commands):
     """Batch: the same step over every sample; ``commands`` the speeds commanded over each
-    interval (:func:`note_commands`), or no rows."""
+    interval (:func:`note_commands`), or no rows. Compiled: it checks nothing (:func:`detect_run`
+    does)."""
     noted = commands.shape[0] == len(dt)
     for k in range(len(dt)):
         if noted:
             note_commands(x, p, c, commands[k])
         detect_step(x, p, c, gyr[k], acc[k], rotors[k], dt[k], diag_out[k])
+
+
+def detect_run(
+    x: np.ndarray,
+    p: np.ndarray,
+    c: np.ndarray,
+    dt: ArrayLike,
+    gyr: ArrayLike,
+    acc: ArrayLike,
+    rotors: ArrayLike,
+    diag_out: np.ndarray,
+    commands: ArrayLike,
+) -> None:
+    """:func:`detect_batch` on the arrays of :meth:`Detector.compiled` after checking them
+    (:mod:`quadest.detect.inputs`): ``dt`` (N,) s, ``gyr`` and ``acc`` (N, 3), ``rotors`` (N, n)
+    rad/s with n the model's rotors, ``diag_out`` (N, DIAG) written, ``commands`` (N, n) rad/s
+    or no rows. A wrong shape, rotor count or unit is one ValueError naming the argument."""
+    _checked_batch("detect_run", x, p, c, dt, gyr, acc, rotors, diag_out, commands)
+
+
+def _checked_batch(who, x, p, c, dt, gyr, acc, rotors, diag_out, commands) -> None:
+    """:func:`detect_run`'s checks and run, its errors naming ``who``."""
+    n_rot = inputs.model_rotors(c, who)
+    inputs.state_arrays(who, x=(x, STATE.end), p=(p, len(PARAM._fields)))
+    dt = inputs.rows(who, "dt", dt, np.shape(dt)[0] if np.ndim(dt) else -1, None)
+    n = len(dt)
+    gyr, acc = (inputs.rows(who, k, a, n, 3) for k, a in (("gyr", gyr), ("acc", acc)))
+    rotors = inputs.rows(who, "rotors", rotors, n, n_rot, inputs.rotor_hint(np.shape(rotors)[-1], n_rot))
+    inputs.state_arrays(who, diag_out=(diag_out, DIAG))
+    if diag_out.shape != (n, DIAG):
+        raise ValueError(f"{who}: diag_out has shape {diag_out.shape}, expected ({n}, {DIAG})")
+    cmd_rows = np.shape(commands)[0] if np.ndim(commands) == 2 else -1
+    commands = inputs.rows(who, "commands", commands, 0 if cmd_rows == 0 else n, n_rot, " (or no rows)")
+    inputs.rotor_speeds(who, "rotors", rotors, c)
+    inputs.rotor_speeds(who, "commands", commands, c)
+    detect_batch(x, p, c, dt, gyr, acc, rotors, diag_out, commands)
+
+
+def detect_sample(
+    x: np.ndarray,
+    p: np.ndarray,
+    c: np.ndarray,
+    gyr: ArrayLike,
+    acc: ArrayLike,
+    rotors: ArrayLike,
+    dt: float,
+    diag: np.ndarray,
+) -> int:
+    """:func:`detect_step` (one sample, compiled, checking nothing: what compiled loops call)
+    after checking its arguments as :func:`detect_run` does; the rotor found lost (-1: none)."""
+    who = "detect_step"
+    n_rot = inputs.model_rotors(c, who)
+    inputs.state_arrays(who, x=(x, STATE.end), p=(p, len(PARAM._fields)), diag=(diag, DIAG))
+    gyr, acc = (inputs.rows(who, k, a, 3, None) for k, a in (("gyr", gyr), ("acc", acc)))
+    rotors = inputs.rows(who, "rotors", rotors, n_rot, None, inputs.rotor_hint(np.size(rotors), n_rot))
+    inputs.rotor_speeds(who, "rotors", rotors, c, run=False)
+    return detect_step(x, p, c, gyr, acc, rotors, float(dt), diag)
 
 
 @dataclass
@@ -131,6 +191,12 @@ class Detection:
     statistics: np.ndarray | None = None
     """Per sample: the largest 'lost' sum and its rotor, the largest 'damaged' sum and its rotor,
     the largest speed test's sum and its rotor."""
+    moment_scale: np.ndarray | None = None
+    """The rotors' moment about x, y and z learnt against the model's at the end (1: the model's)."""
+    moment_scale_clamped: list[str] = field(default_factory=list)
+    """The axes ('x', 'y', 'z') whose learnt moment reached its clamp (1 ± ``SCALE_RANGE``) at some
+    sample: the model is off by more than the detector corrects there (its results are then the
+    clamped model's; a warning said so)."""
 
 
 class Detector:
@@ -176,17 +242,13 @@ class Detector:
         ``commands`` over the interval too, for the thrust cut's hold and the speed test): the rotor
         found lost, or None."""
         if commands is not None:
-            note_commands(self._state, self._values, self._model, _vec(commands, self.rotors))
-        lost = detect_step(
-            self._state,
-            self._values,
-            self._model,
-            _vec(gyr, 3),
-            _vec(acc, 3),
-            _vec(rotors, self.rotors),
-            float(dt),
-            self._out,
-        )
+            cmds = _vec(commands, self.rotors, "commands")
+            inputs.rotor_speeds("detector", "commands", cmds, self._model, run=False)
+            note_commands(self._state, self._values, self._model, cmds)
+        speeds = _vec(rotors, self.rotors, "rotors")
+        inputs.rotor_speeds("detector", "rotors", speeds, self._model, run=False)
+        g = _vec(gyr, 3, "gyr")  # NaN: a bad sample, skipped by the step
+        lost = detect_step(self._state, self._values, self._model, g, _vec(acc, 3, "acc"), speeds, float(dt), self._out)
         return None if lost < 0 else lost
 
     @property
@@ -206,6 +268,7 @@ class Detector:
             return None if x[key] < 0 else int(x[key])
 
         lost, damaged = found(STATE.lost), found(STATE.damaged)
+        clamped = [a for j, a in enumerate("xyz") if x[STATE.scale_clamped + j] != 0.0]
         return Detection(
             np.asarray(t if t is not None else []),
             np.asarray(effectiveness if effectiveness is not None else np.empty((0, self.rotors))),
@@ -215,6 +278,8 @@ class Detector:
             damaged,
             None if damaged is None else float(x[STATE.damaged_t]),
             None if damaged is None else float(x[STATE.damaged_eta]),
+            moment_scale=self.moment_scale,
+            moment_scale_clamped=clamped,
         )
 
     def run(
@@ -222,25 +287,27 @@ class Detector:
     ) -> Detection:
         """Over whole arrays (rows of samples; ``commands`` as in :meth:`update`), from the current
         state. Times in the result are seconds from the first sample the detector saw."""
-        t = np.asarray(t, float)
+        t = inputs.rows("detector", "t", t, np.shape(t)[0] if np.ndim(t) == 1 else -1, None)
         n = len(t)
-        gyr, acc = (np.ascontiguousarray(a, dtype=float) for a in (gyr, acc))
-        rotors = np.ascontiguousarray(rotors, dtype=float)
-        cmds = np.ascontiguousarray(np.zeros((0, self.rotors)) if commands is None else commands, dtype=float)
-        if gyr.shape != (n, 3) or acc.shape != (n, 3) or rotors.shape != (n, self.rotors):
-            raise ValueError(f"detector: gyr and acc must be ({n}, 3) and rotors ({n}, {self.rotors})")
-        if commands is not None and cmds.shape != (n, self.rotors):
-            raise ValueError(f"detector: commands must be ({n}, {self.rotors})")
-        dt = np.diff(t, prepend=t[0] - (np.median(np.diff(t)) if n > 1 else 0.0))
+        clamped = {a for j, a in enumerate("xyz") if self._state[STATE.scale_clamped + j] != 0.0}
+        dt = np.diff(t, prepend=t[0] - (np.median(np.diff(t)) if n > 1 else 0.0)) if n else t
+        cmds = np.zeros((0, self.rotors)) if commands is None else commands
         diag = np.zeros((n, DIAG))
-        detect_run(self._state, self._values, self._model, dt, gyr, acc, rotors, diag, cmds)
+        _checked_batch("detector", self._state, self._values, self._model, dt, gyr, acc, rotors, diag, cmds)
         res = self.result(t, diag[:, : self.rotors])
         res.statistics = diag[:, STAT:DIAG]
+        new = [a for a in res.moment_scale_clamped if a not in clamped]
+        if new:
+            warnings.warn(
+                f"detector: the rotors' moment learnt about {', '.join(new)} reached its clamp (1 ± "
+                f"{SCALE_RANGE:g} of the model's): the vehicle's model is off by more than that (inertia, mass, "
+                "thrust or arm length); fit it, or the detection runs on the clamped model",
+                stacklevel=2,
+            )
         return res
 
 
-def _vec(v, n):
-    a = np.ascontiguousarray(v, dtype=np.float64)
-    if a.shape != (n,):
-        raise ValueError(f"detector: expected {n} values, got shape {a.shape}")
-    return a
+def _vec(v, n, name):
+    return inputs.rows(
+        "detector", name, v, n, None, inputs.rotor_hint(np.size(v), n) if name in ("rotors", "commands") else ""
+    )

@@ -159,6 +159,8 @@ def _learn_moment_scale(x, p, c, gyr, a, base, dt):
             slope = (x[S + j] + prior) / (x[S + 3 + j] + prior)
             paced = min(max(slope, x[STATE.scale + j] - step), x[STATE.scale + j] + step)
             x[STATE.scale + j] = min(max(paced, 1.0 - SCALE_RANGE), 1.0 + SCALE_RANGE)
+            if abs(paced - 1.0) >= SCALE_RANGE:  # at the clamp: reported (Detection.moment_scale_clamped)
+                x[STATE.scale_clamped + j] = 1.0
         scale = x[STATE.scale + j]
         for i in range(n):
             x[STATE.B + j * MAX_ROTORS + i] *= scale

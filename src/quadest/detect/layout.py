@@ -58,6 +58,7 @@ STATE = layout(
     ("scale_y", 6),  # per axis, the measured rate change less the model's without the rotors, low-passed
     ("scale_u", 6),  # over SCALE_LP and that over SCALE_HP; the rotors' modelled rate change, the same
     ("scale_sums", 6),  # Σ y u, then Σ u u, per axis, over the scale's memory
+    ("scale_clamped", 3),  # per axis 1 once the scale reached its clamp (1 ± SCALE_RANGE)
     ("alpha", 3),  # scratch of one step: the model's angular acceleration over the interval
     ("acc_cg", 3),  # and the accelerometer's reading moved to the centre of mass
     ("thrust", MAX_ROTORS),  # and each intact rotor's thrust at its speed over the interval (N)

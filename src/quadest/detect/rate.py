@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from quadest._jit import NO_ALLOCATION, njit
+from quadest.detect import inputs
 from quadest.detect.layout import MAX_ROTORS, MODEL
 from quadest.detect.model import body_moments, model_coefficients, motor_step, rotor_thrust_yaw
 from quadest.records import Params, check, layout, pack, param, params_record
@@ -335,6 +336,31 @@ def rate_run(x, p, c, gyr, mag, rotors, eta, gyro_range, dt, out):
         rate_step(x, p, c, gyr[k], mag[k], rotors[k], eta[k], gyro_range, dt[k], out[k])
 
 
+def rate_sample(
+    x: np.ndarray,
+    p: np.ndarray,
+    c: np.ndarray,
+    gyr: ArrayLike,
+    mag: ArrayLike,
+    rotors: ArrayLike,
+    eta: ArrayLike,
+    gyro_range: float,
+    dt: float,
+    out: np.ndarray,
+) -> int:
+    """:func:`rate_step` (one sample, compiled, checking nothing: what compiled loops call) after
+    checking its arguments: the model's rotor count, shapes and the units of the speeds
+    (:mod:`quadest.detect.inputs`)."""
+    who = "rate_step"
+    n = inputs.model_rotors(c, who)
+    inputs.state_arrays(who, x=(x, STATE.end), p=(p, len(PARAM._fields)), out=(out, 3))
+    gyr, mag = (inputs.rows(who, k, a, 3, None) for k, a in (("gyr", gyr), ("mag", mag)))
+    rotors = inputs.rows(who, "rotors", rotors, n, None, inputs.rotor_hint(np.size(rotors), n))
+    eta = inputs.rows(who, "eta", eta, n, None)
+    inputs.rotor_speeds(who, "rotors", rotors, c, run=False)
+    return rate_step(x, p, c, gyr, mag, rotors, eta, float(gyro_range), float(dt), out)
+
+
 class RatePredictor:
     """The rate of a clipped gyroscope axis (module doc) for one vehicle: ``vehicle`` is the
     predictor's model (a :class:`~quadest.models.multirotor.MultirotorParams`, never the
@@ -370,13 +396,14 @@ class RatePredictor:
         each, ``rotors`` the speeds or the commands over it, ``eta`` each rotor's effectiveness,
         1 if not given, ``mag`` the magnetometer, NaN rows between its samples, none if not
         given), from the current state."""
-        dt = np.ascontiguousarray(dt, dtype=float)
+        who, k = "rate predictor", self.rotors
+        dt = inputs.rows(who, "dt", dt, np.shape(dt)[0] if np.ndim(dt) == 1 else -1, None)
         n = len(dt)
-        gyr, rotors = (np.ascontiguousarray(a, dtype=float) for a in (gyr, rotors))
-        eta = np.ones((n, self.rotors)) if eta is None else np.ascontiguousarray(eta, dtype=float)
-        mag = np.full((n, 3), np.nan) if mag is None else np.ascontiguousarray(mag, dtype=float)
-        if gyr.shape != (n, 3) or mag.shape != (n, 3) or rotors.shape != (n, self.rotors) or eta.shape != rotors.shape:
-            raise ValueError(f"rate predictor: gyr and mag must be ({n}, 3), rotors and eta ({n}, {self.rotors})")
+        gyr = inputs.rows(who, "gyr", gyr, n, 3)
+        rotors = inputs.rows(who, "rotors", rotors, n, k, inputs.rotor_hint(np.shape(rotors)[-1], k))
+        eta = np.ones((n, k)) if eta is None else inputs.rows(who, "eta", eta, n, k)
+        mag = np.full((n, 3), np.nan) if mag is None else inputs.rows(who, "mag", mag, n, 3)
+        inputs.rotor_speeds(who, "rotors", rotors, self._model)
         out = np.empty((n, 3))
         rate_run(self._state, self._values, self._model, gyr, mag, rotors, eta, self.gyro_range, dt, out)
         return out

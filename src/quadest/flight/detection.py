@@ -12,7 +12,7 @@ failure on (docs/detection.md).
 from __future__ import annotations
 
 from quadest._jit import njit
-from quadest.detect import detect_step
+from quadest.detect.effectiveness import detect_step
 from quadest.detect.filter import note_commands
 from quadest.detect.layout import STAT, STATE, STATISTICS
 from quadest.flight.phases import FAULT, FLYING

@@ -221,6 +221,12 @@ def report_layout(rec, summ: dict, att: dict, title: str):
         f = _figure("rotor speeds [rad/s]", xr, "rad/s", "rotor-speeds")
         _lines(f, tr, {k.replace("_speed", ""): v for k, v in speeds.items()})
         parts.append(f)
+    for name, label, unit in (("rotor_speed", "rotor speeds", "rad/s"), ("motor_command", "motor commands", "0 to 1")):
+        a = getattr(rec, name)  # the recording's own channels (a flight's table drew its speeds above)
+        if a is not None and not (name == "rotor_speed" and att.get("rotors") is not None):
+            f = _figure(f"{label} (the recording's) [{unit}]", xr, unit, name.replace("_", "-"))
+            _lines(f, t, {f"rotor {i}": a[:, i] for i in range(a.shape[1])})
+            parts.append(f)
     if att.get("diagnosis") is not None:
         parts += _diagnosis_section(att["diagnosis"], xr)
     parts.append(_spectrogram(rec, xr))

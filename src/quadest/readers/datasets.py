@@ -13,6 +13,7 @@ import numpy as np
 
 from quadest.extras import need
 from quadest.readers.common import ReaderError, make_recording, resample_quat, z_up_nav_to_ned
+from quadest.readers.rotors import RPM, rotor_meta
 from quadest.rotation.frames import quat_enu_flu_to_ned_frd, vec_enu_to_ned, vec_flu_to_frd
 
 DAMAGE = (OSError, RuntimeError, KeyError, TypeError, IndexError, AttributeError, OverflowError)
@@ -181,6 +182,47 @@ def _sampling_rate(path, value) -> float:
 
 
 # -- DIDO -------------------------------------------------------------------------------------------
+DIDO_RPM_UNIT = 1.0e4
+"""DIDO's ``meas_rpm`` is in units of 10⁴ rpm."""
+
+
+def _dido_rotor_speed(d, t, meta) -> dict:
+    """``meas_rpm`` as ``rotor_speed`` (rad/s) on the IMU's rows: N×4, or N×5 with a time column
+    first (both layouts are in the dataset); a negative or non-finite value is no reading (NaN,
+    counted in a warning); rows that do not match the IMU's leave the speeds out (a warning). The
+    readings' rate is that of the rows where a speed changes (the telemetry's, held on the IMU's
+    rows: about 100 Hz on the shared flights)."""
+    if "meas_rpm" not in d:
+        return {}
+    n = len(t)
+    r = np.asarray(d["meas_rpm"], float)
+    if r.ndim != 2 or r.shape[1] not in (4, 5) or len(r) != n:
+        meta.setdefault("warnings", []).append(
+            f"meas_rpm is {r.shape}, not (N, 4) or (N, 5) on the {n} IMU rows: the rotor speeds are left out"
+        )
+        return {}
+    speed = r[:, -4:] * (DIDO_RPM_UNIT * RPM)
+    bad = ~np.isfinite(speed) | (speed < 0)
+    if bad.any():
+        speed[bad] = np.nan
+        meta.setdefault("warnings", []).append(f"meas_rpm: {int(bad.sum())} negative or non-finite value(s) left out")
+    layout = "N×5: a time column, then the four speeds" if r.shape[1] == 5 else "N×4"
+    meta["rotors"] = rotor_meta(
+        4,
+        numbering="DIDO's meas_rpm column order; the dataset states neither the rotors' places nor their spin",
+        sources={"rotor_speed": f"meas_rpm ({layout}), 10⁴ rpm"},
+        rates={"rotor_speed": _change_rate(t, speed)},
+    )
+    return {"rotor_speed": speed}
+
+
+def _change_rate(t, a) -> float:
+    """Hz of the rows where a value of ``a`` changes (a reading held over several rows counts once)."""
+    span = float(t[-1] - t[0]) if len(t) > 1 else 0.0
+    changed = (np.diff(np.nan_to_num(a), axis=0) != 0).any(axis=1).sum()
+    return float(changed / span) if span > 0 else 0.0
+
+
 def read_dido(path):
     with _h5(path) as f:
         _need(f, ("ts", "acc", "gyr", "gt_q"), path, "DIDO")
@@ -201,6 +243,9 @@ def read_dido(path):
         "truth_source": "motion capture (DIDO gt_*)",
         "align": {"nav": "heading"},
     }
+    if "dynamic_params" in d:  # kept as stored: the dataset does not document its nine values
+        meta["dido_dynamic_params"] = np.asarray(d["dynamic_params"], float).ravel().tolist()
+    truth.update(_dido_rotor_speed(d, t, meta))
     return make_recording(path, "dido", t, vec_flu_to_frd(d["gyr"]), vec_flu_to_frd(d["acc"]), None, meta, **truth)
 
 

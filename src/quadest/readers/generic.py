@@ -5,7 +5,11 @@
     {"t": "timestamp", "gyr": ["gx", "gy", "gz"], "acc": ["ax", "ay", "az"],
      "mag": ["mx", "my", "mz"], "true_q": ["qw", "qx", "qy", "qz"]}
 
-``units``: ``{"t": "ms", "gyr": "deg/s", "acc": "g", "mag": "gauss"}`` (defaults SI and µT);
+and the rotors' channels, one column per rotor in quadest's order (``"rotor_speed": ["w1", "w2",
+"w3", "w4"]``, ``"motor_command": [...]``, docs/recordings.md).
+
+``units``: ``{"t": "ms", "gyr": "deg/s", "acc": "g", "mag": "gauss", "rotor_speed": "rpm",
+"motor_command": "%"}`` (defaults SI, µT and commands from 0 to 1);
 ``frame``: ``"ned-frd"`` (default) or ``"enu-flu"``; ``quat_order``: ``"wxyz"`` or ``"xyzw"``.
 From the command line: ``--format csv --map t=timestamp --map gyr=gx,gy,gz ... --units gyr=deg/s
 --frame enu-flu`` (docs/readers.md)."""
@@ -16,9 +20,12 @@ import numpy as np
 
 from quadest.data.recording import numeric_column
 from quadest.readers.common import ReaderError, make_recording, unit_factor
+from quadest.readers.rotors import RPM, rotor_meta
 from quadest.rotation.frames import quat_enu_flu_to_ned_frd, vec_enu_to_ned, vec_flu_to_frd
 
 FIELDS = {"t": 1, "gyr": 3, "acc": 3, "mag": 3, "true_q": 4, "true_pos": 3, "true_vel": 3}
+ROTOR_MAPS = ("rotor_speed", "motor_command")  # one column per rotor, any count
+UNITS = {"rotor_speed": {"rad/s": 1.0, "rpm": RPM}, "motor_command": {"1": 1.0, "%": 0.01}}
 
 
 def parse_columns(items) -> dict:
@@ -27,11 +34,13 @@ def parse_columns(items) -> dict:
     for item in items or []:
         key, sep, val = item.partition("=")
         key = key.strip()
-        if not sep or key not in FIELDS:
-            raise ReaderError(
-                f"--map {item!r}: expected FIELD=COLUMN[,COLUMN...] with FIELD one of {', '.join(FIELDS)}"
-            )
+        if not sep or key not in (*FIELDS, *ROTOR_MAPS):
+            known = ", ".join((*FIELDS, *ROTOR_MAPS))
+            raise ReaderError(f"--map {item!r}: expected FIELD=COLUMN[,COLUMN...] with FIELD one of {known}")
         cols = [c.strip() for c in val.split(",")]
+        if key in ROTOR_MAPS:
+            out[key] = cols  # one per rotor
+            continue
         if len(cols) != FIELDS[key]:
             raise ReaderError(f"--map {item!r}: {key} needs {FIELDS[key]} column(s), got {len(cols)}")
         out[key] = cols[0] if key == "t" else cols
@@ -42,13 +51,35 @@ def parse_units(items) -> dict:
     out = {}
     for item in items or []:
         key, sep, val = item.partition("=")
-        if not sep or key.strip() not in ("t", "gyr", "acc", "mag"):
+        if not sep or key.strip() not in ("t", "gyr", "acc", "mag", *UNITS):
             raise ReaderError(
-                f"--units {item!r}: expected t=s|ms|us|ns, gyr=rad/s|deg/s, acc=m/s^2|g|mg or mag=uT|nT|T|gauss|mgauss"
+                f"--units {item!r}: expected t=s|ms|us|ns, gyr=rad/s|deg/s, acc=m/s^2|g|mg, mag=uT|nT|T|gauss|mgauss, "
+                "rotor_speed=rad/s|rpm or motor_command=1|%"
             )
-        unit_factor(key.strip(), val.strip())  # validates
+        _factor(key.strip(), val.strip())  # validates
         out[key.strip()] = val.strip()
     return out
+
+
+def _factor(kind: str, unit: str) -> float:
+    """The factor of ``unit`` to quadest's (a rotor channel's, or :func:`unit_factor`'s)."""
+    if kind not in UNITS:
+        return unit_factor(kind, unit)
+    if unit not in UNITS[kind]:
+        raise ReaderError(f"unknown {kind} unit {unit!r}; known: {', '.join(UNITS[kind])}")
+    return UNITS[kind][unit]
+
+
+def _rotor_channels(vec, columns, units) -> tuple[dict, dict | None]:
+    """The mapped rotor channels in quadest's units and their ``meta['rotors']``."""
+    out = {k: vec(k) * _factor(k, units.get(k, next(iter(UNITS[k])))) for k in ROTOR_MAPS if k in columns}
+    if not out:
+        return {}, None
+    counts = {len(columns[k]) for k in out}
+    if len(counts) > 1:
+        raise ReaderError(f"--map: rotor_speed and motor_command name different numbers of columns ({sorted(counts)})")
+    sources = {k: f"columns {', '.join(columns[k])}" for k in out}
+    return out, rotor_meta(counts.pop(), numbering="the mapped columns' order", sources=sources)
 
 
 def read_csv_mapped(
@@ -107,6 +138,7 @@ def read_csv_mapped(
     for k in ("true_pos", "true_vel"):
         if k in columns:
             truth[k] = vec(k)
+    rotor_channels, rotors = _rotor_channels(vec, columns, units)
     if frame == "enu-flu":
         gyr, acc = vec_flu_to_frd(gyr), vec_flu_to_frd(acc)
         mag = vec_flu_to_frd(mag) if mag is not None else None
@@ -123,5 +155,6 @@ def read_csv_mapped(
         "column_map": columns,
         "units_in_file": units,
         "frames": f"{frame} -> NED/FRD",
+        **({"rotors": rotors} if rotors else {}),
     }
-    return make_recording(path, "csv", t, gyr, acc, mag, meta, **truth)
+    return make_recording(path, "csv", t, gyr, acc, mag, meta, **truth, **rotor_channels)

@@ -12,6 +12,7 @@ import numpy as np
 from quadest.errors import UsageError
 from quadest.extras import need
 from quadest.readers.common import ReaderError, mag_on_imu_rows, make_recording, reason, resample_quat
+from quadest.readers.rotors import PX4_ROTOR_TOPICS, ardupilot_rotors, px4_rotors
 from quadest.records import number
 from quadest.rotation import euler_to_quat
 
@@ -104,8 +105,9 @@ def _ulog_fifo(data, path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def _read_ulog(path, *, instance: int = 0, imu: str = "logged"):
     """Raw IMU from ``sensor_combined`` (or ``vehicle_imu``-less logs' ``sensor_accel`` /
     ``sensor_gyro``), magnetometer from ``vehicle_magnetometer``, ``sensor_mag`` or the
-    ``magnetometer_ga`` fields of old ``sensor_combined`` (gauss -> µT), and the onboard EKF2
-    attitude ``vehicle_attitude.q`` as ``ref_q``."""
+    ``magnetometer_ga`` fields of old ``sensor_combined`` (gauss -> µT), the onboard EKF2
+    attitude ``vehicle_attitude.q`` as ``ref_q``, and the rotors' commands and speeds
+    (:func:`~quadest.readers.rotors.px4_rotors`)."""
     ULog = need("pyulog", "reading a PX4 ULog").ULog
 
     topics = [
@@ -115,6 +117,7 @@ def _read_ulog(path, *, instance: int = 0, imu: str = "logged"):
         "vehicle_magnetometer",
         "sensor_mag",
         "vehicle_attitude",
+        *PX4_ROTOR_TOPICS,
     ] + (list(PX4_FIFO) if imu == "fifo" else [])
     try:
         ulog = ULog(str(path), topics)
@@ -165,6 +168,8 @@ def _read_ulog(path, *, instance: int = 0, imu: str = "logged"):
     if "vehicle_attitude" in data:
         va = data["vehicle_attitude"]
         truth["ref_q"] = resample_quat(va["timestamp"] * 1e-6, np.column_stack([va[f"q[{i}]"] for i in range(4)]), t)
+    rotor_channels, rotors = px4_rotors(data, ulog.initial_parameters, t)
+    truth.update(rotor_channels)
     corrupt = bool(getattr(ulog, "file_corruption", False)) or _ulog_cut(path)
     meta = {
         "source_format": "PX4 ULog",
@@ -175,6 +180,7 @@ def _read_ulog(path, *, instance: int = 0, imu: str = "logged"):
         "imu_source": "sensor_gyro_fifo / sensor_accel_fifo" if imu == "fifo" else "the logged IMU topic",
         "imu_sources": ["logged"] + (["fifo"] if all(n in ulog.message_formats for n in PX4_FIFO) else []),
         **_ulog_declination(ulog),
+        **({"rotors": rotors} if rotors else {}),
     }
     if corrupt:
         meta["warnings"] = [
@@ -219,16 +225,17 @@ def _ulog_cut(path) -> bool:
 def _read_dataflash(path, *, instance: int = 0, imu: str = "logged"):
     """IMU (GyrX.. rad/s, AccX.. m/s²; or with ``imu="fifo"`` the batch sampler's GYR / ACC at
     their ``SampleUS``), MAG (MagX.. milligauss -> µT), the EKF's attitude as ``ref_q``
-    (:func:`_dataflash_reference`) and the declination ``COMPASS_DEC``; instance ``I`` 0 unless
-    chosen."""
+    (:func:`_dataflash_reference`), the declination ``COMPASS_DEC`` and the rotors' commands and
+    speeds (:func:`~quadest.readers.rotors.ardupilot_rotors`); instance ``I`` 0 unless chosen."""
     DFReader = need("pymavlink.DFReader", "reading an ArduPilot DataFlash log")
     fifo = imu == "fifo"
     imu, mag, att, xkq, vibe, params, present = [], [], [], [], [], {}, set()
     batch = {"GYR": [], "ACC": []} if fifo else None
+    motors = {"RCOU": [], "ESC": [], "PARM": {}}  # PARM: each parameter's first value (the motors' outputs)
     with _printed() as said:  # pymavlink prints what it skips; quadest counts it and says it once
         log = open_dataflash(DFReader, path)
         try:
-            _read_dataflash_messages(log, instance, (imu, mag, att, xkq, vibe), params, batch, present)
+            _read_dataflash_messages(log, instance, (imu, mag, att, xkq, vibe), params, batch, present, motors)
         except ReaderError:
             raise
         except Exception as exc:
@@ -246,6 +253,8 @@ def _read_dataflash(path, *, instance: int = 0, imu: str = "logged"):
         mag = np.array(mag, float)
         magv = mag_on_imu_rows(t, mag[:, 0] * 1e-6, mag[:, 1:4] * 0.1)
     truth, reference = _dataflash_reference(t, att, xkq)
+    rotor_channels, rotors = ardupilot_rotors(motors, motors["PARM"], t)
+    truth.update(rotor_channels)
     meta = {
         "source_format": "ArduPilot DataFlash",
         "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT"},
@@ -253,6 +262,7 @@ def _read_dataflash(path, *, instance: int = 0, imu: str = "logged"):
         "reference": reference,
         "imu_source": "the batch sampler's GYR / ACC" if fifo else "IMU",
         "imu_sources": ["logged"] + (["fifo"] if _has_messages(log, ("GYR", "ACC")) else []),
+        **({"rotors": rotors} if rotors else {}),
     }
     if vibe:
         meta["vibration"] = _vibration(np.array(vibe, float))
@@ -380,11 +390,13 @@ def _moving_reader(DFReader):
     return MovingReader
 
 
-def _read_dataflash_messages(log, instance, lists, params, batch=None, present=None):
+def _read_dataflash_messages(log, instance, lists, params, batch=None, present=None, motors=None):
     """Collect the messages quadest reads into ``lists`` (instance ``instance``), the parameters,
-    the batch sampler's (``batch``), and the IMU instances ``present``."""
+    the batch sampler's (``batch``), the IMU instances ``present``, and the motors' (``motors``:
+    RCOU and ESC rows, each parameter's first value)."""
     imu, mag, att, xkq, vibe = lists
     kinds = ["IMU", "MAG", "ATT", "XKQ", "PARM", "VIBE"] + (list(batch) if batch is not None else [])
+    kinds += ["RCOU", "ESC"] if motors is not None else []
     while True:
         m = log.recv_match(type=kinds)
         if m is None:
@@ -408,6 +420,12 @@ def _read_dataflash_messages(log, instance, lists, params, batch=None, present=N
             xkq.append((m.TimeUS, m.Q1, m.Q2, m.Q3, m.Q4))
         elif kind == "PARM":
             params[m.Name] = m.Value
+            if motors is not None:
+                motors["PARM"].setdefault(m.Name, m.Value)
+        elif kind == "RCOU":
+            motors["RCOU"].append([m.TimeUS] + [getattr(m, f"C{i}", 0) for i in range(1, 15)])
+        elif kind == "ESC":
+            motors["ESC"].append((m.TimeUS, getattr(m, "Instance", 0), getattr(m, "RPM", np.nan)))
         elif kind == "VIBE" and getattr(m, "IMU", 0) == instance:
             vibe.append((m.TimeUS, m.VibeX, m.VibeY, m.VibeZ, getattr(m, "Clip", getattr(m, "Clip0", 0))))
 

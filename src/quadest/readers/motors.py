@@ -14,15 +14,16 @@ from quadest.data.checks import runs
 from quadest.extras import need
 from quadest.readers.common import ReaderError, reason
 from quadest.readers.logs import DF_HEAD, LOG_DAMAGE, _printed, open_dataflash
+from quadest.readers.rotors import (
+    ARDUPILOT_FRAMES,
+    ardupilot_pwm_range,
+    frame_geometry,
+    motor_channels,
+    pwm_share,
+    px4_geometry,
+    px4_pwm_range,
+)
 
-# ArduPilot's motor tables (AP_MotorsMatrix): per motor, the arm's angle from forward (degrees,
-# positive towards the right) and its sense seen from above (+1 clockwise, -1 counter-clockwise)
-ARDUPILOT_FRAMES = {
-    (1, 0): ("quad plus", [(90, -1), (-90, -1), (0, 1), (180, 1)]),
-    (1, 1): ("quad X", [(45, -1), (-135, -1), (-45, 1), (135, 1)]),
-    (2, 0): ("hexa plus", [(0, 1), (180, -1), (-120, 1), (60, -1), (-60, -1), (120, 1)]),
-    (2, 1): ("hexa X", [(90, 1), (-90, -1), (-30, 1), (150, -1), (30, -1), (-150, 1)]),
-}
 # ArduPilot's event ids (AP_Logger LogEvent): taken off, landing (maybe / complete), disarmed
 EV_TAKEOFF, EV_LANDING = 28, (17, 18, 11)
 STATISTICS = ("STAT_",)  # parameters ArduPilot updates itself (flight time): not changes of setting
@@ -76,18 +77,11 @@ def logged_failure(log: MotorLog) -> tuple[float, int] | None:
     return None
 
 
-def frame_geometry(angles_spins) -> tuple[np.ndarray, np.ndarray]:
-    """Unit-arm rotor positions (x forward, y right) and senses from (angle, sense) pairs."""
-    a = np.radians([x[0] for x in angles_spins])
-    return np.column_stack([np.cos(a), np.sin(a)]), np.array([float(x[1]) for x in angles_spins])
-
-
 def pwm_thrust(pwm, pwm_min, pwm_max, spin_min, spin_max, expo) -> np.ndarray:
     """ArduPilot's thrust curve inverted (AP_Motors_Thrust_Linearization): the output's fraction
     of the motor's full thrust, ``(1 − e) x + e x²`` with ``x`` the output between the spin
     limits (battery compensation left out)."""
-    a = (np.asarray(pwm, float) - pwm_min) / (pwm_max - pwm_min)
-    x = np.clip((a - spin_min) / (spin_max - spin_min), 0.0, 1.0)
+    x = np.clip((pwm_share(pwm, pwm_min, pwm_max) - spin_min) / (spin_max - spin_min), 0.0, 1.0)
     return (1.0 - expo) * x + expo * x * x
 
 
@@ -165,10 +159,8 @@ def _read_ardupilot(path: Path) -> MotorLog:
             f"(quad and hexa, plus and X)"
         )
     name, table = ARDUPILOT_FRAMES[key]
-    channels = _motor_channels(params, len(table), notes)
-    pwm_min, pwm_max = params.get("MOT_PWM_MIN", 0.0), params.get("MOT_PWM_MAX", 0.0)
-    if pwm_min <= 0 or pwm_max <= pwm_min:  # ArduPilot then takes the throttle channel's range
-        pwm_min, pwm_max = params.get("RC3_MIN", 1000.0), params.get("RC3_MAX", 2000.0)
+    channels = motor_channels(params, len(table), notes)
+    pwm_min, pwm_max = ardupilot_pwm_range(params)
     outputs = rcou[:, [c for c in channels]]
     thrust = pwm_thrust(outputs, pwm_min, pwm_max, *_thrust_curve(params, path))
     t_out = rcou[:, 0] * 1e-6
@@ -223,17 +215,6 @@ def _imu_position(params, prefix) -> tuple:
     return tuple(float(params.get(f"{prefix}{a}", 0.0)) for a in "XYZ")
 
 
-def _motor_channels(params, n, notes) -> list[int]:
-    """The RCOU column of each motor: the output whose SERVOn_FUNCTION is 32 + motor at the log's
-    start (33 is motor 1); without those parameters, channel k is motor k."""
-    by_function = {int(v): int(k[5:-9]) for k, v in params.items() if k.startswith("SERVO") and k.endswith("_FUNCTION")}
-    channels = [by_function.get(32 + k) for k in range(1, n + 1)]
-    if None in channels:
-        notes.append("motor outputs not all named by SERVOn_FUNCTION: channel k taken as motor k")
-        return list(range(1, n + 1))
-    return channels
-
-
 def _flying_from_events(events) -> list[tuple[float, float]]:
     spans, start = [], None
     for t, ev in events:
@@ -252,9 +233,6 @@ def _flying_from_thrust(t, thrust, level) -> list[tuple[float, float]]:
 
 
 # -- PX4 ------------------------------------------------------------------------------------------------
-PX4_QUAD_X = [(45, -1), (-135, -1), (-45, 1), (135, 1)]  # PX4's quad X numbering, as ArduPilot's
-
-
 def _read_px4(path: Path) -> MotorLog:
     ULog = need("pyulog", "reading a PX4 ULog").ULog
 
@@ -269,7 +247,7 @@ def _read_px4(path: Path) -> MotorLog:
         raise ReaderError(f"{path}: the ULog has no sensor_combined (IMU) topic")
     sc = data["sensor_combined"]
     notes = []
-    table, frame = _px4_geometry(params, notes)
+    table, frame = px4_geometry(params, notes)
     n = len(table)
     if "actuator_motors" in data:
         am = data["actuator_motors"]
@@ -280,12 +258,8 @@ def _read_px4(path: Path) -> MotorLog:
         ao = data["actuator_outputs"]
         t_out = ao["timestamp"] * 1e-6
         outputs = np.column_stack([ao[f"output[{i}]"] for i in range(n)])
-        lo, hi = (
-            float(params.get("PWM_MIN", params.get("PWM_MAIN_MIN1", 1000))),
-            float(params.get("PWM_MAX", params.get("PWM_MAIN_MAX1", 2000))),
-        )
         fac = float(params.get("THR_MDL_FAC", 0.0))
-        x = np.clip((outputs - lo) / (hi - lo), 0.0, 1.0)
+        x = pwm_share(outputs, *px4_pwm_range(params))
         thrust, unit = (1.0 - fac) * x + fac * x * x, "us"
     else:
         raise ReaderError(f"{path}: the ULog has no actuator_motors or actuator_outputs topic to diagnose")
@@ -317,20 +291,6 @@ def _read_px4(path: Path) -> MotorLog:
         list(range(1, n + 1)),
         _imu_position(params, "EKF2_IMU_POS_"),
     )
-
-
-def _px4_geometry(params, notes):
-    """Rotors from PX4's control allocation (CA_ROTORi_PX/PY, CA_ROTORi_KM > 0 counter-clockwise);
-    older logs without it are taken as quad X."""
-    n = int(params.get("CA_ROTOR_COUNT", 0))
-    if n == 0:
-        notes.append("no CA_ROTOR parameters (PX4 before 1.13): the frame taken as quad X")
-        return PX4_QUAD_X, "quad X (assumed)"
-    table = []
-    for i in range(n):
-        x, y = float(params.get(f"CA_ROTOR{i}_PX", 0.0)), float(params.get(f"CA_ROTOR{i}_PY", 0.0))
-        table.append((np.degrees(np.arctan2(y, x)), -1 if float(params.get(f"CA_ROTOR{i}_KM", 0.05)) > 0 else 1))
-    return table, f"{n} rotors (CA_ geometry)"
 
 
 def _flying_from_landed(t, airborne) -> list[tuple[float, float]]:

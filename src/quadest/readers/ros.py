@@ -3,7 +3,9 @@
 ROS follows REP 103 / 145: IMU and magnetometer in the sensor's body frame with z up (FLU),
 orientation of a pose relative to an ENU world, magnetic field in tesla. quadest converts to
 FRD / NED and µT (docs/readers.md). Topics are found by message type; with several candidates
-give ``imu_topic`` / ``mag_topic`` / ``truth_topic``."""
+give ``imu_topic`` / ``mag_topic`` / ``truth_topic``. The rotors' speeds and commands come from a
+``mav_msgs/Actuators`` topic (RotorS, Agilicious: ``angular_velocities`` rad/s, ``normalized``),
+where the bag has one (a ROS 1 bag carries its definition)."""
 
 from __future__ import annotations
 
@@ -15,9 +17,11 @@ import numpy as np
 from quadest.errors import UsageError
 from quadest.extras import need
 from quadest.readers.common import ReaderError, mag_on_imu_rows, make_recording, resample_quat
+from quadest.readers.rotors import on_rows, rate_hz, rotor_meta
 from quadest.rotation.frames import quat_enu_flu_to_ned_frd, vec_enu_to_ned, vec_flu_to_frd
 
 IMU = ("sensor_msgs/msg/Imu", "sensor_msgs/Imu")
+ACTUATORS = ("mav_msgs/msg/Actuators", "mav_msgs/Actuators")
 PX4_IMU = ("px4_msgs/msg/SensorCombined",)
 PX4_MAG = ("px4_msgs/msg/VehicleMagnetometer",)
 PX4_ATTITUDE = ("px4_msgs/msg/VehicleAttitude", "px4_msgs/msg/VehicleOdometry")
@@ -139,8 +143,9 @@ def read_rosbag(path, *, imu_topic=None, mag_topic=None, truth_topic=None, msgs=
         ci = _pick(conns, IMU, imu_topic, "sensor_msgs/Imu", path, True)
         cm = _pick(conns, MAG, mag_topic, "sensor_msgs/MagneticField", path, False)
         ct = _pick(conns, POSE, truth_topic, "pose or odometry", path, False)
-        imu, mag, pose, orient = [], [], [], []
-        chosen = [c for c in (ci, cm, ct) if c is not None]
+        ca = _pick(conns, ACTUATORS, None, "mav_msgs/Actuators", path, False)
+        imu, mag, pose, orient, act = [], [], [], [], []
+        chosen = [c for c in (ci, cm, ct, ca) if c is not None]
         for conn, t_log, raw in reader.messages(connections=chosen):
             msg = reader.deserialize(raw, conn.msgtype)
             ts = _stamp(msg, t_log)  # a pair: header, bag
@@ -152,6 +157,8 @@ def read_rosbag(path, *, imu_topic=None, mag_topic=None, truth_topic=None, msgs=
             elif cm is not None and conn.topic == cm.topic:
                 f = msg.magnetic_field
                 mag.append((*ts, f.x, f.y, f.z))
+            elif ca is not None and conn.topic == ca.topic:
+                act.append((ts[0] if ts[0] > 0 else ts[1], msg.angular_velocities, msg.normalized))
             else:
                 pos, o = _pose_of(msg)
                 pose.append((*ts, o.w, o.x, o.y, o.z, *pos))
@@ -182,16 +189,41 @@ def read_rosbag(path, *, imu_topic=None, mag_topic=None, truth_topic=None, msgs=
     ref = _imu_orientation(orient, t)
     if ref is not None:
         truth["ref_q"] = ref
+    rotor_channels, rotors = _actuators(act, t, ca)
+    truth.update(rotor_channels)
     meta = {
         "source_format": "ROS bag",
         "reference": f"{ci.topic}'s own orientation (the driver's estimate) as ref_q" if ref is not None else "none",
         "units": {"gyr": "rad/s", "acc": "m/s^2", "mag": "uT"},
         "frames": "REP 103: ENU world, FLU body -> NED/FRD; tesla -> µT",
         "topics": {"imu": ci.topic, "mag": cm.topic if cm else None, "truth": ct.topic if ct else None},
+        **({"rotors": rotors} if rotors else {}),
     }
     return make_recording(
         path, "rosbag", t, vec_flu_to_frd(imu[:, 1:4]), vec_flu_to_frd(imu[:, 4:7]), magv, meta, **truth
     )
+
+
+def _actuators(act, t, conn) -> tuple[dict, dict | None]:
+    """``mav_msgs/Actuators`` messages ``(time, angular_velocities, normalized)`` as the rotor
+    channels on the IMU's rows ``t``: the speeds' magnitudes (rad/s) and the commands (its
+    ``normalized``, clipped to [0, 1]), each where every message has one value per rotor."""
+    out, sources, rates = {}, {}, {}
+    if not act:
+        return {}, None
+    times = np.array([a[0] for a in act], float)
+    for k, (name, what) in enumerate((("rotor_speed", "angular_velocities"), ("motor_command", "normalized"))):
+        counts = {len(a[1 + k]) for a in act}
+        if len(counts) == 1 and counts != {0}:
+            values = np.array([np.asarray(a[1 + k], float) for a in act])
+            values = np.abs(values) if name == "rotor_speed" else np.clip(values, 0.0, 1.0)
+            out[name] = on_rows(t, times, values)
+            sources[name], rates[name] = f"{conn.topic} ({what})", rate_hz(times)
+    counts = {v.shape[1] for v in out.values()}
+    if not out or len(counts) > 1:
+        return {}, None
+    meta = rotor_meta(counts.pop(), numbering="the Actuators message's order", sources=sources, rates=rates)
+    return out, meta
 
 
 @contextmanager
