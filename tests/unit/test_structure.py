@@ -314,7 +314,7 @@ def test_compiled_gives_the_live_state():
     np.testing.assert_allclose(c.declination_quat, [np.cos(0.1), 0.0, 0.0, np.sin(0.1)], rtol=0, atol=1e-15)
 
 
-MAX_LINES, MAX_PARAMS = 120, 15
+MAX_LINES, MAX_PARAMS = 100, 12
 
 
 def _functions(root: Path):
@@ -325,7 +325,7 @@ def _functions(root: Path):
 
 
 def test_functions_are_short_and_take_few_parameters():
-    """No function of the package is longer than 120 lines or takes more than 15 parameters
+    """No function of the package is longer than 100 lines or takes more than 12 parameters
     (related values travel as a record or a tuple: a loop's ``L``, a bank's ``(V, Qr, P, L, w)``)."""
     problems = []
     for path, fn in _functions(SRC):
@@ -334,6 +334,21 @@ def test_functions_are_short_and_take_few_parameters():
         lines = fn.end_lineno - fn.lineno + 1
         if lines > MAX_LINES or params > MAX_PARAMS:
             problems.append(f"{path.relative_to(SRC)}:{fn.lineno} {fn.name}: {lines} lines, {params} parameters")
+    assert not problems, "\n".join(problems)
+
+
+MAX_FILE_LINES, MAX_COMMAND_LINES = 600, 450
+
+
+def test_modules_are_small():
+    """No source file of the package is longer than 600 lines, and no command module (``cli/``,
+    whose work belongs to the library) longer than 450."""
+    problems = []
+    for path in sorted(SRC.rglob("*.py")):
+        lines = len(path.read_text().splitlines())
+        cap = MAX_COMMAND_LINES if path.parent.name == "cli" else MAX_FILE_LINES
+        if lines > cap:
+            problems.append(f"{path.relative_to(SRC)}: {lines} lines (at most {cap})")
     assert not problems, "\n".join(problems)
 
 
