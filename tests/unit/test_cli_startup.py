@@ -13,13 +13,13 @@ HEAVY = ("numpy", "numba", "scipy", "pyarrow", "matplotlib")
 """Packages whose import alone takes a quarter of a second or more."""
 
 SHOW_LOADED = """
-import runpy, sys
+import atexit, runpy, sys
+atexit.register(lambda: print("loaded:" + ",".join(m for m in {heavy!r} if m in sys.modules), file=sys.stderr))
 sys.argv = ["quadest", *{argv!r}]
-try:
+try:  # the program ends after its exit functions (quadest.cli.main.end): the line is printed by one
     runpy.run_module("quadest.cli.main", run_name="__main__")
 except SystemExit:
     pass
-print("loaded:" + ",".join(m for m in {heavy!r} if m in sys.modules), file=sys.stderr)
 """
 
 

@@ -221,6 +221,32 @@ def _ellipsoid(m):
     return h, L.T @ L
 
 
+MAG_TURN_MIN_DEG = 10.0
+"""The field's directions (each sample's, seen from the sensor) must spread this far, RMS about
+their mean direction, for an ellipsoid fit: a rest spreads by its noise alone (0.5 µT of a
+48 µT field: 0.6°), a calibration dance by tens of degrees (the simulator's figure-eight with
+40 % hard iron: 40°; with a hard iron five times the field, 10°)."""
+
+
+def field_spread_deg(m) -> float:
+    """The RMS angle (deg) between each sample's field direction and their mean direction."""
+    u = m / (np.linalg.norm(m, axis=1, keepdims=True) + 1e-300)
+    mean = u.mean(axis=0)
+    mean /= np.linalg.norm(mean) + 1e-300
+    return float(np.degrees(np.sqrt(np.mean(np.arccos(np.clip(u @ mean, -1.0, 1.0)) ** 2))))
+
+
+def _check_field_turned(m) -> None:
+    """Refuse samples whose field was not seen turning (:data:`MAG_TURN_MIN_DEG`)."""
+    spread = field_spread_deg(m)
+    if spread < MAG_TURN_MIN_DEG:
+        raise ValueError(
+            f"mag: the field's direction spreads {spread:.1f}° (RMS about its mean) over the samples; an "
+            f"ellipsoid fit needs the vehicle turned through many orientations (at least {MAG_TURN_MIN_DEG:.0f}°, "
+            "e.g. a figure-eight with rolls and pitches: quadest simulate --scenario figure-eight), not a rest"
+        )
+
+
 def calibrate_mag(recs: Sequence[Recording], *, min_samples: int = 100) -> Calibration:
     """Hard iron h and soft iron by ellipsoid fit: ``m = W (m' − h)`` maps the measured
     ellipsoid onto a sphere whose radius is the ellipsoid's mean radius (the field strength,
@@ -231,6 +257,7 @@ def calibrate_mag(recs: Sequence[Recording], *, min_samples: int = 100) -> Calib
             f"mag: {len(m)} magnetometer samples; the ellipsoid fit needs at least {min_samples} "
             "taken while the vehicle turns through many orientations"
         )
+    _check_field_turned(m)
     d = m - m.mean(axis=0)
     d /= np.linalg.norm(d, axis=1, keepdims=True) + 1e-300
     ev = np.linalg.eigvalsh(d.T @ d / len(d))

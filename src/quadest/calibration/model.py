@@ -120,6 +120,7 @@ class Calibration:
             kw["mag"] = (rec.mag - np.asarray(v["hard_iron"])) @ np.asarray(v["soft_iron_correction"]).T
         else:
             return rec
+        warn_if_unfit(self, rec, kw[self.sensor])
         meta = dict(rec.meta)
         meta["calibrations"] = list(meta.get("calibrations", [])) + [self.kind]
         return Recording(**kw, meta=meta, check_units=False)
@@ -136,6 +137,58 @@ class Calibration:
         if self.kind == "centrifugal":
             return {"afckf": {"omega1": self.values["omega1"], "omega2": self.values["omega2"]}}
         return {}
+
+
+UNFIT = {"mag": 0.1, "gyro": 0.02, "accel": 0.2}
+"""How far a calibrated recording may miss what its calibration promises before a warning, when
+the calibration made it miss further than the raw data did (twice as far for the rests, which
+may hold a level yaw): the field strength's spread as a
+share of its median (mag: a fitting one leaves about 0.02), the gyroscope's mean rate over the
+rests (rad/s), the rests' accelerometer norm from g (m/s²)."""
+
+
+def _miss(kind: str, t, acc, values) -> float:
+    """How far ``values`` (a sensor's, raw or calibrated) miss what a calibration promises; NaN
+    where the recording cannot tell (a gyroscope or accelerometer without rests)."""
+    from quadest.conventions import GRAVITY
+    from quadest.data.checks import rests
+
+    values = values[np.isfinite(values).all(axis=1)] if kind == "mag" else values
+    if kind == "mag":
+        norm = np.linalg.norm(values, axis=1)
+        return float(np.std(norm) / np.median(norm)) if len(norm) >= 10 and np.median(norm) > 0 else float("nan")
+    spans = rests(t, acc)
+    if not spans:
+        return float("nan")
+    rows = np.concatenate([np.arange(a, b) for a, b in spans])
+    if kind == "gyro":
+        return float(np.linalg.norm(np.nanmean(values[rows], axis=0)))
+    return float(abs(np.nanmedian(np.linalg.norm(values[rows], axis=1)) - GRAVITY))
+
+
+def warn_if_unfit(cal: Calibration, rec: Recording, calibrated) -> None:
+    """Warn when a calibration leaves a recording further from what it promises than the raw
+    data were (:data:`UNFIT`): a calibration made on another sensor, or from data that could
+    not determine it."""
+    import warnings
+
+    raw = getattr(rec, cal.sensor)
+    acc = rec.acc if cal.kind != "accel" else calibrated
+    before, after = _miss(cal.kind, rec.t, rec.acc, raw), _miss(cal.kind, rec.t, acc, calibrated)
+    # a rest's gyroscope and accelerometer may hold real motion (a level yaw): only a calibration
+    # that at least doubles the miss is called unfit there; the field's spread is motion-free
+    if after > UNFIT[cal.kind] and after > (before if cal.kind == "mag" else 2.0 * before):
+        what = {
+            "mag": "the field strength spreads",
+            "gyro": "the rests' mean rate is",
+            "accel": "the rests read g off by",
+        }
+        warnings.warn(
+            f"calibration {cal.kind} does not fit {rec.meta.get('source', 'this recording')}: calibrated, "
+            f"{what[cal.kind]} {after:.3g} ({before:.3g} raw, at most {UNFIT[cal.kind]} expected): made on "
+            "another sensor, or from data that could not determine it?",
+            stacklevel=3,
+        )
 
 
 def load_calibration(path: str | Path) -> Calibration:

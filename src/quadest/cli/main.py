@@ -237,7 +237,7 @@ def main(argv=None):
         if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:  # kill: as Ctrl-C, the output being written removed
             signal.signal(signal.SIGTERM, signal.default_int_handler)
     try:
-        return run_command(list(sys.argv[1:] if entry else argv))
+        code = run_command(list(sys.argv[1:] if entry else argv))
     except KeyboardInterrupt:  # while the parser is built, or an error is being said
         if entry:
             interrupted()
@@ -248,6 +248,32 @@ def main(argv=None):
             signal.signal(signal.SIGINT, lambda *_: interrupted())
             if signal.getsignal(signal.SIGTERM) is signal.default_int_handler:
                 signal.signal(signal.SIGTERM, lambda *_: interrupted())
+    if entry:
+        end(code)
+    return code
+
+
+def end(code) -> None:
+    """The program's end, without the interpreter's teardown: the threads a command left are
+    waited for and Python's exit functions run (Dask's, multiprocessing's, logging's), the
+    output is flushed, then the process ends. The teardown would destroy what is still alive at
+    exit, pyarrow's thread pools among them: a pool thread that then needs Python (to release a
+    file or buffer it held) is stopped by the finalising interpreter inside C++ code, and the
+    process aborts ("terminate called without an active exception", exit 134) or waits on it
+    for ever (docs/reliability.md, exit)."""
+    import atexit
+
+    code = 0 if code is None else code if isinstance(code, int) else 1
+    for thread in threading.enumerate():
+        if thread is not threading.current_thread() and not thread.daemon:
+            thread.join()
+    atexit._run_exitfuncs()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a reader that stopped (head), or a closed stream
+            pass
+    os._exit(code)
 
 
 def run_command(argv: list) -> int:

@@ -83,6 +83,14 @@ WRITE_ROWS = 1 << 18
 """Rows per block where an estimate is written (its output columns are never held whole)."""
 
 
+ATTITUDE_UNITS = {
+    "t": "s (the file's own time)",
+    **{f"q_{c}": "1 (Hamilton, scalar first; body FRD to navigation NED)" for c in "wxyz"},
+    **{a: "rad (ZYX Euler angle, body FRD in navigation NED)" for a in ("roll", "pitch", "yaw")},
+}
+"""The units and frames of an estimate's columns (docs/conventions.md), kept in its Parquet schema."""
+
+
 def attitude_blocks(t, q, extra: dict | None = None, rows: int = WRITE_ROWS):
     """``t, q_w ... q_z, roll, pitch, yaw`` and ``extra``'s columns, block by block of ``rows``."""
     import numpy as np
@@ -143,7 +151,7 @@ def cmd_estimate(args):
     if args.diagnostics and not res.diag:
         raise CliError(f"--diagnostics: {args.filter} reports no per-sample diagnostics")
     diag = {f"diag_{k}": v for k, v in res.diag.items()} if args.diagnostics else {}
-    write_blocks(attitude_blocks(rec.t, res.q, diag), Path(args.output))
+    write_blocks(attitude_blocks(rec.t, res.q, diag), Path(args.output), units=ATTITUDE_UNITS)
     extra = f", diag_{', diag_'.join(res.diag)}" if args.diagnostics else ""
     say(f"{args.filter}: {len(rec)} samples -> {args.output} (t, q_w, q_x, q_y, q_z, roll, pitch, yaw; rad{extra})")
     decl = np.degrees(rec.declination if decl is None else decl)

@@ -303,7 +303,8 @@ def warn_deg_s_from_still_rates(t, gyr, acc) -> None:
 
 def check_gyro_scale(t, gyr, mag=None) -> tuple[float, float]:
     """Refuse a gyroscope whose rates are far faster than the turning it should explain (a small
-    positive scale: deg/s gives 0.0175; a negative one is another disagreement, not deg/s).
+    positive scale: deg/s gives 0.0175; a negative one is another disagreement, not deg/s), and
+    times far shorter than that turning took (:data:`TIME_SCALE_LIMIT`).
     Returns the fit ``(s, standard error)`` (:func:`gyro_scale`; an infinite error: the
     magnetometer could not tell at all)."""
     s, se = gyro_scale(t, gyr, mag)
@@ -313,8 +314,20 @@ def check_gyro_scale(t, gyr, mag=None) -> tuple[float, float]:
             f"the magnetometer's field (scale {s:.4f} ± {se:.4f}; deg/s gives 0.0175): is it in deg/s "
             f"(or are the magnetometer's axes or times not the IMU's)? {RAD_S_FIX}"
         )
+    if np.isfinite(se) and s - 4 * se > TIME_SCALE_LIMIT:
+        raise ValueError(
+            f"t: the magnetometer's field turns {s:.3g} times as far as the gyroscope's rates turn the body "
+            f"over these times (scale {s:.4g} ± {se:.2g}; right times give 1): are the times shorter than "
+            "they should be (a time in seconds stated as ms, a rate stated too high)? quadest takes "
+            "seconds (a CSV: --units t=s|ms|us|ns)"
+        )
     return s, se
 
+
+TIME_SCALE_LIMIT = 2.0
+"""The times are called too short when the scale ``s`` less 4 standard errors exceeds this: the
+field turns at least twice as far as the gyroscope's rates, integrated over the stated times,
+say (a time in seconds stated as ms gives 1000, a rate stated ten times too high 10)."""
 
 RAD_S_FIX = "quadest takes rad/s (multiply deg/s by pi/180; a CSV: --units gyr=deg/s)"
 
@@ -448,8 +461,9 @@ def median_interval(t) -> float:
     return float(np.median(np.diff(t), overwrite_input=True))
 
 
-MIN_INTERVAL_S = 1e-6
-"""s: no IMU samples faster than 1 MHz (the fastest FIFOs run at a few tens of kHz)."""
+MIN_INTERVAL_S = 2e-5
+"""s: no IMU samples faster than 50 kHz (the fastest, ICM-42688's FIFO, at 32 kHz): times in
+seconds stated as ms give 1000 times the rate (500 Hz: 500 kHz)."""
 
 
 def _check_time_unit(t) -> None:

@@ -8,13 +8,29 @@ from pathlib import Path
 from quadest.data.files import atomic_output
 
 
-def write_table(cols: dict, path: str | Path) -> Path:
+def write_table(cols: dict, path: str | Path, *, units: dict | None = None) -> Path:
     """``{name: 1-D array}`` to ``.csv`` (a plain header line, then the values) or ``.parquet``,
-    atomically (:func:`quadest.data.files.atomic_output`)."""
-    return write_blocks([cols], path)
+    atomically (:func:`quadest.data.files.atomic_output`). ``units``: ``{name: "unit (frame)"}``,
+    kept in a Parquet file's schema (:func:`described`)."""
+    return write_blocks([cols], path, units=units)
 
 
-def write_blocks(blocks: Iterable[dict], path: str | Path) -> Path:
+def described(schema, units: dict | None):
+    """``schema`` with each named column's unit (and frame) in its field's metadata
+    (``b"unit"``) and all of them, as JSON, in the schema's (``b"quadest_units"``): what a
+    Parquet reader (pyarrow, pandas, polars) shows beside the values."""
+    if not units:
+        return schema
+    import json
+
+    import pyarrow as pa
+
+    fields = [f.with_metadata({"unit": units[f.name]}) if f.name in units else f for f in schema]
+    held = {name: unit for name, unit in units.items() if name in schema.names}
+    return pa.schema(fields, metadata={"quadest_units": json.dumps(held)})
+
+
+def write_blocks(blocks: Iterable[dict], path: str | Path, *, units: dict | None = None) -> Path:
     """Consecutive blocks of rows, each ``{name: 1-D array}`` with the same names, written as
     :func:`write_table` writes one: a long table is never held whole."""
     path = Path(path)
@@ -36,7 +52,9 @@ def write_blocks(blocks: Iterable[dict], path: str | Path) -> Path:
                         fh, table.schema, write_options=pcsv.WriteOptions(include_header=False, quoting_style="none")
                     )
             elif writer is None:
-                writer = pq.ParquetWriter(fh, table.schema)
+                writer = pq.ParquetWriter(fh, described(table.schema, units))
+            if suffix != ".csv":
+                table = table.replace_schema_metadata(None).cast(writer.schema)
             writer.write_table(table)
             pa.default_memory_pool().release_unused()  # a block's buffers, written: returned to the system
         if writer is None:

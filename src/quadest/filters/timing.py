@@ -16,15 +16,40 @@ def nominal_interval(dt) -> float:
     return float(np.median(ok)) if len(ok) else 0.0
 
 
+RATE_TOLERANCE = 0.05
+"""A rate given with the times may differ from their median interval's by this share at most."""
+
+
 def sample_times(t, rate, gyr, who: str) -> np.ndarray:
-    """``t`` as float64, or ``k / rate`` for the rows of ``gyr``; exactly one must be given."""
-    if (t is None) == (rate is None):
-        raise UsageError(f"{who}: give the sample times t (s) or the sample rate rate (Hz), one of them")
-    if t is not None:
-        return np.asarray(t, dtype=np.float64)
-    if isinstance(rate, bool) or not (isinstance(rate, (int, float, np.number)) and math.isfinite(rate) and rate > 0):
+    """``t`` as float64, or ``k / rate`` for the rows of ``gyr``; given both, the rate must agree
+    with the times' median interval (:data:`RATE_TOLERANCE`) and the times are used."""
+    if t is None and rate is None:
+        raise UsageError(f"{who}: give the sample times t (s) or the sample rate rate (Hz)")
+    if rate is not None and (
+        isinstance(rate, bool) or not (isinstance(rate, (int, float, np.number)) and math.isfinite(rate) and rate > 0)
+    ):
         raise UsageError(f"{who}: rate must be a positive number of samples per second, got {rate!r}")
-    return np.arange(len(np.asarray(gyr))) / float(rate)
+    if t is None:
+        return np.arange(len(np.asarray(gyr))) / float(rate)
+    t = np.asarray(t, dtype=np.float64)
+    if rate is not None and t.ndim == 1 and len(t) >= 2:
+        _check_rate_against_times(t, float(rate), who)
+    return t
+
+
+def _check_rate_against_times(t, rate: float, who: str) -> None:
+    """Refuse a stated rate that the times contradict (their median interval's rate)."""
+    with np.errstate(invalid="ignore"):
+        dt = np.diff(t)
+    dt = dt[np.isfinite(dt) & (dt > 0)]
+    if not len(dt):
+        return
+    of_times = 1.0 / float(np.median(dt))
+    if abs(of_times / rate - 1.0) > RATE_TOLERANCE:
+        raise UsageError(
+            f"{who}: rate={rate:g} Hz, but the times t step {1 / of_times:.3g} s (median), {of_times:.4g} Hz: "
+            "they disagree; give the times in seconds and the rate in Hz, or only one of them"
+        )
 
 
 def sample_intervals(t) -> np.ndarray:
