@@ -215,17 +215,9 @@ def _env(**extra):
 
 
 PROGRAM = "import sys\nfrom quadest.cli.main import main\nsys.exit(main())\n"  # what the console script runs
-
-
-def _wait_for_exec(pid: int) -> None:
-    cmdline = Path(f"/proc/{pid}/cmdline")
-    for _ in range(2000):
-        try:
-            if b"simulate" in cmdline.read_bytes():
-                return
-        except OSError:
-            return
-        time.sleep(0.001)
+STARTED = "print('started', flush=True)\n"
+"""Said by the interpreter before it imports quadest: a Ctrl-C before that is Python's own start
+(a busy machine's may take longer than the shortest delay), where no program can answer."""
 
 
 def _as_from_a_terminal() -> None:
@@ -239,14 +231,14 @@ def _interrupted_run(tmp_path, delay: float) -> tuple[int, str]:
     for f in tmp_path.glob("x.csv*"):
         f.unlink()
     p = subprocess.Popen(
-        [sys.executable, "-c", PROGRAM, "simulate", "--duration", "2000", "-o", str(tmp_path / "x.csv")],
+        [sys.executable, "-c", STARTED + PROGRAM, "simulate", "--duration", "2000", "-o", str(tmp_path / "x.csv")],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         env=_env(),
         text=True,
         preexec_fn=_as_from_a_terminal,
     )
-    _wait_for_exec(p.pid)  # a signal between fork and exec is lost with the forked copy of pytest
+    p.stdout.readline()  # Python has started: the delay counts from the import of quadest
     time.sleep(delay)
     p.send_signal(signal.SIGINT)
     _, err = p.communicate(timeout=120)
