@@ -22,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from quadest.conventions import GRAVITY
+from quadest.data.checks import rests
 from quadest.data.files import write_json
 from quadest.data.recording import Recording
 from quadest.data.tagged import read_tagged_json
@@ -150,9 +152,6 @@ rests (rad/s), the rests' accelerometer norm from g (m/s²)."""
 def _miss(kind: str, t, acc, values) -> float:
     """How far ``values`` (a sensor's, raw or calibrated) miss what a calibration promises; NaN
     where the recording cannot tell (a gyroscope or accelerometer without rests)."""
-    from quadest.conventions import GRAVITY
-    from quadest.data.checks import rests
-
     values = values[np.isfinite(values).all(axis=1)] if kind == "mag" else values
     if kind == "mag":
         norm = np.linalg.norm(values, axis=1)
