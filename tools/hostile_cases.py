@@ -60,11 +60,11 @@ def _rows(path: Path):
 
 
 def _write(path: Path, head, cols, A, end=True):
-    with open(path, "w") as f:
-        f.write("\n".join(head) + "\n" + ",".join(cols) + "\n")
+    with open(path, "w") as f:  # a plain CSV (head: an earlier version's comment lines, and its end line)
+        f.write("".join(line + "\n" for line in head) + ",".join(cols) + "\n")
         for r in A:
             f.write(",".join("" if np.isnan(v) else format(float(v), ".17g") for v in r) + "\n")
-        if end:
+        if end and head:
             f.write(f"# end: {len(A)} rows\n")
     return path
 
@@ -83,11 +83,13 @@ def cases(d: Path):
     B[:, 0] *= 1000
     ms = _write(d / "ms.csv", head, cols, B)
     rev = _write(d / "reversed.csv", head, cols, A[::-1])
-    data = h.read_bytes()
+    data, side = h.read_bytes(), Path(f"{h}-metadata.json").read_bytes()  # a CSV cut, its metadata beside it
     cut = d / "cut.csv"
     cut.write_bytes(data[: len(data) // 2])
     cut_row = d / "cut_row.csv"
-    cut_row.write_bytes(data[: data.rfind(b"\n", 0, data.rfind(b"# end")) + 1])
+    cut_row.write_bytes(data[: data.rstrip().rfind(b"\n") + 1])
+    for f in (cut, cut_row):
+        Path(f"{f}-metadata.json").write_bytes(side)
     dup = d / "dup.csv"
     dup.write_text("t,gx,gx,gz,ax,ay,az\n0,0,0,0,0,0,-9.8\n")
     copy = d / "f.csv"
@@ -439,7 +441,7 @@ def cases_outputs(d: Path):
     yield (
         "-o onto a read-only file with --force",
         ["simulate", "--duration", "1", "-o", ro, "--force"],
-        lambda c, o, e: c == 0 and ro.read_text().startswith("# quadest"),
+        lambda c, o, e: c == 0 and ro.read_text().startswith("t,gyr_x,"),
     )
     yield (
         "-o into a folder that does not exist",
@@ -584,13 +586,18 @@ def cases_values(d: Path):
     pq.write_table(table, pqf)
     yield "a Parquet gyr_x stored as bool", ["info", pqf], lambda c, o, e: c == 1 and "holds bool values" in e
     csv = save_recording(rec, d / "v.csv")
-    text = csv.read_text()
+    side = Path(f"{csv}-metadata.json").read_text()
     units = d / "v_units.csv"
-    units.write_text(text.replace('"gyr": "rad/s"', '"gyr": "deg/s"').replace('"acc": "m/s^2"', '"acc": "g"'))
+    shutil.copy(csv, units)
+    Path(f"{units}-metadata.json").write_text(
+        side.replace('"gyr": "rad/s"', '"gyr": "deg/s"').replace('"acc": "m/s^2"', '"acc": "g"')
+    )
     yield "a units line saying deg/s and g", ["info", units], lambda c, o, e: c == 1 and "is stated to be in" in e
     crlf, blank = d / "v_crlf.csv", d / "v_blank.csv"
     crlf.write_bytes(csv.read_bytes().replace(b"\n", b"\r\n"))
     blank.write_bytes(csv.read_bytes() + b"\n")
+    for f in (crlf, blank):  # an editor's line ends and blank end, the metadata beside: the same values
+        Path(f"{f}-metadata.json").write_text(side)
     yield "a quadest CSV with CRLF line ends", ["info", crlf], lambda c, o, e: c == 0 and "error" not in e
     yield "a quadest CSV with a trailing blank line", ["info", blank], lambda c, o, e: c == 0 and "error" not in e
     head, cols, A = _rows(csv)

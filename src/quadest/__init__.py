@@ -37,9 +37,9 @@ def __getattr__(name: str):
         globals()["__version__"] = _installed_version()
         return globals()["__version__"]
     if name in RECORDING_NAMES:
-        from quadest.data import recording
+        import quadest.data as data
 
-        return getattr(recording, name)
+        return getattr(data, name)
     if name in API or name == "load_recording":  # load_recording: read's former name at the top level
         from quadest import api
 

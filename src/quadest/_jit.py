@@ -181,7 +181,7 @@ def say_compiling(func) -> None:
         return
     what, how_long = compile_label(func)
     _SAID.append(what)
-    logging.getLogger("quadest").warning(
+    logging.getLogger("quadest.compiling").warning(
         f"{COMPILING} {what} (first use after an install or an edit, {how_long}; cached for the next runs)…"
     )
 

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import sys
 
+QUIET = False
+"""No bar at all (the command line's ``-q``)."""
 LOG_EVERY_S = 30.0
 """How often a bar written to a file or a pipe adds a line (s)."""
 
@@ -31,6 +33,8 @@ def bar(**kwargs):
     from tqdm.auto import tqdm  # loaded when a bar is drawn: the command line starts faster
 
     stream = kwargs.get("file") or sys.stderr
+    if QUIET:
+        kwargs["disable"] = True
     if not kwargs.get("disable") and not _interactive(stream):
         kwargs.update(file=_Lines(stream), mininterval=LOG_EVERY_S, maxinterval=LOG_EVERY_S, ascii=True)
     return tqdm(**kwargs)

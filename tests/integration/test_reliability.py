@@ -196,7 +196,7 @@ def test_a_file_size_limit_fails_the_command_and_keeps_the_old_output(tmp_path):
     )
     assert r.returncode == 1 and r.stderr.count("\n") == 1 and "File too large" in r.stderr, r.stderr
     assert keep.read_text() == "old output"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["big.csv", "keep.csv"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["big.csv", "big.csv-metadata.json", "keep.csv"]
 
 
 def test_an_hdf5_group_where_a_dataset_belongs_is_refused(tmp_path):
@@ -421,7 +421,7 @@ def test_a_csv_column_of_words_is_refused(tmp_path, hover):
     path = save_recording(hover, tmp_path / "r.csv")
     lines = path.read_text().splitlines(keepends=True)
     head = next(i for i, line in enumerate(lines) if line.startswith("t,"))
-    for k in range(head + 1, len(lines) - 1):
+    for k in range(head + 1, len(lines)):
         cells = lines[k].split(",")
         cells[1] = "true" if k % 2 else "false"
         lines[k] = ",".join(cells)
@@ -435,9 +435,10 @@ def test_a_units_line_that_contradicts_si_is_refused(tmp_path, hover, name, unit
     from quadest.data import load_recording, save_recording
 
     path = save_recording(hover, tmp_path / "r.csv")
-    text = path.read_text()
+    side = tmp_path / "r.csv-metadata.json"  # the recording's metadata, its units among them
+    text = side.read_text()
     assert '"gyr": "rad/s"' in text
-    path.write_text(text.replace(f'"{name}": "{hover.meta["units"][name]}"', f'"{name}": "{unit}"'))
+    side.write_text(text.replace(f'"{name}": "{hover.meta["units"][name]}"', f'"{name}": "{unit}"'))
     with pytest.raises(ValueError, match=rf"{name} is stated to be in '{unit}', but a recording holds"):
         load_recording(path)
     from quadest.data import Recording
@@ -461,7 +462,7 @@ def test_a_csv_with_crlf_or_trailing_blank_lines_is_whole(tmp_path, hover, edit)
     back = load_recording(path)
     np.testing.assert_array_equal(back.t, hover.t)
     np.testing.assert_array_equal(back.gyr, hover.gyr)
-    path.write_bytes(data[: data.rfind(b"# end")])  # and a file without its end line is still cut short
+    path.write_bytes(data[: data.rstrip().rfind(b"\n") + 1])  # and a file without its last row is cut short
     with pytest.raises(ValueError, match="cut short"):
         load_recording(path)
 
@@ -559,4 +560,5 @@ def test_file_names_that_are_not_utf8_are_read_and_written(tmp_path):
     assert main(["info", rec]) == 0
     assert main(["report", rec, "-o", html]) == 0
     assert "h\ufffd.parquet" in open(html, "rb").read().decode("utf-8")
-    assert sorted(os.listdir(os.fsencode(tmp_path))) == sorted(os.fsencode(os.path.basename(n)) for n in names)
+    written = [*names, csv + "-metadata.json"]  # the CSV's metadata beside it
+    assert sorted(os.listdir(os.fsencode(tmp_path))) == sorted(os.fsencode(os.path.basename(n)) for n in written)

@@ -184,6 +184,18 @@ def test_damaged_dataflash_logs_the_fuzz_test_found(edits, said, tmp_path):
         assert msg.startswith(str(p)) and said in msg and "\n" not in msg, msg
 
 
+def test_a_bag_with_a_damaged_message_definition_is_refused_in_one_line(tmp_path):
+    """Found by the test below: rosbags' error quotes the damaged definition, newlines and all."""
+    data = _originals()["bag"]
+    assert b"string frame_id" in data
+    p = tmp_path / "x.bag"
+    p.write_bytes(data.replace(b"string frame_id", b"strin\x7f frame_id"))
+    with pytest.raises(ValueError) as exc:
+        read_recording(p)
+    msg = str(exc.value)
+    assert msg.startswith(f"{p}: not a readable ROS bag") and "\n" not in msg and len(msg) < 500, msg
+
+
 @pytest.mark.parametrize("kind", ["csv", "parquet", "hdf5", "ulg", "bin", "bag"])
 @FUZZ
 @given(edits=EDITS)

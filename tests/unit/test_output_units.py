@@ -1,7 +1,10 @@
-"""An estimate's Parquet file says what it holds: each column's unit and frame in its schema
-(docs/reliability.md, *Nothing silent*), the values as before."""
+"""An estimate's file says what it holds: each column's unit and frame in a Parquet file's schema
+or beside a CSV in its CSV-on-the-Web metadata (docs/reliability.md, *Nothing silent*), the
+values as before."""
 
 import json
+import os
+import threading
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -28,7 +31,26 @@ def test_an_estimates_parquet_schema_holds_units_and_frames(tmp_path):
     assert table.num_rows == len(t) and np.array_equal(table.column("q_x").to_numpy(), q[:, 1])
 
 
-def test_a_csv_estimate_keeps_its_plain_header(tmp_path):
+def test_a_csv_estimate_keeps_its_plain_header_and_states_its_units_beside_it(tmp_path):
+    """Before: a CSV estimate's units were said only on stdout."""
+    import pandas as pd
+
     t, q = _estimate(10)
     p = write_blocks(attitude_blocks(t, q), tmp_path / "e.csv", units=ATTITUDE_UNITS)
     assert p.read_text().splitlines()[0] == "t,q_w,q_x,q_y,q_z,roll,pitch,yaw"
+    side = json.loads((tmp_path / "e.csv-metadata.json").read_text())
+    assert side["url"] == "e.csv" and side["quadest"]["rows"] == 10
+    columns = side["tableSchema"]["columns"]
+    assert [c["name"] for c in columns] == list(pd.read_csv(p).columns)
+    assert {c["name"]: c["dc:description"] for c in columns} == ATTITUDE_UNITS
+
+
+def test_a_csv_written_to_a_stream_has_nothing_beside_it(tmp_path):
+    fifo = tmp_path / "e.csv"
+    os.mkfifo(fifo)
+    got = {}
+    reader = threading.Thread(target=lambda: got.setdefault("text", fifo.read_text()))
+    reader.start()
+    write_blocks(attitude_blocks(*_estimate(5)), fifo, units=ATTITUDE_UNITS)
+    reader.join(10)
+    assert got["text"].startswith("t,q_w") and not (tmp_path / "e.csv-metadata.json").exists()

@@ -1,11 +1,14 @@
 """The Recording type: validation, files (CSV, Parquet) and summaries."""
 
+import json
+
 import numpy as np
 import pytest
 
 from quadest import Recording, save_recording
 from quadest.data import format_summary, summarize
-from quadest.data.recording import columns_of, load_recording
+from quadest.data.recording import columns_of
+from quadest.data.recording_files import load_recording
 
 
 def make(n=200, rate=100.0, truth=True, rng=None):
@@ -85,20 +88,47 @@ def test_round_trip_without_truth_or_mag(tmp_path):
     assert np.isnan(back.mag).all()
 
 
-def test_csv_header_is_fixed(tmp_path):
+def test_csv_header_is_fixed_and_its_metadata_stands_beside_it(tmp_path):
     path = save_recording(make(), tmp_path / "r.csv")
     lines = path.read_text().splitlines()
-    assert lines[0] == "# quadest recording v2"
-    assert lines[1] == "# rows: 200" and lines[-1] == "# end: 200 rows"  # a file cut short is refused
-    header = next(line for line in lines if not line.startswith("#"))
     want = ["t"] + [
         c
         for f in ("gyr", "acc", "mag", "true_q", "true_gyr", "true_pos", "true_vel", "true_acc")
         for c in columns_of(f)
     ]
-    assert header.split(",") == want
+    assert lines[0].split(",") == want and len(lines) == 201  # the header, then the rows: nothing else
     assert want[10:14] == ["true_q_w", "true_q_x", "true_q_y", "true_q_z"]
     assert want[17:20] == ["true_pos_n", "true_pos_e", "true_pos_d"]
+    side = json.loads((tmp_path / "r.csv-metadata.json").read_text())
+    assert side["url"] == "r.csv" and side["quadest"]["rows"] == 200
+    assert side["quadest"]["format"] == "quadest recording v3" and side["quadest"]["meta"]["source"] == "test"
+    units = {c["name"]: c["dc:description"] for c in side["tableSchema"]["columns"]}
+    assert list(units) == want and units["gyr_x"].startswith("rad/s") and units["mag_x"] == "uT, body FRD"
+
+
+def test_a_recording_csv_is_read_by_standard_readers_as_it_is(tmp_path):
+    """pandas and Python's csv module read the file with their defaults (no comment option):
+    the same columns and the same numbers."""
+    import csv
+
+    import pandas as pd
+
+    rec = make()
+    path = save_recording(rec, tmp_path / "r.csv")
+    frame = pd.read_csv(path)
+    assert len(frame) == len(rec) and list(frame.columns) == list(rec.columns())
+    np.testing.assert_array_equal(frame[["gyr_x", "gyr_y", "gyr_z"]].to_numpy(), rec.gyr)
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == len(rec) and float(rows[-1]["t"]) == rec.t[-1]
+
+
+def test_a_parquet_recording_states_its_units(tmp_path):
+    import pyarrow.parquet as pq
+
+    schema = pq.read_schema(save_recording(make(), tmp_path / "r.parquet"))
+    assert schema.field("acc_z").metadata[b"unit"].decode().startswith("m/s²")
+    assert json.loads(schema.metadata[b"quadest"])["rows"] == 200
 
 
 def test_bad_files_give_one_clear_error(tmp_path):
@@ -184,26 +214,50 @@ def test_csv_round_trip_property(rows, with_mag):
         np.testing.assert_array_equal(getattr(back, name), getattr(rec, name))
 
 
-def test_a_recording_cut_short_is_refused_and_v1_files_still_read(tmp_path):
-    """v2 CSV states its rows and ends with an end line: a file cut at a row boundary or inside
-    its last number is refused, never read as a shorter recording; v1 files (no count) read."""
+def test_a_recording_cut_short_or_changed_is_refused(tmp_path):
+    """The CSV's metadata file states its rows and checksum: a file cut at a row boundary or
+    inside its last number, or a row removed, is refused, never read as a shorter recording;
+    without the metadata file the rows are read as they are (the user's choice, said in the
+    error)."""
     rec = make()
     data = save_recording(rec, tmp_path / "r.csv").read_bytes()
+    side = (tmp_path / "r.csv-metadata.json").read_bytes()
+    last_row = data.rfind(b"\n", 0, len(data) - 1) + 1
+    lines = data.split(b"\n")
+    for name, cut in [("cut1", data[:-2]), ("cut2", data[: last_row + 3]), ("cut3", data[:last_row]),
+                      ("half", data[: len(data) // 2]), ("row", b"\n".join(lines[:-6] + lines[-5:]))]:  # fmt: skip
+        p = tmp_path / f"{name}.csv"
+        p.write_bytes(cut)
+        (tmp_path / f"{name}.csv-metadata.json").write_bytes(side)
+        with pytest.raises(
+            ValueError, match="it states 200 rows: cut short or changed since.*delete the metadata file"
+        ):
+            load_recording(p)
+    (tmp_path / "row.csv-metadata.json").unlink()
+    assert len(load_recording(tmp_path / "row.csv")) == 199
+
+
+def _legacy(rec, version: int) -> bytes:
+    """``rec`` as the CSV of an earlier version: metadata in ``#`` lines above the header, v2
+    with its row count and end line."""
+    body = ",".join(rec.columns()) + "\n" + "\n".join(",".join(repr(float(v)) for v in row)
+                                                      for row in zip(*rec.columns().values())) + "\n"  # fmt: skip
+    head = f"# quadest recording v{version}\n" + (f"# rows: {len(rec)}\n" if version == 2 else "")
+    head += "".join(f"# {k}: {json.dumps(v)}\n" for k, v in rec.meta.items())
+    return (head + body + (f"# end: {len(rec)} rows\n" if version == 2 else "")).encode()
+
+
+def test_earlier_versions_still_read_and_a_v2_cut_short_is_refused(tmp_path):
+    rec = make()
+    for version in (1, 2):
+        p = tmp_path / f"v{version}.csv"
+        p.write_bytes(_legacy(rec, version))
+        back = load_recording(p)
+        assert np.array_equal(back.t, rec.t) and back.meta["source"] == "test"
+    data = _legacy(rec, 2)
     body_end = data.rfind(b"# end:")
-    last_row = data.rfind(b"\n", 0, body_end - 1) + 1
-    for cut in (len(data) - 1, body_end, body_end - 3, last_row, len(data) // 2):
+    for cut in (len(data) - 1, body_end, body_end - 3, len(data) // 2):
         p = tmp_path / f"cut{cut}.csv"
         p.write_bytes(data[:cut])
         with pytest.raises(ValueError, match="cut short"):
             load_recording(p)
-    # a row removed from the middle: the count disagrees
-    lines = data.split(b"\n")
-    p = tmp_path / "missing_row.csv"
-    p.write_bytes(b"\n".join(lines[:-6] + lines[-5:]))
-    with pytest.raises(ValueError, match="states 200"):
-        load_recording(p)
-    # the format before row counts
-    v1 = data.replace(b"# quadest recording v2", b"# quadest recording v1").replace(b"# rows: 200\n", b"")
-    p = tmp_path / "v1.csv"
-    p.write_bytes(v1[: v1.rfind(b"# end:")])
-    assert np.array_equal(load_recording(p).t, rec.t)

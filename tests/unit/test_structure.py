@@ -352,6 +352,19 @@ def test_modules_are_small():
     assert not problems, "\n".join(problems)
 
 
+def test_the_library_logs_and_warns_and_never_prints():
+    """Diagnostics go through ``logging`` (the command line's ``-q`` / ``-v``) and ``warnings``;
+    only the command line (``cli/``) prints."""
+    hits = []
+    for path in sorted(SRC.rglob("*.py")):
+        if path.parent.name == "cli":
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "print":
+                hits.append(f"{path.relative_to(SRC)}:{node.lineno}")
+    assert not hits, "print() in library code: " + ", ".join(hits)
+
+
 def test_no_issue_numbers_in_code():
     """What an issue asked for is in the repository's history, not in the code (it goes stale)."""
     root = SRC.parents[1]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -16,8 +17,91 @@ class CliError(UsageError):
     """A wrong or missing option, reported as one line (exit code 2)."""
 
 
+_DATA_ON_STDOUT = [False]
+
+
 def say(msg):
-    print(msg, flush=True)
+    """A line for the user: on stdout, or on stderr when stdout carries the data (``-o -``)."""
+    print(msg, file=sys.stderr if _DATA_ON_STDOUT[0] else sys.stdout, flush=True)
+
+
+STDOUT_TABLES = {("estimate", "output"), ("simulate", "output")}
+"""The outputs that may be standard output (``-o -``): a table, written as CSV."""
+
+
+def data_on_stdout(args) -> None:
+    """Refuse ``-`` for an output that is not a table; with ``-o -`` what the command says goes
+    to stderr, so that stdout holds the CSV alone."""
+    to_stdout = [name for name in OUTPUT_NAMES if str(getattr(args, name, None)) == "-"]
+    for name in to_stdout:
+        opt = OUTPUT_NAMES[name]
+        if (args.command, name) not in STDOUT_TABLES:
+            raise CliError(
+                f"{opt} -: standard output takes a table (quadest estimate -o -, quadest simulate -o -); "
+                f"give {opt} a file name"
+            )
+    _DATA_ON_STDOUT[0] = bool(to_stdout)
+
+
+OUTPUT_NAMES = {"output": "-o", "out": "-o", "json": "--json", "plot": "--plot", "report": "--report"}
+"""Each option naming a file a command writes, by its destination, and how it is spelt."""
+
+
+LOG = logging.getLogger("quadest")
+"""The library's diagnostics: notes (info), warnings, and with ``-v`` its debug lines; each
+message carries its own ``quadest:`` or ``note:`` / ``warning:`` prefix."""
+
+
+class _Stderr(logging.Handler):
+    """Writes each record as its message alone to the ``sys.stderr`` of the moment (a command
+    run in-process, under a test's capture, writes where that test reads)."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            sys.stderr.write(self.format(record) + "\n")
+            sys.stderr.flush()
+        except (OSError, ValueError):  # a closed stream, a reader that stopped
+            pass
+
+
+_HANDLER = _Stderr()
+
+
+def add_verbosity(parser, *, top: bool = False) -> None:
+    """``-q`` / ``-v``, the same on every command (and before it)."""
+    default = False if top else argparse.SUPPRESS  # a command's own would otherwise reset the top's
+    parser.add_argument(
+        "-q", "--quiet", action="store_true", default=default,
+        help="say only results, warnings and errors: no progress, notes or compile notices",
+    )  # fmt: skip
+    parser.add_argument(
+        "-v", "--verbose", action="store_true", default=default,
+        help="also say the library's debug lines (what was read and how, which model was assumed)",
+    )  # fmt: skip
+
+
+def set_verbosity(args) -> None:
+    """Route the library's log to stderr at the level ``-q`` / ``-v`` ask for, and the progress
+    bars off with ``-q``."""
+    from quadest import progress
+
+    quiet, verbose = getattr(args, "quiet", False), getattr(args, "verbose", False)
+    if quiet and verbose:
+        raise CliError("-q (--quiet) and -v (--verbose) ask for opposite things: give one")
+    if _HANDLER not in LOG.handlers:
+        LOG.addHandler(_HANDLER)
+    LOG.setLevel(logging.DEBUG if verbose else logging.WARNING if quiet else logging.INFO)
+    logging.getLogger("quadest.compiling").setLevel(logging.ERROR if quiet else logging.NOTSET)
+    progress.QUIET = quiet
+
+
+def say_units_beside(path) -> None:
+    """Name a CSV's metadata file (its columns' units and frames) when one was written beside it."""
+    from quadest.data.tables import csv_metadata_path
+
+    side = csv_metadata_path(path)
+    if str(path).lower().endswith(".csv") and side.is_file():
+        say(f"  each column's unit and frame: {side}")
 
 
 def write_json(path, obj):
@@ -290,14 +374,12 @@ def read(args, path):
     rec = read_recording(path, fmt, **opts)
     dropped = rec.meta.get("dropped_rows")
     if dropped:  # said on stderr, so that JSON on stdout stays clean
-        print(
+        LOG.info(
             f"note: {path}: dropped {dropped} row(s) with a repeated or decreasing time or a non-finite or implausible "
-            "IMU value",
-            file=sys.stderr,
-            flush=True,
+            "IMU value"
         )
     for warning in rec.meta.get("warnings", []):
-        print(f"warning: {path}: {warning}", file=sys.stderr, flush=True)
+        LOG.warning(f"warning: {path}: {warning}")
     return rec
 
 

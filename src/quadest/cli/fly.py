@@ -164,6 +164,7 @@ def _report(flight, out: Path, plot: bool):
     stem = out / f"{s['scenario']}-{s['controller']}-{s['estimator']}-seed{s['seed']}"
     s["files"] = {
         "recording": str(save_recording(flight.recording, stem.with_suffix(".csv"))),
+        "recording_metadata": f"{stem}.csv-metadata.json",
         "flight": str(write_table(flight_table(flight), Path(f"{stem}-flight.parquet"))),
     }
     if plot:

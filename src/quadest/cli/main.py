@@ -60,7 +60,7 @@ try:  # Ctrl-C while the command line loads ends in one line too
     from pathlib import Path
 
     from quadest.cli import benchmark, compare, data, fly, recordings, recovery, report, reproduce, sim, sweep
-    from quadest.cli.common import CliError
+    from quadest.cli.common import OUTPUT_NAMES, CliError, add_verbosity, data_on_stdout, set_verbosity
     from quadest.errors import UsageError
     from quadest.extras import MissingExtra, need
 except KeyboardInterrupt:
@@ -131,11 +131,13 @@ def build_parser():
     p.add_argument(
         "--debug", action="store_true", help="on an error, show the full traceback (also accepted after the command)"
     )
+    add_verbosity(p, top=True)
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     for group in GROUPS:
         group.add_parsers(sub)
     for command in sub.choices.values():
         add_force(command)
+        add_verbosity(command)
     # the listing in --help keeps its order whatever module declares a command
     sub._choices_actions.sort(key=lambda a: ORDER.index(a.dest))
     return p
@@ -143,7 +145,7 @@ def build_parser():
 
 # options that name files a command reads, and the options of files it writes
 INPUT_OPTIONS = ("file", "recording", "recordings", "data", "calibration", "aero", "config", "rotors")
-OUTPUT_OPTIONS = {"output": "-o", "out": "-o", "json": "--json", "plot": "--plot", "report": "--report"}
+OUTPUT_OPTIONS = OUTPUT_NAMES
 FOLDER_OUTPUTS = {("fly", "output"), ("demo", "out")}
 """Output options that name a folder (created if missing), not a file."""
 
@@ -180,6 +182,7 @@ def check_outputs(args) -> None:
         if isinstance(getattr(args, name, None), (str, Path))
     }
     folders = {OUTPUT_OPTIONS[name] for command, name in FOLDER_OUTPUTS if command == args.command}
+    data_on_stdout(args)
     try:
         refuse_overwriting_inputs(outputs, inputs)
         _refuse_shared_outputs(outputs)
@@ -286,6 +289,7 @@ def run_command(argv: list) -> int:
         parser.print_help()
         return 2
     try:
+        set_verbosity(args)
         check_outputs(args)
         check_extras(args)
         load_libraries()

@@ -13,6 +13,7 @@ from quadest.cli.common import (
     add_report_arg,
     read,
     say,
+    say_units_beside,
     write_json,
     write_report_for,
 )
@@ -154,6 +155,7 @@ def cmd_estimate(args):
     write_blocks(attitude_blocks(rec.t, res.q, diag), Path(args.output), units=ATTITUDE_UNITS)
     extra = f", diag_{', diag_'.join(res.diag)}" if args.diagnostics else ""
     say(f"{args.filter}: {len(rec)} samples -> {args.output} (t, q_w, q_x, q_y, q_z, roll, pitch, yaw; rad{extra})")
+    say_units_beside(args.output)
     decl = np.degrees(rec.declination if decl is None else decl)
     source = "--declination-deg" if args.declination_deg is not None else rec.declination_source
     say(f"  t in the file's own time, from {rec.t[0]:.3f} s; declination {decl:+.2f}° ({source})")

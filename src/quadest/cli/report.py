@@ -3,10 +3,10 @@ or a campaign's results."""
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 from quadest.cli.common import (
+    LOG,
     CliError,
     add_calibration_arg,
     add_input_args,
@@ -129,10 +129,9 @@ def _sweep_report(args):
     store = ResultStore(args.file)
     table = store.read()
     if store.damaged:
-        print(
+        LOG.warning(
             f"quadest report: warning: {args.file}: {store.damaged} damaged row(s) left out (a sweep on it runs them "
-            "again)",
-            file=sys.stderr,
+            "again)"
         )
     if table is None:
         raise CliError(f"{args.file}: no results left to report")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 from quadest.cli.choices import PRESCRIBED_SCENARIOS, PRESETS
-from quadest.cli.common import CliError, count, say, sim_config
+from quadest.cli.common import CliError, count, say, say_units_beside, sim_config
 
 
 def cmd_simulate(args):
@@ -38,6 +38,7 @@ def cmd_simulate(args):
     rec = simulate(args.scenario, args.preset, seed=args.seed, duration=args.duration, config=cfg, progress=True)
     path = save_recording(rec, args.output)
     say(f"wrote {path}: {len(rec)} samples, {rec.duration:.2f} s")
+    say_units_beside(path)
     if args.scenario == "damaged-rotor":
         say(f"gyroscope saturated in {100 * rec.meta['gyro_saturated_share']:.1f} % of the samples")
     if args.plot:

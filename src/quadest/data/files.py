@@ -10,8 +10,8 @@ name means:
   ``ulimit -f``, Ctrl-C) leaves the old file as it was, or no file;
 - a symbolic link: the same, beside the file it points at; the link is kept;
 - a FIFO, a character device (``/dev/null``, a terminal) or an open descriptor
-  (``/dev/stdout``, ``/dev/fd/N``): written to as a stream once the content is complete, never
-  replaced;
+  (``/dev/stdout``, ``-`` for standard output, ``/dev/fd/N``): written to as a stream once the
+  content is complete, never replaced;
 - refused in one line (``ValueError``): a read-only file (unless forced: ``--force``,
   :func:`replacing_read_only`), a folder, a socket, a block device, a file in a folder that does
   not exist (it is not created: a mistyped folder would be).
@@ -39,7 +39,9 @@ from pathlib import Path
 
 _FORCE: ContextVar[bool] = ContextVar("quadest_replace_read_only", default=False)
 
-DESCRIPTORS = {"/dev/stdout": 1, "/dev/stderr": 2}
+STDOUT = "-"
+"""The name of standard output as an output (``-o -``)."""
+DESCRIPTORS = {"/dev/stdout": 1, "/dev/stderr": 2, STDOUT: 1}
 """Names of this process's own descriptors, written to directly (not reopened)."""
 
 FIFO_WAIT_S = 10.0

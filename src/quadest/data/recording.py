@@ -1,39 +1,19 @@
 """One type for a time series of IMU / magnetometer data with optional ground truth.
 
-Conventions: :mod:`quadest.conventions` (NED / FRD, ``q_nb`` scalar first, SI units).
-
-Files: CSV or Parquet, chosen by the file extension, with a lossless round trip. The CSV header
-is fixed (docs/recordings.md)::
-
-    t, gyr_x, gyr_y, gyr_z, acc_x, acc_y, acc_z, mag_x, mag_y, mag_z
-    [, true_q_w, true_q_x, true_q_y, true_q_z] [, true_gyr_x, ...] [, true_pos_n, ...]
-    [, true_vel_n, ...] [, true_acc_x, ...] [, ref_q_w, ...]
-    [, rotor_speed_0, ..., rotor_speed_{n-1}] [, motor_command_0, ...]
-
-and the metadata stands in ``# key: <json>`` comment lines at the top (the rotors' count,
-numbering and spin directions in ``# rotors: {...}`` where the source states them).
+Conventions: :mod:`quadest.conventions` (NED / FRD, ``q_nb`` scalar first, SI units). Its files
+(CSV or Parquet, a lossless round trip): :mod:`quadest.data.recording_files`.
 """
 
 from __future__ import annotations
 
-import io
 import json
 import math
-import re
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from quadest.data.checks import BLOCK, check_units, row_norms
-from quadest.data.files import atomic_output
-
-FORMAT_TAG = "quadest recording v2"
-"""v2 states its row count (``# rows: N``) and ends with ``# end: N rows``, so a file cut short
-is refused instead of read as a shorter recording. v1 files (no count) are still read."""
-LEGACY_TAGS = ("quadest recording v1",)
-END_MARK = "# end: "
 
 # name -> (columns suffixes, width, description)
 TRUTH_FIELDS = {
@@ -404,194 +384,3 @@ def _check_rotor_meta(meta: dict, rotors: int) -> None:
     for key in ("motors", "spin", "positions"):
         if key in info and (not isinstance(info[key], list) or len(info[key]) != count):
             raise ValueError(f"meta: rotors.{key} must be a list of {count} (one per rotor), got {info[key]!r}")
-
-
-# -- files ---------------------------------------------------------------------------------
-def _kind(path: Path) -> str:
-    ext = path.suffix.lower()
-    if ext == ".csv":
-        return "csv"
-    if ext in (".parquet", ".pq"):
-        return "parquet"
-    raise ValueError(f"{path}: unknown recording extension {ext!r}; use .csv or .parquet")
-
-
-def save_recording(rec: Recording, path: str | Path) -> Path:
-    """Write a recording as CSV or Parquet (by extension); the round trip is lossless."""
-    import pyarrow as pa
-
-    path = Path(path)
-    kind = _kind(path)
-    table = pa.table(rec.columns())
-    if kind == "parquet":
-        import pyarrow.parquet as pq
-
-        table = table.replace_schema_metadata(
-            {b"quadest": json.dumps({"format": FORMAT_TAG, "meta": rec.meta, "rows": len(rec)}).encode()}
-        )
-        with atomic_output(path) as tmp, open(tmp, "wb") as fh:  # a file object: pyarrow takes only UTF-8 names
-            pq.write_table(table, fh)
-        return path
-    import pyarrow.csv as pcsv
-
-    buf = io.BytesIO()
-    pcsv.write_csv(table, buf, pcsv.WriteOptions(include_header=False, quoting_style="none"))
-    with atomic_output(path) as tmp, open(tmp, "wb") as f:
-        f.write(f"# {FORMAT_TAG}\n".encode())
-        f.write(f"# rows: {len(rec)}\n".encode())
-        for k, v in rec.meta.items():
-            f.write(f"# {k}: {json.dumps(v)}\n".encode())
-        f.write((",".join(table.column_names) + "\n").encode())
-        f.write(buf.getvalue())
-        f.write(f"{END_MARK}{len(rec)} rows\n".encode())
-    return path
-
-
-def _stacked(get, cols, n) -> np.ndarray:
-    """The columns ``cols`` side by side, each read by ``get`` into its place (one column's
-    copy at a time: a long recording is never held twice)."""
-    out = np.empty((n, len(cols)))
-    for j, c in enumerate(cols):
-        out[:, j] = get(c)
-    return out
-
-
-def _rotor_columns(names, field_name, source) -> list[str]:
-    """A rotor field's columns, ``NAME_0`` on without a gap (or none)."""
-    found = [c for c in names if re.fullmatch(rf"{field_name}_\d+", c)]
-    expected = columns_of(field_name, len(found))
-    if sorted(found) != sorted(expected):
-        raise ValueError(
-            f"{source}: {field_name} needs the columns {', '.join(expected)} (numbered from 0), got {', '.join(found)}"
-        )
-    return expected
-
-
-def _from_columns(names, get, meta, source, check_units=True) -> Recording:
-    names = list(names)
-    base = ["t"] + [c for f in SENSOR_FIELDS for c in columns_of(f)]
-    missing = [c for c in base if c not in names]
-    if missing:
-        raise ValueError(f"{source}: missing column(s) {', '.join(missing)}")
-    known = set(base)
-    kw = {"t": np.array(get("t"), dtype=np.float64)}  # its own, writable (a column may be a view of pyarrow's)
-    for f in SENSOR_FIELDS:
-        kw[f] = _stacked(get, columns_of(f), len(kw["t"]))
-    for f in TRUTH_FIELDS:
-        cols = columns_of(f)
-        present = [c for c in cols if c in names]
-        if present and len(present) != len(cols):
-            raise ValueError(f"{source}: truth field {f} needs all of {', '.join(cols)}")
-        if present:
-            kw[f] = _stacked(get, cols, len(kw["t"]))
-            known.update(cols)
-    for f in ROTOR_FIELDS:
-        cols = _rotor_columns(names, f, source)
-        if cols:
-            kw[f] = _stacked(get, cols, len(kw["t"]))
-            known.update(cols)
-    extra = [c for c in names if c not in known]
-    if extra:
-        raise ValueError(
-            f"{source}: unexpected column(s) {', '.join(extra)} "
-            "(the recording header is documented in docs/recordings.md)"
-        )
-    try:
-        return Recording(**kw, meta=meta, check_units=check_units, _adopt=True)  # checked like any other file
-    except ValueError as exc:
-        raise ValueError(f"{source}: {exc}") from None
-
-
-def _load_parquet(path, fh, pa, pq, check_units) -> Recording:
-    """A quadest Parquet recording read column by column from the open file ``fh``."""
-    try:
-        pf = pq.ParquetFile(fh)
-        names, rows_held = pf.schema_arrow.names, pf.metadata.num_rows
-        raw = (pf.schema_arrow.metadata or {}).get(b"quadest")
-    except (pa.ArrowException, OSError) as exc:
-        raise ValueError(f"{path}: not a readable Parquet file ({str(exc).strip().splitlines()[0]})") from None
-    try:
-        head = json.loads(raw) if raw else {}
-        meta = head.get("meta", {}) if isinstance(head, dict) else None
-    except (ValueError, UnicodeDecodeError):
-        meta = None
-    if not isinstance(meta, dict):
-        raise ValueError(f"{path}: the quadest metadata of this Parquet file is damaged")
-    rows = head.get("rows")
-    if rows is not None and rows != rows_held:
-        raise ValueError(f"{path}: holds {rows_held} rows but states {rows}: the file is damaged")
-
-    def column(name):
-        pa.default_memory_pool().release_unused()  # the columns read before, copied out: returned to the system
-        try:
-            col = pf.read(columns=[name]).column(0)
-        except (pa.ArrowException, OSError) as exc:
-            raise ValueError(f"{path}: not a readable Parquet file ({str(exc).strip().splitlines()[0]})") from None
-        return numeric_column(path, name, col)
-
-    return _from_columns(names, column, meta, path, check_units)
-
-
-def load_recording(path: str | Path, *, check_units: bool = True) -> Recording:
-    """Read a recording written by :func:`save_recording` (CSV or Parquet, by extension). Its
-    values are checked for unit mistakes like any other file's (``check_units=False`` reads
-    what was written, whatever it holds)."""
-    import pyarrow as pa
-
-    path = Path(path)
-    kind = _kind(path)
-    if not path.is_file():
-        raise ValueError(f"{path}: no such file")
-    if kind == "parquet":
-        import pyarrow.parquet as pq
-
-        with open(path, "rb") as fh:
-            return _load_parquet(path, fh, pa, pq, check_units)
-    import pyarrow.csv as pcsv
-
-    data = path.read_bytes()
-    meta, pos, tag = {}, 0, None
-    while data.startswith(b"#", pos):
-        end = data.find(b"\n", pos)
-        end = len(data) if end < 0 else end
-        line = data[pos + 1 : end].decode("utf-8", "replace").strip()
-        pos = end + 1
-        if line.startswith("quadest recording"):
-            tag = line
-            continue
-        if ":" not in line:
-            continue
-        key, _, value = line.partition(":")
-        try:
-            meta[key.strip()] = json.loads(value)
-        except json.JSONDecodeError:
-            meta[key.strip()] = value.strip()
-    if pos >= len(data):
-        raise ValueError(f"{path}: no CSV header after the metadata lines")
-    rows = meta.pop("rows", None)
-    body = data[pos:]
-    if tag is not None and tag not in LEGACY_TAGS:
-        # v2: the file must end with its end line (then at most blank lines, and any line ends:
-        # CRLF from an editor); a file cut anywhere lacks it
-        end_at = body.rfind(b"\n" + END_MARK.encode())
-        if end_at < 0 or not re.search(rb" rows\r?\n\s*\Z", body[end_at:]):
-            raise ValueError(
-                f"{path}: the file is cut short (its end line is missing"
-                + (f"; it states {rows} rows)" if rows is not None else ")")
-            )
-        body = body[: end_at + 1]
-    try:
-        table = pcsv.read_csv(
-            io.BytesIO(body), convert_options=pcsv.ConvertOptions(column_types={}, strings_can_be_null=True)
-        )
-    except pa.ArrowException as exc:
-        raise ValueError(f"{path}: malformed CSV ({str(exc).splitlines()[0]})") from None
-    if rows is not None and rows != table.num_rows:
-        raise ValueError(f"{path}: holds {table.num_rows} rows but states {rows}: the file is cut short or damaged")
-    names = [c.strip() for c in table.column_names]
-    if len(set(names)) != len(names):
-        dup = sorted({c for c in names if names.count(c) > 1})
-        raise ValueError(f"{path}: column(s) {', '.join(dup)} appear more than once")
-    table = table.rename_columns(names)
-
-    return _from_columns(names, lambda c: numeric_column(path, c, table.column(c)), meta, path, check_units)

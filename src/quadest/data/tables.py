@@ -1,17 +1,68 @@
-"""Writing a table of named columns (an estimate's attitude, for example) to CSV or Parquet."""
+"""Writing a table of named columns (an estimate's attitude, for example) to CSV or Parquet, each
+column's unit and frame kept with it: in a Parquet file's schema, beside a CSV in its
+CSV-on-the-Web metadata file (``NAME.csv-metadata.json``, :func:`write_csv_metadata`), so that
+the CSV itself stays plain for any reader."""
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterable
 from pathlib import Path
 
-from quadest.data.files import atomic_output
+from quadest.data.files import STDOUT, atomic_output, dumps_json, output_target, write_bytes
+
+CSV_METADATA_SUFFIX = "-metadata.json"
+"""W3C CSV on the Web's name for a CSV's metadata file: ``NAME.csv-metadata.json`` beside it."""
+CSVW_CONTEXT = "http://www.w3.org/ns/csvw"
+
+
+def csv_metadata_path(path) -> Path:
+    """The metadata file of the CSV ``path`` (:data:`CSV_METADATA_SUFFIX`)."""
+    path = Path(path)
+    return path.with_name(path.name + CSV_METADATA_SUFFIX)
+
+
+def write_csv_metadata(path, names, units: dict | None, quadest: dict) -> Path | None:
+    """Beside the CSV ``path`` (written), its CSV-on-the-Web metadata: each column's name and
+    unit (``dc:description``), and under ``quadest`` what quadest reads back (``quadest``:
+    the rows' count, a recording's metadata and checksum). None for a CSV written to a stream
+    (a FIFO, a descriptor): there is nothing beside it."""
+    if output_target(path).stream:
+        return None
+    units = units or {}
+    columns = [{"name": n, "titles": n, "datatype": "double", "dc:description": units.get(n, "")} for n in names]
+    doc = {
+        "@context": CSVW_CONTEXT,
+        "url": Path(path).name,
+        "dialect": {"header": True, "delimiter": ","},
+        "tableSchema": {"columns": columns},
+        "quadest": quadest,
+    }
+    return write_bytes(csv_metadata_path(path), (dumps_json(doc) + "\n").encode())
+
+
+def read_csv_metadata(path) -> dict | None:
+    """The ``quadest`` part of the CSV ``path``'s metadata file, None when it has none;
+    ValueError (one line, naming the file) when it is damaged."""
+    side = csv_metadata_path(path)
+    if not side.is_file():
+        return None
+    try:
+        part = json.loads(side.read_bytes())["quadest"]
+    except (ValueError, KeyError, TypeError, UnicodeDecodeError):
+        part = None
+    if not isinstance(part, dict):
+        raise ValueError(
+            f"{side}: damaged metadata of {Path(path).name}; repair it, or delete it to read the CSV plain"
+        )
+    return part
 
 
 def write_table(cols: dict, path: str | Path, *, units: dict | None = None) -> Path:
     """``{name: 1-D array}`` to ``.csv`` (a plain header line, then the values) or ``.parquet``,
     atomically (:func:`quadest.data.files.atomic_output`). ``units``: ``{name: "unit (frame)"}``,
-    kept in a Parquet file's schema (:func:`described`)."""
+    kept in a Parquet file's schema (:func:`described`) or a CSV's metadata file
+    (:func:`write_csv_metadata`)."""
     return write_blocks([cols], path, units=units)
 
 
@@ -34,16 +85,21 @@ def write_blocks(blocks: Iterable[dict], path: str | Path, *, units: dict | None
     """Consecutive blocks of rows, each ``{name: 1-D array}`` with the same names, written as
     :func:`write_table` writes one: a long table is never held whole."""
     path = Path(path)
-    suffix = path.suffix.lower()
+    suffix = ".csv" if str(path) == STDOUT else path.suffix.lower()
     if suffix not in (".csv", ".parquet", ".pq"):
         raise ValueError(f"{path}: use .csv or .parquet")
     import pyarrow as pa  # loaded when a table is written, not by `import quadest`
     import pyarrow.csv as pcsv
     import pyarrow.parquet as pq
 
-    with atomic_output(path) as tmp, open(tmp, "wb") as fh:  # a file object: pyarrow takes only UTF-8 names
+    rows, names = 0, []
+    with (
+        atomic_output(path, suffix=suffix) as tmp,
+        open(tmp, "wb") as fh,
+    ):  # a file object: pyarrow takes only UTF-8 names
         writer = None
         for cols in blocks:
+            names = list(cols)
             table = pa.table(cols)
             if suffix == ".csv":
                 if writer is None:  # pyarrow quotes header names; write a plain header ourselves
@@ -56,10 +112,13 @@ def write_blocks(blocks: Iterable[dict], path: str | Path, *, units: dict | None
             if suffix != ".csv":
                 table = table.replace_schema_metadata(None).cast(writer.schema)
             writer.write_table(table)
+            rows += table.num_rows
             pa.default_memory_pool().release_unused()  # a block's buffers, written: returned to the system
         if writer is None:
             raise ValueError(f"{path}: no rows to write")
         writer.close()
+    if suffix == ".csv" and units:
+        write_csv_metadata(path, names, units, {"rows": rows})
     return path
 
 

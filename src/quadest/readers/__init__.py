@@ -23,15 +23,19 @@ Every failure is a :class:`ReaderError` (a ValueError) with one line naming the 
 from __future__ import annotations
 
 import inspect
+import logging
 import os
 from pathlib import Path
 
 from quadest.data.inputs import check_input
-from quadest.data.recording import Recording, load_recording
+from quadest.data.recording import Recording
+from quadest.data.recording_files import load_recording
 from quadest.errors import UsageError
 from quadest.extras import need
 from quadest.readers import asl, datasets, generic, logs, ros
 from quadest.readers.common import ReaderError
+
+LOG = logging.getLogger(__name__)
 
 
 def _read_broad(path) -> Recording:
@@ -146,7 +150,16 @@ def read_recording(path: str | Path, format: str | None = None, **options) -> Re
     if not Path(path).exists():
         raise ReaderError(f"{path}: no such file or folder")
     refuse_options_that_do_not_apply(fmt, options, path)
-    return READERS[fmt](path, **options)
+    rec = READERS[fmt](path, **options)
+    LOG.debug(f"quadest: {path}: read as {fmt}{'' if format else ' (detected)'}: {_what_was_read(rec)}")
+    return rec
+
+
+def _what_was_read(rec: Recording) -> str:
+    """Rows, span and channels of a recording read, for ``-v``."""
+    channels = ["gyr", "acc", *(["mag"] if rec.has_mag else []), *rec.truth, *rec.rotor_channels]
+    span = f"{rec.duration:.3f} s at {rec.imu_rate_hz():.1f} Hz" if len(rec) > 1 else "one row"
+    return f"{len(rec)} rows, {span}; {', '.join(channels)}"
 
 
 OPTION_FLAGS = {

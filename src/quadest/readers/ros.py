@@ -131,7 +131,8 @@ def read_rosbag(path, *, imu_topic=None, mag_topic=None, truth_topic=None, msgs=
     except ReaderError:
         raise
     except Exception as exc:  # rosbags raises its own error types per format
-        raise ReaderError(f"{path}: not a readable ROS bag ({type(exc).__name__}: {exc})") from None
+        said = " ".join(str(exc).split())  # rosbags quotes a damaged message definition, newlines and all
+        raise ReaderError(f"{path}: not a readable ROS bag ({type(exc).__name__}: {said[:300]})") from None
     if msgs is not None and not any(c.msgtype.startswith("px4_msgs/") for c in reader.connections):
         reader.close()
         raise UsageError(f"{path}: --msgs gives px4_msgs definitions, but the bag has no px4_msgs topic; leave it out")

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import os
-import sys
 import time
 import uuid
 from collections.abc import Iterator, Sequence
@@ -26,6 +26,8 @@ from typing import TYPE_CHECKING
 from quadest.data.files import atomic_output, exclusive_lock, output_target
 from quadest.evaluation.parallel import execute
 from quadest.sweep.runs import empty_row, group_runs, row_types, run_group, run_id
+
+LOG = logging.getLogger(__name__)
 
 if TYPE_CHECKING:
     import pyarrow as pa
@@ -110,11 +112,9 @@ class ResultStore:
         another waits (saying so on stderr) until this one has folded its parts in."""
 
         def say_waiting(pid):
-            print(
+            LOG.warning(
                 f"quadest: {self.path} is being written by another sweep (process {pid}); "
-                "waiting for it to end (Ctrl-C to stop)",
-                file=sys.stderr,
-                flush=True,
+                "waiting for it to end (Ctrl-C to stop)"
             )
 
         output_target(self.path)  # a results file that cannot be written is refused before the wait
@@ -142,11 +142,7 @@ class ResultStore:
             aside, n = self.path.with_name(f"{self.path.name}.damaged-{n}"), n + 1
         os.replace(self.path, aside)
         self.damaged += 1
-        print(
-            f"quadest: warning: {self.path}: {what}; moved to {aside.name}, and its runs are run again",
-            file=sys.stderr,
-            flush=True,
-        )
+        LOG.warning(f"quadest: warning: {self.path}: {what}; moved to {aside.name}, and its runs are run again")
 
     def _layout_problem(self, row_types: dict) -> tuple[bool, str] | None:
         """``(damaged, what)`` when the results file cannot be appended to, else None."""
@@ -309,11 +305,9 @@ def _run_locked(store: ResultStore, runs, workers, scheduler, retry_failed: bool
     done_before = store.done_ids(retry_failed)
     damaged = store.damaged  # rows or parts found damaged: their runs are not done, and run again
     if damaged:
-        print(
+        LOG.warning(
             f"quadest: warning: {store.path}: {damaged} damaged row(s) or part(s) found (checksum or format); "
-            "their runs are run again",
-            file=sys.stderr,
-            flush=True,
+            "their runs are run again"
         )
     todo = [r for r in runs if run_id(r) not in done_before]
     ids = [run_id(r) for r in todo]
