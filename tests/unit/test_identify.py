@@ -101,6 +101,13 @@ def test_a_frame_the_log_contradicts_is_refused_naming_the_rotors():
     assert "log.bin" in str(err.value) and "\n" not in str(err.value)
 
 
+def test_a_numbering_the_log_contradicts_is_refused_naming_the_rotors():
+    stated = (QUADRANTS[[2, 1, 0, 3]] / np.sqrt(2)).tolist()  # rotors 0 and 2 swapped
+    rec = replace(synthetic_flight(0), meta={"rotors": {"count": 4, "positions": stated, "spin": SPIN.tolist()}})
+    with pytest.raises(UsageError, match=r"places rotor\(s\) 0, 2 elsewhere"):
+        identify({"log.ulg": rec}, arm_m=ARM)
+
+
 def test_a_recording_without_rotor_speeds_is_refused():
     rec = replace(synthetic_flight(0), rotor_speed=None)
     with pytest.raises(UsageError, match="flight.csv: no rotor speeds"):

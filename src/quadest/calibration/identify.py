@@ -198,8 +198,8 @@ def _rms(x) -> float:
 @dataclass
 class Geometry:
     """The rotors placed from a fit: each rotor's quadrant (x forward, y right: ±1), ``k_f/J``
-    about x and y (1/(m s²) per rad²/s² of one rotor at unit distance... in 1/(kg m) · N s²),
-    and the centre of mass from the rotors' centre (m), for an arm ``arm_m``."""
+    about x and y (rad/s² per (rad/s)² and per metre of lever), and the centre of mass from the
+    rotors' centre (m), for an arm ``arm_m``."""
 
     quadrant: np.ndarray
     k_over_j: np.ndarray
@@ -239,6 +239,14 @@ def check_layout(g: Geometry, spin, where: str, stated: dict | None = None) -> N
             raise UsageError(
                 f"{where}: rotors {i} and {j} sit across from each other but the yaw moments give them opposite "
                 "senses: a quadrotor X turns its diagonal pairs alike"
+            )
+    if stated and "positions" in stated:
+        wrong = [i for i in range(4) if (np.sign(stated["positions"][i][:2]) != g.quadrant[i]).any()]
+        if wrong:
+            raise UsageError(
+                f"{where}: the log places rotor(s) {', '.join(map(str, wrong))} elsewhere than their roll and pitch "
+                f"moments do ({[g.quadrant[i].astype(int).tolist() for i in wrong]}, front +1, right +1): is the "
+                "motor numbering right?"
             )
     if stated and "spin" in stated:
         wrong = [i for i in range(4) if int(stated["spin"][i]) != int(spin[i])]
