@@ -6,14 +6,16 @@ the equations below are linear in the signals, so they hold between the filtered
 angular acceleration is the filtered gyroscope's derivative. Least squares, no intercepts:
 
 - specific force along body z: ``f_z = −(k_f/m) Σ Ω_i²``;
-- roll and pitch: ``ω̇_x = Σ a_i Ω_i² + g_x ω_y ω_z``, ``ω̇_y = Σ b_i Ω_i² + g_y ω_x ω_z`` with
+- roll and pitch: ``ω̇_x = Σ a_i Ω_i² + g_x ω_y ω_z + h_x ω_y Σ s_i Ω_i + D_x f_xy`` (pitch alike
+  with ``ω_x``): the body's and the rotors' gyroscopic moments and the drag's, with
   ``a_i = −(k_f/J_x) y_i`` and ``b_i = (k_f/J_y) x_i`` (rotor i at ``(x_i, y_i)`` from the
   centre of mass); the signs of ``a_i`` and ``b_i`` place each rotor (its numbering), and with
   the rotors at the corners of a square of the given arm about the rotors' centre, their spread
   gives ``k_f/J`` and their mean the centre of mass off the rotors' centre (the steady thrust
   split: in hover the rotors nearer the centre of mass carry more);
-- yaw: ``ω̇_z = Σ c_i Ω_i² − (I_r/J_z) Σ s_i Ω̇_i`` with ``c_i = −(k_m/J_z) s_i``: the sign of
-  ``c_i`` gives rotor i's sense ``s_i``, the second term the rotors' inertia where observable.
+- yaw: ``ω̇_z = Σ c_i Ω_i² − (I_r/J_z) Σ s_i Ω̇_i + e_1 ω_z Σ Ω_i + e_2 |ω_z| ω_z + D_z f_xy``
+  with ``c_i = −(k_m/J_z) s_i``: the sign of ``c_i`` gives rotor i's sense ``s_i``, the second
+  term the rotors' inertia where observable, then the rotors' and the body's drag as it turns.
 
 Absolute mass, inertia and arm are not identifiable from these signals: the fit gives the
 per-mass and per-inertia quantities, and the vehicle is stated at a reference mass and arm the
@@ -44,10 +46,11 @@ FLYING_SHARE = 0.5
 
 @dataclass
 class Samples:
-    """Flying rows of one or more flights on a uniform grid, low-passed alike: squared rotor
-    speeds (rad²/s²), their rates (rad/s²), body rates (rad/s), angular accelerations (rad/s²),
+    """Flying rows of one or more flights on a uniform grid, low-passed alike: rotor speeds
+    (rad/s), their squares (rad²/s²) and rates (rad/s²), body rates (rad/s), angular accelerations (rad/s²),
     the specific force (m/s², body), and each row's flight."""
 
+    speed: np.ndarray
     speed2: np.ndarray
     speed_dot: np.ndarray
     gyr: np.ndarray
@@ -97,7 +100,7 @@ def flight_samples(rec, index: int = 0, name: str = "recording", *, rate_hz: flo
         sp2 = sosfiltfilt(sos, on_grid[0] ** 2, axis=0)  # the squares filtered: the equations stay linear
         dt = 1.0 / rate_hz
         rates = np.gradient(sp, dt, axis=0)
-        parts.append(Samples(sp2, rates, gyr, np.gradient(gyr, dt, axis=0), acc, np.full(len(grid), index)))
+        parts.append(Samples(sp, sp2, rates, gyr, np.gradient(gyr, dt, axis=0), acc, np.full(len(grid), index)))
     if not parts:
         raise UsageError(f"{name}: no flying span of {2.0 + 2 * EDGE_S:.0f} s or more (rotors above half their median)")
     return Samples.joined(parts)
@@ -113,40 +116,46 @@ def _lsq(X, y) -> np.ndarray:
 
 
 def moment_regressors(s: Samples, axis: int, spin=None) -> np.ndarray:
-    """The columns of axis ``axis``'s fit (module doc): the squared speeds, then the body's
-    gyroscopic product (roll, pitch) or, given the senses, the rotors' ``Σ s_i Ω̇_i`` (yaw),
-    then the specific force along x and y (the drag's moments)."""
+    """The columns of the roll (``axis`` 0) or pitch (1) fit (module doc): the squared speeds, the
+    body's gyroscopic product, given the senses the rotors' momentum's (``ω_y Σ s_i Ω_i`` for
+    roll, ``ω_x Σ s_i Ω_i`` for pitch), then the specific force along x and y (the drag's
+    moments); the yaw fit's (axis 2) are :func:`yaw_regressors`."""
+    if axis == 2:
+        return yaw_regressors(s, spin)
     w = s.gyr
-    if axis == 0:
-        extra = [w[:, 1] * w[:, 2]]
-    elif axis == 1:
-        extra = [w[:, 0] * w[:, 2]]
-    else:
-        extra = [] if spin is None else [s.speed_dot @ np.asarray(spin, float)]
-    return np.column_stack([s.speed2, *extra, s.f[:, 0], s.f[:, 1]])
+    body = w[:, 1] * w[:, 2] if axis == 0 else w[:, 0] * w[:, 2]
+    rotors = [] if spin is None else [w[:, 1 - axis] * (s.speed @ np.asarray(spin, float))]
+    return np.column_stack([s.speed2, body, *rotors, s.f[:, 0], s.f[:, 1]])
+
+
+def yaw_regressors(s: Samples, spin) -> np.ndarray:
+    """The yaw fit's columns: ``Σ s_i Ω_i²`` (the reaction torque), ``Σ s_i Ω̇_i`` (the rotors'
+    inertia), ``ω_z Σ Ω_i`` (the rotors' drag as the body turns), ``|ω_z| ω_z`` (the body's), and
+    the specific force along x and y."""
+    spin = np.asarray(spin, float)
+    w = s.gyr[:, 2]
+    return np.column_stack([s.speed2 @ spin, s.speed_dot @ spin, w * s.speed.sum(axis=1), np.abs(w) * w, s.f[:, :2]])
 
 
 @dataclass
 class Fit:
     """One fit of :class:`Samples` (module doc): ``k_f/m`` (m/s² per rad²/s²), the per-rotor
-    roll, pitch and yaw coefficients (rad/s² per rad²/s²), the gyroscopic coefficients, the
-    rotors' senses, ``I_r/J_z`` and the drag's moments (rad/s² per m/s² of specific force along
-    x and y, one row per axis)."""
+    roll, pitch and yaw coefficients (rad/s² per rad²/s²), the rotors' senses, ``I_r/J_z``, the
+    drag's moments (rad/s² per m/s² of specific force along x and y, one row per axis) and each
+    axis's coefficients in its regressors' order (:func:`moment_regressors`)."""
 
     thrust_per_mass: float
     roll: np.ndarray
     pitch: np.ndarray
     yaw: np.ndarray
-    gyroscopic: np.ndarray
     spin: np.ndarray
     rotor_inertia_per_jz: float
     drag: np.ndarray
+    columns: tuple
 
     def coefficients(self, axis: int) -> np.ndarray:
         """Axis ``axis``'s coefficients in :func:`moment_regressors`' column order."""
-        rotors = (self.roll, self.pitch, self.yaw)[axis]
-        extra = -self.rotor_inertia_per_jz if axis == 2 else self.gyroscopic[axis]
-        return np.concatenate([rotors, [extra], self.drag[axis]])
+        return self.columns[axis]
 
 
 def diagonal_pattern(roll, pitch) -> np.ndarray:
@@ -158,25 +167,20 @@ def diagonal_pattern(roll, pitch) -> np.ndarray:
 
 def fit(s: Samples, spin=None) -> Fit:
     """The least-squares fit of the module doc. The senses, unless given, from the yaw moment
-    of the one diagonal pattern (:func:`diagonal_pattern`): ``ω̇_z = −(k_m/J_z) Σ s_i Ω_i² ...``."""
+    of the one diagonal pattern (:func:`diagonal_pattern`) of a first roll and pitch fit without
+    the rotors' momentum: ``ω̇_z = −(k_m/J_z) Σ s_i Ω_i² ...``."""
     n = s.speed2.shape[1]
     total = s.speed2.sum(axis=1)
     k = -float(total @ s.f[:, 2] / (total @ total))
-    roll = _lsq(moment_regressors(s, 0), s.alpha[:, 0])
-    pitch = _lsq(moment_regressors(s, 1), s.alpha[:, 1])
     if spin is None:
+        roll, pitch = (_lsq(moment_regressors(s, axis), s.alpha[:, axis]) for axis in (0, 1))
         pattern = diagonal_pattern(roll[:n], pitch[:n])
         spin = -np.sign(_lsq(yaw_regressors(s, pattern), s.alpha[:, 2])[0]) * pattern
     spin = np.asarray(spin, float)
-    yaw = _lsq(yaw_regressors(s, spin), s.alpha[:, 2])
-    drag = np.array([roll[n + 1 :], pitch[n + 1 :], yaw[2:]])
-    return Fit(k, roll[:n], pitch[:n], yaw[0] * spin, np.array([roll[n], pitch[n]]), spin, float(-yaw[1]), drag)
-
-
-def yaw_regressors(s: Samples, spin) -> np.ndarray:
-    """The yaw fit's columns: ``Σ s_i Ω_i²``, ``Σ s_i Ω̇_i`` and the specific force along x and y."""
-    spin = np.asarray(spin, float)
-    return np.column_stack([s.speed2 @ spin, s.speed_dot @ spin, s.f[:, 0], s.f[:, 1]])
+    columns = tuple(_lsq(moment_regressors(s, axis, spin), s.alpha[:, axis]) for axis in range(3))
+    roll, pitch, yaw = columns
+    drag = np.array([roll[-2:], pitch[-2:], yaw[-2:]])
+    return Fit(k, roll[:n], pitch[:n], yaw[0] * spin, spin, float(-yaw[1]), drag, columns)
 
 
 def residuals(f: Fit, s: Samples) -> dict:
@@ -185,7 +189,7 @@ def residuals(f: Fit, s: Samples) -> dict:
     total = s.speed2.sum(axis=1)
     out = {"f_z": _rms(s.f[:, 2] + f.thrust_per_mass * total), "f_z_spread": float(np.std(s.f[:, 2]))}
     for axis, name in enumerate(("roll", "pitch", "yaw")):
-        r = s.alpha[:, axis] - moment_regressors(s, axis, f.spin) @ f.coefficients(axis)  # yaw: Σ c_i Ω_i²
+        r = s.alpha[:, axis] - moment_regressors(s, axis, f.spin) @ f.coefficients(axis)
         out[f"alpha_{name}"] = _rms(r)
         out[f"alpha_{name}_spread"] = float(np.std(s.alpha[:, axis]))
     return out
