@@ -1,5 +1,5 @@
 """Every command that reads a recording or a log (info, estimate, compare, report, diagnose,
-calibrate) on every file of ../shared/data (or $QUADEST_DATA) and on small generated files of
+calibrate, identify) on every file of ../shared/data (or $QUADEST_DATA) and on small generated files of
 every format: each ends in a result (exit code 0) or a one-line refusal (exit code 1 or 2, one
 ``error:`` line on stderr, no traceback, no internal error), within a time limit. The commands
 run in-process (as tests/integration/test_cli.py runs them), on their shortest settings: one
@@ -41,10 +41,11 @@ def _argv(command: str, path: Path, out: Path, options: list) -> list[str]:
         "report": ["report", f, "--filters", "madgwick", "--to", "20", "-o", str(out / "r.html"), *options],
         "diagnose": ["diagnose", f],  # logs only: it takes no reader options
         "calibrate": ["calibrate", "gyro", f, "-o", str(out / "c.json"), *options],
+        "identify": ["identify", f, "-o", str(out / "v.toml"), *options],
     }[command]
 
 
-COMMANDS = ("info", "estimate", "compare", "report", "diagnose", "calibrate")
+COMMANDS = ("info", "estimate", "compare", "report", "diagnose", "calibrate", "identify")
 
 
 class Hang(BaseException):

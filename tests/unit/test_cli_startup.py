@@ -62,6 +62,9 @@ def test_the_help_test_sees_a_heavy_import():
 
 def _library_choices() -> dict:
     """Each name of :mod:`quadest.cli.choices` as the library defines it."""
+    import inspect
+
+    from quadest.calibration.identify import identify
     from quadest.evaluation.diagnose import DiagnoseParams
     from quadest.filters import ESTIMATORS, FILTERS, PEERS
     from quadest.flight import CONTROLLERS, FLIGHT_SCENARIOS
@@ -99,6 +102,9 @@ def _library_choices() -> dict:
         ),
         "DIAGNOSE_DEFAULTS": SimpleNamespace(
             moment_gain=DiagnoseParams.moment_gain, excess_threshold=DiagnoseParams.excess_threshold
+        ),
+        "IDENTIFY_DEFAULTS": SimpleNamespace(
+            **{k: inspect.signature(identify).parameters[k].default for k in ("mass_kg", "arm_m")}
         ),
     }
 

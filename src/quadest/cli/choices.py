@@ -81,6 +81,8 @@ RECOVERY_DEFAULTS = SimpleNamespace(n_hypotheses=40, beta1=7.0, beta2=0.06)
 """``quadest.recovery.RecoveryParams``' defaults that ``quadest recover`` offers as options."""
 DIAGNOSE_DEFAULTS = SimpleNamespace(moment_gain=10.0, excess_threshold=0.15)
 """``quadest.evaluation.diagnose.DiagnoseParams``' defaults that ``quadest diagnose`` offers."""
+IDENTIFY_DEFAULTS = SimpleNamespace(mass_kg=1.0, arm_m=1.0)
+"""``quadest.calibration.identify.identify``'s reference mass (kg) and arm (m) that ``quadest identify`` offers."""
 
 
 def filter_name(name: str) -> str:

@@ -88,7 +88,6 @@ def fly_settings(args, sets: dict) -> dict:
     from quadest.flight import FlightParams
     from quadest.flight.spec import DEFAULT_PRESET
     from quadest.flight.throw import ThrowParams
-    from quadest.models.multirotor import vehicle_preset
     from quadest.records import with_fields
     from quadest.recovery.divergence import CHECKS
 
@@ -99,12 +98,12 @@ def fly_settings(args, sets: dict) -> dict:
         raise CliError(f"--divergence expects auto, off or a comma-separated list of {', '.join(CHECKS)}, "
                        f"got {args.divergence!r}")  # fmt: skip
     flight = FlightParams(position_sensor=args.position_sensor, collision=args.collision, divergence=args.divergence)
-    out = {"params": with_fields(flight, groups.get("flight", {}), "flight"), "vehicle": args.vehicle}
+    out = {"params": with_fields(flight, groups.get("flight", {}), "flight"), "vehicle": _vehicle(args.vehicle)}
     if "sensors" in groups:
         preset = args.preset or DEFAULT_PRESET.get(args.scenario, "bebop2")
         out["config"] = _sensor_config(preset, groups["sensors"])
     if "vehicle" in groups:
-        out["vehicle"] = with_fields(vehicle_preset(args.vehicle), groups["vehicle"], "vehicle")
+        out["vehicle"] = with_fields(_vehicle(args.vehicle, preset=True), groups["vehicle"], "vehicle")
     for prefix, record in (("se3", SE3Params), ("ftc", FtcParams), ("throw", ThrowParams)):
         if prefix in groups:
             out[prefix] = with_fields(record(), groups[prefix], prefix)
@@ -112,6 +111,18 @@ def fly_settings(args, sets: dict) -> dict:
         changes = detector_changes(groups["detector"], [args.detection])
         out["detection"] = DetectorParams(rotor_speeds=args.detection == "rotor-speeds", **changes)
     return out
+
+
+def _vehicle(name: str, preset: bool = False):
+    """``--vehicle``: a preset's name (as given, or its parameters with ``preset``) or a vehicle file."""
+    from quadest.models.multirotor import VEHICLE_PRESETS, vehicle_preset
+    from quadest.models.vehicle_file import read_vehicle
+
+    if name in VEHICLE_PRESETS:
+        return vehicle_preset(name) if preset else name
+    if not Path(name).is_file():
+        raise CliError(f"--vehicle {name}: neither a vehicle ({', '.join(VEHICLE_PRESETS)}) nor a vehicle file")
+    return read_vehicle(name)
 
 
 def _noted(flight, vehicle: str, sets: dict):
@@ -381,10 +392,10 @@ def _add_preset_and_vehicle(s) -> None:
     s.add_argument("--preset", choices=list(PRESETS), default=None, help="sensors (default: bebop2; fma for a throw)")
     s.add_argument(
         "--vehicle",
-        choices=list(VEHICLE_PRESETS),
         default="recovery",
-        help="vehicle: recovery (the recovery paper's), bebop2 (Sun et al. 2021), hummingbird (RotorPy's) "
-        "(default: recovery; docs/vehicle.md)",
+        metavar="{" + ",".join(VEHICLE_PRESETS) + "} or VEHICLE.toml",
+        help="vehicle: recovery (the recovery paper's), bebop2 (Sun et al. 2021), hummingbird (RotorPy's), or a "
+        "vehicle file (quadest identify) (default: recovery; docs/vehicle.md)",
     )
 
 

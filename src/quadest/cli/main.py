@@ -59,7 +59,7 @@ try:  # Ctrl-C while the command line loads ends in one line too
     import warnings
     from pathlib import Path
 
-    from quadest.cli import benchmark, compare, data, fly, recordings, recovery, report, reproduce, sim, sweep
+    from quadest.cli import benchmark, compare, data, fly, recordings, recovery, report, reproduce, sim, sweep, vehicle
     from quadest.cli.common import OUTPUT_NAMES, CliError, add_verbosity, data_on_stdout, set_verbosity
     from quadest.errors import UsageError
     from quadest.extras import MissingExtra, need
@@ -89,11 +89,12 @@ def load_libraries() -> None:
             signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
-GROUPS = (sim, fly, recordings, report, compare, reproduce, benchmark, recovery, sweep, data)
+GROUPS = (sim, fly, recordings, vehicle, report, compare, reproduce, benchmark, recovery, sweep, data)
 ORDER = (
     "simulate",
     "fly",
     "info",
+    "identify",
     "diagnose",
     "report",
     "compare",

@@ -31,11 +31,50 @@ def cmd_info(args):
     return 0
 
 
-def cmd_diagnose(args):
-    from quadest.evaluation.diagnose import DiagnoseParams, diagnose_log, format_diagnosis
+AUTOPILOT_LOGS = (".bin", ".ulg")
+"""Logs whose motor outputs ``diagnose`` reads with a model built from the log (without --vehicle)."""
 
+
+def cmd_diagnose(args):
     if not args.file.exists():
         raise CliError(f"{args.file}: no such file")
+    if args.vehicle is None and args.file.suffix.lower() in AUTOPILOT_LOGS:
+        return _diagnose_log(args)
+    return _diagnose_speeds(args)
+
+
+def _diagnose_speeds(args):
+    from quadest.evaluation.diagnose_speeds import diagnose_speeds, format_speed_diagnosis
+    from quadest.models.multirotor import MultirotorParams
+    from quadest.models.vehicle_file import read_vehicle_file
+
+    if args.report:
+        raise CliError("--report: the page draws an autopilot log's motor outputs; leave it out with --vehicle")
+    drag = ((0.0, 0.0), (0.0, 0.0))
+    if args.vehicle is not None:
+        vehicle, _, identified = read_vehicle_file(args.vehicle)
+        source = str(args.vehicle)
+        drag = identified.get("drag_moment", {}).get("value", drag)
+    rec = read(args, args.file)
+    if rec.rotor_speed is None:
+        raise CliError(
+            f"{args.file}: no rotor speeds: diagnose reads motor outputs from ArduPilot (.bin) and PX4 (.ulg) logs, "
+            "and rotor speeds (with a vehicle file, --vehicle) from other recordings"
+        )
+    if args.vehicle is None:
+        vehicle = MultirotorParams()
+        source = "quadest's default vehicle (the recovery paper's), not this one: give --vehicle (quadest identify)"
+        say(f"no --vehicle: the model assumed is {source}")
+    d = diagnose_speeds(rec, vehicle, file=str(args.file), vehicle_source=source, drag_moment=drag)
+    say(format_speed_diagnosis(d))
+    if args.json:
+        write_json(args.json, d.as_json())
+    return 0
+
+
+def _diagnose_log(args):
+    from quadest.evaluation.diagnose import DiagnoseParams, diagnose_log, format_diagnosis
+
     if not args.moment_gain > 0:
         raise CliError(f"--moment-gain {args.moment_gain}: must be positive (rad/s² per unit thrust)")
     if not 0 < args.excess_threshold < 10:
@@ -179,9 +218,18 @@ def _add_diagnose(sub):
         "(frame, motor numbering and thrust curve from its parameters, thrust over mass from its "
         "accelerometer), and compare each motor's share of the thrust with the others' (a "
         "damaged propeller makes its motor work harder). Times in the log's own time base, motors "
-        "in the autopilot's numbering (docs/diagnose.md).",
+        "in the autopilot's numbering (docs/diagnose.md). With --vehicle (a vehicle file from quadest "
+        "identify), a recording with measured rotor speeds in any format (DIDO, CSV, ...) is diagnosed "
+        "against that vehicle: rotors lost or damaged, in the recording's column order (docs/vehicle.md).",
     )
-    d.add_argument("file", type=Path, help="ArduPilot DataFlash (.bin) or PX4 ULog (.ulg) log")
+    d.add_argument("file", type=Path, help="ArduPilot (.bin) or PX4 (.ulg) log, or with --vehicle any recording")
+    d.add_argument(
+        "--vehicle",
+        type=Path,
+        default=None,
+        metavar="VEHICLE.toml",
+        help="the vehicle file (quadest identify) to diagnose a recording with rotor speeds against",
+    )
     d.add_argument(
         "--json",
         type=Path,
@@ -212,6 +260,7 @@ def _add_diagnose(sub):
         help="flag a motor whose thrust exceeds the others' mean by more than this share "
         f"(default {DIAGNOSE_DEFAULTS.excess_threshold:g})",
     )
+    add_input_args(d)
     d.set_defaults(func=cmd_diagnose)
 
 

@@ -203,7 +203,9 @@ class Detector:
     """Rotor-failure detection and isolation for one vehicle (module doc): ``vehicle`` is the
     detector's model (a :class:`~quadest.models.multirotor.MultirotorParams`), ``params`` a
     :class:`DetectorParams` (or keyword overrides), ``imu_position`` the accelerometer's place
-    from the centre of mass (m, body FRD; an autopilot's ``INS_POS`` / ``EKF2_IMU_POS``).
+    from the centre of mass (m, body FRD; an autopilot's ``INS_POS`` / ``EKF2_IMU_POS``),
+    ``drag_moment`` the drag's moments (:func:`~quadest.detect.model.model_coefficients`; a
+    vehicle file's ``identified.drag_moment``).
     Streaming :meth:`update` and batch :meth:`run` call one compiled step."""
 
     def __init__(
@@ -212,6 +214,7 @@ class Detector:
         params: DetectorParams | None = None,
         *,
         imu_position: ArrayLike = (0.0, 0.0, 0.0),
+        drag_moment: ArrayLike = ((0.0, 0.0), (0.0, 0.0)),
         **overrides,
     ):
         params = params if params is not None else DetectorParams()
@@ -220,7 +223,7 @@ class Detector:
         check(params, "detector")
         self.params, self.vehicle = params, vehicle
         self._values = pack(params.values()[f] for f in PARAM._fields)
-        self._model = model_coefficients(vehicle, imu_position)
+        self._model = model_coefficients(vehicle, imu_position, drag_moment)
         self.rotors = vehicle.rotors
         self.reset()
 

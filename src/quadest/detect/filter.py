@@ -9,7 +9,7 @@ import numpy as np
 from quadest._jit import njit
 from quadest.conventions import GRAVITY
 from quadest.detect.layout import H_TAU, MAX_ROTORS, MODEL, NS, SCALE_HP, SCALE_LP, SCALE_RANGE, SCALE_RATE, STATE
-from quadest.detect.model import air_drag_per_speed, at_centre_of_mass, body_moments, rotor_thrust_yaw
+from quadest.detect.model import air_drag_per_speed, at_centre_of_mass, body_moments, drag_moments, rotor_thrust_yaw
 from quadest.detect.params import PARAM
 
 
@@ -65,7 +65,8 @@ def predict(x, p, c, gyr, dt):
         x[B + MAX_ROTORS + i] = dt * thrust * gy / J1 + dt * w0 * h / J1
         x[B + 2 * MAX_ROTORS + i] = dt * yaw / J2 - (x[STATE.h_lp + i] - h_before) / J2
     a = (1.0 - dt * c[MODEL.damping] / J0, 1.0 - dt * c[MODEL.damping + 1] / J1, 1.0 - dt * c[MODEL.damping + 2] / J2)
-    base = (dt * m0 / J0, dt * m1 / J1, dt * m2 / J2)
+    d0, d1 = drag_moments(x, c)
+    base = (dt * (m0 / J0 + d0), dt * (m1 / J1 + d1), dt * m2 / J2)
     if p[PARAM.moment_scale_s] > 0.0:
         _learn_moment_scale(x, p, c, gyr, a, base, dt)
     rel = (p[PARAM.model_error], p[PARAM.model_error], p[PARAM.yaw_model_error])

@@ -88,6 +88,7 @@ MODEL = layout(
     ("ip_s", MAX_ROTORS),  # per rotor: its inertia times its sense, I_p s_i (the rotors' momentum per speed)
     ("body_drag", 2),  # the body's quadratic drag along x and y
     ("imu", 3),  # the accelerometer's position from the centre of mass (body, m)
+    ("drag_moment", 4),  # roll's, then pitch's angular acceleration per specific force along x and y (rad/m)
 )
 DIAGNOSTICS = layout(
     ("eta", MAX_ROTORS),  # each rotor's effectiveness

@@ -13,10 +13,13 @@ from quadest.detect.params import PARAM
 from quadest.records import pack
 
 
-def model_coefficients(vehicle, imu_position=(0.0, 0.0, 0.0)) -> np.ndarray:
+def model_coefficients(vehicle, imu_position=(0.0, 0.0, 0.0), drag_moment=((0.0, 0.0), (0.0, 0.0))) -> np.ndarray:
     """The detector's model of a vehicle (a :class:`~quadest.models.multirotor.MultirotorParams`:
-    the detector's own, never the simulated truth's) and of where its accelerometer sits
-    (``imu_position``, m from the centre of mass, body axes) packed for the compiled step."""
+    the detector's own, never the simulated truth's), of where its accelerometer sits
+    (``imu_position``, m from the centre of mass, body axes) and of the drag's moments
+    (``drag_moment``: roll's and pitch's angular acceleration per specific force along x and y,
+    rad/s² per m/s², as ``quadest identify`` fits them; :func:`drag_moments`) packed for the
+    compiled step."""
     pos, spin = np.asarray(vehicle.rotor_pos, float), np.asarray(vehicle.spin, float)
     n = len(pos)
     if not 2 <= n <= MAX_ROTORS:
@@ -31,7 +34,20 @@ def model_coefficients(vehicle, imu_position=(0.0, 0.0, 0.0)) -> np.ndarray:
     imu = np.asarray(imu_position, float)
     if imu.shape != (3,) or not np.isfinite(imu).all():
         raise ValueError(f"detector: imu_position must be three finite values (m), got {imu_position!r}")
-    return pack(values + list(ip_s) + list(vehicle.body_drag[:2]) + list(imu))
+    drag = np.asarray(drag_moment, float)
+    if drag.shape != (2, 2) or not np.isfinite(drag).all():
+        raise ValueError(f"detector: drag_moment must be 2 rows (roll, pitch) of 2 finite values, got {drag_moment!r}")
+    return pack(values + list(ip_s) + list(vehicle.body_drag[:2]) + list(imu) + list(drag.ravel()))
+
+
+@njit(cache=True, inline="always")
+def drag_moments(x, c):
+    """The angular acceleration about x and y of the drag acting off the centre of mass (the
+    rotors' drag at their hubs, the body's at its centre of pressure), linear in the low-passed
+    specific force along x and y (``STATE.f_lp``; rad/s²)."""
+    fx, fy = x[STATE.f_lp], x[STATE.f_lp + 1]
+    d = MODEL.drag_moment
+    return c[d] * fx + c[d + 1] * fy, c[d + 2] * fx + c[d + 3] * fy
 
 
 @njit(cache=True, inline="always")

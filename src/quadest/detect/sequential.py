@@ -9,7 +9,7 @@ import numpy as np
 from quadest._jit import njit
 from quadest.detect.filter import holding
 from quadest.detect.layout import GLR_MAX, GLR_ROW, MAX_ROTORS, MODEL, ROW, STATE
-from quadest.detect.model import body_moments
+from quadest.detect.model import body_moments, drag_moments
 from quadest.detect.params import PARAM
 
 
@@ -85,9 +85,11 @@ def glr_store(x, p, c, gyr, acc, dt):
     row = STATE.glr + int(x[STATE.glr_head]) * GLR_ROW
     J = (c[MODEL.inertia], c[MODEL.inertia + 1], c[MODEL.inertia + 2])
     m = body_moments(c, gyr[0], gyr[1], gyr[2])
+    d0, d1 = drag_moments(x, c)
+    drag = (d0, d1, 0.0)
     for j in range(3):
         x[row + ROW.gyr + j] = gyr[j]
-        x[row + ROW.base + j] = dt * (m[j] - c[MODEL.damping + j] * gyr[j]) / J[j]
+        x[row + ROW.base + j] = dt * ((m[j] - c[MODEL.damping + j] * gyr[j]) / J[j] + drag[j])
         for i in range(n):
             x[row + ROW.b + j * MAX_ROTORS + i] = x[STATE.B + j * MAX_ROTORS + i]
     for i in range(n):
