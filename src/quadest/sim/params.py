@@ -347,6 +347,8 @@ class SimConfig:
                     raise ValueError(f"{key} must not be negative, got {v!r}")
                 if f.name.endswith("_prob") and len(values) and (values > 1).any():
                     raise ValueError(f"{key} is a probability: at most 1, got {v!r}")
+                if f.name in AT_MOST and len(values) and (values > AT_MOST[f.name][0]).any():
+                    raise ValueError(f"{key} = {v!r}: at most {AT_MOST[f.name][0]:g} {AT_MOST[f.name][1]}")
                 if f.name.endswith("rate_hz") and len(values) and (values > MAX_RATE_HZ).any():
                     raise ValueError(f"{key} = {v!r} Hz: beyond any sensor (at most {MAX_RATE_HZ:.0e} Hz)")
         if abs(np.linalg.det(np.asarray(self.mag.soft_iron, float))) < 1e-6:
@@ -360,6 +362,11 @@ class SimConfig:
 
 SECTIONS = [f.name for f in fields(SimConfig)]
 MAX_RATE_HZ = 1e5
+AT_MOST = {
+    "components": (100, "sinusoids per axis: a motion's memory grows with them"),
+    "latency_s": (10.0, "s: no sensor reads a field older than that"),
+}
+"""Upper limits of parameters whose work or memory grows with them."""
 NOT_NEGATIVE = {
     "range",
     "mass_kg",

@@ -17,8 +17,14 @@ from quadest.sim import sensors
 from quadest.sim.params import SimConfig, load_toml_overrides, preset_config
 from quadest.sim.truth import PRESCRIBED_SCENARIOS, Truth, default_duration, make_motion
 
-MAX_SAMPLES = 2e7
-"""The most IMU samples one simulation makes (about 11 h at 500 Hz; several GB in memory)."""
+BYTES_PER_SAMPLE = 1500
+"""What a simulation holds per IMU sample, with a margin: the peak memory of a hover grew by
+870 (``quadest simulate``) to 1060 bytes (``quadest.sim.simulate``) a sample from 20 s to 200 s
+at 500 Hz (``tests/unit/test_memory_budget.py``)."""
+MEMORY_BUDGET_BYTES = 4 * 2**30
+"""The most one simulation may hold (4 GiB), refused before it starts past that."""
+MAX_SAMPLES = MEMORY_BUDGET_BYTES / BYTES_PER_SAMPLE
+"""The most IMU samples one simulation makes (2.9·10⁶: 1.6 h at 500 Hz)."""
 CHUNK_S = 10.0  # simulated seconds per chunk (memory and progress granularity)
 
 
@@ -96,8 +102,9 @@ def simulate(
     rate = cfg.imu.rate_hz
     if duration * rate > MAX_SAMPLES:
         raise ValueError(
-            f"{duration:g} s at {rate:g} Hz is {duration * rate:.3g} samples, more than the "
-            f"{MAX_SAMPLES:.0e} one simulation holds; simulate shorter flights"
+            f"{duration:g} s at {rate:g} Hz is {duration * rate:.3g} samples, about "
+            f"{duration * rate * BYTES_PER_SAMPLE / 2**30:.3g} GiB in memory, past one simulation's budget of "
+            f"{MEMORY_BUDGET_BYTES / 2**30:g} GiB ({MAX_SAMPLES:.2g} samples); simulate shorter flights"
         )
     ss = np.random.SeedSequence(int(seed))
     rng_motion, rng_gyro, rng_acc, rng_mag, rng_time, rng_vib = (np.random.default_rng(s) for s in ss.spawn(6))
