@@ -12,6 +12,7 @@ from quadest.evaluation.detection import failure_case, fly_case, fly_case_flight
 from quadest.sweep import ResultStore
 from quadest.sweep.campaign import campaign_runs, campaign_summary, survival_curves, up_by_height
 from quadest.sweep.runs import run_id
+from quadest.sweep.truth_summary import truth_survival
 
 
 def _row(**kw):
@@ -243,3 +244,56 @@ def test_the_summary_names_each_groups_failure_mode():
     assert stop["detection_label"] == "rotor-speeds, motor-stop" and off["detection_label"] == "rotor-speeds"
     old = campaign_summary([{k: v for k, v in r.items() if k != "failure_mode"} for r in rows[:1] + rows[2:]])
     assert [g["failure_mode"] for g in old["groups"]] == ["propeller-off"]
+
+
+def test_a_truth_spread_is_flown_recorded_and_summarised(tmp_path, capsys):
+    """--truth-spread default: seed 0's loss flown with the truth drawn from its seed (the row's
+    numbers are draw_truth's for that seed, an independent call), the group named, the text
+    saying the losses up against the draw; the model's run beside it keeps its id and NaNs."""
+    import numpy as np
+
+    from quadest.models.multirotor import vehicle_preset
+    from quadest.models.truth import draw_truth, drawn_names
+
+    out = tmp_path / "c.parquet"
+    args = ["campaign", "--seeds", "0", "--nominal-seeds", "none", "--filters", "truth", "--detection", "oracle",
+            "-o", str(out), "--workers", "0"]  # fmt: skip
+    assert main([*args, "--truth-spread", "default"]) == 0
+    assert main(args) == 0
+    rows = {r["truth_spread"]: r for r in ResultStore(out).read().to_pylist()}
+    drawn = draw_truth(vehicle_preset("bebop2"), np.random.default_rng(np.random.SeedSequence([0, 41]))).drawn
+    assert {k: rows["default"][f"truth_{k}"] for k in drawn_names()} == drawn
+    assert all(math.isnan(rows["none"][f"truth_{k}"]) for k in drawn_names())
+    assert rows["none"]["run_id"] == run_id(campaign_runs([0], [], ["truth"], detections=("oracle",))[0])
+    groups = campaign_summary(list(rows.values()))["groups"]
+    assert [g["truth_spread"] for g in groups] == ["default", "none"]
+    assert groups[0]["truth"]["flights"] == 1 and groups[1]["truth"] is None
+    assert "truth drawn per flight (default)" in capsys.readouterr().out
+
+
+def test_the_campaign_keeps_the_models_runs_ids():
+    before = campaign_runs(range(3), [100], ["robust"], detections=("rotor-speeds",))
+    none = campaign_runs(range(3), [100], ["robust"], detections=("rotor-speeds",), truth_spread="none")
+    drawn = campaign_runs(range(3), [100], ["robust"], detections=("rotor-speeds",), truth_spread="default")
+    assert [run_id(r) for r in before] == [run_id(r) for r in none]
+    assert not {run_id(r) for r in before} & {run_id(r) for r in drawn} and len(drawn) == len(before)
+    assert all(r["source"]["truth_spread"] == "default" for r in drawn)
+    with pytest.raises(UsageError, match="--truth-spread: unknown spread 'wide'"):
+        campaign_runs([0], [], ["robust"], truth_spread="wide")
+
+
+def test_survival_is_counted_in_quarters_of_each_draw():
+    """Eight losses, the rotor inertia ratios 0.5 to 2.25 in steps of 0.25, the heaviest three
+    crashed: quarters of two flights each, hand-counted: 2/2, 2/2, 2/2 and 0/2; the worst (the
+    heaviest) quarter is 0/2, from the upper quartile 1.8125 up."""
+    rows = [
+        {"flight": "crashed" if k >= 5 else "survived", "truth_rotor_inertia_ratio": 0.5 + 0.25 * k} for k in range(8)
+    ]
+    rows[5]["flight"] = "survived"  # 1.75: below the upper quartile
+    t = truth_survival(rows)
+    by = t["by"]["truth_rotor_inertia_ratio"]
+    assert (by["survived"], by["flights"]) == ([2, 2, 2, 0], [2, 2, 2, 2])
+    assert t["worst"]["truth_rotor_inertia_ratio"] == {"end": "high", "bound": 1.8125, "survived": 0, "flights": 2}
+    assert (t["flights"], t["survived"]) == (8, 6)
+    assert "truth_top_speed_ratio" not in t["by"]  # not drawn: nothing to count against
+    assert math.isclose(by["x"][0], 0.625)

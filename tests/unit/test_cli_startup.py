@@ -71,6 +71,7 @@ def _library_choices() -> dict:
     from quadest.flight.common import COLLISIONS
     from quadest.flight.detection import DETECTION_MODES
     from quadest.models import VEHICLE_PRESETS
+    from quadest.models.truth import TRUTH_SPREADS
     from quadest.readers import FORMATS
     from quadest.readers.logs import IMU_SOURCES
     from quadest.recovery import RecoveryParams
@@ -97,6 +98,7 @@ def _library_choices() -> dict:
         "CHECKS": tuple(CHECKS),
         "DETECTIONS": tuple(DETECTIONS),
         "CAMPAIGN_FAILURE_MODES": tuple(CAMPAIGN_FAILURE_MODES),
+        "TRUTH_SPREADS": tuple(TRUTH_SPREADS),
         "RECOVERY_DEFAULTS": SimpleNamespace(
             n_hypotheses=recovery.n_hypotheses, beta1=recovery.beta1, beta2=recovery.beta2
         ),

@@ -76,6 +76,8 @@ DETECTIONS = ("rotor-speeds", "commands", "oracle")
 """``quadest.sweep.campaign.DETECTIONS``: a campaign's detection modes."""
 CAMPAIGN_FAILURE_MODES = ("propeller-off", "motor-stop")
 """``quadest.sweep.campaign.FAILURE_MODES``: how a campaign's complete losses happen."""
+TRUTH_SPREADS = ("none", "default")
+"""``quadest.models.truth.TRUTH_SPREADS``: the spreads a truth apart from the model is drawn from."""
 
 RECOVERY_DEFAULTS = SimpleNamespace(n_hypotheses=40, beta1=7.0, beta2=0.06)
 """``quadest.recovery.RecoveryParams``' defaults that ``quadest recover`` offers as options."""

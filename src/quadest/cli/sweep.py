@@ -13,6 +13,7 @@ from quadest.cli.choices import (
     FLIGHT_SCENARIOS,
     PRESCRIBED_SCENARIOS,
     PRESETS,
+    TRUTH_SPREADS,
     VEHICLE_PRESETS,
     filter_name,
 )
@@ -199,7 +200,7 @@ def _campaign_runs(args):
     check_runs(args, per_case * cases, f"{cases:,} cases x {per_case} set(s)")
     return campaign_runs(seeds, nominal, filters, detections=detections, gyro_ranges_dps=gyro, mag_latencies_s=lat,
                          duration=args.duration, height_m=args.height, detector=detector,
-                         failure_modes=modes)  # fmt: skip
+                         failure_modes=modes, truth_spread=args.truth_spread)  # fmt: skip
 
 
 def cmd_campaign(args):
@@ -264,6 +265,13 @@ def _add_campaign_args(p):
         help=f"how the complete losses happen, comma-separated: {', '.join(CAMPAIGN_FAILURE_MODES)} (the motor "
         "stops and spins down, its propeller on); each complete-loss seed is flown once per mode, the partial losses "
         f"and nominal flights once (default: {CAMPAIGN_FAILURE_MODES[0]})",
+    )
+    p.add_argument(
+        "--truth-spread",
+        default="none",
+        choices=TRUTH_SPREADS,
+        help="the vehicle flown drawn apart from the model its estimator, detector and controllers know, one draw "
+        "per flight from its seed: none (the model flies) or default (docs/truth.md's ranges) (default: none)",
     )
     p.add_argument(
         "--gyro-range",

@@ -150,10 +150,12 @@ def fly_case(case: dict, detector: DetectorParams | None = None, estimator: str 
 
 
 def fly_case_flight(
-    case: dict, detector: DetectorParams | None = None, estimator: str = "truth", overrides: dict | None = None
-) -> Flight:
+    case: dict, detector: DetectorParams | None = None, estimator: str = "truth", overrides: dict | None = None,
+    truth: str | None = None,
+) -> Flight:  # fmt: skip
     """The flight of :func:`fly_case`, its sensors' parameters changed by ``overrides``
-    (``{"gyro.range": 8.73}``) before the case's own draws."""
+    (``{"gyro.range": 8.73}``) before the case's own draws; ``truth``: the vehicle that flies
+    apart from the model (:attr:`~quadest.flight.spec.FlightSpec.truth`; None: the model)."""
     failure = case_failure(case)
     controller = "ftc" if failure is not None and failure.complete else "se3"
     return fly(
@@ -165,6 +167,7 @@ def fly_case_flight(
         controller=controller,
         estimator=estimator,
         detection=_detection(case["mode"], detector),
+        truth=truth,
         **case_flight_kwargs(case, overrides),
     )
 

@@ -124,6 +124,8 @@ def fly(spec: FlightSpec | str = "trajectory", /, **changes) -> Flight:
     spec = replace(FlightSpec(spec) if isinstance(spec, str) else spec, **changes)
     r = spec.resolved()
     meta = {"scenario": f"flown {spec.scenario}", "preset": r.preset, "vehicle": r.vehicle_name}
+    if r.truth_drawn:
+        meta["truth_drawn"] = dict(r.truth_drawn)
     if spec.scenario == "throw":
         meta.update(controller="se3 after recovery", estimator=r.estimator)
         return fly_throw(
@@ -132,8 +134,9 @@ def fly(spec: FlightSpec | str = "trajectory", /, **changes) -> Flight:
             meta=meta,
         )  # fmt: skip
     rate = r.rates[0]
-    t, rng_mocap, (x0, ref) = _referenced(spec.scenario, r.duration, rate, spec.seed, r.vehicle, r.params)
-    processes, sm = sensors_for(r.cfg, len(t), spec.seed, r.vehicle)  # the generators and order of flown_recording's
+    # the truth flies (its start, its sensors, the plant); the model is what the software knows
+    t, rng_mocap, (x0, ref) = _referenced(spec.scenario, r.duration, rate, spec.seed, r.truth, r.params)
+    processes, sm = sensors_for(r.cfg, len(t), spec.seed, r.truth)  # the generators and order of flown_recording's
     nav, est = _in_loop(r.estimator, r.cfg, rate, spec.estimator_params)
     if not isinstance(r.estimator, Estimator):  # one given continues from its state
         _start_converged(est, sm, x0[6:10], r.cfg, r.params.estimator_start_s)
@@ -151,6 +154,8 @@ def fly(spec: FlightSpec | str = "trajectory", /, **changes) -> Flight:
     if detection != "oracle":
         add_detection(flight, loop.detection, detection, r.failure, flown)
     flight.summary.update(landing_summary(loop.landing, t[:flown]))
+    if r.truth_drawn:
+        flight.summary["truth_drawn"] = dict(r.truth_drawn)
     if r.watching is not None or r.event is not None:
         flight.summary.update(inflight.summary(flight, out, loop, r.event, status, rate))
     return flight
@@ -166,7 +171,7 @@ def _loop(spec: FlightSpec, r: Resolved, motion, sensing, estimating, detecting)
     ftc, gains = spec.ftc or FtcParams(), (spec.se3 or SE3Params()).gains(vehicle)
     oracle = detection == "oracle"
     return build.loop(
-        plant=_plant(vehicle, params, r.failure, t, (rate, substeps), oracle, seed, r.event),
+        plant=_plant(r.truth, params, r.failure, t, (rate, substeps), oracle, seed, r.event),
         sensing=_position_sensing(sm, params, rate, every, n, x0, rng_mocap, vehicle.rotors, seed),
         nav=build.navigation(
             nav,
@@ -308,7 +313,7 @@ def _flight(out, t, r: Resolved, seed, meta, run) -> Flight:
     simulation samples, with the loop's readings; the failure in its ``meta``; the phase of each
     sample when the flight may recover in flight); ``run``: the sensors' processes and the
     loop's wall time (s)."""
-    (processes, loop_s), vehicle, failure = run, r.vehicle, r.failure
+    (processes, loop_s), vehicle, failure = run, r.truth, r.failure
     imbalance = np.zeros((len(t), vehicle.rotors))
     if failure is not None:
         meta["failure"] = failure.to_dict()  # imbalance in kg m

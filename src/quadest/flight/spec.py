@@ -7,8 +7,10 @@ cannot fly. :func:`~quadest.flight.fly.fly` flies one."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import NamedTuple
+
+import numpy as np
 
 from quadest.control import FtcParams, SE3Params
 from quadest.control.registry import CONTROLLERS as REGISTRY
@@ -19,6 +21,7 @@ from quadest.flight import inflight
 from quadest.flight.common import SIM_RATE_HZ, FlightParams
 from quadest.flight.throw import ThrowParams
 from quadest.models.multirotor import MultirotorParams, vehicle_preset
+from quadest.models.truth import Truth, TruthSpread, draw_truth, truth_spread
 from quadest.recovery.divergence import CHECKS, DivergenceParams
 from quadest.sim import build_config
 from quadest.sim.faults import Failure
@@ -39,7 +42,12 @@ class FlightSpec:
     ``rotor-loss``: rotor 0 at 2 s); ``se3``, ``ftc``: the controllers' gains; ``params``: the
     flight's :class:`~quadest.flight.common.FlightParams`; ``estimator_params``: the named
     estimator's parameters; ``throw``: a throw's; ``detection``: ``oracle``, ``rotor-speeds``,
-    ``commands`` or a :class:`~quadest.detect.DetectorParams`."""
+    ``commands`` or a :class:`~quadest.detect.DetectorParams`; ``truth``: the vehicle that
+    flies when it is not the model (``vehicle``) that the estimator, the detector and the
+    controllers know (:mod:`quadest.models.truth`): a
+    :class:`~quadest.models.multirotor.MultirotorParams`, a
+    :class:`~quadest.models.truth.TruthSpread` or a spread's name (``none``, ``default``) drawn
+    from the seed; None: the model flies."""
 
     scenario: str = "trajectory"
     estimator: str | Estimator = "truth"
@@ -56,6 +64,7 @@ class FlightSpec:
     estimator_params: dict | None = field(default=None, hash=False)
     throw: ThrowParams | None = None
     detection: str | DetectorParams = "oracle"
+    truth: MultirotorParams | TruthSpread | str | None = None
 
     def resolved(self, seed: int | None = None) -> Resolved:
         """The flight checked and completed (:class:`Resolved`), for ``seed`` (default the
@@ -71,9 +80,14 @@ class FlightSpec:
         event, watching = _in_flight_request(self.scenario, params, seed, duration)
         preset, cfg = _sensors(self.preset, self.config, self.scenario, watching)
         rate, substeps, every = _rates(cfg, params, preset)
+        truth = _truth(self.truth, vehicle, seed, self.scenario)
+        if truth.sensors:
+            cfg = sensors_of(cfg, truth.sensors)
+        if truth.speed_noise is not None:
+            params = replace(params, speed_noise=truth.speed_noise)
         return Resolved(
             estimator, controller, duration, vehicle, vehicle_name, failure, params, event, watching, preset, cfg,
-            (rate, substeps, every),
+            (rate, substeps, every), truth.vehicle, truth.drawn,
         )  # fmt: skip
 
 
@@ -96,6 +110,34 @@ class Resolved(NamedTuple):
     preset: str
     cfg: SimConfig
     rates: tuple
+    truth: MultirotorParams
+    truth_drawn: dict
+
+
+def _truth(truth, model: MultirotorParams, seed: int, scenario: str) -> Truth:
+    """The vehicle that flies (:class:`~quadest.models.truth.Truth`): ``model`` for None or
+    ``none``, a spread drawn from the seed's own generator, or the one given."""
+    if truth is None or (isinstance(truth, str) and truth == "none"):
+        return Truth(model, {}, None, {})
+    if scenario == "throw":
+        raise UsageError("a throw flies its model: no truth apart from it")
+    if isinstance(truth, MultirotorParams):
+        if truth.rotors != model.rotors:
+            raise UsageError(f"truth: {truth.rotors} rotors, the model has {model.rotors}")
+        return Truth(truth, {}, None, {})
+    spread = truth_spread(truth) if isinstance(truth, str) else truth
+    if not isinstance(spread, TruthSpread):
+        raise UsageError(f"truth: a MultirotorParams, a TruthSpread or a spread's name, not {type(truth).__name__}")
+    return draw_truth(model, np.random.default_rng(np.random.SeedSequence([int(seed), 41])), spread)
+
+
+def sensors_of(cfg: SimConfig, changes: dict) -> SimConfig:
+    """``cfg`` with a truth's sensors (``{"section.field": value}``, fixed values that replace the
+    configuration's draws)."""
+    for key, value in changes.items():
+        section, _, name = key.partition(".")
+        cfg = replace(cfg, **{section: replace(getattr(cfg, section), **{name: value})})
+    return cfg.validate()
 
 
 def in_loop_estimators() -> list[str]:

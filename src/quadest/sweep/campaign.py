@@ -27,6 +27,8 @@ from quadest.evaluation.detection import (
     summarize_failures,
 )
 from quadest.flight import FlightParams
+from quadest.models.truth import TRUTH_SPREADS, drawn_names
+from quadest.sweep.truth_summary import truth_lines, truth_survival
 
 HEIGHT_M = FlightParams().height_m
 """m: the hover point's height above the ground a campaign flies at unless told otherwise."""
@@ -84,6 +86,8 @@ CAMPAIGN_ROW_TYPES = {
     "tilt_error_rms_deg": "double",
     "height_m": "double",
     "drop_m": "double",
+    "truth_spread": "string",
+    **{f"truth_{name}": "double" for name in drawn_names()},
 }
 """A campaign run's row: the run (as a sweep's), the case, and what happened. Integers are −1
 where they do not apply (no rotor failed, none found); numbers NaN."""
@@ -92,14 +96,18 @@ where they do not apply (no rotor failed, none found); numbers NaN."""
 def campaign_runs(
     seeds, nominal_seeds, filters, *, detections=DETECTIONS, gyro_ranges_dps=(None,), mag_latencies_s=(0.0,),
     duration: float = 60.0, failure_duration: float = 6.0, height_m: float | None = None,
-    detector: dict | None = None, failure_modes=FAILURE_MODES[:1],
+    detector: dict | None = None, failure_modes=FAILURE_MODES[:1], truth_spread: str = "none",
 ) -> list[dict]:  # fmt: skip
     """Every (failure seed or nominal seed, estimator, detection mode, gyroscope range,
     magnetometer latency) as a run spec, the hover point ``height_m`` above the ground (None:
     ``FlightParams``'), the detector's parameters changed by ``detector`` (``{name: value}``;
     the oracle flies none), each complete loss once per mode of ``failure_modes``
-    (:data:`FAILURE_MODES`); the oracle flies only the complete losses (it knows nothing of a
-    partial one, and has nothing to alarm on in nominal flight)."""
+    (:data:`FAILURE_MODES`), the vehicle flown drawn apart from the model within ``truth_spread``
+    (:data:`~quadest.models.truth.TRUTH_SPREADS`; ``none``: the model flies); the oracle flies
+    only the complete losses (it knows nothing of a partial one, and has nothing to alarm on in
+    nominal flight)."""
+    if truth_spread not in TRUTH_SPREADS:
+        raise UsageError(f"--truth-spread: unknown spread {truth_spread!r}; spreads: {', '.join(TRUTH_SPREADS)}")
     bad = [d for d in detections if d not in DETECTIONS]
     if bad:
         raise UsageError(f"--detection: unknown mode(s) {', '.join(bad)}; known: {', '.join(DETECTIONS)}")
@@ -118,6 +126,8 @@ def campaign_runs(
                            "mag_latency_s": float(lat)}  # fmt: skip
                     if detector and mode != "oracle":  # the defaults' runs keep their ids
                         src["detector"] = dict(detector)
+                    if truth_spread != "none":  # so do the model's
+                        src["truth_spread"] = truth_spread
                     runs += [{"filter": f, "params": {}, "source": src, "align": None} for f in filters]
     return runs
 
@@ -149,7 +159,8 @@ def campaign_label(src: dict) -> str:
     g = "" if src["gyro_range_dps"] is None else f"/gyro{src['gyro_range_dps']:g}"
     lat = f"/maglat{src['mag_latency_s']:g}" if src["mag_latency_s"] else ""
     det = f"/{detector_label(src.get('detector'))}" if src.get("detector") else ""
-    return f"campaign {c['scenario']}/{what}/{c['mode']}{det}{g}{lat}/seed{c['seed']}"
+    truth = f"/truth-{src['truth_spread']}" if src.get("truth_spread") else ""
+    return f"campaign {c['scenario']}/{what}/{c['mode']}{det}{truth}{g}{lat}/seed{c['seed']}"
 
 
 def detector_label(changes: dict | None) -> str:
@@ -172,9 +183,11 @@ def fly_campaign(spec: dict, row: dict) -> None:
     over = _overrides(src)
     cfg = case_config(case, over)
     detector = DetectorParams(**src["detector"]) if src.get("detector") else None
-    f = fly_case_flight(case, detector, estimator=spec["filter"], overrides=over)
+    f = fly_case_flight(case, detector, estimator=spec["filter"], overrides=over, truth=src.get("truth_spread"))
     s, det = f.summary, f.summary.get("detection", {})
     row.update(_case_columns(src, cfg))
+    drawn = s.get("truth_drawn", {})
+    row.update({f"truth_{name}": _num(drawn.get(name)) for name in drawn_names()})
     row.update(
         {
             "samples": len(f.recording),
@@ -220,6 +233,7 @@ def _case_columns(src: dict, cfg) -> dict:
         "efficiency": _num(c.get("efficiency")),
         "failure_mode": "" if c["rotor"] is None else case_failure(c).mode,
         "height_m": float(c.get("height_m", HEIGHT_M)),
+        "truth_spread": src.get("truth_spread", "none"),
     }
 
 
@@ -273,7 +287,7 @@ def _as_case_row(r: dict) -> dict:
     }
 
 
-GROUP = ("filter", "detection", "detector", "gyro_range_dps", "mag_latency_s", "height_m")
+GROUP = ("filter", "detection", "detector", "gyro_range_dps", "mag_latency_s", "height_m", "truth_spread")
 
 
 def _with_mode(r: dict) -> dict:
@@ -303,12 +317,14 @@ def campaign_summary(rows: list[dict]) -> dict:
     (:func:`up_by_height`), the nominal flights' hours and alarms (the partial losses and nominal
     flights, flown once, in each failure mode's group); and survival against spin, clipping,
     delay, latency and height."""
-    ok = [_with_mode({"height_m": HEIGHT_M, "detector": "", **r}) for r in rows if r["status"] == "ok"]  # before
+    before = {"height_m": HEIGHT_M, "detector": "", "truth_spread": "none"}  # files of before lack them
+    ok = [_with_mode({**r, **{k: v for k, v in before.items() if r.get(k) is None}}) for r in rows]
+    ok = [r for r in ok if r["status"] == "ok"]
     groups: dict = {}
     for r in ok:
         groups.setdefault(tuple(r[k] for k in GROUP), []).append(r)
     out = {"runs": len(rows), "ok": len(ok), "failed": len(rows) - len(ok), "groups": []}
-    keys = sorted(groups, key=lambda k: (k[0], DETECTIONS.index(k[1]), k[2], -k[3], k[4], k[5]))
+    keys = sorted(groups, key=lambda k: (k[0], DETECTIONS.index(k[1]), k[2], -k[3], k[4], k[5], k[6]))
     for key, mode, mine in ((k, m, rs) for k in keys for m, rs in _by_failure_mode(groups[k])):
         failures = [_as_case_row(r) for r in mine if r["kind"] != "nominal"]
         nominal = [r for r in mine if r["kind"] == "nominal"]
@@ -319,6 +335,7 @@ def campaign_summary(rows: list[dict]) -> dict:
         losses = [r for r in mine if r["kind"] == "loss"]
         g["survival_by_scenario"] = _by_scenario(losses)
         g["up_by_height"] = up_by_height(losses)
+        g["truth"] = truth_survival(losses) if g["truth_spread"] != "none" else None
         g["nominal"] = {
             "flights": len(nominal),
             "hours": sum(r["flown_s"] for r in nominal) / 3600.0,
@@ -344,7 +361,8 @@ def group_label(g: dict, groups: list[dict]) -> str:
         parts.append(f"detector {g['detector']}")
     if len({h.get("failure_mode") for h in groups}) > 1:
         parts.append(g.get("failure_mode") or "no complete loss")
-    for key, fmt in (("gyro_range_dps", "±{:g} °/s"), ("mag_latency_s", "latency {:g} s"), ("height_m", "{:g} m up")):
+    for key, fmt in (("gyro_range_dps", "±{:g} °/s"), ("mag_latency_s", "latency {:g} s"), ("height_m", "{:g} m up"),
+                     ("truth_spread", "truth {}")):  # fmt: skip
         if len({h[key] for h in groups}) > 1:
             parts.append(fmt.format(g[key]))
     return " / ".join(parts)
@@ -390,6 +408,8 @@ CURVES = {
     "gyro_clipped_share": ("share of samples with a gyro axis clipped", 8),
     "delay_s": ("detection delay (s)", 8),
     "mag_latency_s": ("magnetometer latency (s)", None),
+    "truth_rotor_inertia_ratio": ("rotor inertia flown over the model's", 4),
+    "truth_max_thrust_ratio": ("thrust at top speed flown over the model's (headroom)", 4),
 }
 """What survival is drawn against, with the number of quantile bins (None: each value its own)."""
 
@@ -403,7 +423,7 @@ def survival_curves(rows: list[dict]) -> dict:
     for var, (label, bins) in CURVES.items():
         lines = {}
         for name in sorted({_curve_key(r, several) for r in rows}):
-            mine = [r for r in rows if _curve_key(r, several) == name and np.isfinite(r[var])]
+            mine = [r for r in rows if _curve_key(r, several) == name and np.isfinite(r.get(var, math.nan))]
             if mine:
                 lines[" / ".join(n for n in name if n)] = _binned(mine, var, bins)
         if lines:
@@ -462,6 +482,7 @@ def format_campaign(summary: dict) -> str:
             kept = ", ".join(f"{h:g} m: {n}" for h, n in zip(up["x"], up["survived"]))
             lines.append(f"{group_label(g, summary['groups'])}: of {up['flights'][0]} complete losses, up with the "
                          f"hover point at {kept} above the ground")  # fmt: skip
+    lines += [f"{group_label(g, summary['groups'])}: {line}" for g in summary["groups"] for line in truth_lines(g)]
     return "\n".join(lines)
 
 
