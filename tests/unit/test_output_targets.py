@@ -139,7 +139,7 @@ def test_the_command_line_refuses_before_any_work_and_force_replaces(tmp_path, c
     assert code == 2 and err.count("\n") == 1 and "read-only" in err and "simulating" not in out
     assert ro.read_text() == "keep"
     code, out, err = _run(capsys, "simulate", "--duration", "1", "-o", ro, "--force")
-    assert code == 0 and ro.read_text().startswith("# quadest")
+    assert code == 0 and ro.read_text().startswith("t,gyr_x,")
     code, out, err = _run(capsys, "simulate", "--duration", "1", "-o", tmp_path / "nope" / "x.csv")
     assert code == 2 and "the folder" in err and "does not exist" in err and not (tmp_path / "nope").exists()
 
