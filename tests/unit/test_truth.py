@@ -145,3 +145,25 @@ def test_the_plant_hovers_on_the_truths_thrust():
     speed = f.states[late, 13:].mean()
     assert speed == pytest.approx(truth.hover_speed(), rel=0.01)
     assert abs(speed / model.hover_speed() - 1) > 0.03
+
+
+def test_the_docs_table_is_the_default_spread():
+    """docs/truth.md's table of ranges states DEFAULT_RANGES: each quantity once, its bounds, how
+    it is drawn, on which axes, and its source."""
+    from pathlib import Path
+
+    from quadest.models.truth import DEFAULT_RANGES
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "truth.md").read_text()
+    rows = {}
+    for line in text.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) == 5 and cells[0].startswith("`") and cells[0].strip("`") in DEFAULT_RANGES:
+            rows[cells[0].strip("`")] = cells
+    assert set(rows) == set(DEFAULT_RANGES)
+    for name, r in DEFAULT_RANGES.items():
+        _, low, high, drawn, source = rows[name]
+        assert (float(low), float(high)) == pytest.approx((r.low, r.high), abs=5e-6), name
+        assert drawn.startswith("log-uniform" if r.log else "uniform"), name
+        assert (f"per axis {', '.join(r.axes)}" in drawn) == bool(r.axes), name
+        assert source == r.source, name
