@@ -46,3 +46,12 @@ def test_dash_is_refused_for_outputs_that_are_not_tables(capsys, argv):
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "standard output takes a table" in err, err
+
+
+def test_a_closed_standard_output_is_one_line():
+    """Found by a hostile run: ``-o -`` with stdout closed (``>&-``) ended in a traceback."""
+    r = subprocess.run(
+        ["sh", "-c", f"'{sys.executable}' -m quadest.cli.main simulate --duration 1 -o - >&-"],
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert r.returncode == 1 and "standard output is closed" in r.stderr and "Traceback" not in r.stderr, r.stderr

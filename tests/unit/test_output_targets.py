@@ -144,6 +144,21 @@ def test_the_command_line_refuses_before_any_work_and_force_replaces(tmp_path, c
     assert code == 2 and "the folder" in err and "does not exist" in err and not (tmp_path / "nope").exists()
 
 
+def test_a_csvs_metadata_is_an_output_checked_before_any_work(tmp_path, capsys):
+    """Found by a hostile run: the metadata file beside a CSV output, linked to the input, was
+    written onto the input; a read-only one refused only after the CSV had been replaced."""
+    rec = tmp_path / "r.csv"
+    assert _run(capsys, "simulate", "--duration", "1", "-o", rec)[0] == 0
+    before = rec.read_bytes()
+    (tmp_path / "e.csv-metadata.json").symlink_to(rec)
+    code, out, err = _run(capsys, "estimate", rec, "--filter", "madgwick", "-o", tmp_path / "e.csv")
+    assert code == 2 and err.count("\n") == 1 and "e.csv-metadata.json is the input file" in err
+    assert rec.read_bytes() == before and not (tmp_path / "e.csv").exists()
+    os.chmod(tmp_path / "r.csv-metadata.json", 0o444)
+    code, out, err = _run(capsys, "simulate", "--duration", "1", "--seed", "5", "-o", rec)
+    assert code == 2 and "r.csv-metadata.json is read-only" in err and rec.read_bytes() == before
+
+
 def test_every_command_that_writes_takes_force():
     from quadest.cli.main import build_parser
 

@@ -261,3 +261,42 @@ def test_earlier_versions_still_read_and_a_v2_cut_short_is_refused(tmp_path):
         p.write_bytes(data[:cut])
         with pytest.raises(ValueError, match="cut short"):
             load_recording(p)
+
+
+@pytest.mark.parametrize(
+    ("edit", "said"),
+    [
+        (lambda d: d["quadest"].update(rows="200"), "damaged metadata of r.csv"),
+        (lambda d: d["quadest"].update(format="quadest recording v9"), "damaged metadata"),
+        (lambda d: d["quadest"].pop("values_sha256"), "damaged metadata"),
+        (lambda d: d["quadest"]["meta"].update(earth_field_ned_ut="abc"), "earth_field_ned_ut must be 3 finite"),
+        (lambda d: d["quadest"]["meta"].update(declination_rad=[1]), "declination_rad must be a finite number"),
+    ],
+)
+def test_a_damaged_metadata_file_is_one_line_naming_it(tmp_path, edit, said):
+    """Found by a hostile read: a row count as a string blamed the intact CSV, an unknown format
+    was read as v3, a field of the wrong kind ended in an internal error."""
+    path = save_recording(make(), tmp_path / "r.csv")
+    side = tmp_path / "r.csv-metadata.json"
+    doc = json.loads(side.read_text())
+    edit(doc)
+    side.write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match=said) as exc:
+        load_recording(path)
+    assert "\n" not in str(exc.value)
+    side.write_text("[" * 100_000 + "]" * 100_000)  # nested beyond Python's recursion
+    with pytest.raises(ValueError, match="damaged metadata"):
+        load_recording(path)
+
+
+def test_through_a_link_the_metadata_stands_beside_the_file(tmp_path):
+    """Written and read through a link, the metadata is the linked file's (before: written beside
+    the link, the file's own left stale)."""
+    real = save_recording(make(), tmp_path / "real.csv")
+    (tmp_path / "link.csv").symlink_to(real)
+    rec = make(rng=np.random.default_rng(5))
+    save_recording(rec, tmp_path / "link.csv")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link.csv", "real.csv", "real.csv-metadata.json"]
+    for name in ("real.csv", "link.csv"):
+        back = load_recording(tmp_path / name)
+        assert np.array_equal(back.gyr, rec.gyr) and back.meta["source"] == "test"

@@ -72,7 +72,8 @@ def add_verbosity(parser, *, top: bool = False) -> None:
     default = False if top else argparse.SUPPRESS  # a command's own would otherwise reset the top's
     parser.add_argument(
         "-q", "--quiet", action="store_true", default=default,
-        help="say only results, warnings and errors: no progress, notes or compile notices",
+        help="no progress bars, library notes or compile notices (results, a command's own lines, warnings and "
+        "errors stay)",
     )  # fmt: skip
     parser.add_argument(
         "-v", "--verbose", action="store_true", default=default,

@@ -175,6 +175,7 @@ def check_outputs(args) -> None:
     input), or that cannot be written as its kind says (data.files.output_target: a read-only
     file without --force, a missing folder, a socket...)."""
     from quadest.data.files import output_folder, output_target, refuse_overwriting_inputs
+    from quadest.data.tables import csv_metadata_path
 
     inputs = [p for name in INPUT_OPTIONS for p in _paths(getattr(args, name, None))]
     outputs = {
@@ -184,6 +185,8 @@ def check_outputs(args) -> None:
     }
     folders = {OUTPUT_OPTIONS[name] for command, name in FOLDER_OUTPUTS if command == args.command}
     data_on_stdout(args)
+    outputs.update(_metadata_beside(outputs))  # a CSV's metadata file is written, and read, too
+    inputs += [csv_metadata_path(p) for p in inputs if str(p).lower().endswith(".csv")]
     try:
         refuse_overwriting_inputs(outputs, inputs)
         _refuse_shared_outputs(outputs)
@@ -194,6 +197,17 @@ def check_outputs(args) -> None:
                 output_folder(path)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
+
+
+def _metadata_beside(outputs: dict) -> dict:
+    """The metadata file each CSV output writes beside it (``-o e.csv``: ``e.csv-metadata.json``)."""
+    from quadest.data.tables import csv_metadata_path
+
+    return {
+        f"{opt} {path}'s metadata": csv_metadata_path(path)
+        for opt, path in outputs.items()
+        if str(path).lower().endswith(".csv")
+    }
 
 
 def _refuse_shared_outputs(outputs: dict) -> None:
@@ -275,7 +289,7 @@ def end(code) -> None:
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
-        except (OSError, ValueError):  # a reader that stopped (head), or a closed stream
+        except (OSError, ValueError, AttributeError):  # a reader that stopped (head); closed, or None from the start
             pass
     os._exit(code)
 

@@ -142,7 +142,10 @@ def _open_stream(path: Path, wait_s: float) -> int:
     """A descriptor to write ``path`` as a stream; a FIFO waits up to ``wait_s`` for a reader
     (opening it blocking would wait forever), then is refused."""
     if str(path) in DESCRIPTORS:
-        (sys.stdout if DESCRIPTORS[str(path)] == 1 else sys.stderr).flush()
+        stream = sys.stdout if DESCRIPTORS[str(path)] == 1 else sys.stderr
+        if stream is None:  # closed when the program started (>&-)
+            raise ValueError(f"{path}: standard {'output' if DESCRIPTORS[str(path)] == 1 else 'error'} is closed")
+        stream.flush()
         return os.dup(DESCRIPTORS[str(path)])
     deadline = time.monotonic() + wait_s
     while True:

@@ -202,6 +202,7 @@ class Recording:
         meta["units"] = {"gyr": "rad/s", "acc": "m/s^2", "mag": "unknown", **meta["units"]}
         _check_si(meta["units"])
         _check_rotor_meta(meta, self.rotors)
+        _check_declination_meta(meta)
         object.__setattr__(self, "meta", meta)
         if self.check_units:
             self._check_units()
@@ -368,6 +369,21 @@ class Recording:
             for j, c in enumerate(columns_of(name, self.rotors)):
                 cols[c] = a[:, j]
         return cols
+
+
+def _check_declination_meta(meta: dict) -> None:
+    """What :attr:`Recording.declination` reads, where present: an earth field of 3 finite numbers
+    (µT, NED) and a finite declination (rad)."""
+    field_ned = meta.get("earth_field_ned_ut")
+    if field_ned is not None and not (
+        isinstance(field_ned, (list, tuple))
+        and len(field_ned) == 3
+        and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in field_ned)
+    ):
+        raise ValueError(f"meta: earth_field_ned_ut must be 3 finite numbers (µT, NED), got {field_ned!r}")
+    decl = meta.get("declination_rad", 0.0)
+    if not (isinstance(decl, (int, float)) and not isinstance(decl, bool) and math.isfinite(decl)):
+        raise ValueError(f"meta: declination_rad must be a finite number (rad), got {decl!r}")
 
 
 def _check_rotor_meta(meta: dict, rotors: int) -> None:

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from quadest.data.files import STDOUT, atomic_output
+from quadest.data.files import DESCRIPTORS, atomic_output
 from quadest.data.recording import (
     ROTOR_FIELDS,
     SENSOR_FIELDS,
@@ -28,7 +28,7 @@ from quadest.data.recording import (
     columns_of,
     numeric_column,
 )
-from quadest.data.tables import described, read_csv_metadata, write_csv_metadata
+from quadest.data.tables import check_csv_metadata_target, described, read_csv_metadata, write_csv_metadata
 
 FORMAT_TAG = "quadest recording v3"
 """v3: a plain CSV, its metadata beside it (module docstring); Parquet as in v2."""
@@ -60,7 +60,7 @@ def column_units(rec: Recording) -> dict:
 
 
 def _kind(path: Path) -> str:
-    if str(path) == STDOUT:
+    if str(path) in DESCRIPTORS and not path.suffix:
         return "csv"
     ext = path.suffix.lower()
     if ext == ".csv":
@@ -88,6 +88,7 @@ def save_recording(rec: Recording, path: str | Path) -> Path:
         return path
     import pyarrow.csv as pcsv
 
+    check_csv_metadata_target(path)
     with atomic_output(path, suffix=".csv") as tmp, open(tmp, "wb") as f:
         f.write((",".join(table.column_names) + "\n").encode())
         pcsv.write_csv(table, f, pcsv.WriteOptions(include_header=False, quoting_style="none"))
@@ -147,7 +148,7 @@ def _from_columns(names, get, meta, source, check_units=True) -> Recording:
         )
     try:
         return Recording(**kw, meta=meta, check_units=check_units, _adopt=True)  # checked like any other file
-    except ValueError as exc:
+    except (ValueError, TypeError) as exc:  # TypeError: a metadata value of the wrong kind
         raise ValueError(f"{source}: {exc}") from None
 
 
@@ -195,7 +196,11 @@ def values_sha256(rec: Recording) -> str:
 
 def _stated_meta(path: Path, beside: dict) -> dict:
     meta = beside.get("meta", {})
-    if not isinstance(meta, dict):
+    if (
+        not isinstance(meta, dict)
+        or beside.get("format") != FORMAT_TAG
+        or not isinstance(beside.get("values_sha256"), str)
+    ):
         raise ValueError(f"{path}-metadata.json: damaged metadata; repair it, or delete it to read the CSV plain")
     return meta
 

@@ -6,10 +6,11 @@ the CSV itself stays plain for any reader."""
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Iterable
 from pathlib import Path
 
-from quadest.data.files import STDOUT, atomic_output, dumps_json, output_target, write_bytes
+from quadest.data.files import DESCRIPTORS, atomic_output, dumps_json, output_target, write_bytes
 
 CSV_METADATA_SUFFIX = "-metadata.json"
 """W3C CSV on the Web's name for a CSV's metadata file: ``NAME.csv-metadata.json`` beside it."""
@@ -17,9 +18,19 @@ CSVW_CONTEXT = "http://www.w3.org/ns/csvw"
 
 
 def csv_metadata_path(path) -> Path:
-    """The metadata file of the CSV ``path`` (:data:`CSV_METADATA_SUFFIX`)."""
+    """The metadata file of the CSV ``path`` (:data:`CSV_METADATA_SUFFIX`), beside the file the
+    name leads to (a link's target)."""
     path = Path(path)
-    return path.with_name(path.name + CSV_METADATA_SUFFIX)
+    real = Path(os.path.realpath(path)) if path.is_symlink() else path
+    return real.with_name(real.name + CSV_METADATA_SUFFIX)
+
+
+def check_csv_metadata_target(path) -> None:
+    """Before a CSV is written: refuse (ValueError, one line) a metadata file that could not be
+    written beside it, so that the CSV is not replaced and then left without its metadata."""
+    if str(path) in DESCRIPTORS or output_target(path).stream:
+        return
+    output_target(csv_metadata_path(path))
 
 
 def write_csv_metadata(path, names, units: dict | None, quadest: dict) -> Path | None:
@@ -49,9 +60,10 @@ def read_csv_metadata(path) -> dict | None:
         return None
     try:
         part = json.loads(side.read_bytes())["quadest"]
-    except (ValueError, KeyError, TypeError, UnicodeDecodeError):
+    except (ValueError, KeyError, TypeError, UnicodeDecodeError, RecursionError):
         part = None
-    if not isinstance(part, dict):
+    rows = part.get("rows") if isinstance(part, dict) else None
+    if not isinstance(part, dict) or not (isinstance(rows, int) and not isinstance(rows, bool) and 0 <= rows < 2**63):
         raise ValueError(
             f"{side}: damaged metadata of {Path(path).name}; repair it, or delete it to read the CSV plain"
         )
@@ -85,7 +97,7 @@ def write_blocks(blocks: Iterable[dict], path: str | Path, *, units: dict | None
     """Consecutive blocks of rows, each ``{name: 1-D array}`` with the same names, written as
     :func:`write_table` writes one: a long table is never held whole."""
     path = Path(path)
-    suffix = ".csv" if str(path) == STDOUT else path.suffix.lower()
+    suffix = ".csv" if str(path) in DESCRIPTORS and not path.suffix else path.suffix.lower()
     if suffix not in (".csv", ".parquet", ".pq"):
         raise ValueError(f"{path}: use .csv or .parquet")
     import pyarrow as pa  # loaded when a table is written, not by `import quadest`
@@ -93,6 +105,8 @@ def write_blocks(blocks: Iterable[dict], path: str | Path, *, units: dict | None
     import pyarrow.parquet as pq
 
     rows, names = 0, []
+    if suffix == ".csv" and units:
+        check_csv_metadata_target(path)
     with (
         atomic_output(path, suffix=suffix) as tmp,
         open(tmp, "wb") as fh,
