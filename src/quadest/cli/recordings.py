@@ -325,7 +325,9 @@ def _add_estimate(sub):
         "recording, before and after it (robust-offline, or the offline estimator --filter names: "
         "robust-offline, vqf-offline)",
     )
-    es.add_argument("-o", "--output", "--out", required=True, metavar="OUT", help=".csv or .parquet")
+    es.add_argument(
+        "-o", "--output", "--out", required=True, metavar="OUT", help=".csv or .parquet; - for CSV on standard output"
+    )
     es.add_argument("--param", action="append", metavar="FILTER.NAME=VALUE", help="estimator parameter")
     es.add_argument(
         "--diagnostics",

@@ -74,7 +74,13 @@ def add_parsers(sub):
         help="ideal sensors: no noise, bias, scale error, saturation or disturbance "
         "(--set and --config then add chosen errors back)",
     )
-    s.add_argument("-o", "--output", "--out", metavar="FILE", help="recording to write (.csv or .parquet)")
+    s.add_argument(
+        "-o",
+        "--output",
+        "--out",
+        metavar="FILE",
+        help="recording to write (.csv or .parquet; - for CSV on standard output)",
+    )
     s.add_argument("--plot", metavar="PNG", help="also draw attitude, rates and sensor signals")
     s.add_argument(
         "--list-params", action="store_true", help="print every parameter (after preset and overrides) and exit"
